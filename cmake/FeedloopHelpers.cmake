@@ -1,0 +1,18 @@
+# feedloop_add_test(NAME SOURCES a.cpp b.cpp LIBS lib1 lib2 [LABELS l1 l2] [TIMEOUT s])
+# One GoogleTest executable; each TEST becomes a ctest case. Tests run from the build directory
+# and find repository files through FEEDLOOP_SOURCE_DIR and the corpus through
+# FEEDLOOP_SHARED_DIR (absent in a user's clone: such tests GTEST_SKIP with a message).
+function(feedloop_add_test name)
+  cmake_parse_arguments(T "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${name} ${T_SOURCES})
+  target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main GTest::gmock)
+  target_compile_definitions(${name} PRIVATE
+    FEEDLOOP_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
+    FEEDLOOP_SHARED_DIR="${CMAKE_SOURCE_DIR}/../shared"
+    FEEDLOOP_BINARY_DIR="${CMAKE_BINARY_DIR}")
+  if(NOT T_TIMEOUT)
+    set(T_TIMEOUT 300)
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
+    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+endfunction()

@@ -1,0 +1,40 @@
+// One parsed G-code line: the contract between the parser (gcode/parser) and everything that
+// executes commands (planner/interpreter, daemon dispatch). Plain data; cheap to copy except for
+// `text`, which only message commands (M117, M118, M23...) fill.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "core/result.hpp"
+
+namespace feedloop::gcode {
+
+struct Command {
+  char letter = 0;    // 'G', 'M' or 'T'; 0 for a line with no command (blank, comment only)
+  int code = -1;      // 1 for G1, 104 for M104, 0 for T0
+  int subcode = -1;   // 1 for G29.1; -1 when absent
+  int64_t line_number = -1;  // the N word, -1 when absent
+  std::string text;   // free text argument (M117 message, M23 file name), unparsed
+  SourceLocation where;      // source name and line of the input this came from
+
+  bool is(char l, int c) const { return letter == l && code == c; }
+  bool empty() const { return letter == 0; }
+
+  // Parameters A..Z (the command letter itself is not a parameter).
+  bool has(char p) const { return (mask_ >> index(p)) & 1u; }
+  double get(char p, double fallback = 0.0) const { return has(p) ? values_[index(p)] : fallback; }
+  void set(char p, double v) {
+    values_[index(p)] = v;
+    mask_ |= 1u << index(p);
+  }
+  bool has_any_parameter() const { return mask_ != 0; }
+
+ private:
+  static int index(char p) { return (p >= 'a' && p <= 'z') ? p - 'a' : p - 'A'; }
+  uint32_t mask_ = 0;
+  std::array<double, 26> values_{};
+};
+
+}  // namespace feedloop::gcode
