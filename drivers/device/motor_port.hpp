@@ -1,0 +1,24 @@
+// What a microcontroller drives and reads: one motor's step/dir/enable pins and one encoder.
+// The virtual MCU (drivers/device) calls it; the plant simulator (sim/) implements it; a
+// firmware port would implement it with GPIO and an SPI/SSI encoder read.
+//
+// Times are on the simulation's true time line in seconds (the virtual MCU converts its own
+// drifting tick clock to true time before calling), and never decrease between calls.
+#pragma once
+
+#include <cstdint>
+
+namespace feedloop::device {
+
+class MotorPort {
+ public:
+  virtual ~MotorPort() = default;
+  // One step pulse at t_s; direction +1 or -1 (in joint coordinates: +1 = towards +mm).
+  virtual void step(double t_s, int direction) = 0;
+  // Driver enable: a disabled motor holds no torque.
+  virtual void set_enabled(double t_s, bool enabled) = 0;
+  // Encoder reading at t_s, in counts of the encoder's resolution (signed, carriage side).
+  virtual int64_t read_encoder_counts(double t_s) = 0;
+};
+
+}  // namespace feedloop::device
