@@ -1,0 +1,95 @@
+// Compression of exact step times into runs (step_run.hpp) with a bounded step-time error.
+//
+// Each step i has an exact time T_i (real MCU ticks) and an allowed window
+//   L_i = T_i - min(E, (T_i - T_{i-1}) / 2)  <=  t_i  <=  U_i = T_i + E
+// where E is the maximum step-time error (default 5 us). Relative to the run's start P, step k
+// of a run is at P + k I + k(k-1)/2 A with integers I (interval) and A (add). The set of (I, A)
+// that keeps steps 1..n inside their windows (and every interval I + (k-1) A >= 1) is a convex
+// polygon: the intersection of strips  L_k - P <= k I + k(k-1)/2 A <= U_k - P.
+//
+// Greedy run extension, O(1) amortised per step:
+//  - keep one integer candidate (I, A) valid for steps 1..n; a new step is accepted if the
+//    candidate's next step (two integer additions) falls inside its window;
+//  - only when it does not, clip the polygon lazily with the strips not yet applied and look for
+//    another integer point near the polygon's centre (exactly verified in integer arithmetic);
+//  - when none exists, emit the run and start the next one from its last step.
+// Before a run is handed to the sink it is checked again by expanding it with the MCU step law
+// (as Klipper's check_line does); a run that fails the check is counted in `check_failures()`
+// (never expected; tests assert zero).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "drivers/stepgen/step_generator.hpp"
+#include "drivers/stepgen/step_run.hpp"
+
+namespace feedloop::stepgen {
+
+struct StepCompressorParams {
+  double max_error_ticks = 100.0;  // 5 us at 20 MHz
+  uint32_t max_run_count = 65535;
+};
+
+struct StepCompressorStats {
+  uint64_t steps = 0;
+  uint64_t runs = 0;
+  uint64_t candidate_searches = 0;
+  uint64_t check_failures = 0;
+  uint64_t window_violations = 0;  // steps closer than one tick: error bound could not be met
+};
+
+class StepCompressor final : public StepSink {
+ public:
+  // Allocates the point buffer (max_run_count + 1 points). Not RT-safe.
+  void configure(const StepCompressorParams& params, RunSink* sink);
+  // Starts a new stream: the previous step is at last_step_clock (no pending run).
+  void reset(int64_t last_step_clock, double last_step_target_ticks);
+
+  // RT-safe (no allocation).
+  void push(double target_ticks, int8_t direction);
+  void on_steps(const double* ticks, const int8_t* directions, size_t n) override {
+    for (size_t i = 0; i < n; ++i) push(ticks[i], directions[i]);
+  }
+  // Emits the pending run (end of a batch or of the stream).
+  void flush();
+
+  int64_t last_emitted_clock() const { return P_; }
+  const StepCompressorStats& stats() const { return stats_; }
+  const StepCompressorParams& params() const { return params_; }
+
+ private:
+  struct Vertex {
+    double i, a;
+  };
+  void start_run_with_first_point();
+  bool search_candidate(uint32_t n);
+  bool verify(int64_t I, int64_t A, uint32_t n) const;
+  void clip(double ni, double na, double c);  // keep ni*I + na*A <= c
+  void emit();
+  double lower(uint32_t k) const { return lo_[k] - static_cast<double>(P_); }
+  double upper(uint32_t k) const { return T_[k] + params_.max_error_ticks - static_cast<double>(P_); }
+
+  StepCompressorParams params_;
+  RunSink* sink_ = nullptr;
+  StepCompressorStats stats_;
+  // Points of the current run, 1-based (index 0 unused): targets T and lower bounds L.
+  std::vector<double> T_, lo_;
+  double prev_target_ = 0.0;   // exact time of the step before the newest point
+  int64_t P_ = 0;              // clock of the last emitted step (run reference)
+  uint32_t n_ = 0;             // accepted steps in the current run
+  int8_t dir_ = 1;
+  int64_t I_ = 0, A_ = 0;      // candidate
+  int64_t pos_ = 0, iv_ = 0;   // candidate's clock of step n_ and its next interval
+  int64_t last_add_ = 0;
+  // Lazily clipped feasible polygon and how many steps' strips it contains.
+  static constexpr int kMaxVerts = 96;
+  Vertex poly_[kMaxVerts];
+  Vertex tmp_[kMaxVerts];
+  int nv_ = 0;
+  uint32_t poly_upto_ = 0;
+  bool poly_overflow_ = false;
+};
+
+}  // namespace feedloop::stepgen
