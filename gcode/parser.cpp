@@ -1,0 +1,335 @@
+// The G-code line parser: words -> Command, then validation against gcode/code_table. One pass
+// over the bytes, no allocation on the success path (Command::clear keeps string storage).
+#include "gcode/parser.hpp"
+
+#include <array>
+#include <climits>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "gcode/code_table.hpp"
+#include "gcode/number.hpp"
+
+namespace feedloop::gcode {
+namespace {
+
+inline bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+inline bool is_alpha(char c) {
+  const char l = static_cast<char>(c | 0x20);
+  return l >= 'a' && l <= 'z';
+}
+inline char to_upper(char c) { return static_cast<char>(c & ~0x20); }  // only for letters
+
+std::string fmt(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+std::string describe_char(char c) {
+  const auto u = static_cast<unsigned char>(c);
+  char buf[32];
+  if (u >= 0x21 && u < 0x7f) std::snprintf(buf, sizeof buf, "unexpected character '%c'", c);
+  else std::snprintf(buf, sizeof buf, "unexpected byte 0x%02X", u);
+  return buf;
+}
+
+// The command's name as written in messages: "G1", "M104", "G29.1", "T0".
+std::string command_name(const Command& c) {
+  std::string s(1, c.letter);
+  s += std::to_string(c.code);
+  if (c.subcode >= 0) s += "." + std::to_string(c.subcode);
+  return s;
+}
+
+// Trims whitespace and a trailing "*<checksum>" from a free-text argument (the host protocol
+// verified the checksum; a '*' not followed by only digits belongs to the text).
+std::string_view trim_text(std::string_view t) {
+  const size_t star = t.rfind('*');
+  if (star != std::string_view::npos) {
+    size_t j = star + 1;
+    while (j < t.size() && is_space(t[j])) ++j;
+    const size_t digits_start = j;
+    while (j < t.size() && is_digit(t[j])) ++j;
+    while (j < t.size() && is_space(t[j])) ++j;
+    if (j == t.size() && j > digits_start) t = t.substr(0, star);
+  }
+  while (!t.empty() && is_space(t.front())) t.remove_prefix(1);
+  while (!t.empty() && is_space(t.back())) t.remove_suffix(1);
+  return t;
+}
+
+class LineParser {
+ public:
+  LineParser(std::string_view line, const SourceLocation& where, Command& out)
+      : s_(line), where_(where), out_(out) {}
+
+  Status run();
+
+ private:
+  Status fail(size_t pos, std::string message) const {
+    SourceLocation at = where_;
+    at.column = pos >= static_cast<size_t>(INT_MAX) ? INT_MAX : static_cast<int>(pos + 1);
+    return Error{std::move(message), std::move(at)};
+  }
+  Status parse_words();
+  Status parse_line_number(size_t word);
+  Status parse_command_code(size_t word, char letter);
+  Status parse_parameter(size_t word, char letter, bool after_space);
+  Status check_checksum_tail(size_t star) const;
+  Status validate() const;
+  Status check_parameter(const CodeRule& rule, const ParamRule& p, char letter) const;
+  void keep_as_text();  // an unknown command whose argument is not G-code words
+
+  std::string_view s_;
+  const SourceLocation& where_;
+  Command& out_;
+  size_t i_ = 0;
+  size_t command_pos_ = 0;              // index of the command letter
+  size_t code_end_ = 0;                 // index just past the command code
+  std::array<uint32_t, 26> column_{};   // byte index of each parameter's letter
+};
+
+Status LineParser::run() {
+  Status st = parse_words();
+  if (!st) {
+    // An unknown command whose argument is not G-code words (a file name, a message) keeps the
+    // argument as text instead of failing: unknown commands are the caller's business.
+    if (out_.letter != 0 && out_.unknown && out_.text.empty()) {
+      keep_as_text();
+      return Status::Ok();
+    }
+    out_.clear();
+    return st;
+  }
+  if (out_.letter == 0) return Status::Ok();  // blank, comment only, or just a line number
+  Status valid = validate();
+  if (!valid) out_.clear();
+  return valid;
+}
+
+Status LineParser::parse_words() {
+  const size_t n = s_.size();
+  bool after_space = true;  // the current word starts the line or follows whitespace/a comment
+  while (i_ < n) {
+    const char c = s_[i_];
+    if (is_space(c)) {
+      ++i_;
+      after_space = true;
+      continue;
+    }
+    if (c == ';') return Status::Ok();
+    if (c == '(') {
+      const size_t close = s_.find(')', i_ + 1);
+      if (close == std::string_view::npos) return fail(i_, "unclosed '(' comment");
+      i_ = close + 1;
+      after_space = true;
+      continue;
+    }
+    if (c == '*') return check_checksum_tail(i_);
+    if (!is_alpha(c)) return fail(i_, describe_char(c));
+    const size_t word = i_;
+    const char letter = to_upper(c);
+    ++i_;
+    if (out_.letter == 0) {
+      if (letter == 'N' && out_.line_number < 0 && !out_.has_any_parameter()) {
+        Status st = parse_line_number(word);
+        if (!st) return st;
+      } else if (letter == 'G' || letter == 'M' || letter == 'T') {
+        Status st = parse_command_code(word, letter);
+        if (!st) return st;
+        if (is_text_command(out_.letter, out_.code)) {
+          const size_t semicolon = s_.find(';', i_);
+          const std::string_view rest =
+              s_.substr(i_, semicolon == std::string_view::npos ? std::string_view::npos
+                                                                : semicolon - i_);
+          out_.text.assign(trim_text(rest));
+          return Status::Ok();
+        }
+      } else {
+        return fail(word, std::string("parameter ") + letter +
+                              " before any command (expected G, M or T first)");
+      }
+    } else {
+      if ((letter == 'G' || letter == 'M') && !out_.unknown)
+        return fail(word, "only one command per line (" + command_name(out_) + " already given)");
+      Status st = parse_parameter(word, letter, after_space);
+      if (!st) return st;
+    }
+    after_space = false;
+  }
+  return Status::Ok();
+}
+
+Status LineParser::parse_line_number(size_t word) {
+  const size_t n = s_.size();
+  if (i_ >= n || !is_digit(s_[i_])) return fail(word, "N needs a line number, e.g. N42");
+  int64_t v = 0;
+  while (i_ < n && is_digit(s_[i_])) {
+    if (v > (INT64_MAX - 9) / 10) return fail(word, "line number too large");
+    v = v * 10 + (s_[i_] - '0');
+    ++i_;
+  }
+  out_.line_number = v;
+  return Status::Ok();
+}
+
+Status LineParser::parse_command_code(size_t word, char letter) {
+  constexpr int kMaxCode = 99999;
+  const size_t n = s_.size();
+  if (i_ >= n || !is_digit(s_[i_]))
+    return fail(word, std::string(1, letter) + " needs a code number, e.g. " + letter + "1");
+  int code = 0;
+  while (i_ < n && is_digit(s_[i_])) {
+    code = code * 10 + (s_[i_] - '0');
+    if (code > kMaxCode) return fail(word, "command number too large");
+    ++i_;
+  }
+  int subcode = -1;
+  if (i_ < n && s_[i_] == '.' && letter != 'T') {
+    ++i_;
+    if (i_ >= n || !is_digit(s_[i_])) return fail(word, "missing subcode after '.'");
+    subcode = 0;
+    while (i_ < n && is_digit(s_[i_])) {
+      subcode = subcode * 10 + (s_[i_] - '0');
+      if (subcode > kMaxCode) return fail(word, "command subcode too large");
+      ++i_;
+    }
+  }
+  out_.letter = letter;
+  out_.code = code;
+  out_.subcode = subcode;
+  out_.unknown = subcode >= 0 || find_code_rule(letter, code) == nullptr;
+  command_pos_ = word;
+  code_end_ = i_;
+  return Status::Ok();
+}
+
+Status LineParser::parse_parameter(size_t word, char letter, bool after_space) {
+  const size_t n = s_.size();
+  const int b = letter - 'A';
+  if (out_.has(letter)) return fail(word, std::string(1, letter) + " given twice");
+  column_[b] = static_cast<uint32_t>(word > UINT32_MAX ? UINT32_MAX : word);
+  if (i_ < n) {
+    const char c = s_[i_];
+    if (is_digit(c) || c == '.' || c == '+' || c == '-') {
+      const NumberScan num = scan_number(s_, i_, after_space);
+      if (num.status == NumberScan::Status::kNoDigits)
+        return fail(word, std::string("bad number after ") + letter);
+      if (num.status == NumberScan::Status::kOutOfRange)
+        return fail(word, std::string("number after ") + letter + " out of range");
+      i_ = num.end;
+      out_.set(letter, num.value);
+      return Status::Ok();
+    }
+  }
+  out_.set_flag(letter);
+  return Status::Ok();
+}
+
+Status LineParser::check_checksum_tail(size_t star) const {
+  const size_t n = s_.size();
+  size_t j = star + 1;
+  while (j < n && is_space(s_[j])) ++j;
+  const size_t digits = j;
+  while (j < n && is_digit(s_[j])) ++j;
+  const bool has_digits = j > digits;
+  while (j < n && is_space(s_[j])) ++j;
+  if (!has_digits || (j < n && s_[j] != ';'))
+    return fail(star, "'*' must be followed by a checksum number at the end of the line");
+  return Status::Ok();
+}
+
+void LineParser::keep_as_text() {
+  const char letter = out_.letter;
+  const int code = out_.code, subcode = out_.subcode;
+  const int64_t line_number = out_.line_number;
+  out_.clear();
+  out_.letter = letter;
+  out_.code = code;
+  out_.subcode = subcode;
+  out_.line_number = line_number;
+  out_.unknown = true;
+  const size_t semicolon = s_.find(';', code_end_);
+  out_.text.assign(trim_text(s_.substr(
+      code_end_, semicolon == std::string_view::npos ? std::string_view::npos
+                                                     : semicolon - code_end_)));
+}
+
+Status LineParser::validate() const {
+  if (out_.unknown) return Status::Ok();
+  const CodeRule* rule = find_code_rule(out_.letter, out_.code);
+  if (rule == nullptr) return Status::Ok();  // unreachable: unknown is set when no rule
+  const uint32_t mask = out_.parameter_mask();
+  for (int b = 0; b < 26; ++b) {
+    if (!((mask >> b) & 1u)) continue;
+    const char letter = static_cast<char>('A' + b);
+    const ParamRule* p = nullptr;
+    for (const ParamRule& r : rule->params)
+      if (r.letter == letter) p = &r;
+    if (p == nullptr) {
+      std::string allowed;
+      for (const ParamRule& r : rule->params) {
+        allowed += allowed.empty() ? "" : " ";
+        allowed += r.letter;
+      }
+      return fail(column_[b], command_name(out_) + " (" + rule->summary + "): parameter " +
+                                  letter + " is not allowed" +
+                                  (allowed.empty() ? " (it takes none)"
+                                                   : " (allowed: " + allowed + ")"));
+    }
+    Status st = check_parameter(*rule, *p, letter);
+    if (!st) return st;
+  }
+  if (rule->cross == CrossCheck::kArc) {
+    const bool centre = out_.has('I') || out_.has('J');
+    if (centre && out_.has('R'))
+      return fail(column_['R' - 'A'], command_name(out_) + ": give I/J or R, not both");
+    if (!centre && !out_.has('R'))
+      return fail(command_pos_,
+                  command_name(out_) + ": an arc needs I/J (centre offset) or R (radius)");
+  }
+  return Status::Ok();
+}
+
+Status LineParser::check_parameter(const CodeRule& rule, const ParamRule& p, char letter) const {
+  const size_t col = column_[letter - 'A'];
+  const std::string what = command_name(out_) + " (" + rule.summary + "): " + letter;
+  if (!out_.has_value(letter)) {
+    if (p.kind == ParamRule::Kind::kNumber) return fail(col, what + " needs a number");
+    return Status::Ok();
+  }
+  if (p.kind == ParamRule::Kind::kFlag) return Status::Ok();  // value ignored, as in Marlin
+  const double v = out_.get(letter);
+  if (!std::isfinite(v)) return fail(col, what + " must be a finite number");
+  const bool below = p.min_exclusive ? !(v > p.min) : v < p.min;
+  if (below || v > p.max) {
+    std::string bound;
+    if (std::isinf(p.max)) bound = std::string(p.min_exclusive ? "> " : ">= ") + fmt(p.min);
+    else bound = "between " + fmt(p.min) + " and " + fmt(p.max);
+    return fail(col, what + " must be " + bound + " (got " + fmt(v) + ")");
+  }
+  if (p.integer && v != std::floor(v))
+    return fail(col, what + " must be a whole number (got " + fmt(v) + ")");
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status parse_line(std::string_view line, const SourceLocation& where, Command& out) {
+  out.clear();
+  if (out.where.source != where.source) out.where.source = where.source;
+  out.where.line = where.line;
+  out.where.column = 0;
+  return LineParser(line, where, out).run();
+}
+
+Result<Command> parse_line(std::string_view line, const SourceLocation& where) {
+  Command c;
+  Status st = parse_line(line, where, c);
+  if (!st) return st.error();
+  return c;
+}
+
+}  // namespace feedloop::gcode
