@@ -1,0 +1,172 @@
+// Time-domain integration of the gantry axis (see gantry_axis.hpp for the equations).
+#include "sim/gantry_axis.hpp"
+
+#include <algorithm>  // clamp, max
+#include <cmath>      // sin, tanh, sqrt, llround, ceil
+
+namespace feedloop::sim {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kTimeEps_s = 1e-12;
+
+size_t history_capacity(const GantryAxisParams& p) {
+  const double delay_s = p.encoder.sampling_delay_s +
+                         (p.effects.time_delay.enabled ? p.effects.time_delay.delay_ms * 1e-3 : 0.0);
+  // Samples are kept at least half a substep apart (History::push below).
+  return static_cast<size_t>(std::ceil(delay_s * p.substep_hz * 2.0)) + 8;
+}
+}  // namespace
+
+Result<GantryAxis> GantryAxis::create(const GantryAxisParams& p) {
+  if (Status s = validate(p); !s) return Error{"gantry axis: " + s.error().message, s.error().where};
+  return GantryAxis(p);
+}
+
+GantryAxis::GantryAxis(const GantryAxisParams& p)
+    : p_(p), encoder_(p.encoder, p.seed), history_(history_capacity(p)) {
+  h_s_ = 1.0 / p.substep_hz;
+  const double r_m = p.pulley_radius_mm * 1e-3;
+  const double scale = p.effects.scale_error.enabled ? p.effects.scale_error.scale : 1.0;
+  mm_per_step_nominal_ = 2.0 * kPi * p.pulley_radius_mm / (p.full_steps_per_rev * p.microsteps);
+  m_per_step_true_ = mm_per_step_nominal_ * 1e-3 * scale;
+  // One electrical period = 4 full steps = 2 pi r / n_r with n_r = full_steps_per_rev / 4.
+  lambda_m_ = 2.0 * kPi * r_m * 4.0 / p.full_steps_per_rev * scale;
+  f_hold_n_ = p.motor_stiffness_n_m * lambda_m_ / (2.0 * kPi);  // k1 = F_hold 2 pi / lambda (Eq. 8)
+  tau_s_ = p.motor_damping_n_s_m / p.motor_stiffness_n_m;
+  k_hat_ = p.belt_stiffness_n_m * p.belt_span_mm * 1e-3;
+  read_delay_s_ = p.encoder.sampling_delay_s +
+                  (p.effects.time_delay.enabled ? p.effects.time_delay.delay_ms * 1e-3 : 0.0);
+  // Smoothing velocity of the Coulomb law: small, but keeps RK4's h * (F_c / v_eps) / m2 <= 0.5.
+  const double fc = p.effects.coulomb_friction.enabled ? p.effects.coulomb_friction.force_n : 0.0;
+  coulomb_v_eps_ = std::max(5e-4, 2.0 * fc * h_s_ / p.carriage_mass_kg);
+  if (p.effects.extra_resonance.enabled) {
+    const auto& er = p.effects.extra_resonance;
+    const double m_tot = er.frame_mass_kg + p.rotor_mass_kg + p.carriage_mass_kg;
+    const double w = 2.0 * kPi * er.freq_hz;
+    frame_k_ = m_tot * w * w;
+    frame_c_ = 2.0 * er.damping * m_tot * w;
+  }
+  const double x0_m = p.initial_pos_mm * 1e-3;
+  x_ << x0_m, x0_m, 0.0, x0_m, 0.0, 0.0, 0.0;
+  history_.clear(0.0, x0_m);
+}
+
+double GantryAxis::commanded_mm() const {
+  return p_.initial_pos_mm + static_cast<double>(steps_) * mm_per_step_nominal_;
+}
+
+GantryAxis::State GantryAxis::derivative(const State& x, double u_m) const {
+  const GantryEffects& fx = p_.effects;
+  const double uf = x[kField], y1 = x[kRotor], v1 = x[kRotorVel];
+  const double y2 = x[kCarriage], v2 = x[kCarriageVel], xf = x[kFrame], vf = x[kFrameVel];
+
+  // Driver field: tau du_f/dt = u - u_f.
+  const double duf = (u_m - uf) / tau_s_;
+
+  // Motor (Eq. 2-3 with the microstep equilibrium u_f; damping relative to the field, Eq. 9).
+  double f_motor = 0.0;
+  if (enabled_) {
+    double f_max = f_hold_n_;
+    if (p_.pullout_corner_speed_mm_s > 0.0) {
+      const double vr = v1 / (p_.pullout_corner_speed_mm_s * 1e-3);
+      f_max /= std::sqrt(1.0 + vr * vr);
+    }
+    f_motor = f_max * std::sin(2.0 * kPi * (uf - y1) / lambda_m_) + p_.motor_damping_n_s_m * (duf - v1);
+  }
+
+  // Belt (Eq. 5-6), with pulley runout and backlash when enabled.
+  double belt_rotor_m = y1;
+  if (fx.periodic_position.enabled) {
+    const double period_m = fx.periodic_position.period_mm * 1e-3;
+    belt_rotor_m += fx.periodic_position.amplitude_um * 1e-6 * std::sin(2.0 * kPi * y1 / period_m);
+  }
+  double stretch_m = belt_rotor_m - y2;
+  if (fx.backlash.enabled) {
+    const double half_m = 0.5 * fx.backlash.width_um * 1e-6;
+    stretch_m = stretch_m > half_m ? stretch_m - half_m : (stretch_m < -half_m ? stretch_m + half_m : 0.0);
+  }
+  const double sgn = stretch_m > 0.0 ? 1.0 : (stretch_m < 0.0 ? -1.0 : 0.0);
+  const double span_m = p_.belt_span_mm * 1e-3;
+  const double active_m = std::max(span_m - (p_.belt_x0_mm * 1e-3 + y2) * sgn, 0.05 * span_m);
+  const double f_belt = k_hat_ / active_m * stretch_m;  // on the carriage; -f_belt / e on the rotor (Eq. 7)
+
+  // Rails (Eq. 10) and Coulomb friction.
+  double f_rail = -p_.bearing_damping_n_s_m * v2;
+  if (fx.coulomb_friction.enabled) f_rail -= fx.coulomb_friction.force_n * std::tanh(v2 / coulomb_v_eps_);
+
+  const double f_rotor = f_motor - f_belt / p_.efficiency;
+  // Frame (extra_resonance): it carries the stator, the idler and the rails, so it feels the
+  // reactions of every force above (the belt's only through the efficiency loss).
+  double af = 0.0;
+  if (fx.extra_resonance.enabled) {
+    af = (-frame_k_ * xf - frame_c_ * vf - f_motor - f_rail - (f_belt - f_belt / p_.efficiency)) /
+         fx.extra_resonance.frame_mass_kg;
+  }
+  State d;
+  d << duf, v1, f_rotor / p_.rotor_mass_kg - af, v2, (f_belt + f_rail) / p_.carriage_mass_kg - af, vf, af;
+  return d;
+}
+
+void GantryAxis::integrate_(double h) {
+  const double u = static_cast<double>(steps_) * m_per_step_true_ + p_.initial_pos_mm * 1e-3;
+  const State k1 = derivative(x_, u);
+  const State k2 = derivative(x_ + 0.5 * h * k1, u);
+  const State k3 = derivative(x_ + 0.5 * h * k2, u);
+  const State k4 = derivative(x_ + h * k3, u);
+  x_ += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+}
+
+void GantryAxis::after_substep_() {
+  history_.push(t_s_, x_[kCarriage]);
+  const auto n = static_cast<int64_t>(std::llround((x_[kField] - x_[kRotor]) / lambda_m_));
+  if (n != slip_periods_) {
+    slip_events_ += n > slip_periods_ ? n - slip_periods_ : slip_periods_ - n;
+    slip_periods_ = n;
+  }
+}
+
+void GantryAxis::advance_to(double t_s) {
+  while (t_s - t_s_ > kTimeEps_s) {
+    const double h = std::min(h_s_, t_s - t_s_);
+    integrate_(h);
+    t_s_ = (t_s - t_s_ - h <= kTimeEps_s) ? t_s : t_s_ + h;
+    after_substep_();
+  }
+}
+
+void GantryAxis::step(double t_s, int direction) {
+  if (t_s < t_s_) ++late_events_;
+  advance_to(t_s);
+  steps_ += direction >= 0 ? 1 : -1;
+}
+
+void GantryAxis::set_enabled(double t_s, bool enabled) {
+  if (t_s < t_s_) ++late_events_;
+  advance_to(t_s);
+  enabled_ = enabled;
+}
+
+int64_t GantryAxis::read_encoder_counts(double t_s) {
+  if (t_s < t_s_) ++late_events_;
+  advance_to(t_s);
+  const double pos_m = read_delay_s_ > 0.0 ? history_.value_at(t_s_ - read_delay_s_) : x_[kCarriage];
+  return encoder_.counts((pos_m - p_.initial_pos_mm * 1e-3) * 1e3);
+}
+
+LinearModel GantryAxis::linearize() const {
+  const double u0 = static_cast<double>(steps_) * m_per_step_true_ + p_.initial_pos_mm * 1e-3;
+  Dynamics f = [this](const Eigen::VectorXd& x, const Eigen::VectorXd& u) -> Eigen::VectorXd {
+    return derivative(State(x), u[0]);
+  };
+  Eigen::VectorXd dx(7);
+  dx << 1e-9, 1e-9, 1e-6, 1e-9, 1e-6, 1e-9, 1e-6;
+  Eigen::MatrixXd c = Eigen::MatrixXd::Zero(1, 7);
+  c(0, kCarriage) = 1.0;
+  Eigen::VectorXd u(1);
+  u << u0;
+  LinearModel m = linearize_dynamics(f, Eigen::VectorXd(x_), u, dx, 1e-9, c);
+  return m;  // SI in and out: a position-to-position FRF has the same value in mm
+}
+
+}  // namespace feedloop::sim

@@ -1,0 +1,104 @@
+// One belt-driven stepper axis in the time domain: the thesis's NONLINEAR model (Appendix D,
+// Eq. 1-7) with a microstepping driver, plus the optional effects of gantry_params.hpp.
+//
+// State (SI, positions relative to the frame):
+//   u_f  driver field position: the electromagnetic equilibrium, following the step command u
+//        (one microstep per pulse) with time constant tau = c1/k1
+//   x1, v1  rotor (linear coordinates, Eq. 11)     x2, v2  carriage
+//   xf, vf  frame (only moves with the extra_resonance effect)
+// Forces:
+//   motor  F_m = F_max(|v1|) sin(2 pi (u_f - x1) / lambda) + c1 (du_f/dt - v1)   (Eq. 2-3, 9)
+//          lambda = 4 full steps (one electrical period, n_r teeth); F_max = k1 lambda / (2 pi)
+//   belt   F_t = K2(x2, sgn) (x1 - x2), K2 of Eq. 6                               (Eq. 5-7)
+//   rails  -c2 v2 (Eq. 10), plus Coulomb friction when enabled
+// In the linear regime this is exactly Eq. 13: k1 (u_f - x1) + c1 (du_f/dt - v1) = k1 (u - x1)
+// - c1 v1 because tau du_f/dt = u - u_f with tau = c1/k1. Damping relative to the moving field
+// (instead of to ground) is what lets the rotor run at print speeds: with the fitted c1 to ground
+// the sine law's pull-out force would be used up by damping above ~17 mm/s. docs/simulator.md.
+//
+// Owner: one thread (the simulation loop). Calls must come with non-decreasing times; an earlier
+// time is applied at the current time and counted in late_events().
+#pragma once
+
+#include <cstdint>
+
+#include <Eigen/Dense>
+
+#include "core/result.hpp"
+#include "drivers/device/motor_port.hpp"
+#include "sim/encoder.hpp"
+#include "sim/gantry_params.hpp"
+#include "sim/linearize.hpp"
+
+namespace feedloop::sim {
+
+class GantryAxis final : public device::MotorPort {
+ public:
+  using State = Eigen::Matrix<double, 7, 1>;
+  enum Index : int { kField = 0, kRotor, kRotorVel, kCarriage, kCarriageVel, kFrame, kFrameVel };
+
+  static Result<GantryAxis> create(const GantryAxisParams& p);
+
+  // MotorPort (RT-safe: no allocation).
+  void step(double t_s, int direction) override;
+  void set_enabled(double t_s, bool enabled) override;
+  int64_t read_encoder_counts(double t_s) override;
+
+  // Integrate to t_s with no event (RT-safe).
+  void advance_to(double t_s);
+
+  // Ground truth, for tests and benchmarks.
+  double time_s() const { return t_s_; }
+  double carriage_mm() const { return x_[kCarriage] * 1e3; }          // relative to the frame
+  double carriage_velocity_mm_s() const { return x_[kCarriageVel] * 1e3; }
+  double rotor_mm() const { return x_[kRotor] * 1e3; }
+  double field_mm() const { return x_[kField] * 1e3; }
+  double commanded_mm() const;          // initial_pos + steps * nominal mm per step (what the host sent)
+  int64_t step_count() const { return steps_; }
+  double mm_per_step() const { return mm_per_step_nominal_; }
+  double encoder_mm_per_count() const { return encoder_.mm_per_count(); }
+  // Steps lost so far: 4 * round((u_f - x1) / lambda), in full steps, positive when the rotor has
+  // fallen behind the field in the + direction (the sine law has period 4 full steps).
+  int64_t lost_full_steps() const { return 4 * slip_periods_; }
+  int64_t slip_events() const { return slip_events_; }  // jumps to another equilibrium (each 4 full steps)
+  int64_t late_events() const { return late_events_; }
+  bool enabled() const { return enabled_; }
+  const GantryAxisParams& params() const { return p_; }
+
+  // The model: dx/dt for state x and step command u (m), with the current enable state.
+  State derivative(const State& x, double u_m) const;
+  const State& state() const { return x_; }
+  // Small-signal model around the current state (call at rest). Input: the field command u in
+  // mm; output: carriage position relative to the frame in mm (what the encoder sees, before
+  // quantisation and delay).
+  LinearModel linearize() const;
+
+ private:
+  explicit GantryAxis(const GantryAxisParams& p);
+  void integrate_(double h_s);
+  void after_substep_();
+
+  GantryAxisParams p_;
+  LinearEncoder encoder_;
+  History history_;
+  State x_ = State::Zero();
+  double t_s_ = 0.0;
+  int64_t steps_ = 0;
+  bool enabled_ = true;
+  int64_t slip_periods_ = 0;
+  int64_t slip_events_ = 0;
+  int64_t late_events_ = 0;
+  // Derived at construction.
+  double h_s_ = 0.0;
+  double mm_per_step_nominal_ = 0.0;
+  double m_per_step_true_ = 0.0;
+  double lambda_m_ = 0.0;    // electrical period
+  double f_hold_n_ = 0.0;    // sine-law amplitude at standstill
+  double tau_s_ = 0.0;       // field time constant c1/k1
+  double k_hat_ = 0.0;       // belt unit stiffness, N (k2 * L)
+  double read_delay_s_ = 0.0;
+  double coulomb_v_eps_ = 0.0;
+  double frame_k_ = 0.0, frame_c_ = 0.0;
+};
+
+}  // namespace feedloop::sim

@@ -1,0 +1,88 @@
+// Parameters of one belt-driven stepper axis (closed-loop-gantry thesis, Appendix D) and of the
+// optional effects that identification must find without being told (DESIGN.md vocabulary).
+//
+// Defaults and presets: see docs/simulator.md ("Gantry parameters"). The presets use the masses
+// of Table 3 and the k1, k2, c1, c2 that make the linearised model's denominator (Eq. 16) equal
+// to the fitted Eq. 18 exactly; Table 4 gives the same values rounded to three digits.
+#pragma once
+
+#include <cstdint>  // uint64_t
+
+#include "core/result.hpp"
+#include "sim/encoder.hpp"
+
+namespace feedloop::sim {
+
+// Each effect is OFF unless `enabled`; parameter names follow the identification vocabulary.
+struct CoulombFriction {
+  bool enabled = false;
+  double force_n = 0.0;  // sliding friction on the carriage, N
+};
+struct Backlash {
+  bool enabled = false;
+  double width_um = 0.0;  // total dead band between pulley and belt on a reversal
+};
+struct PeriodicPosition {  // pulley runout / microstep nonlinearity
+  bool enabled = false;
+  double period_mm = 33.93;  // one pulley revolution at r = 5.40 mm
+  double amplitude_um = 0.0;
+};
+struct ExtraResonance {  // a frame (base) mode: the motor, idler and rails sit on a sprung frame
+  bool enabled = false;
+  double freq_hz = 0.0;
+  double damping = 0.05;       // damping ratio of the frame mode
+  double frame_mass_kg = 2.0;  // the frame's own mass (the encoder scale is on the frame)
+};
+struct TimeDelay {
+  bool enabled = false;
+  double delay_ms = 0.0;  // extra delay of the encoder reading behind the carriage
+};
+struct ScaleError {
+  bool enabled = false;
+  double scale = 1.0;  // true mm per step / nominal mm per step, e.g. 1.003
+};
+
+struct GantryEffects {
+  CoulombFriction coulomb_friction;
+  Backlash backlash;
+  PeriodicPosition periodic_position;
+  ExtraResonance extra_resonance;
+  TimeDelay time_delay;
+  ScaleError scale_error;
+};
+
+struct GantryAxisParams {
+  // Stepper motor (Eq. 1-3, 8, 14). Linear coordinates x1 = -r*theta (Eq. 11).
+  double motor_stiffness_n_m = 354562.0;  // k1 = T_max n_r / r^2 (Eq. 14); sets T_max via the sine law
+  double rotor_mass_kg = 0.130;           // m1 = J / r^2, J = 38 g cm^2 (Table 2-3)
+  double motor_damping_n_s_m = 2097.19;   // c1 = c1' / r^2 (Eq. 9, 14)
+  double pulley_radius_mm = 5.40;         // r (Table 2)
+  int full_steps_per_rev = 200;           // 1.8 deg hybrid stepper: n_r = full_steps_per_rev / 4 rotor teeth
+  int microsteps = 16;                    // the equilibrium moves by one microstep per step pulse
+  // Pull-out force falls with speed (the winding inductance of Eq. 3 limits the phase current):
+  // F_max(v) = F_hold / sqrt(1 + (v / corner)^2). 0 disables the roll-off.
+  double pullout_corner_speed_mm_s = 150.0;
+  // Belt (Eq. 5-7): K2 = k_hat / (L - (x0 + x2) sgn(x1 - x2)) with k_hat = belt_stiffness * L,
+  // so K2 = belt_stiffness_n_m at x0 + x2 = 0 (the identification position) in both directions.
+  double belt_stiffness_n_m = 109783.0;  // k2
+  double belt_span_mm = 350.0;           // L, distance between the pulleys
+  double belt_x0_mm = 0.0;               // x0
+  double efficiency = 1.0;               // e (Eq. 7, 13)
+  // Carriage (Eq. 4, 10).
+  double carriage_mass_kg = 0.45;        // m2
+  double bearing_damping_n_s_m = 111.845;  // c2
+  double initial_pos_mm = 0.0;           // carriage position x2 at power-on (encoder and steps zero here)
+
+  EncoderParams encoder;
+  GantryEffects effects;
+  double substep_hz = 40000.0;  // fixed RK4 step; step events split a substep at their exact time
+  uint64_t seed = 1;            // encoder noise
+};
+
+// The thesis's X axis (extruder carriage, m2 = 0.45 kg) and Y axis (X gantry, m2 = 1.07 kg).
+GantryAxisParams thesis_x_axis();
+GantryAxisParams thesis_y_axis();
+
+Status validate(const GantryAxisParams& p);
+
+}  // namespace feedloop::sim
