@@ -10,6 +10,7 @@ namespace {
 constexpr double kAddBound = 1e7;  // |A| box before the second step bounds it (ticks)
 constexpr double kEps = 1e-7;      // slack for the floating polygon; runs are verified exactly
 constexpr int kAddTries = 24;      // integer adds tried around the polygon's centre
+constexpr int kMaxCuts = 12;       // cutting-plane rounds per search
 }  // namespace
 
 void StepCompressor::configure(const StepCompressorParams& params, RunSink* sink) {
@@ -26,8 +27,7 @@ void StepCompressor::reset(int64_t last_step_clock, double last_step_target_tick
   P_ = last_step_clock;
   prev_target_ = last_step_target_ticks;
   n_ = 0;
-  nv_ = 0;
-  poly_upto_ = 0;
+  poly_init_ = false;
 }
 
 void StepCompressor::push(double target, int8_t direction) {
@@ -82,17 +82,17 @@ void StepCompressor::start_run_with_first_point() {
   pos_ = P_ + I;
   iv_ = I + A_;
   n_ = 1;
-  nv_ = 0;
-  poly_upto_ = 0;
-  poly_overflow_ = false;
+  poly_init_ = false;
 }
 
 void StepCompressor::clip(double ni, double na, double c) {
   if (nv_ == 0) return;
+  ++stats_.clips;
+  stats_.clip_vertices += nv_;
   int m = 0;
   for (int j = 0; j < nv_; ++j) {
     const Vertex& p = poly_[j];
-    const Vertex& q = poly_[(j + 1) % nv_];
+    const Vertex& q = poly_[j + 1 == nv_ ? 0 : j + 1];
     const double dp = ni * p.i + na * p.a - c;
     const double dq = ni * q.i + na * q.a - c;
     if (m + 2 > kMaxVerts) {
@@ -107,25 +107,35 @@ void StepCompressor::clip(double ni, double na, double c) {
     }
   }
   nv_ = m;
-  std::copy(tmp_, tmp_ + m, poly_);
+  std::swap(poly_, tmp_);
 }
 
-bool StepCompressor::verify(int64_t I, int64_t A, uint32_t n) const {
+uint32_t StepCompressor::first_violation(int64_t I, int64_t A, uint32_t n) const {
   int64_t rel = 0, iv = I;
   for (uint32_t k = 1; k <= n; ++k) {
-    if (iv < 1) return false;
+    if (iv < 1) return k;
     rel += iv;
     const double r = static_cast<double>(rel);
-    if (r < lower(k) || r > upper(k)) return false;
+    if (r < lower(k) || r > upper(k)) return k;
     iv += A;
   }
-  return true;
+  return 0;
 }
 
+void StepCompressor::clip_strip(uint32_t k) {
+  const double kk = k, tk = 0.5 * kk * (kk - 1.0);
+  clip(kk, tk, upper(k));
+  clip(-kk, -tk, -lower(k));
+}
+
+// Cutting planes: the polygon holds the box, the strips of the steps that rejected a candidate
+// (and the first and newest steps), and the interval-positivity constraints; all of them stay
+// valid for the rest of the run, so the polygon only ever gets clipped, never rebuilt. A
+// candidate from it is checked exactly against all n steps; the first step it violates is
+// clipped in next.
 bool StepCompressor::search_candidate(uint32_t n) {
   ++stats_.candidate_searches;
-  if (poly_overflow_) return false;
-  if (poly_upto_ == 0) {
+  if (!poly_init_) {
     const double lo_i = std::max(1.0, lower(1)), hi_i = upper(1);
     if (lo_i > hi_i) return false;
     poly_[0] = {lo_i, -kAddBound};
@@ -133,64 +143,70 @@ bool StepCompressor::search_candidate(uint32_t n) {
     poly_[2] = {hi_i, kAddBound};
     poly_[3] = {lo_i, kAddBound};
     nv_ = 4;
-    poly_upto_ = 1;
+    poly_init_ = true;
   }
-  for (uint32_t k = poly_upto_ + 1; k <= n && nv_ > 0; ++k) {
-    const double kk = k, tk = 0.5 * kk * (kk - 1.0);
-    clip(kk, tk, upper(k));
-    clip(-kk, -tk, -lower(k));
-    clip(-1.0, -(kk - 1.0), -1.0);  // interval before step k: I + (k-1) A >= 1
-  }
-  poly_upto_ = n;
-  if (nv_ < 3) return false;
-
-  double amin = poly_[0].a, amax = poly_[0].a, ca = 0.0;
-  for (int j = 0; j < nv_; ++j) {
-    amin = std::min(amin, poly_[j].a);
-    amax = std::max(amax, poly_[j].a);
-    ca += poly_[j].a;
-  }
-  ca /= nv_;
-  const double alo_d = std::ceil(amin - kEps), ahi_d = std::floor(amax + kEps);
-  if (alo_d > ahi_d) return false;
-  const int64_t alo = static_cast<int64_t>(alo_d), ahi = static_cast<int64_t>(ahi_d);
-  const int64_t a0 = std::clamp<int64_t>(std::llround(ca), alo, ahi);
-  for (int t = 0; t < kAddTries; ++t) {
-    const int64_t a = (t & 1) ? a0 + (t + 1) / 2 : a0 - t / 2;
-    if (a < alo || a > ahi) {
-      if (a0 + (t + 2) / 2 > ahi && a0 - (t + 1) / 2 < alo) break;
-      continue;
-    }
-    // Range of I on the line A = a.
-    const double ad = static_cast<double>(a);
-    double imin = 1e300, imax = -1e300;
+  clip_strip(n);
+  const double kn = n;
+  clip(-1.0, -(kn - 1.0), -1.0);  // last interval I + (n-1) A >= 1 (intervals are linear in k)
+  uint32_t last_cut = n;
+  for (int iter = 0; iter < kMaxCuts; ++iter) {
+    if (nv_ < 3) return false;
+    double amin = poly_[0].a, amax = poly_[0].a, ca = 0.0;
     for (int j = 0; j < nv_; ++j) {
-      const Vertex& p = poly_[j];
-      const Vertex& q = poly_[(j + 1) % nv_];
-      if (p.a == ad) {
-        imin = std::min(imin, p.i);
-        imax = std::max(imax, p.i);
-      }
-      if ((p.a - ad) * (q.a - ad) < 0.0) {
-        const double x = p.i + (ad - p.a) * (q.i - p.i) / (q.a - p.a);
-        imin = std::min(imin, x);
-        imax = std::max(imax, x);
-      }
+      amin = std::min(amin, poly_[j].a);
+      amax = std::max(amax, poly_[j].a);
+      ca += poly_[j].a;
     }
-    if (imin > imax) continue;
-    const double ilo_d = std::ceil(imin - kEps), ihi_d = std::floor(imax + kEps);
-    if (ilo_d > ihi_d) continue;
-    const int64_t ilo = static_cast<int64_t>(ilo_d), ihi = static_cast<int64_t>(ihi_d);
-    const int64_t i0 = std::clamp<int64_t>(std::llround(0.5 * (imin + imax)), ilo, ihi);
-    for (int64_t di : {int64_t{0}, int64_t{1}, int64_t{-1}}) {
-      const int64_t i = i0 + di;
-      if (i < ilo || i > ihi) continue;
-      if (verify(i, a, n)) {
+    ca /= nv_;
+    const double alo_d = std::ceil(amin - kEps), ahi_d = std::floor(amax + kEps);
+    if (alo_d > ahi_d) return false;
+    const int64_t alo = static_cast<int64_t>(alo_d), ahi = static_cast<int64_t>(ahi_d);
+    const int64_t a0 = std::clamp<int64_t>(std::llround(ca), alo, ahi);
+    uint32_t cut = 0;
+    bool any = false;
+    for (int t = 0; t < kAddTries && cut == 0; ++t) {
+      const int64_t a = (t & 1) ? a0 + (t + 1) / 2 : a0 - t / 2;
+      if (a < alo || a > ahi) {
+        if (a0 + (t + 2) / 2 > ahi && a0 - (t + 1) / 2 < alo) break;
+        continue;
+      }
+      ++stats_.add_tries;
+      // Range of I on the line A = a.
+      const double ad = static_cast<double>(a);
+      double imin = 1e300, imax = -1e300;
+      for (int j = 0; j < nv_; ++j) {
+        const Vertex& p = poly_[j];
+        const Vertex& q = poly_[j + 1 == nv_ ? 0 : j + 1];
+        if (p.a == ad) {
+          imin = std::min(imin, p.i);
+          imax = std::max(imax, p.i);
+        }
+        if ((p.a - ad) * (q.a - ad) < 0.0) {
+          const double x = p.i + (ad - p.a) * (q.i - p.i) / (q.a - p.a);
+          imin = std::min(imin, x);
+          imax = std::max(imax, x);
+        }
+      }
+      if (imin > imax) continue;
+      const double ilo_d = std::ceil(imin - kEps), ihi_d = std::floor(imax + kEps);
+      if (ilo_d > ihi_d) continue;
+      const int64_t ilo = static_cast<int64_t>(ilo_d), ihi = static_cast<int64_t>(ihi_d);
+      // Prefer the I that puts the newest step n on its exact time: the next steps continue it.
+      const double kn_d = n, i_exact = (T_[n] - static_cast<double>(P_) - 0.5 * kn_d * (kn_d - 1.0) * ad) / kn_d;
+      const int64_t i = std::clamp<int64_t>(std::llround(i_exact), ilo, ihi);
+      any = true;
+      ++stats_.verifies;
+      const uint32_t bad = first_violation(i, a, n);
+      if (bad == 0) {
         I_ = i;
         A_ = a;
         return true;
       }
+      if (bad != last_cut) cut = bad;  // else: floating-point edge; try the next add
     }
+    if (!any || cut == 0) return false;
+    clip_strip(cut);
+    last_cut = cut;
   }
   return false;
 }
@@ -203,7 +219,7 @@ void StepCompressor::emit() {
   run.count = n_;
   run.direction = dir_;
   // check_line: expand the run with the MCU step law before it leaves.
-  if (!verify(I_, A_, n_) || run_end_clock(P_, run) != pos_) ++stats_.check_failures;
+  if (first_violation(I_, A_, n_) != 0 || run_end_clock(P_, run) != pos_) ++stats_.check_failures;
   if (sink_ != nullptr) sink_->on_run(P_, run);
   stats_.runs += 1;
   stats_.steps += n_;

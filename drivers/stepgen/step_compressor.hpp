@@ -10,8 +10,9 @@
 // Greedy run extension, O(1) amortised per step:
 //  - keep one integer candidate (I, A) valid for steps 1..n; a new step is accepted if the
 //    candidate's next step (two integer additions) falls inside its window;
-//  - only when it does not, clip the polygon lazily with the strips not yet applied and look for
-//    another integer point near the polygon's centre (exactly verified in integer arithmetic);
+//  - only when it does not, look for another integer point near the centre of the polygon of an
+//    active set of strips (cutting planes: a candidate is verified exactly in integer arithmetic
+//    against all steps and the first step it violates joins the active set);
 //  - when none exists, emit the run and start the next one from its last step.
 // Before a run is handed to the sink it is checked again by expanding it with the MCU step law
 // (as Klipper's check_line does); a run that fails the check is counted in `check_failures()`
@@ -36,6 +37,7 @@ struct StepCompressorStats {
   uint64_t steps = 0;
   uint64_t runs = 0;
   uint64_t candidate_searches = 0;
+  uint64_t clips = 0, clip_vertices = 0, verifies = 0, add_tries = 0;  // cost counters of the searches
   uint64_t check_failures = 0;
   uint64_t window_violations = 0;  // steps closer than one tick: error bound could not be met
 };
@@ -65,7 +67,9 @@ class StepCompressor final : public StepSink {
   };
   void start_run_with_first_point();
   bool search_candidate(uint32_t n);
-  bool verify(int64_t I, int64_t A, uint32_t n) const;
+  // 0 if (I, A) keeps steps 1..n in their windows, else the first step that it violates.
+  uint32_t first_violation(int64_t I, int64_t A, uint32_t n) const;
+  void clip_strip(uint32_t k);
   void clip(double ni, double na, double c);  // keep ni*I + na*A <= c
   void emit();
   double lower(uint32_t k) const { return lo_[k] - static_cast<double>(P_); }
@@ -83,12 +87,14 @@ class StepCompressor final : public StepSink {
   int64_t I_ = 0, A_ = 0;      // candidate
   int64_t pos_ = 0, iv_ = 0;   // candidate's clock of step n_ and its next interval
   int64_t last_add_ = 0;
-  // Lazily clipped feasible polygon and how many steps' strips it contains.
-  static constexpr int kMaxVerts = 96;
-  Vertex poly_[kMaxVerts];
-  Vertex tmp_[kMaxVerts];
+  // Cutting-plane polygon (two buffers swapped by clip()).
+  static constexpr int kMaxVerts = 64;
+  Vertex buf_a_[kMaxVerts];
+  Vertex buf_b_[kMaxVerts];
+  Vertex* poly_ = buf_a_;
+  Vertex* tmp_ = buf_b_;
+  bool poly_init_ = false;
   int nv_ = 0;
-  uint32_t poly_upto_ = 0;
   bool poly_overflow_ = false;
 };
 

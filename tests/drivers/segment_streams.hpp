@@ -3,6 +3,7 @@
 // pieces (as the planner emits for delta joints).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>

@@ -1,0 +1,121 @@
+// Step generation + compression throughput and bytes on the wire per step.
+// Usage: bench_stepgen [--json FILE] [--moves N]
+// Workloads: printing-like trapezoid moves (quadratic pieces) and 1 ms cubic pieces (delta-like).
+// Columns: workload, error bound, steps, ns/step for generation alone, ns/step for
+// generation+compression+batch encoding, Msteps/s, run bytes per step, wire bytes per step
+// (including frame and message headers, docs/protocol.md), mean steps per run.
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "drivers/stepgen/step_batcher.hpp"
+#include "drivers/stepgen/step_compressor.hpp"
+#include "drivers/stepgen/step_generator.hpp"
+#include "segment_streams.hpp"
+
+using namespace feedloop;
+using namespace feedloop::stepgen;
+
+namespace {
+
+struct NullSteps final : StepSink {
+  double sum = 0;
+  void on_steps(const double* t, const int8_t*, size_t n) override { sum += t[n - 1]; }
+};
+struct CountBatches final : BatchSink {
+  uint64_t bytes = 0, batches = 0;
+  void on_batch(const StepBatch& b) override { bytes += b.body_bytes; ++batches; }
+};
+
+// Per QUEUE_STEPS frame: frame header 5 + CRC 2 + message type 1 + axis 1 (docs/protocol.md).
+constexpr double kFrameOverheadBytes = 9.0;
+
+struct Row {
+  std::string workload;
+  double err_us, steps, gen_ns, total_ns, msteps_s, run_bps, wire_bps, steps_per_run;
+};
+
+double now_s() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+Row run(const std::string& name, const std::vector<JointSegment>& segs, double spm, double err_us) {
+  const TickMap map{0.0, 20e6};
+  Row r{name, err_us, 0, 0, 0, 0, 0, 0, 0};
+  {
+    NullSteps ns;
+    StepGenerator g;
+    g.configure(spm, map, &ns);
+    g.set_position_mm(segs.front().c0_mm);
+    const double t0 = now_s();
+    for (const auto& s : segs) g.add_segment(s);
+    g.flush();
+    r.gen_ns = (now_s() - t0) * 1e9 / g.steps_emitted();
+    r.steps = g.steps_emitted();
+  }
+  CountBatches cb;
+  StepBatcher b;
+  b.configure(0, 200, &cb);
+  StepCompressor c;
+  c.configure({err_us * 20.0, 65535}, &b);
+  StepGenerator g;
+  g.configure(spm, map, &c);
+  g.set_position_mm(segs.front().c0_mm);
+  const double t0 = now_s();
+  for (const auto& s : segs) g.add_segment(s);
+  g.flush();
+  c.flush();
+  b.flush();
+  const double dt = now_s() - t0;
+  r.total_ns = dt * 1e9 / r.steps;
+  r.msteps_s = r.steps / dt / 1e6;
+  r.run_bps = cb.bytes / r.steps;
+  r.wire_bps = (cb.bytes + kFrameOverheadBytes * cb.batches) / r.steps;
+  r.steps_per_run = r.steps / static_cast<double>(c.stats().runs);
+  return r;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string json;
+  int moves = 20000;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--json") && i + 1 < argc) json = argv[++i];
+    else if (!std::strcmp(argv[i], "--moves") && i + 1 < argc) moves = std::atoi(argv[++i]);
+    else { std::fprintf(stderr, "usage: %s [--json FILE] [--moves N]\n", argv[0]); return 2; }
+  }
+  std::mt19937_64 rng(42);
+  const auto trap = testing::trapezoid_stream(rng, moves);
+  const auto cubic = testing::cubic_stream(rng, moves * 5);
+  std::vector<Row> rows;
+  for (double e : {5.0, 25.0}) {
+    rows.push_back(run("trapezoid", trap, 80.0, e));
+    rows.push_back(run("cubic_1ms", cubic, 160.0, e));
+  }
+  std::printf("%-10s %6s %10s %8s %9s %8s %8s %9s %10s\n", "workload", "err_us", "steps", "gen_ns",
+              "total_ns", "Msteps/s", "run_B/st", "wire_B/st", "steps/run");
+  for (const auto& r : rows)
+    std::printf("%-10s %6.0f %10.0f %8.2f %9.2f %8.1f %8.3f %9.3f %10.1f\n", r.workload.c_str(), r.err_us,
+                r.steps, r.gen_ns, r.total_ns, r.msteps_s, r.run_bps, r.wire_bps, r.steps_per_run);
+  if (!json.empty()) {
+    FILE* f = std::fopen(json.c_str(), "w");
+    if (!f) { std::perror(json.c_str()); return 1; }
+    std::fprintf(f, "{\"benchmark\": \"stepgen\", \"rows\": [\n");
+    for (size_t i = 0; i < rows.size(); ++i) {
+      const auto& r = rows[i];
+      std::fprintf(f,
+                   "  {\"workload\": \"%s\", \"max_error_us\": %g, \"steps\": %.0f, \"gen_ns_per_step\": %.3f, "
+                   "\"total_ns_per_step\": %.3f, \"msteps_per_s\": %.3f, \"run_bytes_per_step\": %.4f, "
+                   "\"wire_bytes_per_step\": %.4f, \"steps_per_run\": %.2f}%s\n",
+                   r.workload.c_str(), r.err_us, r.steps, r.gen_ns, r.total_ns, r.msteps_s, r.run_bps,
+                   r.wire_bps, r.steps_per_run, i + 1 < rows.size() ? "," : "");
+    }
+    std::fprintf(f, "]}\n");
+    std::fclose(f);
+  }
+  return 0;
+}
