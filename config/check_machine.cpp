@@ -1,0 +1,98 @@
+// Whole-machine checks run after every section was read: each axis driven by an MCU, the delta
+// print volume reachable by the arms and the carriage travel, controller needs met.
+#include <cmath>    // sqrt, cos, sin, hypot
+#include <numbers>  // pi
+
+#include "config/enum_names.hpp"
+#include "config/sections.hpp"
+
+namespace feedloop::config::detail {
+namespace {
+
+// Delta paper Eq. 3-5: (x - i_x)^2 + (y - i_y)^2 + (z + H_ez - q_i)^2 = L^2, so the carriage height
+// for a nozzle at (x, y, z) is q_i = z + H_ez + sqrt(L^2 - d_i^2), d_i the horizontal distance from
+// the nozzle to carriage i's tower. Checks the disc of print_radius_mm at z_min and z_max.
+void check_delta_reach(const MachineConfig& cfg, const Marks& marks, Diagnostics& diag) {
+  const DeltaGeometryConfig& g = *cfg.delta;
+  const double deg = std::numbers::pi / 180.0;
+  const double angles[3] = {g.angle_a_deg * deg, g.angle_b_deg * deg, g.angle_c_deg * deg};
+  const char* names[3] = {"A", "B", "C"};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < i; ++j) {
+      const double diff = std::remainder(angles[i] - angles[j], 2 * std::numbers::pi);
+      if (std::fabs(diff) < 10.0 * deg)
+        diag.add(marks.delta, std::string("delta: carriages ") + names[j] + " and " + names[i] +
+                                  " are less than 10 deg apart");
+    }
+  }
+  constexpr int kSamples = 360;
+  for (int i = 0; i < 3; ++i) {
+    const double tx = g.radius_mm * std::cos(angles[i]);
+    const double ty = g.radius_mm * std::sin(angles[i]);
+    double d_max = 0.0, d_min = 1e300;
+    for (int k = 0; k <= kSamples; ++k) {
+      // k == kSamples: the centre of the bed.
+      const double phi = 2.0 * std::numbers::pi * k / kSamples;
+      const double r = k == kSamples ? 0.0 : g.print_radius_mm;
+      const double d = std::hypot(r * std::cos(phi) - tx, r * std::sin(phi) - ty);
+      d_max = std::max(d_max, d);
+      d_min = std::min(d_min, d);
+    }
+    if (!(d_max < g.arm_length_mm)) {
+      diag.add(marks.delta, "delta geometry unreachable: the edge of the print disc "
+                            "(print_radius_mm " + format_number(g.print_radius_mm) + ") is " +
+                                format_number(d_max) + " mm from carriage " + names[i] +
+                                "'s tower, not less than arm_length_mm " +
+                                format_number(g.arm_length_mm));
+      continue;
+    }
+    const double q_min = g.z_min_mm + g.nozzle_offset_mm +
+                         std::sqrt(g.arm_length_mm * g.arm_length_mm - d_max * d_max);
+    const double q_max = g.z_max_mm + g.nozzle_offset_mm +
+                         std::sqrt(g.arm_length_mm * g.arm_length_mm - d_min * d_min);
+    const AxisConfig* axis = cfg.axis(names[i]);
+    if (axis == nullptr) continue;
+    if (q_min < axis->min_mm || q_max > axis->max_mm) {
+      const auto it = marks.axis.find(names[i]);
+      diag.add(it != marks.axis.end() ? it->second : marks.delta,
+               std::string("carriage ") + names[i] + " must travel " + format_number(std::floor(q_min)) +
+                   " .. " + format_number(std::ceil(q_max)) +
+                   " mm to cover the print volume (delta print_radius_mm, z_min_mm..z_max_mm), "
+                   "but its travel is " + format_number(axis->min_mm) + " .. " +
+                   format_number(axis->max_mm) + " mm");
+    }
+  }
+}
+
+}  // namespace
+
+void check_machine(const MachineConfig& cfg, const Marks& marks, Diagnostics& diag) {
+  // Every axis is driven by exactly one MCU (a second MCU is reported where it is listed).
+  if (!cfg.mcus.empty()) {
+    for (const AxisConfig& a : cfg.axes) {
+      bool driven = false;
+      for (const McuConfig& m : cfg.mcus)
+        for (const std::string& n : m.axes) driven = driven || n == a.name;
+      if (!driven) {
+        const auto it = marks.axis.find(a.name);
+        diag.add(it != marks.axis.end() ? it->second : marks.axes,
+                 "axis '" + a.name + "' is not driven by any mcu (add it to one mcus[].axes list)");
+      }
+    }
+  }
+  if (cfg.kinematics == Kinematics::delta && cfg.delta) check_delta_reach(cfg, marks, diag);
+
+  if (cfg.control.mode == ControlMode::pi) {
+    bool any_encoder = false;
+    for (const AxisConfig& a : cfg.axes) any_encoder = any_encoder || a.encoder.has_value();
+    if (!any_encoder && !cfg.axes.empty())
+      diag.add(marks.control, "control.mode is pi but no axis has an encoder; add axes.<name>.encoder "
+                           "or use mode: open_loop");
+  }
+  if (cfg.feedforward.type == FeedforwardType::lpv && cfg.model.gantry.empty() &&
+      !cfg.model.delta_lpv)
+    diag.add(marks.feedforward, "feedforward.type lpv needs a model: model.gantry (cartesian/corexy) or "
+                         "model.delta_lpv (delta)");
+}
+
+}  // namespace feedloop::config::detail

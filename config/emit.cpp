@@ -1,0 +1,297 @@
+// MachineConfig -> YAML with every key written out (to_yaml). Numbers use the shortest text that
+// reads back exactly, so to_yaml followed by load_config_text gives an equal MachineConfig.
+#include <cmath>  // isfinite
+#include <cstdio>  // snprintf
+
+#include "config/config.hpp"
+#include "config/enum_names.hpp"
+#include "config/map_reader.hpp"
+
+namespace feedloop::config {
+namespace {
+
+class Writer {
+ public:
+  Writer() { out_ << YAML::BeginMap; }
+  std::string finish() {
+    out_ << YAML::EndMap;
+    return std::string(out_.c_str()) + "\n";
+  }
+  void num(const char* key, double v) { out_ << YAML::Key << key << YAML::Value << format_number(v); }
+  void integer(const char* key, long long v) { out_ << YAML::Key << key << YAML::Value << v; }
+  void boolean(const char* key, bool v) {
+    out_ << YAML::Key << key << YAML::Value << (v ? "true" : "false");
+  }
+  void str(const char* key, const std::string& v) {
+    out_ << YAML::Key << key << YAML::Value << YAML::DoubleQuoted << v;
+  }
+  void word(const char* key, const std::string& v) { out_ << YAML::Key << key << YAML::Value << v; }
+  void list(const char* key, const std::vector<std::string>& v) {
+    out_ << YAML::Key << key << YAML::Value << YAML::Flow << YAML::BeginSeq;
+    for (const std::string& s : v) out_ << s;
+    out_ << YAML::EndSeq;
+  }
+  void begin(const std::string& key) { out_ << YAML::Key << key << YAML::Value << YAML::BeginMap; }
+  void end() { out_ << YAML::EndMap; }
+  YAML::Emitter& raw() { return out_; }
+
+ private:
+  YAML::Emitter out_;
+};
+
+void write_axes(Writer& w, const MachineConfig& c) {
+  w.begin("axes");
+  for (const AxisConfig& a : c.axes) {
+    w.begin(a.name);
+    w.num("steps_per_mm", a.steps_per_mm);
+    w.boolean("invert_direction", a.invert_direction);
+    if (a.encoder) {
+      w.begin("encoder");
+      w.num("resolution_um", a.encoder->resolution_um);
+      w.end();
+    }
+    if (std::isfinite(a.min_mm)) w.num("min_mm", a.min_mm);
+    if (std::isfinite(a.max_mm)) w.num("max_mm", a.max_mm);
+    w.num("max_velocity_mm_s", a.max_velocity_mm_s);
+    w.num("max_accel_mm_s2", a.max_accel_mm_s2);
+    w.end();
+  }
+  w.end();
+  if (c.delta) {
+    const DeltaGeometryConfig& g = *c.delta;
+    w.begin("delta");
+    w.num("radius_mm", g.radius_mm);
+    w.num("arm_length_mm", g.arm_length_mm);
+    w.num("nozzle_offset_mm", g.nozzle_offset_mm);
+    w.num("angle_a_deg", g.angle_a_deg);
+    w.num("angle_b_deg", g.angle_b_deg);
+    w.num("angle_c_deg", g.angle_c_deg);
+    w.num("print_radius_mm", g.print_radius_mm);
+    w.num("z_min_mm", g.z_min_mm);
+    w.num("z_max_mm", g.z_max_mm);
+    w.end();
+  }
+}
+
+void write_motion(Writer& w, const MachineConfig& c) {
+  const PlannerConfig& p = c.planner;
+  w.begin("planner");
+  w.num("max_velocity_mm_s", p.max_velocity_mm_s);
+  w.num("max_accel_mm_s2", p.max_accel_mm_s2);
+  w.num("junction_deviation_mm", p.junction_deviation_mm);
+  w.num("square_corner_velocity_mm_s", p.square_corner_velocity_mm_s);
+  w.num("min_cruise_ratio", p.min_cruise_ratio);
+  w.word("cornering", enum_name(cornering_names(), p.cornering));
+  w.begin("sharp_corner");
+  w.num("alpha_a_deg", p.sharp_corner.alpha_a_deg);
+  w.num("alpha_b_deg", p.sharp_corner.alpha_b_deg);
+  w.num("a1", p.sharp_corner.a1);
+  w.num("a2", p.sharp_corner.a2);
+  w.end();
+  w.word("profile", enum_name(profile_names(), p.profile));
+  w.num("max_jerk_mm_s3", p.max_jerk_mm_s3);
+  w.integer("lookahead_moves", p.lookahead_moves);
+  w.num("arc_tolerance_mm", p.arc_tolerance_mm);
+  w.end();
+
+  w.begin("servo");
+  w.num("rate_hz", c.servo.rate_hz);
+  w.integer("realtime_priority", c.servo.realtime_priority);
+  w.integer("cpu", c.servo.cpu);
+  w.boolean("lock_memory", c.servo.lock_memory);
+  w.end();
+
+  const ControlConfig& k = c.control;
+  w.begin("control");
+  w.word("mode", enum_name(control_mode_names(), k.mode));
+  w.num("kp", k.kp);
+  w.num("ki_per_s", k.ki_per_s);
+  w.num("max_correction_mm_s", k.max_correction_mm_s);
+  w.num("skipped_step_threshold_mm", k.skipped_step_threshold_mm);
+  w.num("max_following_error_mm", k.max_following_error_mm);
+  w.num("max_encoder_jump_mm", k.max_encoder_jump_mm);
+  w.end();
+
+  const FeedforwardConfig& f = c.feedforward;
+  w.begin("feedforward");
+  w.word("type", enum_name(feedforward_names(), f.type));
+  w.begin("shaper");
+  w.word("type", enum_name(shaper_names(), f.shaper.type));
+  w.num("freq_hz", f.shaper.freq_hz);
+  w.num("damping", f.shaper.damping);
+  w.end();
+  w.begin("lpv");
+  w.num("preview_ms", f.lpv.preview_ms);
+  w.end();
+  w.end();
+}
+
+void write_model(Writer& w, const MachineConfig& c) {
+  w.begin("model");
+  if (!c.model.gantry.empty()) {
+    w.begin("gantry");
+    for (const GantryModelConfig& g : c.model.gantry) {
+      w.begin(g.axis);
+      w.num("m1_kg", g.m1_kg);
+      w.num("m2_kg", g.m2_kg);
+      w.num("k1_n_per_m", g.k1_n_per_m);
+      w.num("k2_n_per_m", g.k2_n_per_m);
+      w.num("c1_ns_per_m", g.c1_ns_per_m);
+      w.num("c2_ns_per_m", g.c2_ns_per_m);
+      const StepperConfig& s = g.stepper;
+      w.begin("stepper");
+      w.num("holding_torque_nm", s.holding_torque_nm);
+      w.num("rated_current_a", s.rated_current_a);
+      w.num("drive_current_a", s.drive_current_a);
+      w.integer("rotor_teeth", s.rotor_teeth);
+      w.num("rotor_inertia_kg_m2", s.rotor_inertia_kg_m2);
+      w.num("pulley_radius_mm", s.pulley_radius_mm);
+      w.num("belt_unit_stiffness_n", s.belt_unit_stiffness_n);
+      w.num("pulley_distance_mm", s.pulley_distance_mm);
+      w.num("belt_efficiency", s.belt_efficiency);
+      w.end();
+      w.end();
+    }
+    w.end();
+  }
+  if (c.model.delta_lpv) {
+    const DeltaLpvConfig& d = *c.model.delta_lpv;
+    w.begin("delta_lpv");
+    w.num("m_c_kg", d.m_c_kg);
+    w.num("m_f_kg", d.m_f_kg);
+    w.num("c_ns_per_m", d.c_ns_per_m);
+    w.num("b_ns_per_m", d.b_ns_per_m);
+    w.num("k_n_per_m", d.k_n_per_m);
+    w.num("d0_per_s2", d.d0_per_s2);
+    w.num("d1_per_s", d.d1_per_s);
+    w.num("d2_per_s", d.d2_per_s);
+    w.num("m1_kg", d.m1_kg);
+    w.num("m2_kg", d.m2_kg);
+    w.num("b_x_ns_per_m", d.b_x_ns_per_m);
+    w.num("b_y_ns_per_m", d.b_y_ns_per_m);
+    w.num("b_z_ns_per_m", d.b_z_ns_per_m);
+    w.num("k_x_n_per_m", d.k_x_n_per_m);
+    w.num("k_y_n_per_m", d.k_y_n_per_m);
+    w.num("k_z_n_per_m", d.k_z_n_per_m);
+    w.num("delta_x_mm", d.delta_x_mm);
+    w.num("delta_y_mm", d.delta_y_mm);
+    w.num("delta_z_mm", d.delta_z_mm);
+    w.num("d_e_mm", d.d_e_mm);
+    w.word("force_transform", enum_name(force_transform_names(), d.force_transform));
+    w.end();
+  }
+  w.end();
+}
+
+void write_hardware(Writer& w, const MachineConfig& c) {
+  w.begin("stepgen");
+  w.num("max_step_error_us", c.stepgen.max_step_error_us);
+  w.integer("mcu_clock_hz", c.stepgen.mcu_clock_hz);
+  w.num("queue_ahead_ms", c.stepgen.queue_ahead_ms);
+  w.end();
+  YAML::Emitter& out = w.raw();
+  out << YAML::Key << "mcus" << YAML::Value << YAML::BeginSeq;
+  for (const McuConfig& m : c.mcus) {
+    out << YAML::BeginMap;
+    w.str("name", m.name);
+    w.list("axes", m.axes);
+    w.word("transport", enum_name(transport_names(), m.transport));
+    if (m.transport == TransportType::serial) {
+      w.begin("serial");
+      w.str("device", m.serial.device);
+      w.integer("baud", m.serial.baud);
+      w.end();
+    }
+    if (m.transport == TransportType::usb) {
+      char buf[16];
+      w.begin("usb");
+      std::snprintf(buf, sizeof buf, "0x%04x", static_cast<unsigned>(m.usb.vid));
+      w.word("vid", buf);
+      std::snprintf(buf, sizeof buf, "0x%04x", static_cast<unsigned>(m.usb.pid));
+      w.word("pid", buf);
+      w.str("serial", m.usb.serial);
+      w.end();
+    }
+    w.integer("clock_hz", m.clock_hz);
+    out << YAML::EndMap;
+  }
+  out << YAML::EndSeq;
+}
+
+template <class T, class WriteParams>
+void write_effect(Writer& w, const char* key, const std::optional<T>& e, WriteParams params) {
+  if (!e) return;
+  w.begin(key);
+  params(*e);
+  if (!e->axes.empty()) w.list("axes", e->axes);
+  w.end();
+}
+
+void write_runtime(Writer& w, const MachineConfig& c) {
+  const SimulatorConfig& s = c.simulator;
+  w.begin("simulator");
+  w.integer("seed", static_cast<long long>(s.seed));
+  w.num("encoder_noise_um", s.encoder_noise_um);
+  w.num("sample_delay_us", s.sample_delay_us);
+  w.begin("effects");
+  const SimEffectsConfig& fx = s.effects;
+  write_effect(w, "coulomb_friction", fx.coulomb_friction,
+               [&](const CoulombFrictionConfig& v) { w.num("force_n", v.force_n); });
+  write_effect(w, "backlash", fx.backlash,
+               [&](const BacklashConfig& v) { w.num("width_um", v.width_um); });
+  write_effect(w, "periodic_position", fx.periodic_position, [&](const PeriodicPositionConfig& v) {
+    w.num("period_mm", v.period_mm);
+    w.num("amplitude_um", v.amplitude_um);
+    w.num("phase_deg", v.phase_deg);
+  });
+  write_effect(w, "direction_dependent_stiffness", fx.direction_dependent_stiffness,
+               [&](const DirectionStiffnessConfig& v) { w.num("ratio", v.ratio); });
+  write_effect(w, "extra_resonance", fx.extra_resonance, [&](const ExtraResonanceConfig& v) {
+    w.num("freq_hz", v.freq_hz);
+    w.num("damping", v.damping);
+  });
+  write_effect(w, "time_delay", fx.time_delay,
+               [&](const TimeDelayConfig& v) { w.num("delay_ms", v.delay_ms); });
+  write_effect(w, "scale_error", fx.scale_error,
+               [&](const ScaleErrorConfig& v) { w.num("scale", v.scale); });
+  w.end();
+  w.end();
+
+  char mode[8];
+  std::snprintf(mode, sizeof mode, "0%o", c.sockets.mode);
+  w.begin("sockets");
+  w.str("unix_socket", c.sockets.unix_socket);
+  w.str("mode", mode);
+  w.str("api_socket", c.sockets.api_socket);
+  w.str("pty_link", c.sockets.pty_link);
+  w.end();
+
+  w.begin("recorder");
+  w.boolean("enabled", c.recorder.enabled);
+  w.str("directory", c.recorder.directory);
+  w.num("max_file_size_mb", c.recorder.max_file_size_mb);
+  w.integer("keep_files", c.recorder.keep_files);
+  w.end();
+
+  w.begin("logging");
+  w.word("level", enum_name(log_level_names(), c.logging.level));
+  w.str("file", c.logging.file);
+  w.end();
+}
+
+}  // namespace
+
+std::string to_yaml(const MachineConfig& c) {
+  Writer w;
+  w.integer("config_version", 1);
+  w.str("name", c.name);
+  w.word("kinematics", enum_name(kinematics_names(), c.kinematics));
+  write_axes(w, c);
+  write_motion(w, c);
+  write_model(w, c);
+  write_hardware(w, c);
+  write_runtime(w, c);
+  return w.finish();
+}
+
+}  // namespace feedloop::config

@@ -1,0 +1,74 @@
+// The YAML spelling of every enumerated config value, shared by the loader and the emitter so the
+// two can never disagree.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "config/machine_config.hpp"
+
+namespace feedloop::config {
+
+template <class E>
+using EnumNames = std::vector<std::pair<std::string, E>>;
+
+inline const EnumNames<Kinematics>& kinematics_names() {
+  static const EnumNames<Kinematics> n = {{"cartesian", Kinematics::cartesian},
+                                          {"corexy", Kinematics::corexy},
+                                          {"delta", Kinematics::delta}};
+  return n;
+}
+inline const EnumNames<Cornering>& cornering_names() {
+  static const EnumNames<Cornering> n = {{"junction_deviation", Cornering::junction_deviation},
+                                         {"sharp_corner", Cornering::sharp_corner}};
+  return n;
+}
+inline const EnumNames<Profile>& profile_names() {
+  static const EnumNames<Profile> n = {{"trapezoid", Profile::trapezoid},
+                                       {"scurve", Profile::scurve}};
+  return n;
+}
+inline const EnumNames<ControlMode>& control_mode_names() {
+  static const EnumNames<ControlMode> n = {{"open_loop", ControlMode::open_loop},
+                                           {"pi", ControlMode::pi}};
+  return n;
+}
+inline const EnumNames<FeedforwardType>& feedforward_names() {
+  static const EnumNames<FeedforwardType> n = {{"none", FeedforwardType::none},
+                                               {"shaper", FeedforwardType::shaper},
+                                               {"lpv", FeedforwardType::lpv}};
+  return n;
+}
+inline const EnumNames<ShaperType>& shaper_names() {
+  static const EnumNames<ShaperType> n = {
+      {"zv", ShaperType::zv}, {"mzv", ShaperType::mzv}, {"ei", ShaperType::ei}};
+  return n;
+}
+inline const EnumNames<ForceTransform>& force_transform_names() {
+  static const EnumNames<ForceTransform> n = {{"paper", ForceTransform::paper},
+                                              {"virtual_work", ForceTransform::virtual_work}};
+  return n;
+}
+inline const EnumNames<TransportType>& transport_names() {
+  static const EnumNames<TransportType> n = {{"mock", TransportType::mock},
+                                             {"serial", TransportType::serial},
+                                             {"usb", TransportType::usb}};
+  return n;
+}
+inline const EnumNames<LogLevel>& log_level_names() {
+  static const EnumNames<LogLevel> n = {
+      {"trace", LogLevel::trace}, {"debug", LogLevel::debug},       {"info", LogLevel::info},
+      {"warn", LogLevel::warn},   {"error", LogLevel::error},       {"critical", LogLevel::critical},
+      {"off", LogLevel::off}};
+  return n;
+}
+
+template <class E>
+std::string enum_name(const EnumNames<E>& names, E value) {
+  for (const auto& [name, v] : names)
+    if (v == value) return name;
+  return "?";
+}
+
+}  // namespace feedloop::config

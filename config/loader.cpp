@@ -1,0 +1,103 @@
+// Entry points of the config library: YAML text or file in, a fully validated MachineConfig or
+// every problem out. Reads the sections in dependency order (kinematics before axes, axes before
+// anything that names an axis), then the whole-machine checks.
+#include <cerrno>   // errno
+#include <cstring>  // strerror
+#include <fstream>
+#include <sstream>
+
+#include "config/config.hpp"
+#include "config/enum_names.hpp"
+#include "config/sections.hpp"
+
+namespace feedloop::config {
+namespace {
+
+constexpr int kSchemaVersion = 1;
+
+void read_document(const YAML::Node& doc, MachineConfig& cfg, Diagnostics& diag) {
+  using namespace detail;
+  Marks marks;
+  marks.root = doc.Mark();
+  MapReader root(doc, "", diag, YAML::Mark());
+  if (!root.present()) return;  // reported by MapReader
+  int version = kSchemaVersion;
+  if (root.integer_as("config_version", version, 1, 1000) && version != kSchemaVersion)
+    diag.add(root.get("config_version").Mark(),
+             "config_version " + std::to_string(version) + " is not supported (this feedloop reads " +
+                 std::to_string(kSchemaVersion) + ")");
+  root.string("name", cfg.name);
+  marks.kinematics = root.key_mark("kinematics");
+  const bool kin_ok = root.choice("kinematics", cfg.kinematics, kinematics_names(), Need::required);
+  marks.control = root.key_mark("control");
+  marks.feedforward = root.key_mark("feedforward");
+  if (kin_ok) {  // the axis set depends on the kinematics; without it, axis errors would be noise
+    read_axes(root, cfg, marks, diag);
+    read_delta(root, cfg, marks, diag);
+  } else {
+    root.get("axes");
+    root.get("delta");
+  }
+  read_planner(root, cfg, diag);
+  read_servo_control(root, cfg, diag);
+  read_model(root, cfg, diag);
+  read_stepgen_mcus(root, cfg, marks, diag);
+  read_simulator(root, cfg, diag);
+  read_io(root, cfg, diag);
+  root.finish();
+  if (kin_ok) check_machine(cfg, marks, diag);
+}
+
+// Parses and validates; fills `out` only when there is no problem.
+std::vector<Error> load(std::string_view yaml, const std::string& source, MachineConfig* out) {
+  Diagnostics diag(source);
+  MachineConfig cfg;
+  try {
+    const YAML::Node doc = YAML::Load(std::string(yaml));
+    if (!doc.IsDefined() || doc.IsNull()) {
+      diag.add(1, 1, "the config is empty (expected a mapping with at least kinematics, axes, mcus)");
+    } else {
+      read_document(doc, cfg, diag);
+    }
+  } catch (const YAML::ParserException& e) {
+    diag.add(e.mark, "YAML syntax error: " + e.msg);
+  } catch (const YAML::Exception& e) {
+    diag.add(e.mark, "YAML error: " + e.msg);
+  } catch (const std::exception& e) {
+    diag.add(0, 0, std::string("internal error while reading the config: ") + e.what());
+  }
+  if (diag.empty() && out != nullptr) *out = std::move(cfg);
+  return diag.errors();
+}
+
+}  // namespace
+
+std::vector<Error> check_config_text(std::string_view yaml, const std::string& source_name) {
+  return load(yaml, source_name, nullptr);
+}
+
+Result<MachineConfig> load_config_text(std::string_view yaml, const std::string& source_name) {
+  MachineConfig cfg;
+  std::vector<Error> errors = load(yaml, source_name, &cfg);
+  if (errors.empty()) return cfg;
+  Diagnostics all(source_name);
+  for (Error& e : errors) all.add(e.where.line, e.where.column, std::move(e.message));
+  return all.combined();
+}
+
+Result<MachineConfig> load_config_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return Error{"cannot read config file: " + std::string(std::strerror(errno)),
+                 SourceLocation{path, 0, 0}};
+  }
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) {
+    return Error{"cannot read config file: " + std::string(std::strerror(errno)),
+                 SourceLocation{path, 0, 0}};
+  }
+  return load_config_text(text.str(), path);
+}
+
+}  // namespace feedloop::config

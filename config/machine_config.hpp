@@ -1,0 +1,328 @@
+// The printer description as plain structs: what one YAML config file holds (schema documented key
+// by key in config/README.md). Every field has a sane default; units are in the names (mm, s, kg,
+// N/m ...). Modules take the parts they need; nothing here knows YAML.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace feedloop::config {
+
+inline constexpr double kUnlimited = std::numeric_limits<double>::infinity();
+
+enum class Kinematics { cartesian, corexy, delta };
+
+// ---- axes -------------------------------------------------------------------------------------
+
+struct EncoderConfig {
+  double resolution_um = 0.49;  // AS5311 linear encoder (thesis Sect. 3)
+  bool operator==(const EncoderConfig&) const = default;
+};
+
+// One motor axis: x, y, z, e (cartesian/corexy) or carriage A, B, C, e (delta). For corexy, x and
+// y describe the two motors and the travel limits are Cartesian.
+struct AxisConfig {
+  std::string name;
+  double steps_per_mm = 80.0;
+  bool invert_direction = false;
+  std::optional<EncoderConfig> encoder;  // none: open loop only on this axis
+  double min_mm = -kUnlimited;           // travel limits; unlimited only for e
+  double max_mm = kUnlimited;
+  double max_velocity_mm_s = 300.0;
+  double max_accel_mm_s2 = 3000.0;
+  bool operator==(const AxisConfig&) const = default;
+};
+
+// ---- delta geometry (DESIGN.md canonical contract) -------------------------------------------
+
+struct DeltaGeometryConfig {
+  double radius_mm = 145.0;         // R, effective carriage radius
+  double arm_length_mm = 300.0;     // L, forearm length
+  double nozzle_offset_mm = 20.0;   // H_ez (delta paper Eq. 3-5)
+  double angle_a_deg = 0.0;         // carriage A on +x
+  double angle_b_deg = 120.0;
+  double angle_c_deg = 240.0;
+  double print_radius_mm = 100.0;   // reachable disc checked at load
+  double z_min_mm = 0.0;
+  double z_max_mm = 250.0;
+  bool operator==(const DeltaGeometryConfig&) const = default;
+};
+
+// ---- planner ------------------------------------------------------------------------------------
+
+enum class Cornering { junction_deviation, sharp_corner };
+enum class Profile { trapezoid, scurve };
+
+// Output-maneuvering paper, Sect. III-D, Eq. 63-69: corners with angle alpha_n < alpha_a keep the
+// speed, alpha_a..alpha_b slow down progressively (k_n of Eq. 66 from 0 to 1), > alpha_b slow down
+// heavily; a1, a2 shape the sigmoid h of Eq. 68 (in path-parameter units, theta per segment = 1).
+struct SharpCornerConfig {
+  double alpha_a_deg = 5.0;   // Table II
+  double alpha_b_deg = 20.0;  // Table II
+  double a1 = 0.05;           // Table II
+  double a2 = 0.005;          // Table II
+  bool operator==(const SharpCornerConfig&) const = default;
+};
+
+struct PlannerConfig {
+  double max_velocity_mm_s = 300.0;
+  double max_accel_mm_s2 = 3000.0;  // thesis normal acceleration
+  double junction_deviation_mm = 0.013;
+  double square_corner_velocity_mm_s = 5.0;
+  double min_cruise_ratio = 0.5;
+  Cornering cornering = Cornering::junction_deviation;
+  SharpCornerConfig sharp_corner;
+  Profile profile = Profile::trapezoid;
+  double max_jerk_mm_s3 = 100000.0;  // scurve only
+  int lookahead_moves = 128;
+  double arc_tolerance_mm = 0.005;   // chordal deviation when splitting G2/G3
+  bool operator==(const PlannerConfig&) const = default;
+};
+
+// ---- servo, control, feedforward ----------------------------------------------------------------
+
+struct ServoConfig {
+  double rate_hz = 1000.0;        // thesis: 1 kHz control update
+  int realtime_priority = 80;     // SCHED_FIFO priority; 0: do not ask for real time
+  int cpu = -1;                   // pin the servo thread to this CPU; -1: no pinning
+  bool lock_memory = true;        // mlockall when permitted
+  bool operator==(const ServoConfig&) const = default;
+};
+
+enum class ControlMode { open_loop, pi };
+
+struct ControlConfig {
+  ControlMode mode = ControlMode::pi;
+  double kp = 0.5;                            // thesis Sect. 5: P = 0.5
+  double ki_per_s = 20.0;                     // thesis Sect. 5: I = 20
+  double max_correction_mm_s = 50.0;          // clamp of the PI correction (per period: / rate_hz)
+  double skipped_step_threshold_mm = 0.3;     // following error that counts as lost steps
+  double max_following_error_mm = 2.0;        // beyond this: fault, stop motion
+  double max_encoder_jump_mm = 1.0;           // a sample-to-sample jump beyond this is implausible
+  bool operator==(const ControlConfig&) const = default;
+};
+
+enum class FeedforwardType { none, shaper, lpv };
+enum class ShaperType { zv, mzv, ei };
+
+struct ShaperConfig {
+  ShaperType type = ShaperType::mzv;
+  double freq_hz = 40.0;
+  double damping = 0.1;
+  bool operator==(const ShaperConfig&) const = default;
+};
+
+struct LpvFeedforwardConfig {
+  double preview_ms = 20.0;  // preview of the stable approximate inverse (DESIGN.md: RHP zero)
+  bool operator==(const LpvFeedforwardConfig&) const = default;
+};
+
+struct FeedforwardConfig {
+  FeedforwardType type = FeedforwardType::none;
+  ShaperConfig shaper;
+  LpvFeedforwardConfig lpv;
+  bool operator==(const FeedforwardConfig&) const = default;
+};
+
+// ---- models -------------------------------------------------------------------------------------
+
+// Nonlinear hybrid stepper + belt of the thesis, Appendix D Eq. 1-7 and Table 2.
+struct StepperConfig {
+  double holding_torque_nm = 0.285;       // T_max at rated current (17HD0013)
+  double rated_current_a = 0.4;
+  double drive_current_a = 0.2;           // drivers run below rated current; T_max scales with it
+  int rotor_teeth = 50;                   // n_r
+  double rotor_inertia_kg_m2 = 3.8e-6;    // J = 38 g cm^2
+  double pulley_radius_mm = 5.40;         // r
+  double belt_unit_stiffness_n = 33000.0; // k-hat of Eq. 6 (K_2 = k-hat / active length)
+  double pulley_distance_mm = 300.0;      // L of Eq. 6
+  double belt_efficiency = 1.0;           // e of Eq. 7
+  bool operator==(const StepperConfig&) const = default;
+};
+
+// Linearised two-mass gantry axis of the thesis, Eq. 13 (Tables 3-4).
+struct GantryModelConfig {
+  std::string axis;
+  double m1_kg = 0.130;           // rotor inertia as a mass, J / r^2 (Table 3)
+  double m2_kg = 0.45;            // carriage / load mass (Table 2-3)
+  double k1_n_per_m = 355e3;      // motor magnetic stiffness (Table 4)
+  double k2_n_per_m = 110e3;      // belt stiffness (Table 4)
+  double c1_ns_per_m = 2100.0;    // motor damping (Table 4)
+  double c2_ns_per_m = 112.0;     // bearing damping (Table 4)
+  StepperConfig stepper;
+  bool operator==(const GantryModelConfig&) const = default;
+};
+
+enum class ForceTransform { paper, virtual_work };
+
+// Delta LPV receptance-coupling model: the physical parameters of the delta paper's Table I
+// (DESIGN.md: its omega_n / zeta columns are inconsistent with them and are not used).
+struct DeltaLpvConfig {
+  double m_c_kg = 0.179;          // carriage mass
+  double m_f_kg = 0.032;          // forearm pair mass (m = m_c + m_f / 2)
+  double c_ns_per_m = 5.31;       // carriage damping to the motor (Eq. 37)
+  double b_ns_per_m = 13.4;       // carriage damping to ground (Eq. 37)
+  double k_n_per_m = 1.21e5;      // carriage stiffness
+  double d0_per_s2 = 1.43e5;      // electrical part G_qd,e = (d1 s + d0)/(s^2 + d2 s + d0)
+  double d1_per_s = -212.1;
+  double d2_per_s = 36.2;
+  double m1_kg = 0.542;           // end-effector: nozzle holder (Eq. 67)
+  double m2_kg = 0.109;           // end-effector: extruder motor
+  double b_x_ns_per_m = 20.4;     // b_j
+  double b_y_ns_per_m = 40.5;
+  double b_z_ns_per_m = 19.6;
+  double k_x_n_per_m = 3.31e3;    // k_j
+  double k_y_n_per_m = 7.04e3;
+  double k_z_n_per_m = 1.29e5;
+  double delta_x_mm = 10.21;      // centre-of-mass offset from the centroid (Eq. 20)
+  double delta_y_mm = -16.52;
+  double delta_z_mm = 19.31;
+  double d_e_mm = 39.91;          // centroid to forearm reaction point (Eq. 20)
+  ForceTransform force_transform = ForceTransform::paper;  // Eq. 25/69 vs tau = Jbar^T W X
+  bool operator==(const DeltaLpvConfig&) const = default;
+};
+
+struct ModelConfig {
+  std::vector<GantryModelConfig> gantry;  // per axis, in file order
+  std::optional<DeltaLpvConfig> delta_lpv;
+  bool operator==(const ModelConfig&) const = default;
+};
+
+// ---- step generation and MCUs -------------------------------------------------------------------
+
+struct StepgenConfig {
+  double max_step_error_us = 5.0;      // compressed step times within this of the exact ones
+  std::int64_t mcu_clock_hz = 72000000;  // default MCU clock; an MCU may override it
+  double queue_ahead_ms = 100.0;       // how far ahead of its execution a step batch is sent
+  bool operator==(const StepgenConfig&) const = default;
+};
+
+enum class TransportType { mock, serial, usb };
+
+struct SerialConfig {
+  std::string device;  // e.g. /dev/ttyACM0 or a /dev/serial/by-id/ link
+  int baud = 250000;
+  bool operator==(const SerialConfig&) const = default;
+};
+
+struct UsbConfig {
+  int vid = 0;
+  int pid = 0;
+  std::string serial;  // empty: the first matching device
+  bool operator==(const UsbConfig&) const = default;
+};
+
+struct McuConfig {
+  std::string name;
+  std::vector<std::string> axes;  // every axis is driven by exactly one MCU
+  TransportType transport = TransportType::mock;
+  SerialConfig serial;            // transport: serial
+  UsbConfig usb;                  // transport: usb
+  std::int64_t clock_hz = 72000000;  // defaults to stepgen.mcu_clock_hz
+  bool operator==(const McuConfig&) const = default;
+};
+
+// ---- simulator ----------------------------------------------------------------------------------
+
+// Unmodelled effects the plant simulator can add (vocabulary of DESIGN.md's identification report).
+// Each is off unless present; `axes` empty means every motion axis.
+struct CoulombFrictionConfig { double force_n = 2.0; std::vector<std::string> axes;
+  bool operator==(const CoulombFrictionConfig&) const = default; };
+struct BacklashConfig { double width_um = 20.0; std::vector<std::string> axes;
+  bool operator==(const BacklashConfig&) const = default; };
+struct PeriodicPositionConfig { double period_mm = 40.0; double amplitude_um = 10.0;
+  double phase_deg = 0.0; std::vector<std::string> axes;
+  bool operator==(const PeriodicPositionConfig&) const = default; };
+struct DirectionStiffnessConfig { double ratio = 1.3; std::vector<std::string> axes;
+  bool operator==(const DirectionStiffnessConfig&) const = default; };
+struct ExtraResonanceConfig { double freq_hz = 90.0; double damping = 0.05;
+  std::vector<std::string> axes;
+  bool operator==(const ExtraResonanceConfig&) const = default; };
+struct TimeDelayConfig { double delay_ms = 2.0; std::vector<std::string> axes;
+  bool operator==(const TimeDelayConfig&) const = default; };
+struct ScaleErrorConfig { double scale = 1.003; std::vector<std::string> axes;
+  bool operator==(const ScaleErrorConfig&) const = default; };
+
+struct SimEffectsConfig {
+  std::optional<CoulombFrictionConfig> coulomb_friction;
+  std::optional<BacklashConfig> backlash;
+  std::optional<PeriodicPositionConfig> periodic_position;
+  std::optional<DirectionStiffnessConfig> direction_dependent_stiffness;
+  std::optional<ExtraResonanceConfig> extra_resonance;
+  std::optional<TimeDelayConfig> time_delay;
+  std::optional<ScaleErrorConfig> scale_error;
+  bool operator==(const SimEffectsConfig&) const = default;
+};
+
+struct SimulatorConfig {
+  std::uint64_t seed = 1;
+  double encoder_noise_um = 0.0;   // rms, added before quantisation to the encoder resolution
+  double sample_delay_us = 0.0;    // encoder sample to report latency
+  SimEffectsConfig effects;
+  bool operator==(const SimulatorConfig&) const = default;
+};
+
+// ---- daemon I/O ---------------------------------------------------------------------------------
+
+// Paths may use ${RUNTIME_DIR} and ${STATE_DIR}; see expand_path() in config.hpp.
+struct SocketsConfig {
+  std::string unix_socket = "${RUNTIME_DIR}/feedloop.sock";  // G-code line protocol
+  unsigned mode = 0660;                                      // permission bits of both sockets
+  std::string api_socket = "${RUNTIME_DIR}/api.sock";        // JSON API
+  std::string pty_link = "${RUNTIME_DIR}/ttyFeedloop";       // symlink to the Marlin-like pty
+  bool operator==(const SocketsConfig&) const = default;
+};
+
+struct RecorderConfig {
+  bool enabled = true;
+  std::string directory = "${STATE_DIR}/recordings";
+  double max_file_size_mb = 256.0;  // rotate to a new file beyond this
+  int keep_files = 20;              // oldest files beyond this are deleted
+  bool operator==(const RecorderConfig&) const = default;
+};
+
+enum class LogLevel { trace, debug, info, warn, error, critical, off };
+
+struct LoggingConfig {
+  LogLevel level = LogLevel::info;
+  std::string file;  // empty: stderr (the journal under systemd) only
+  bool operator==(const LoggingConfig&) const = default;
+};
+
+// ---- the whole machine --------------------------------------------------------------------------
+
+struct MachineConfig {
+  std::string name = "feedloop printer";
+  Kinematics kinematics = Kinematics::cartesian;
+  std::vector<AxisConfig> axes;  // in file order
+  std::optional<DeltaGeometryConfig> delta;  // present iff kinematics == delta
+  PlannerConfig planner;
+  ServoConfig servo;
+  ControlConfig control;
+  FeedforwardConfig feedforward;
+  ModelConfig model;
+  StepgenConfig stepgen;
+  std::vector<McuConfig> mcus;
+  SimulatorConfig simulator;
+  SocketsConfig sockets;
+  RecorderConfig recorder;
+  LoggingConfig logging;
+
+  bool operator==(const MachineConfig&) const = default;
+
+  const AxisConfig* axis(const std::string& axis_name) const {
+    for (const AxisConfig& a : axes)
+      if (a.name == axis_name) return &a;
+    return nullptr;
+  }
+  bool uses_simulator() const {
+    for (const McuConfig& m : mcus)
+      if (m.transport == TransportType::mock) return true;
+    return false;
+  }
+};
+
+}  // namespace feedloop::config

@@ -1,0 +1,107 @@
+// Config sections `axes` and `delta` (geometry), and the axis sets each kinematics needs.
+#include "config/enum_names.hpp"
+#include "config/sections.hpp"
+
+namespace feedloop::config::detail {
+
+const std::vector<std::string>& required_axes(Kinematics k) {
+  static const std::vector<std::string> xyz = {"x", "y", "z"};
+  static const std::vector<std::string> abc = {"A", "B", "C"};
+  return k == Kinematics::delta ? abc : xyz;
+}
+
+const std::vector<std::string>& allowed_axes(Kinematics k) {
+  static const std::vector<std::string> xyze = {"x", "y", "z", "e"};
+  static const std::vector<std::string> abce = {"A", "B", "C", "e"};
+  return k == Kinematics::delta ? abce : xyze;
+}
+
+void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag) {
+  MapReader axes = root.sub("axes", Need::required);
+  marks.axes = axes.mark();
+  const std::vector<std::string>& allowed = allowed_axes(cfg.kinematics);
+  const std::string kin = enum_name(kinematics_names(), cfg.kinematics);
+  for (const std::string& name : axes.keys()) {
+    const YAML::Mark where = axes.key_mark(name);
+    MapReader a(axes.get(name), axes.key_path(name), diag, where);
+    bool known = false;
+    for (const std::string& n : allowed) known = known || n == name;
+    if (!known) {
+      std::string list;
+      for (const std::string& n : allowed) list += (list.empty() ? "" : ", ") + n;
+      std::string msg = "axis '" + name + "' does not exist with kinematics " + kin +
+                        " (axes: " + list + ")";
+      if (const std::string s = closest_match(name, allowed); !s.empty())
+        msg += " (did you mean '" + s + "'?)";
+      diag.add(where, msg);
+      continue;
+    }
+    marks.axis[name] = where;
+    AxisConfig axis;
+    axis.name = name;
+    const bool is_e = name == "e";
+    a.number("steps_per_mm", axis.steps_per_mm, Range::positive(), Need::required);
+    a.boolean("invert_direction", axis.invert_direction);
+    if (a.has("encoder")) {
+      MapReader enc = a.sub("encoder");
+      EncoderConfig e;
+      enc.number("resolution_um", e.resolution_um, Range::open_closed(0.0, 1000.0), Need::required);
+      enc.finish();
+      axis.encoder = e;
+    } else {
+      a.sub("encoder");  // known key, for suggestions
+    }
+    const Need travel_need = is_e ? Need::optional : Need::required;
+    const bool has_min = a.number("min_mm", axis.min_mm, Range::any(), travel_need);
+    const bool has_max = a.number("max_mm", axis.max_mm, Range::any(), travel_need);
+    if (has_min && has_max && !(axis.min_mm < axis.max_mm))
+      diag.add(a.key_mark("max_mm"), a.path() + ": travel min_mm (" + format_number(axis.min_mm) +
+                                         ") must be less than max_mm (" +
+                                         format_number(axis.max_mm) + ")");
+    if (is_e && has_min != has_max)
+      diag.add(a.mark(), a.path() + ": give both min_mm and max_mm, or neither (unlimited)");
+    a.number("max_velocity_mm_s", axis.max_velocity_mm_s, Range::positive(), Need::required);
+    a.number("max_accel_mm_s2", axis.max_accel_mm_s2, Range::positive(), Need::required);
+    a.finish();
+    cfg.axes.push_back(axis);
+  }
+  axes.finish();
+  if (!axes.present()) return;  // already reported as missing or malformed
+  for (const std::string& need : required_axes(cfg.kinematics))
+    if (cfg.axis(need) == nullptr && marks.axis.count(need) == 0)
+      diag.add(axes.mark(), "kinematics " + kin + " needs axis '" + need + "', missing from axes");
+}
+
+void read_delta(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag) {
+  const bool is_delta = cfg.kinematics == Kinematics::delta;
+  if (!root.has("delta")) {
+    root.sub("delta");  // known key
+    if (is_delta)
+      diag.add(marks.kinematics, "kinematics delta needs a 'delta' section (geometry)");
+    return;
+  }
+  MapReader d = root.sub("delta");
+  marks.delta = root.key_mark("delta");
+  if (!is_delta) {
+    diag.add(marks.delta, "section 'delta' is only valid with kinematics: delta");
+    return;
+  }
+  DeltaGeometryConfig g;
+  d.number("radius_mm", g.radius_mm, Range::positive(), Need::required);
+  d.number("arm_length_mm", g.arm_length_mm, Range::positive(), Need::required);
+  d.number("nozzle_offset_mm", g.nozzle_offset_mm, Range::any());
+  d.number("angle_a_deg", g.angle_a_deg, Range::closed(-360.0, 360.0));
+  d.number("angle_b_deg", g.angle_b_deg, Range::closed(-360.0, 360.0));
+  d.number("angle_c_deg", g.angle_c_deg, Range::closed(-360.0, 360.0));
+  d.number("print_radius_mm", g.print_radius_mm, Range::positive(), Need::required);
+  const bool zmin = d.number("z_min_mm", g.z_min_mm, Range::any());
+  const bool zmax = d.number("z_max_mm", g.z_max_mm, Range::any(), Need::required);
+  if ((zmin || zmax) && !(g.z_min_mm < g.z_max_mm))
+    diag.add(d.key_mark("z_max_mm"), "delta: z_min_mm (" + format_number(g.z_min_mm) +
+                                         ") must be less than z_max_mm (" +
+                                         format_number(g.z_max_mm) + ")");
+  d.finish();
+  cfg.delta = g;
+}
+
+}  // namespace feedloop::config::detail

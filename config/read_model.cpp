@@ -1,0 +1,110 @@
+// Config section `model`: the thesis gantry model per axis (Appendix D) and the delta LPV model
+// (delta paper Table I physical parameters).
+#include "config/enum_names.hpp"
+#include "config/sections.hpp"
+
+namespace feedloop::config::detail {
+namespace {
+
+void read_stepper(MapReader& g, StepperConfig& st, Diagnostics& diag) {
+  MapReader s = g.sub("stepper");
+  s.number("holding_torque_nm", st.holding_torque_nm, Range::positive());
+  const bool r = s.number("rated_current_a", st.rated_current_a, Range::positive());
+  const bool d = s.number("drive_current_a", st.drive_current_a, Range::positive());
+  if ((r || d) && st.drive_current_a > st.rated_current_a * 1.5)
+    diag.add(s.key_mark("drive_current_a"),
+             s.path() + ": drive_current_a (" + format_number(st.drive_current_a) +
+                 " A) is more than 1.5 x rated_current_a (" + format_number(st.rated_current_a) +
+                 " A)");
+  s.integer_as("rotor_teeth", st.rotor_teeth, 1, 1000);
+  s.number("rotor_inertia_kg_m2", st.rotor_inertia_kg_m2, Range::positive());
+  s.number("pulley_radius_mm", st.pulley_radius_mm, Range::positive());
+  s.number("belt_unit_stiffness_n", st.belt_unit_stiffness_n, Range::positive());
+  s.number("pulley_distance_mm", st.pulley_distance_mm, Range::positive());
+  s.number("belt_efficiency", st.belt_efficiency, Range::open_closed(0.0, 1.0));
+  s.finish();
+}
+
+void read_gantry(MapReader& model, MachineConfig& cfg, Diagnostics& diag) {
+  MapReader gantry = model.sub("gantry");
+  for (const std::string& name : gantry.keys()) {
+    const YAML::Mark where = gantry.key_mark(name);
+    MapReader g(gantry.get(name), gantry.key_path(name), diag, where);
+    if (cfg.kinematics == Kinematics::delta) {
+      diag.add(where, "model.gantry is for cartesian and corexy machines; a delta uses "
+                      "model.delta_lpv");
+      continue;
+    }
+    if (cfg.axis(name) == nullptr) {
+      std::vector<std::string> names;
+      for (const AxisConfig& a : cfg.axes) names.push_back(a.name);
+      std::string msg = "model.gantry: '" + name + "' is not an axis in axes";
+      if (const std::string s = closest_match(name, names); !s.empty())
+        msg += " (did you mean '" + s + "'?)";
+      diag.add(where, msg);
+      continue;
+    }
+    GantryModelConfig m;
+    m.axis = name;
+    // Eq. 13: the six parameters differ per axis, so none defaults silently.
+    g.number("m1_kg", m.m1_kg, Range::positive(), Need::required);
+    g.number("m2_kg", m.m2_kg, Range::positive(), Need::required);
+    g.number("k1_n_per_m", m.k1_n_per_m, Range::positive(), Need::required);
+    g.number("k2_n_per_m", m.k2_n_per_m, Range::positive(), Need::required);
+    g.number("c1_ns_per_m", m.c1_ns_per_m, Range::non_negative(), Need::required);
+    g.number("c2_ns_per_m", m.c2_ns_per_m, Range::non_negative(), Need::required);
+    read_stepper(g, m.stepper, diag);
+    g.finish();
+    cfg.model.gantry.push_back(m);
+  }
+  gantry.finish();
+}
+
+void read_delta_lpv(MapReader& model, MachineConfig& cfg, Diagnostics& diag) {
+  if (!model.has("delta_lpv")) {
+    model.sub("delta_lpv");  // known key
+    return;
+  }
+  MapReader d = model.sub("delta_lpv");
+  if (cfg.kinematics != Kinematics::delta) {
+    diag.add(model.key_mark("delta_lpv"), "model.delta_lpv is only valid with kinematics: delta");
+    return;
+  }
+  DeltaLpvConfig p;
+  d.number("m_c_kg", p.m_c_kg, Range::positive());
+  d.number("m_f_kg", p.m_f_kg, Range::non_negative());
+  d.number("c_ns_per_m", p.c_ns_per_m, Range::non_negative());
+  d.number("b_ns_per_m", p.b_ns_per_m, Range::non_negative());
+  d.number("k_n_per_m", p.k_n_per_m, Range::positive());
+  // G_qd,e = (d1 s + d0) / (s^2 + d2 s + d0): d0 > 0 and d2 > 0 for a stable mode; d1 may be
+  // negative (the paper's -212.1 is a right-half-plane zero).
+  d.number("d0_per_s2", p.d0_per_s2, Range::positive());
+  d.number("d1_per_s", p.d1_per_s, Range::any());
+  d.number("d2_per_s", p.d2_per_s, Range::positive());
+  d.number("m1_kg", p.m1_kg, Range::positive());
+  d.number("m2_kg", p.m2_kg, Range::positive());
+  d.number("b_x_ns_per_m", p.b_x_ns_per_m, Range::non_negative());
+  d.number("b_y_ns_per_m", p.b_y_ns_per_m, Range::non_negative());
+  d.number("b_z_ns_per_m", p.b_z_ns_per_m, Range::non_negative());
+  d.number("k_x_n_per_m", p.k_x_n_per_m, Range::positive());
+  d.number("k_y_n_per_m", p.k_y_n_per_m, Range::positive());
+  d.number("k_z_n_per_m", p.k_z_n_per_m, Range::positive());
+  d.number("delta_x_mm", p.delta_x_mm, Range::any());
+  d.number("delta_y_mm", p.delta_y_mm, Range::any());
+  d.number("delta_z_mm", p.delta_z_mm, Range::any());
+  d.number("d_e_mm", p.d_e_mm, Range::positive());
+  d.choice("force_transform", p.force_transform, force_transform_names());
+  d.finish();
+  cfg.model.delta_lpv = p;
+}
+
+}  // namespace
+
+void read_model(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
+  MapReader model = root.sub("model");
+  read_gantry(model, cfg, diag);
+  read_delta_lpv(model, cfg, diag);
+  model.finish();
+}
+
+}  // namespace feedloop::config::detail

@@ -1,0 +1,73 @@
+// Config sections `planner`, `servo`, `control` and `feedforward`.
+#include "config/enum_names.hpp"
+#include "config/sections.hpp"
+
+namespace feedloop::config::detail {
+
+void read_planner(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
+  MapReader p = root.sub("planner");
+  PlannerConfig& pl = cfg.planner;
+  p.number("max_velocity_mm_s", pl.max_velocity_mm_s, Range::positive());
+  p.number("max_accel_mm_s2", pl.max_accel_mm_s2, Range::positive());
+  p.number("junction_deviation_mm", pl.junction_deviation_mm, Range::non_negative());
+  p.number("square_corner_velocity_mm_s", pl.square_corner_velocity_mm_s, Range::non_negative());
+  p.number("min_cruise_ratio", pl.min_cruise_ratio, Range::closed(0.0, 1.0));
+  p.choice("cornering", pl.cornering, cornering_names());
+  MapReader sc = p.sub("sharp_corner");
+  SharpCornerConfig& s = pl.sharp_corner;
+  // Eq. 64-66: alpha_a <= alpha_n <= alpha_b is the "sharp" band, angles in [0, 180] deg.
+  const bool a = sc.number("alpha_a_deg", s.alpha_a_deg, Range::closed(0.0, 180.0));
+  const bool b = sc.number("alpha_b_deg", s.alpha_b_deg, Range::closed(0.0, 180.0));
+  sc.number("a1", s.a1, Range::non_negative());   // Eq. 68 shift
+  sc.number("a2", s.a2, Range::positive());       // Eq. 68 scale
+  if ((a || b) && !(s.alpha_a_deg < s.alpha_b_deg))
+    diag.add(sc.key_mark(b ? "alpha_b_deg" : "alpha_a_deg"),
+             "planner.sharp_corner: alpha_a_deg (" + format_number(s.alpha_a_deg) +
+                 ") must be less than alpha_b_deg (" + format_number(s.alpha_b_deg) + ")");
+  sc.finish();
+  p.choice("profile", pl.profile, profile_names());
+  p.number("max_jerk_mm_s3", pl.max_jerk_mm_s3, Range::positive());
+  p.integer_as("lookahead_moves", pl.lookahead_moves, 2, 100000);
+  p.number("arc_tolerance_mm", pl.arc_tolerance_mm, Range::open_closed(0.0, 10.0));
+  p.finish();
+}
+
+void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
+  MapReader s = root.sub("servo");
+  s.number("rate_hz", cfg.servo.rate_hz, Range::closed(100.0, 20000.0));
+  s.integer_as("realtime_priority", cfg.servo.realtime_priority, 0, 99);
+  s.integer_as("cpu", cfg.servo.cpu, -1, 1023);
+  s.boolean("lock_memory", cfg.servo.lock_memory);
+  s.finish();
+
+  MapReader c = root.sub("control");
+  ControlConfig& cc = cfg.control;
+  c.choice("mode", cc.mode, control_mode_names());
+  c.number("kp", cc.kp, Range::non_negative());
+  c.number("ki_per_s", cc.ki_per_s, Range::non_negative());
+  c.number("max_correction_mm_s", cc.max_correction_mm_s, Range::positive());
+  const bool t = c.number("skipped_step_threshold_mm", cc.skipped_step_threshold_mm, Range::positive());
+  const bool f = c.number("max_following_error_mm", cc.max_following_error_mm, Range::positive());
+  c.number("max_encoder_jump_mm", cc.max_encoder_jump_mm, Range::positive());
+  if ((t || f) && !(cc.skipped_step_threshold_mm < cc.max_following_error_mm))
+    diag.add(c.key_mark(f ? "max_following_error_mm" : "skipped_step_threshold_mm"),
+             "control: skipped_step_threshold_mm (" + format_number(cc.skipped_step_threshold_mm) +
+                 ") must be less than max_following_error_mm (" +
+                 format_number(cc.max_following_error_mm) + ")");
+  c.finish();
+
+  MapReader ff = root.sub("feedforward");
+  FeedforwardConfig& fc = cfg.feedforward;
+  ff.choice("type", fc.type, feedforward_names());
+  MapReader sh = ff.sub("shaper");
+  sh.choice("type", fc.shaper.type, shaper_names());
+  sh.number("freq_hz", fc.shaper.freq_hz, Range::closed(1.0, 500.0));
+  sh.number("damping", fc.shaper.damping, Range::open(0.0, 1.0));
+  sh.finish();
+  MapReader lpv = ff.sub("lpv");
+  lpv.number("preview_ms", fc.lpv.preview_ms, Range::closed(0.0, 1000.0));
+  lpv.finish();
+  ff.finish();
+}
+
+}  // namespace feedloop::config::detail

@@ -1,0 +1,135 @@
+// Config sections `simulator` (plant simulator and its optional unmodelled effects), `sockets`,
+// `recorder` and `logging`.
+#include "config/enum_names.hpp"
+#include "config/config.hpp"
+#include "config/sections.hpp"
+
+namespace feedloop::config::detail {
+namespace {
+
+// An effect section: absent = off; present = on unless `enabled: false`. Its parameters are
+// checked either way, so a disabled effect with a typo still reports it.
+template <class T, class ReadParams>
+void read_effect(MapReader& effects, const char* key, const MachineConfig& cfg,
+                 std::optional<T>& out, Diagnostics& diag, ReadParams read_params) {
+  if (!effects.has(key)) {
+    effects.sub(key);  // known key
+    return;
+  }
+  MapReader e = effects.sub(key);
+  T value;
+  bool enabled = true;
+  e.boolean("enabled", enabled);
+  read_params(e, value);
+  read_axis_refs(e, "axes", cfg, value.axes, diag);
+  e.finish();
+  if (enabled) out = value;
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && s.front() == ' ') s.remove_prefix(1);
+  while (!s.empty() && s.back() == ' ') s.remove_suffix(1);
+  return s;
+}
+
+// Unix permission bits written the usual way: 0660 (octal; "0o660" is accepted too).
+void read_mode(MapReader& s, unsigned& out, Diagnostics& diag) {
+  std::string text;
+  if (!s.string("mode", text)) return;
+  std::string_view t = trim(text);
+  if (t.size() > 2 && t[0] == '0' && (t[1] == 'o' || t[1] == 'O')) t.remove_prefix(2);
+  unsigned v = 0;
+  bool ok = !t.empty() && t.size() <= 4;
+  for (const char c : t) {
+    if (c < '0' || c > '7') ok = false;
+    v = v * 8 + static_cast<unsigned>(c - '0');
+  }
+  if (!ok || v > 0777) {
+    diag.add(s.get("mode").Mark(), s.key_path("mode") +
+                                       " must be octal permission bits such as 0660, got '" +
+                                       text + "'");
+    return;
+  }
+  out = v;
+}
+
+void read_path(MapReader& m, const char* key, std::string& out, Diagnostics& diag) {
+  std::string p;
+  if (!m.string(key, p)) return;
+  if (p.empty()) {
+    diag.add(m.key_mark(key), m.key_path(key) + " must not be empty");
+    return;
+  }
+  const Result<std::string> expanded = expand_path(p, PathVars{"/r", "/s"});
+  if (!expanded) {
+    diag.add(m.get(key).Mark(), m.key_path(key) + ": " + expanded.error().message);
+    return;
+  }
+  out = p;
+}
+
+}  // namespace
+
+void read_simulator(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
+  MapReader s = root.sub("simulator");
+  SimulatorConfig& sim = cfg.simulator;
+  s.integer_as("seed", sim.seed, 0, 9007199254740991);
+  s.number("encoder_noise_um", sim.encoder_noise_um, Range::non_negative());
+  s.number("sample_delay_us", sim.sample_delay_us, Range::closed(0.0, 1e6));
+  MapReader e = s.sub("effects");
+  SimEffectsConfig& fx = sim.effects;
+  read_effect(e, "coulomb_friction", cfg, fx.coulomb_friction, diag,
+              [](MapReader& m, CoulombFrictionConfig& v) {
+                m.number("force_n", v.force_n, Range::non_negative(), Need::required);
+              });
+  read_effect(e, "backlash", cfg, fx.backlash, diag, [](MapReader& m, BacklashConfig& v) {
+    m.number("width_um", v.width_um, Range::non_negative(), Need::required);
+  });
+  read_effect(e, "periodic_position", cfg, fx.periodic_position, diag,
+              [](MapReader& m, PeriodicPositionConfig& v) {
+                m.number("period_mm", v.period_mm, Range::positive(), Need::required);
+                m.number("amplitude_um", v.amplitude_um, Range::non_negative(), Need::required);
+                m.number("phase_deg", v.phase_deg, Range::closed(-360.0, 360.0));
+              });
+  read_effect(e, "direction_dependent_stiffness", cfg, fx.direction_dependent_stiffness, diag,
+              [](MapReader& m, DirectionStiffnessConfig& v) {
+                m.number("ratio", v.ratio, Range::positive(), Need::required);
+              });
+  read_effect(e, "extra_resonance", cfg, fx.extra_resonance, diag,
+              [](MapReader& m, ExtraResonanceConfig& v) {
+                m.number("freq_hz", v.freq_hz, Range::positive(), Need::required);
+                m.number("damping", v.damping, Range::open(0.0, 1.0), Need::required);
+              });
+  read_effect(e, "time_delay", cfg, fx.time_delay, diag, [](MapReader& m, TimeDelayConfig& v) {
+    m.number("delay_ms", v.delay_ms, Range::non_negative(), Need::required);
+  });
+  read_effect(e, "scale_error", cfg, fx.scale_error, diag, [](MapReader& m, ScaleErrorConfig& v) {
+    m.number("scale", v.scale, Range::open(0.5, 2.0), Need::required);
+  });
+  e.finish();
+  s.finish();
+}
+
+void read_io(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
+  MapReader so = root.sub("sockets");
+  read_path(so, "unix_socket", cfg.sockets.unix_socket, diag);
+  read_mode(so, cfg.sockets.mode, diag);
+  read_path(so, "api_socket", cfg.sockets.api_socket, diag);
+  read_path(so, "pty_link", cfg.sockets.pty_link, diag);
+  so.finish();
+
+  MapReader r = root.sub("recorder");
+  r.boolean("enabled", cfg.recorder.enabled);
+  read_path(r, "directory", cfg.recorder.directory, diag);
+  r.number("max_file_size_mb", cfg.recorder.max_file_size_mb, Range::closed(1.0, 1e6));
+  r.integer_as("keep_files", cfg.recorder.keep_files, 1, 100000);
+  r.finish();
+
+  MapReader l = root.sub("logging");
+  l.choice("level", cfg.logging.level, log_level_names());
+  l.string("file", cfg.logging.file);
+  if (!cfg.logging.file.empty()) read_path(l, "file", cfg.logging.file, diag);
+  l.finish();
+}
+
+}  // namespace feedloop::config::detail
