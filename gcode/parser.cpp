@@ -3,6 +3,7 @@
 #include "gcode/parser.hpp"
 
 #include <array>
+#include <bit>
 #include <climits>
 #include <cmath>
 #include <cstdio>
@@ -261,9 +262,8 @@ Status LineParser::validate() const {
   if (out_.unknown) return Status::Ok();
   const CodeRule* rule = find_code_rule(out_.letter, out_.code);
   if (rule == nullptr) return Status::Ok();  // unreachable: unknown is set when no rule
-  const uint32_t mask = out_.parameter_mask();
-  for (int b = 0; b < 26; ++b) {
-    if (!((mask >> b) & 1u)) continue;
+  for (uint32_t mask = out_.parameter_mask(); mask != 0; mask &= mask - 1) {
+    const int b = std::countr_zero(mask);
     const char letter = static_cast<char>('A' + b);
     const ParamRule* p = nullptr;
     for (const ParamRule& r : rule->params)
@@ -295,23 +295,23 @@ Status LineParser::validate() const {
 
 Status LineParser::check_parameter(const CodeRule& rule, const ParamRule& p, char letter) const {
   const size_t col = column_[letter - 'A'];
-  const std::string what = command_name(out_) + " (" + rule.summary + "): " + letter;
+  auto what = [&] { return command_name(out_) + " (" + rule.summary + "): " + letter; };
   if (!out_.has_value(letter)) {
-    if (p.kind == ParamRule::Kind::kNumber) return fail(col, what + " needs a number");
+    if (p.kind == ParamRule::Kind::kNumber) return fail(col, what() + " needs a number");
     return Status::Ok();
   }
   if (p.kind == ParamRule::Kind::kFlag) return Status::Ok();  // value ignored, as in Marlin
   const double v = out_.get(letter);
-  if (!std::isfinite(v)) return fail(col, what + " must be a finite number");
+  if (!std::isfinite(v)) return fail(col, what() + " must be a finite number");
   const bool below = p.min_exclusive ? !(v > p.min) : v < p.min;
   if (below || v > p.max) {
     std::string bound;
     if (std::isinf(p.max)) bound = std::string(p.min_exclusive ? "> " : ">= ") + fmt(p.min);
     else bound = "between " + fmt(p.min) + " and " + fmt(p.max);
-    return fail(col, what + " must be " + bound + " (got " + fmt(v) + ")");
+    return fail(col, what() + " must be " + bound + " (got " + fmt(v) + ")");
   }
   if (p.integer && v != std::floor(v))
-    return fail(col, what + " must be a whole number (got " + fmt(v) + ")");
+    return fail(col, what() + " must be a whole number (got " + fmt(v) + ")");
   return Status::Ok();
 }
 
