@@ -6,7 +6,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git python3
   libeigen3-dev libusb-1.0-0-dev libboost-dev libspdlog-dev libyaml-cpp-dev
-  libgtest-dev libgmock-dev libsystemd-dev libfftw3-dev
+  libgtest-dev libgmock-dev libsystemd-dev libfftw3-dev nlohmann-json3-dev
   clang libclang-rt-14-dev            # libFuzzer + sanitizer runtimes
   printrun                            # pronsole: the serial host used in the pty test
   systemd                             # systemd-analyze verify of the unit

@@ -1,0 +1,518 @@
+#include "daemon/daemon.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <cstdio>  // snprintf
+#include <utility>
+
+#include "config/config.hpp"
+#include "engine/executor_factory.hpp"
+#include "gcode/parser.hpp"
+
+namespace feedloop::daemon {
+
+namespace asio = boost::asio;
+using nlohmann::json;
+
+namespace {
+constexpr auto kTickInterval = std::chrono::milliseconds(5);
+constexpr const char* kVersion = "0.1.0";
+
+std::string format_temp_reply(const engine::MachineStatus& s) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "ok T:%.1f /%.1f B:%.1f /%.1f @:0 B@:0", s.hotend_c,
+                s.hotend_target_c, s.bed_c, s.bed_target_c);
+  return buf;
+}
+}  // namespace
+
+// A JSON `gcode` request: its lines run one after the other; the first failure ends it.
+struct Daemon::Script {
+  uint64_t client_id = 0;
+  std::vector<std::string> lines;
+  size_t next = 0;
+  int64_t line_number = 0;
+  json results = json::array();
+  std::function<void(json, std::string)> done;
+};
+
+Daemon::Daemon(config::MachineConfig cfg, DaemonOptions options)
+    : cfg_(std::move(cfg)),
+      options_(std::move(options)),
+      signals_(io_, SIGINT, SIGTERM, SIGHUP),
+      timer_(io_),
+      notifier_([this] { return machine_ && machine_->healthy(); }),
+      gcode_listener_(io_, "socket"),
+      api_listener_(io_, "api"),
+      pty_(io_) {}
+
+Daemon::~Daemon() {
+  if (machine_) machine_->stop();
+  close_channels();
+}
+
+Status Daemon::start() {
+  auto executor = engine::make_executor(cfg_);
+  if (!executor) return executor.error();
+  std::string warnings;
+  if (Status s = start_machine(std::move(*executor), &warnings); !s) return s;
+  for (size_t b = 0, e; b < warnings.size(); b = e + 1) {
+    e = warnings.find('\n', b);
+    if (e == std::string::npos) e = warnings.size();
+    if (e > b) spdlog::warn("{} (running without real-time guarantees)", warnings.substr(b, e - b));
+  }
+  if (Status s = open_channels(); !s) {
+    machine_->stop();
+    close_channels();
+    return s;
+  }
+  arm_signals();
+  timer_.expires_after(kTickInterval);
+  timer_.async_wait([this](const boost::system::error_code& ec) {
+    if (!ec) tick();
+  });
+  notifier_.ready();
+  notifier_.start_watchdog();
+  spdlog::info("feedloopd {} ready: '{}' ({}), socket {}, api {}, pty {} -> {}", kVersion,
+               cfg_.name, cfg_.uses_simulator() ? "simulated" : "hardware", socket_path_,
+               api_socket_path_, pty_link_, pty_.slave_name());
+  return Status::Ok();
+}
+
+Status Daemon::open_channels() {
+  const config::PathVars vars = config::path_vars_from_environment();
+  auto sock = config::expand_path(cfg_.sockets.unix_socket, vars);
+  auto api = config::expand_path(cfg_.sockets.api_socket, vars);
+  auto pty = config::expand_path(cfg_.sockets.pty_link, vars);
+  if (!sock) return sock.error();
+  if (!api) return api.error();
+  if (!pty) return pty.error();
+  socket_path_ = *sock;
+  api_socket_path_ = *api;
+  pty_link_ = *pty;
+  if (Status s = gcode_listener_.listen(socket_path_, cfg_.sockets.mode,
+                                        [this](auto session) { add_client(std::move(session), Kind::kMarlin); });
+      !s)
+    return s;
+  if (Status s = api_listener_.listen(api_socket_path_, cfg_.sockets.mode,
+                                      [this](auto session) { add_client(std::move(session), Kind::kJson); });
+      !s)
+    return s;
+  return pty_.open(pty_link_, [this](auto session) { add_client(std::move(session), Kind::kMarlin); });
+}
+
+void Daemon::close_channels() {
+  gcode_listener_.close();
+  api_listener_.close();
+  pty_.close();
+}
+
+Status Daemon::start_machine(std::unique_ptr<engine::CommandExecutor> executor,
+                             std::string* warnings) {
+  machine_ = std::make_unique<engine::Machine>(engine::machine_options(cfg_), clock_,
+                                               std::move(executor));
+  machine_->set_done_callback([this](engine::CommandDone d) {
+    asio::post(io_, [this, d = std::move(d)]() mutable { on_command_done(std::move(d)); });
+  });
+  return machine_->start(warnings);
+}
+
+int Daemon::run() {
+  io_.run();
+  return 0;
+}
+
+void Daemon::request_shutdown(const std::string& why) {
+  asio::post(io_, [this, why] {
+    if (shutting_down_) return;
+    shutting_down_ = true;
+    spdlog::info("{}: stopping motion and shutting down", why);
+    notifier_.stopping();
+    notifier_.stop_watchdog();
+    if (machine_) machine_->stop();  // cancels queued commands; the servo loop ends its cycle
+    close_channels();
+    std::vector<std::shared_ptr<ClientSession>> sessions;
+    for (auto& [id, c] : clients_) sessions.push_back(c.session);
+    for (auto& s : sessions) s->close();
+    signals_.cancel();
+    timer_.cancel();
+    spdlog::default_logger()->flush();
+    io_.stop();
+  });
+}
+
+void Daemon::add_client(std::shared_ptr<ClientSession> session, Kind kind) {
+  const uint64_t id = next_client_id_++;
+  Client& c = clients_[id];
+  c.id = id;
+  c.session = session;
+  c.kind = kind;
+  if (kind == Kind::kMarlin) {
+    gcode::HostProtocol::Options po;
+    po.defer_ok = true;
+    c.protocol = std::make_unique<gcode::HostProtocol>(session->name(), po);
+  }
+  session->set_handlers(
+      [this, id](ClientSession&, std::string_view line, bool too_long) {
+        Client* cl = find_client(id);
+        if (!cl) return;
+        if (cl->kind == Kind::kMarlin) {
+          on_marlin_line(*cl, line, too_long);
+          return;
+        }
+        if (too_long) {
+          cl->session->send_line(json_rpc_error(nullptr, -32700, "request line too long").dump());
+          return;
+        }
+        auto weak = std::weak_ptr<ClientSession>(cl->session);
+        handle_json_request(*this, *cl->session, line, cl->subscription, [weak](const json& r) {
+          if (auto s = weak.lock()) s->send_line(r.dump());
+        });
+      },
+      [this, id](ClientSession&) { asio::post(io_, [this, id] { remove_client(id); }); });
+  spdlog::debug("client {} connected", session->name());
+  session->start();
+}
+
+void Daemon::remove_client(uint64_t id) {
+  auto it = clients_.find(id);
+  if (it == clients_.end()) return;
+  spdlog::debug("client {} disconnected", it->second.session->name());
+  if (owner_ == id) {
+    owner_ = 0;  // commands already queued still run: a vanished client never stalls motion
+    spdlog::info("print owner {} disconnected; ownership released", it->second.session->name());
+  }
+  clients_.erase(it);
+}
+
+Daemon::Client* Daemon::find_client(uint64_t id) {
+  auto it = clients_.find(id);
+  return it == clients_.end() ? nullptr : &it->second;
+}
+
+void Daemon::on_marlin_line(Client& c, std::string_view line, bool too_long) {
+  if (gcode::HostProtocol::is_emergency_stop(line)) {  // M112 bypasses every queue
+    emergency_stop("M112 from " + c.session->name());
+    c.session->send_line(gcode::HostProtocol::kHalted);
+    return;
+  }
+  if (too_long) {
+    gcode::Reply reply;
+    gcode::SplitLine sl;
+    sl.too_long = true;
+    sl.length_bytes = ClientSession::kMaxLineBytes + 1;
+    c.protocol->on_too_long(sl, reply);
+    c.session->send_line(std::string_view(reply.text).substr(0, reply.text.size() - 1));
+    return;
+  }
+  if (c.parked || !c.backlog.empty()) {
+    c.backlog.emplace_back(line);
+    return;
+  }
+  process_marlin_line(c, line);
+}
+
+void Daemon::process_marlin_line(Client& c, std::string_view line) {
+  gcode::Reply reply;
+  gcode::Command cmd;
+  const auto action = c.protocol->on_line(line, reply, cmd);
+  auto flush = [&] {
+    if (!reply.text.empty())
+      c.session->send_line(std::string_view(reply.text).substr(0, reply.text.size() - 1));
+    reply.clear();
+  };
+  if (action == gcode::HostProtocol::Action::kEmergencyStop) {
+    emergency_stop("M112 from " + c.session->name());
+    reply.line(gcode::HostProtocol::kHalted);
+    flush();
+    return;
+  }
+  if (action != gcode::HostProtocol::Action::kExecute) {
+    flush();
+    return;
+  }
+  std::string answer;
+  if (answer_query(cmd, answer)) {
+    flush();
+    c.session->send_line(answer);
+    return;
+  }
+  flush();  // e.g. "echo:Unknown command"
+  auto weak = std::weak_ptr<ClientSession>(c.session);
+  std::string refused = submit(c, cmd, [weak](const Status& st) {
+    auto s = weak.lock();
+    if (!s) return;
+    if (!st) s->send_line("Error:" + st.error().to_string());
+    s->send_line(gcode::HostProtocol::kOk);
+  });
+  if (!refused.empty()) {
+    c.session->send_line("Error:" + refused);
+    c.session->send_line(gcode::HostProtocol::kOk);
+  }
+}
+
+bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply) {
+  if (cmd.empty()) {
+    reply = "ok";
+    return true;
+  }
+  if (cmd.letter != 'M') return false;
+  const engine::MachineStatus s = machine_->status();
+  char buf[256];
+  switch (cmd.code) {
+    case 105:
+      reply = format_temp_reply(s);
+      return true;
+    case 114:
+      std::snprintf(buf, sizeof buf, "X:%.3f Y:%.3f Z:%.3f E:%.3f Count X:0 Y:0 Z:0\nok",
+                    s.pos_mm[0], s.pos_mm[1], s.pos_mm[2], s.pos_mm[3]);
+      reply = buf;
+      return true;
+    case 115:
+      reply = firmware_info() + "\nok";
+      return true;
+    case 117:
+      display_message_ = cmd.text;
+      reply = "ok";
+      return true;
+    case 73:
+      if (cmd.has('P')) progress_percent_ = static_cast<int>(cmd.get('P'));
+      reply = "ok";
+      return true;
+    default:
+      return false;
+  }
+}
+
+std::string Daemon::firmware_info() const {
+  return std::string("FIRMWARE_NAME:feedloop ") + kVersion +
+         " SOURCE_CODE_URL:feedloop PROTOCOL_VERSION:1.0 MACHINE_TYPE:" + cfg_.name +
+         " EXTRUDER_COUNT:1";
+}
+
+std::string Daemon::submit(Client& c, const gcode::Command& cmd,
+                           std::function<void(const Status&)> done) {
+  const uint64_t cid = c.id;
+  if (machine_->status().state == engine::MachineState::kEmergencyStopped)
+    return "Printer halted (emergency stop); restart feedloopd to clear";
+  if (owner_ != 0 && owner_ != cid) {
+    const Client* o = find_client(owner_);
+    return "busy: the print is owned by " + (o ? o->session->name() : std::string("another client"));
+  }
+  if (owner_ != cid) {
+    owner_ = cid;
+    spdlog::info("{} owns the print", c.session->name());
+  }
+  owner_last_activity_ns_ = clock_.now_ns();
+  const uint64_t ticket = next_ticket_++;
+  pending_[ticket] = Pending{cid, std::move(done)};
+  ++c.in_flight;
+  if (!machine_->try_submit(ticket, cmd)) {
+    c.parked = Parked{ticket, cmd};
+    c.session->pause_reading();  // backpressure: the host waits for our ok
+  }
+  return {};
+}
+
+void Daemon::retry_parked() {
+  for (auto& [id, c] : clients_) {
+    while (c.parked) {
+      if (!machine_->try_submit(c.parked->ticket, c.parked->command)) break;
+      c.parked.reset();
+      while (!c.parked && !c.backlog.empty()) {
+        std::string line = std::move(c.backlog.front());
+        c.backlog.pop_front();
+        process_marlin_line(c, line);
+      }
+      if (!c.parked) c.session->resume_reading();
+    }
+  }
+}
+
+void Daemon::on_command_done(engine::CommandDone d) {
+  auto it = pending_.find(d.ticket);
+  if (it == pending_.end()) return;
+  Pending p = std::move(it->second);
+  pending_.erase(it);
+  if (Client* c = find_client(p.client_id)) {
+    if (c->in_flight > 0) --c->in_flight;
+    if (p.client_id == owner_) owner_last_activity_ns_ = clock_.now_ns();
+  }
+  if (!d.status) spdlog::warn("command rejected: {}", d.status.error().to_string());
+  if (p.done) p.done(d.status);
+}
+
+void Daemon::run_script(ClientSession& client, std::string script,
+                        std::function<void(json, std::string)> done) {
+  auto s = std::make_shared<Script>();
+  for (auto& [id, c] : clients_)
+    if (c.session.get() == &client) s->client_id = c.id;
+  size_t b = 0;
+  while (b <= script.size()) {
+    size_t e = script.find('\n', b);
+    if (e == std::string::npos) e = script.size();
+    s->lines.push_back(script.substr(b, e - b));
+    b = e + 1;
+  }
+  s->done = std::move(done);
+  run_script_step(s);
+}
+
+void Daemon::run_script_step(std::shared_ptr<Script> s) {
+  Client* c = find_client(s->client_id);
+  if (!c) return;  // the client left; queued lines still run
+  while (s->next < s->lines.size()) {
+    const std::string& text = s->lines[s->next++];
+    ++s->line_number;
+    auto cmd = gcode::parse_line(text, SourceLocation{"api:" + c->session->name(),
+                                                      static_cast<int>(s->line_number), 0});
+    if (!cmd) {
+      s->results.push_back({{"line", text}, {"ok", false}, {"error", cmd.error().to_string()}});
+      s->done({{"results", s->results}}, "");
+      return;
+    }
+    std::string answer;
+    if (answer_query(*cmd, answer)) {
+      s->results.push_back({{"line", text}, {"ok", true}, {"reply", answer}});
+      continue;
+    }
+    if (c->parked) {  // the client already waits for queue room: retry this line later
+      --s->next;
+      --s->line_number;
+      asio::post(io_, [this, s] { run_script_step(s); });
+      return;
+    }
+    std::string refused = submit(*c, *cmd, [this, s, text](const Status& st) {
+      s->results.push_back({{"line", text}, {"ok", static_cast<bool>(st)}});
+      if (!st) {
+        s->results.back()["error"] = st.error().to_string();
+        s->done({{"results", s->results}}, "");
+        return;
+      }
+      run_script_step(s);
+    });
+    if (!refused.empty()) {
+      s->done({}, refused);
+      return;
+    }
+    return;  // continues in the completion callback
+  }
+  s->done({{"results", s->results}}, "");
+}
+
+void Daemon::emergency_stop(const std::string& reason) {
+  spdlog::error("emergency stop: {}", reason);
+  machine_->emergency_stop(reason);
+}
+
+json Daemon::info() const {
+  const char* kin = cfg_.kinematics == config::Kinematics::delta    ? "delta"
+                    : cfg_.kinematics == config::Kinematics::corexy ? "corexy"
+                                                                    : "cartesian";
+  return {{"name", cfg_.name},
+          {"version", kVersion},
+          {"api_version", 1},
+          {"kinematics", kin},
+          {"simulated", cfg_.uses_simulator()},
+          {"servo_rate_hz", cfg_.servo.rate_hz},
+          {"config", options_.config_path.empty() ? "(embedded default)" : options_.config_path}};
+}
+
+json Daemon::status() const {
+  const engine::MachineStatus s = machine_->status();
+  const engine::ServoStatus v = machine_->servo_status();
+  const Client* o = nullptr;
+  if (auto it = clients_.find(owner_); it != clients_.end()) o = &it->second;
+  return {{"state", engine::to_string(s.state)},
+          {"position_mm", {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
+          {"temperatures_c",
+           {{"hotend", s.hotend_c}, {"hotend_target", s.hotend_target_c}, {"bed", s.bed_c}, {"bed_target", s.bed_target_c}}},
+          {"queue", {{"depth", s.queue_depth}, {"capacity", s.queue_capacity}}},
+          {"commands", {{"executed", s.commands_executed}, {"rejected", s.commands_rejected}}},
+          {"servo",
+           {{"cycles", v.cycles},
+            {"deadline_misses", v.deadline_misses},
+            {"latency_us",
+             {{"p50", v.latency.percentile_ns(0.50) / 1000.0},
+              {"p99", v.latency.percentile_ns(0.99) / 1000.0},
+              {"max", v.latency.max_ns / 1000.0}}}}},
+          {"clients", clients_.size()},
+          {"owner", o ? json(o->session->name()) : json(nullptr)},
+          {"progress_percent", progress_percent_},
+          {"message", display_message_},
+          {"config_reloads", reloads_},
+          {"last_error", s.last_error}};
+}
+
+void Daemon::tick() {
+  if (shutting_down_) return;
+  retry_parked();
+  const int64_t now = clock_.now_ns();
+  // Ownership ends after the owner has been idle long enough.
+  if (owner_ != 0 && machine_->idle()) {
+    const Client* o = find_client(owner_);
+    if (!o || (o->in_flight == 0 && !o->parked &&
+               now - owner_last_activity_ns_ > ns_from_seconds(options_.ownership_idle_s))) {
+      owner_ = 0;
+    }
+  }
+  // Status subscriptions (notifications are droppable for slow readers).
+  json status_json;
+  for (auto& [id, c] : clients_) {
+    if (c.kind != Kind::kJson || !c.subscription.status || now < c.next_status_ns) continue;
+    if (status_json.is_null()) status_json = status();
+    c.session->send_line(json_rpc_notification("status", status_json).dump(), /*droppable=*/true);
+    c.next_status_ns = now + static_cast<int64_t>(c.subscription.interval_ms) * 1'000'000;
+  }
+  if (reload_requested_ && machine_->idle() && pending_.empty()) reload_config();
+  timer_.expires_after(kTickInterval);
+  timer_.async_wait([this](const boost::system::error_code& ec) {
+    if (!ec) tick();
+  });
+}
+
+void Daemon::arm_signals() {
+  signals_.async_wait([this](const boost::system::error_code& ec, int sig) {
+    if (ec) return;
+    if (sig == SIGHUP) {
+      reload_requested_ = true;
+      spdlog::info("SIGHUP: the config will be re-read when the machine is idle");
+      arm_signals();
+      return;
+    }
+    request_shutdown(sig == SIGINT ? "SIGINT" : "SIGTERM");
+  });
+}
+
+// SIGHUP: re-read the config file and rebuild the machine with it, only when idle. A config
+// with errors is reported and the running one is kept. Socket paths take effect on restart.
+void Daemon::reload_config() {
+  reload_requested_ = false;
+  notifier_.reloading();
+  auto next = options_.config_path.empty() ? Result<config::MachineConfig>(config::default_config())
+                                           : config::load_config_file(options_.config_path);
+  if (!next) {
+    spdlog::error("config reload failed, keeping the running config:\n{}", next.error().to_string());
+    notifier_.ready();
+    return;
+  }
+  auto executor = engine::make_executor(*next);
+  if (!executor) {
+    spdlog::error("config reload failed, keeping the running config: {}", executor.error().to_string());
+    notifier_.ready();
+    return;
+  }
+  machine_->stop();
+  cfg_ = std::move(*next);
+  std::string warnings;
+  if (Status st = start_machine(std::move(*executor), &warnings); !st) {
+    spdlog::critical("machine failed to restart after reload: {}", st.error().to_string());
+    request_shutdown("reload failure");
+    return;
+  }
+  ++reloads_;
+  spdlog::info("config reloaded: '{}'", cfg_.name);
+  notifier_.ready();
+}
+
+}  // namespace feedloop::daemon

@@ -1,0 +1,135 @@
+// feedloopd's assembly: the machine (planner + servo threads), the client channels on one
+// Asio I/O thread, signals turned into commands (SIGTERM/SIGINT: shutdown, SIGHUP: reload the
+// config when idle), print ownership, and systemd notifications.
+//
+// Print ownership: a client owns the print from its first machine command until it disconnects
+// or has been idle (nothing queued, machine idle) for `ownership_idle_s`. Machine commands from
+// other clients get "Error:busy" while someone owns it; queries (M105, M114, M115, JSON status)
+// are answered for everyone. A client that does not read its replies is disconnected; nothing
+// it does can stall motion.
+#pragma once
+
+#include <boost/asio.hpp>
+
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "config/machine_config.hpp"
+#include "core/clock.hpp"
+#include "core/result.hpp"
+#include "daemon/json_api.hpp"
+#include "daemon/listeners.hpp"
+#include "daemon/watchdog.hpp"
+#include "engine/machine.hpp"
+#include "gcode/host_protocol.hpp"
+
+namespace feedloop::daemon {
+
+struct DaemonOptions {
+  std::string config_path;  // empty: the embedded default config
+  double ownership_idle_s = 5.0;
+};
+
+class Daemon final : public JsonApiBackend {
+ public:
+  Daemon(config::MachineConfig cfg, DaemonOptions options);
+  ~Daemon() override;
+
+  // Starts the machine and opens every channel. On error nothing is left running.
+  Status start();
+  // Runs the I/O loop until shutdown; returns the process exit code.
+  int run();
+  // Any thread: stop motion safely, close channels, return from run().
+  void request_shutdown(const std::string& why);
+
+  boost::asio::io_context& io() { return io_; }
+  const std::string& socket_path() const { return socket_path_; }
+  const std::string& api_socket_path() const { return api_socket_path_; }
+  const std::string& pty_link() const { return pty_link_; }
+  uint64_t reloads() const { return reloads_; }
+
+  // JsonApiBackend
+  nlohmann::json info() const override;
+  nlohmann::json status() const override;
+  void run_script(ClientSession& client, std::string script,
+                  std::function<void(nlohmann::json, std::string)> done) override;
+  void emergency_stop(const std::string& reason) override;
+
+ private:
+  enum class Kind { kMarlin, kJson };
+  struct Parked {
+    uint64_t ticket;
+    gcode::Command command;
+  };
+  struct Client {
+    uint64_t id = 0;
+    std::shared_ptr<ClientSession> session;
+    Kind kind = Kind::kMarlin;
+    std::unique_ptr<gcode::HostProtocol> protocol;  // Marlin channels
+    Subscription subscription;                      // JSON channels
+    int64_t next_status_ns = 0;
+    std::deque<std::string> backlog;  // lines received while a command is parked
+    std::optional<Parked> parked;     // a command waiting for room in the machine queue
+    size_t in_flight = 0;             // submitted, not yet done
+  };
+  // A submitted command: who gets the answer.
+  struct Pending {
+    uint64_t client_id = 0;
+    std::function<void(const Status&)> done;
+  };
+  struct Script;  // a JSON gcode request in progress
+
+  Status open_channels();
+  void close_channels();
+  void add_client(std::shared_ptr<ClientSession> session, Kind kind);
+  void remove_client(uint64_t id);
+  Client* find_client(uint64_t id);
+
+  void on_marlin_line(Client& c, std::string_view line, bool too_long);
+  void process_marlin_line(Client& c, std::string_view line);
+  // Answers queries at once; returns true if `cmd` was one.
+  bool answer_query(const gcode::Command& cmd, std::string& reply);
+  // Ownership + submit. Returns an error text when refused; parks when the queue is full.
+  std::string submit(Client& c, const gcode::Command& cmd, std::function<void(const Status&)> done);
+  void retry_parked();
+  void run_script_step(std::shared_ptr<Script> s);
+
+  void on_command_done(engine::CommandDone done);  // I/O thread
+  void tick();                                     // periodic: subscriptions, ownership, reload
+  void reload_config();
+  void arm_signals();
+  Status start_machine(std::unique_ptr<engine::CommandExecutor> executor, std::string* warnings);
+  std::string firmware_info() const;
+
+  config::MachineConfig cfg_;
+  DaemonOptions options_;
+  boost::asio::io_context io_;
+  boost::asio::signal_set signals_;
+  boost::asio::steady_timer timer_;
+  MonotonicClock clock_;
+  std::unique_ptr<engine::Machine> machine_;
+  SystemdNotifier notifier_;
+
+  UnixListener gcode_listener_;
+  UnixListener api_listener_;
+  PtyChannel pty_;
+  std::string socket_path_, api_socket_path_, pty_link_;
+
+  std::map<uint64_t, Client> clients_;  // by internal id
+  uint64_t next_client_id_ = 1;
+  std::map<uint64_t, Pending> pending_;  // by ticket
+  uint64_t next_ticket_ = 1;
+  uint64_t owner_ = 0;  // client id owning the print, 0: none
+  int64_t owner_last_activity_ns_ = 0;
+  bool reload_requested_ = false;
+  uint64_t reloads_ = 0;
+  bool shutting_down_ = false;
+  std::string display_message_;  // M117
+  int progress_percent_ = -1;    // M73 P
+};
+
+}  // namespace feedloop::daemon

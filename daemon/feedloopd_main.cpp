@@ -1,0 +1,99 @@
+// feedloopd: the feedloop motion daemon.
+//
+//   feedloopd [--config FILE] [--check-config] [--log-level LEVEL] [--version]
+//
+// Without --config it runs the embedded default: the simulated Cartesian printer.
+#include <spdlog/sinks/basic_file_sink.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <string>
+
+#include "config/config.hpp"
+#include "daemon/daemon.hpp"
+
+namespace {
+
+void usage(std::FILE* out) {
+  std::fputs(
+      "usage: feedloopd [--config FILE] [--check-config] [--log-level LEVEL] [--version]\n"
+      "  --config FILE      printer config (YAML); default: the embedded simulated printer\n"
+      "  --check-config     validate the config, print every problem, and exit\n"
+      "  --log-level LEVEL  trace|debug|info|warn|error (overrides logging.level)\n"
+      "Channels: a Unix socket speaking the Marlin host protocol, a pty that looks like a\n"
+      "Marlin serial port, and a JSON-RPC 2.0 (NDJSON) API socket; see the README.\n",
+      out);
+}
+
+void setup_logging(const feedloop::config::LoggingConfig& cfg, const std::string& level_override) {
+  std::vector<spdlog::sink_ptr> sinks;
+  sinks.push_back(std::make_shared<spdlog::sinks::stderr_color_sink_mt>());
+  if (!cfg.file.empty()) {
+    try {
+      sinks.push_back(std::make_shared<spdlog::sinks::basic_file_sink_mt>(cfg.file));
+    } catch (const spdlog::spdlog_ex& e) {
+      std::fprintf(stderr, "feedloopd: cannot open log file %s: %s\n", cfg.file.c_str(), e.what());
+    }
+  }
+  auto logger = std::make_shared<spdlog::logger>("feedloopd", sinks.begin(), sinks.end());
+  logger->set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
+  spdlog::level::level_enum lvl = spdlog::level::from_str(
+      level_override.empty() ? std::string(spdlog::level::to_string_view(
+                                   static_cast<spdlog::level::level_enum>(cfg.level)).data())
+                             : level_override);
+  logger->set_level(lvl);
+  logger->flush_on(spdlog::level::warn);
+  spdlog::set_default_logger(logger);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string config_path, log_level;
+  bool check_only = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--config" && i + 1 < argc) {
+      config_path = argv[++i];
+    } else if (a == "--log-level" && i + 1 < argc) {
+      log_level = argv[++i];
+    } else if (a == "--check-config") {
+      check_only = true;
+    } else if (a == "--version") {
+      std::puts("feedloopd 0.1.0");
+      return 0;
+    } else if (a == "--help" || a == "-h") {
+      usage(stdout);
+      return 0;
+    } else {
+      std::fprintf(stderr, "feedloopd: unknown argument '%s'\n", a.c_str());
+      usage(stderr);
+      return 2;
+    }
+  }
+  auto cfg = config_path.empty()
+                 ? feedloop::Result<feedloop::config::MachineConfig>(feedloop::config::default_config())
+                 : feedloop::config::load_config_file(config_path);
+  if (!cfg) {
+    std::fprintf(stderr, "feedloopd: invalid config:\n%s\n", cfg.error().to_string().c_str());
+    return 1;
+  }
+  if (check_only) {
+    std::printf("%s: ok ('%s')\n", config_path.empty() ? "(embedded default)" : config_path.c_str(),
+                cfg->name.c_str());
+    return 0;
+  }
+  setup_logging(cfg->logging, log_level);
+  feedloop::daemon::Daemon daemon(std::move(*cfg), {config_path});
+  if (feedloop::Status s = daemon.start(); !s) {
+    spdlog::critical("cannot start: {}", s.error().to_string());
+    return 1;
+  }
+  const int rc = daemon.run();
+  spdlog::info("feedloopd stopped");
+  spdlog::shutdown();
+  return rc;
+}

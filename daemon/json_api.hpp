@@ -1,0 +1,58 @@
+// The JSON API: newline-delimited JSON-RPC 2.0 on a Unix socket (one request object per line,
+// one response per request; notifications for subscriptions).
+//
+// Methods:
+//   info                      -> {name, version, kinematics, servo_rate_hz, api_version}
+//   status                    -> the status object (state, position, temperatures, queue,
+//                                servo cycles, deadline misses, latency, last error, clients)
+//   subscribe {topics, interval_ms}  topics: "status", "events"; status is sent as a
+//                                "status" notification every interval (default 250 ms, 20..60000)
+//                                and events (errors, lost steps, ownership) as "event"
+//   unsubscribe {topics}
+//   gcode {script}            -> runs the lines as this client (print ownership applies); the
+//                                response comes when every line has executed: {results:[...]}
+//   emergency_stop {reason}
+// Errors use JSON-RPC codes: -32700 parse error (with the column), -32600 invalid request,
+// -32601 unknown method, -32602 invalid params, -32000 machine error.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <string>
+#include <string_view>
+
+namespace feedloop::daemon {
+
+class ClientSession;
+
+// What the JSON API needs from the rest of the daemon.
+class JsonApiBackend {
+ public:
+  virtual ~JsonApiBackend() = default;
+  virtual nlohmann::json info() const = 0;
+  virtual nlohmann::json status() const = 0;
+  // Runs a G-code script for `client`; `done` receives {results:[{line, ok, error?, reply?}]}
+  // or an error message (e.g. not the print owner) on the I/O thread.
+  virtual void run_script(ClientSession& client, std::string script,
+                          std::function<void(nlohmann::json result, std::string error)> done) = 0;
+  virtual void emergency_stop(const std::string& reason) = 0;
+};
+
+struct Subscription {
+  bool status = false;
+  bool events = false;
+  int interval_ms = 250;
+};
+
+// Handles one request line of one client. Stateless apart from the client's subscription,
+// which the caller keeps. `reply` is called zero (notification request) or one time, possibly
+// later (gcode).
+void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::string_view line,
+                         Subscription& subscription,
+                         const std::function<void(const nlohmann::json&)>& reply);
+
+nlohmann::json json_rpc_error(const nlohmann::json& id, int code, const std::string& message);
+nlohmann::json json_rpc_notification(const std::string& method, nlohmann::json params);
+
+}  // namespace feedloop::daemon

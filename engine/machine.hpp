@@ -1,0 +1,153 @@
+// The machine: one pipeline for real time (the daemon) and virtual time (tests, batch, replay).
+//
+//   I/O thread ──try_submit──> command queue ──> planner thread ──> executor (interpreter,
+//   lookahead, joint segments) ──> servo thread (every period: control, step batches)
+//
+// Threads (DESIGN.md "Threads and time"): the caller's I/O thread submits commands and polls
+// events; the planner thread executes commands in order and may block (M109, full queues); the
+// servo thread runs at a fixed period with absolute-deadline sleeps, allocates nothing, locks
+// nothing, and counts its deadline misses. Status is published through seqlocks.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "core/clock.hpp"
+#include "core/result.hpp"
+#include "core/spsc_queue.hpp"
+#include "engine/heater_sim.hpp"
+#include "engine/latency_histogram.hpp"
+#include "engine/seqlock.hpp"
+#include "gcode/command.hpp"
+
+namespace feedloop::engine {
+
+enum class MachineState : uint8_t { kIdle, kBusy, kError, kEmergencyStopped, kStopped };
+const char* to_string(MachineState s);
+
+// A snapshot for status queries (JSON API, M105, M114). Trivially copyable.
+struct MachineStatus {
+  MachineState state = MachineState::kIdle;
+  double pos_mm[4] = {0, 0, 0, 0};  // X Y Z E of the last executed command (planned position)
+  double hotend_c = 0, hotend_target_c = 0, bed_c = 0, bed_target_c = 0;
+  uint32_t queue_depth = 0;
+  uint32_t queue_capacity = 0;
+  uint64_t commands_executed = 0;
+  uint64_t commands_rejected = 0;
+  char last_error[192] = {};
+};
+
+// What the servo thread publishes every cycle.
+struct ServoStatus {
+  uint64_t cycles = 0;
+  uint64_t deadline_misses = 0;
+  int64_t last_wake_ns = 0;
+  LatencyHistogram latency;
+};
+
+// Executes commands in order on the planner thread. Implementations: MinimalExecutor (heaters,
+// dwell, positions) and the motion executor (interpreter + lookahead + joint segments).
+class CommandExecutor {
+ public:
+  virtual ~CommandExecutor() = default;
+  // Executes one command. A rejected command must change no state. May block; must return
+  // promptly once `cancel` becomes true.
+  virtual Status execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) = 0;
+  // Planned position X Y Z E after the last executed command.
+  virtual void position(double out_mm[4]) const = 0;
+};
+
+struct MachineOptions {
+  double servo_rate_hz = 1000.0;
+  size_t command_queue_capacity = 64;
+  int realtime_priority = 80;   // SCHED_FIFO priority of the servo thread (0 = do not try)
+  bool lock_memory = true;
+  // Heater simulation (the simulated printer has no real heaters).
+  double heater_slew_c_s = 40.0;
+};
+
+// A finished command, reported through the completion callback on the planner thread.
+struct CommandDone {
+  uint64_t ticket = 0;
+  Status status;
+};
+
+class Machine {
+ public:
+  using DoneCallback = std::function<void(CommandDone)>;
+
+  Machine(MachineOptions options, Clock& clock, std::unique_ptr<CommandExecutor> executor);
+  ~Machine();
+  Machine(const Machine&) = delete;
+  Machine& operator=(const Machine&) = delete;
+
+  // Called on the planner thread for every command, in order. Set before start().
+  void set_done_callback(DoneCallback cb) { on_done_ = std::move(cb); }
+
+  // Starts the planner and servo threads. Warnings (no SCHED_FIFO, no mlockall) are returned
+  // through `warnings` and do not fail the start.
+  Status start(std::string* warnings = nullptr);
+  // Stops motion safely: cancels queued commands, stops the threads, waits for them.
+  void stop();
+
+  // I/O thread only. Returns false (and keeps `cmd`) when the queue is full.
+  bool try_submit(uint64_t ticket, const gcode::Command& cmd);
+  // Any thread. Latches kEmergencyStopped; queued commands are cancelled.
+  void emergency_stop(const std::string& reason);
+
+  MachineStatus status() const;
+  ServoStatus servo_status() const { return servo_status_.load(); }
+  // True while the servo thread completed a cycle within the last 100 periods and no fatal
+  // error is latched: what the systemd watchdog pets on.
+  bool healthy() const;
+  // No command queued or executing.
+  bool idle() const;
+  double servo_period_s() const { return 1.0 / options_.servo_rate_hz; }
+
+ private:
+  struct Queued {
+    uint64_t ticket = 0;
+    gcode::Command cmd;
+  };
+  void planner_main();
+  void servo_main();
+  Status execute_machine_command(const gcode::Command& cmd);  // heaters, waits
+  void publish_status();
+  void set_error(const std::string& message);
+
+  MachineOptions options_;
+  Clock& clock_;
+  std::unique_ptr<CommandExecutor> executor_;
+  DoneCallback on_done_;
+
+  SpscQueue<Queued> queue_;
+  std::mutex wake_mutex_;  // protects nothing but the planner's sleep
+  std::condition_variable wake_cv_;
+
+  std::atomic<bool> stopping_{false};
+  std::atomic<bool> cancel_{false};
+  std::atomic<bool> estop_{false};
+  std::atomic<bool> executing_{false};
+  std::atomic<uint64_t> executed_{0};
+  std::atomic<uint64_t> rejected_{0};
+
+  HeaterSim hotend_, bed_;  // planner thread only
+  Seqlock<MachineStatus> status_;
+  Seqlock<ServoStatus> servo_status_;
+  std::atomic<int64_t> servo_last_cycle_ns_{0};
+
+  std::mutex error_mutex_;  // protects last_error_
+  std::string last_error_;
+
+  std::thread planner_thread_;
+  std::thread servo_thread_;
+  bool started_ = false;
+};
+
+}  // namespace feedloop::engine
