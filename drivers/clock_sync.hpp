@@ -1,0 +1,51 @@
+// Host-side estimate of one MCU clock (the only place that converts between host time and MCU
+// ticks, STYLE.md convention 2). Each clock query gives a sample (host send time s, host receive
+// time r, MCU clock c read in between). The MCU read happened at an unknown time in [s, r]; the
+// midpoint m = (s + r)/2 is off by at most rtt/2. The model is  c = c_ref + f (m - m_ref)
+// (offset and frequency f, i.e. drift): weighted least squares over the last `window` samples,
+// weights 1/(rtt - min_rtt + rtt_floor)^2 so that the fast round trips dominate (as Klipper's
+// clocksync keeps the minimum-RTT sample). With fewer than two samples spanning at least
+// min_span_s, the nominal frequency is used and only the offset is fitted.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "drivers/stepgen/step_generator.hpp"
+
+namespace feedloop::drivers {
+
+struct ClockSyncParams {
+  double nominal_hz = 20e6;
+  int window = 64;
+  double rtt_floor_s = 50e-6;
+  double min_span_s = 0.5;
+};
+
+class ClockSync {
+ public:
+  void configure(const ClockSyncParams& p);
+  void add_sample(double send_s, double recv_s, int64_t mcu_clock);
+  bool ready() const { return count_ > 0; }
+  // Estimated MCU clock (ticks, real-valued) at host time host_s, and the inverse.
+  double clock_at(double host_s) const { return c_ref_ + freq_hz_ * (host_s - m_ref_); }
+  double host_time_at(double clock) const { return m_ref_ + (clock - c_ref_) / freq_hz_; }
+  double freq_hz() const { return freq_hz_; }
+  double min_rtt_s() const { return min_rtt_s_; }
+  int samples() const { return count_; }
+  // Print time (= host time here) -> ticks, for the step generator.
+  stepgen::TickMap tick_map() const { return {c_ref_ - freq_hz_ * m_ref_, freq_hz_}; }
+
+ private:
+  void fit();
+  struct Sample {
+    double mid_s, rtt_s;
+    int64_t clock;
+  };
+  ClockSyncParams p_;
+  std::vector<Sample> ring_;
+  int head_ = 0, count_ = 0;
+  double freq_hz_ = 20e6, c_ref_ = 0.0, m_ref_ = 0.0, min_rtt_s_ = 0.0;
+};
+
+}  // namespace feedloop::drivers

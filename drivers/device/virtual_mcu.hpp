@@ -1,0 +1,142 @@
+// The device side of the MCU protocol, written once as portable C++ with fixed buffers (no heap
+// anywhere): the "virtual MCU" of DESIGN.md. One instance per axis (the thesis's one-MCU-per-axis
+// architecture). It
+//  - keeps its own tick clock, which runs at clock_hz * (1 + drift_ppm 1e-6) from an offset,
+//  - executes a queue of compressed step runs (drivers/stepgen/step_run.hpp) at their clocks,
+//    calling device::MotorPort::step with the true time of each step,
+//  - samples its encoder every encoder_period_ticks and reports batches of samples,
+//  - answers identify / clock queries / status queries, enables and disables the driver,
+//  - stops (queue flushed, driver disabled, error reported) on a queue underrun (a batch whose
+//    first step is already in the past), a watchdog timeout (no message from the host for
+//    watchdog_ticks while enabled), an emergency stop or a protocol version mismatch.
+// It is driven in virtual time: receive(bytes, t) and run_until(t) process everything due up to
+// the true time t (seconds); pop_frame() hands out what it transmits.
+// Owner: one thread (the simulator's, or feedloop-vmcu's main loop).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "drivers/device/motor_port.hpp"
+#include "drivers/protocol/messages.hpp"
+#include "drivers/protocol/reliable_link.hpp"
+#include "drivers/stepgen/step_run.hpp"
+
+namespace feedloop::device {
+
+struct VirtualMcuParams {
+  double clock_hz = 20e6;     // nominal tick rate (reported to the host)
+  double drift_ppm = 0.0;     // true rate = clock_hz * (1 + drift_ppm * 1e-6)
+  double offset_s = 0.0;      // clock(t) = (t + offset_s) * true rate
+  uint8_t axis = 0;
+  char name[16] = "mcu";
+  uint16_t protocol_version = protocol::kProtocolVersion;  // tests set another to provoke a mismatch
+  protocol::LinkParams link;
+};
+
+struct VirtualMcuStatus {
+  uint64_t steps_executed = 0;
+  int64_t position_steps = 0;
+  uint64_t step_hash = 0;            // FNV-1a over (clock, direction) of every executed step
+  uint32_t queued_runs = 0;
+  bool identified = false;
+  bool enabled = false;
+  bool stopped = false;
+  protocol::McuError last_error = protocol::McuError::kNone;
+  uint64_t errors = 0;
+  uint64_t reports_dropped = 0;
+  uint64_t frames_dropped = 0;
+};
+
+// FNV-1a step hash, shared with the host side so it can check what the device executed.
+inline uint64_t step_hash_update(uint64_t h, int64_t clock, int direction) {
+  const uint64_t v[2] = {static_cast<uint64_t>(clock), static_cast<uint64_t>(direction > 0 ? 1 : 2)};
+  for (uint64_t x : v)
+    for (int i = 0; i < 8; ++i) {
+      h ^= (x >> (8 * i)) & 0xFF;
+      h *= 1099511628211ull;
+    }
+  return h;
+}
+inline constexpr uint64_t kStepHashSeed = 1469598103934665603ull;
+
+class VirtualMcu final : private protocol::FrameOutput, private protocol::PayloadHandler {
+ public:
+  static constexpr int kMaxRuns = 8192;
+  static constexpr int kMaxOutFrames = 64;
+  static constexpr int kMaxPending = 16;
+  static constexpr int kMaxSamples = 64;
+
+  VirtualMcu(const VirtualMcuParams& params, MotorPort* port);
+
+  // Bytes from the host that arrive at true time t_s (everything due before is processed first).
+  void receive(const uint8_t* data, size_t n, double t_s);
+  // Executes steps, encoder samples, the watchdog and retransmissions due up to true time t_s.
+  void run_until(double t_s);
+  // Next frame the device transmits; false when none. out must hold protocol::kMaxFrame bytes.
+  bool pop_frame(uint8_t* out, size_t& n);
+
+  int64_t clock_at(double t_s) const;
+  double true_time_at(int64_t clock) const;
+  const VirtualMcuStatus& status() const { return status_; }
+  const VirtualMcuParams& params() const { return params_; }
+  const protocol::LinkStats& link_stats() const { return link_.stats(); }
+  // True time of the next thing the device must do by itself (step, sample, watchdog,
+  // retransmission); a large value when idle. Lets a real-time loop sleep until then.
+  double next_event_time() const;
+
+ private:
+  void write_frame(const uint8_t* frame, size_t n) override;
+  void on_payload(const uint8_t* p, size_t n) override;
+  void handle_queue_steps(protocol::MsgReader& r);
+  void send_msg(const uint8_t* p, size_t n);
+  void flush_pending();
+  void send_error(protocol::McuError code, int64_t detail);
+  void send_status();
+  void send_encoder_report();
+  void stop(protocol::McuError code, int64_t detail);
+  void do_step();
+  void activate_head();
+  int64_t now_ns() const;
+
+  struct QueuedRun {
+    int64_t start_clock;
+    stepgen::StepRun run;
+  };
+  VirtualMcuParams params_;
+  MotorPort* port_;
+  double rate_hz_;  // true tick rate
+  protocol::ReliableLink link_;
+  VirtualMcuStatus status_;
+  int64_t now_clock_ = 0;
+
+  // Step queue (ring) and the state of the run being executed.
+  QueuedRun runs_[kMaxRuns];
+  int run_head_ = 0, run_count_ = 0;
+  int64_t queued_end_clock_ = 0;  // clock of the last queued step
+  bool have_queued_end_ = false;
+  int64_t last_step_clock_ = 0, next_step_clock_ = 0, interval_ = 0;
+  uint32_t run_k_ = 0;  // steps of the head run already executed
+
+  // Encoder sampling.
+  int64_t encoder_period_ticks_ = 0;
+  int samples_per_report_ = 10;
+  int64_t next_sample_clock_ = 0;
+  int64_t sample_first_clock_ = 0;
+  int64_t samples_[kMaxSamples] = {};
+  int nsamples_ = 0;
+
+  // Watchdog.
+  int64_t watchdog_ticks_ = 0;
+  int64_t last_host_clock_ = 0;
+
+  // Outgoing frames and messages waiting for window space.
+  uint8_t out_frames_[kMaxOutFrames][protocol::kMaxFrame] = {};
+  size_t out_len_[kMaxOutFrames] = {};
+  int out_head_ = 0, out_count_ = 0;
+  uint8_t pending_[kMaxPending][protocol::kMaxPayload] = {};
+  size_t pending_len_[kMaxPending] = {};
+  int pending_head_ = 0, pending_count_ = 0;
+};
+
+}  // namespace feedloop::device

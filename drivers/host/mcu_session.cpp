@@ -1,0 +1,254 @@
+// Host session with one MCU: see mcu_session.hpp.
+#include "drivers/host/mcu_session.hpp"
+
+#include <cmath>
+
+namespace feedloop::drivers {
+
+using protocol::McuError;
+using protocol::MsgReader;
+using protocol::MsgType;
+using protocol::MsgWriter;
+
+McuSession::McuSession(const McuSessionParams& params, Transport& transport)
+    : p_(params), transport_(transport) {
+  // A fresh epoch per session object, so a restarted host is told apart from a retransmission.
+  protocol::LinkParams lp = p_.link;
+  lp.initial_epoch = static_cast<int>(reinterpret_cast<uintptr_t>(this) >> 4) & 0x0F;
+  link_.configure(lp, this, this);
+  clock_.configure({});
+}
+
+Status McuSession::start(double now_s) {
+  now_s_ = now_s;
+  Status st = transport_.open();
+  if (!st.ok()) {
+    fail("MCU '" + p_.name + "' (" + transport_.describe() + "): " + st.error().message);
+    return *error_;
+  }
+  link_.reset();
+  outbox_.clear();
+  std::vector<uint8_t> m(3);
+  m[0] = static_cast<uint8_t>(MsgType::kIdentify);
+  m[1] = p_.protocol_version & 0xFF;
+  m[2] = p_.protocol_version >> 8;
+  enqueue(std::move(m));
+  state_ = McuState::kIdentifying;
+  error_.reset();
+  return {};
+}
+
+void McuSession::fail(std::string message) {
+  state_ = McuState::kFailed;
+  error_ = Error{message, {}};
+  events_.push_back(std::move(message));
+}
+
+void McuSession::mark_disconnected(const std::string& why) {
+  if (state_ == McuState::kDisconnected || state_ == McuState::kFailed) return;
+  state_before_disconnect_ = state_;
+  state_ = McuState::kDisconnected;
+  events_.push_back("MCU '" + p_.name + "' (" + transport_.describe() + ") disconnected: " + why);
+  next_reconnect_s_ = now_s_ + p_.reconnect_period_s;
+}
+
+void McuSession::write_frame(const uint8_t* frame, size_t n) {
+  if (state_ == McuState::kDisconnected) return;  // lost; the link retransmits after reconnect
+  Status st = transport_.write(frame, n);
+  if (!st.ok()) {
+    mark_disconnected(st.error().message);
+    return;
+  }
+  bytes_written_ += n;
+  ++frames_written_;
+  last_send_s_ = now_s_;
+}
+
+void McuSession::queue_steps(const stepgen::StepBatch& b) {
+  std::vector<uint8_t> m;
+  m.reserve(2 + b.body_bytes);
+  m.push_back(static_cast<uint8_t>(MsgType::kQueueSteps));
+  m.push_back(b.axis);
+  m.insert(m.end(), b.body, b.body + b.body_bytes);
+  enqueue(std::move(m));
+}
+
+void McuSession::set_enabled(bool on) {
+  enqueue({static_cast<uint8_t>(MsgType::kEnable), static_cast<uint8_t>(on ? 1 : 0)});
+}
+
+void McuSession::emergency_stop() {
+  // Jumps the queue: nothing queued behind it may move the motor.
+  outbox_.clear();
+  enqueue({static_cast<uint8_t>(MsgType::kEmergencyStop)});
+}
+
+void McuSession::request_status() { enqueue({static_cast<uint8_t>(MsgType::kStatusQuery)}); }
+
+void McuSession::send_clock_query() {
+  uint8_t buf[16];
+  MsgWriter w(buf, sizeof buf);
+  const uint64_t token = next_token_++;
+  w.u8(static_cast<uint8_t>(MsgType::kClockQuery)).var(token);
+  // Sent directly (not behind step batches) so the round trip is short.
+  if (!link_.send(buf, w.size(), ns(now_s_))) return;
+  queries_.emplace_back(token, now_s_);
+  if (queries_.size() > 64) queries_.pop_front();
+}
+
+std::vector<EncoderSample> McuSession::take_encoder_samples() {
+  std::vector<EncoderSample> out;
+  out.swap(samples_);
+  return out;
+}
+
+std::vector<std::string> McuSession::take_events() {
+  std::vector<std::string> out;
+  out.swap(events_);
+  return out;
+}
+
+void McuSession::poll(double now_s) {
+  now_s_ = now_s;
+  transport_.poll(now_s, 0.0);
+  if (state_ == McuState::kIdle || state_ == McuState::kFailed) return;
+  if (state_ == McuState::kDisconnected) {
+    if (now_s < next_reconnect_s_) return;
+    if (!transport_.connected() && !transport_.open().ok()) {
+      next_reconnect_s_ = now_s + p_.reconnect_period_s;
+      return;
+    }
+    state_ = state_before_disconnect_;
+    events_.push_back("MCU '" + p_.name + "' (" + transport_.describe() + ") reconnected");
+  }
+  if (!transport_.connected()) {
+    mark_disconnected("link down");
+    return;
+  }
+  uint8_t buf[4096];
+  for (;;) {
+    Result<size_t> r = transport_.read(buf, sizeof buf);
+    if (!r.ok()) {
+      mark_disconnected(r.error().message);
+      return;
+    }
+    if (*r == 0) break;
+    link_.on_bytes(buf, *r, ns(now_s));
+    if (state_ == McuState::kFailed) return;
+  }
+  link_.poll(ns(now_s));
+  if (state_ == McuState::kReady && now_s >= next_query_s_ && link_.can_send()) {
+    send_clock_query();
+    next_query_s_ = now_s + (burst_left_ > 0 ? 0.01 : p_.clock_query_period_s);
+    if (burst_left_ > 0) --burst_left_;
+  }
+  while (!outbox_.empty() && link_.can_send()) {
+    link_.send(outbox_.front().data(), outbox_.front().size(), ns(now_s));
+    outbox_.pop_front();
+  }
+  if (state_ == McuState::kReady && now_s - last_send_s_ >= p_.heartbeat_period_s && link_.can_send()) {
+    const uint8_t hb = static_cast<uint8_t>(MsgType::kHeartbeat);
+    link_.send(&hb, 1, ns(now_s));
+  }
+}
+
+void McuSession::on_payload(const uint8_t* p, size_t n) {
+  MsgReader r(p, n);
+  const auto type = static_cast<MsgType>(r.u8());
+  switch (type) {
+    case MsgType::kIdentifyResponse: {
+      const uint16_t version = r.u16();
+      const uint64_t hz = r.var();
+      r.u8();  // axis
+      const size_t name_len = r.u8();
+      const uint8_t* name = r.take(name_len);
+      if (!r.ok()) {
+        fail("MCU '" + p_.name + "': malformed identify response");
+        return;
+      }
+      if (version != p_.protocol_version) {
+        fail("MCU '" + p_.name + "' (" + transport_.describe() + ", firmware '" +
+             std::string(reinterpret_cast<const char*>(name), name_len) + "') speaks protocol version " +
+             std::to_string(version) + " but this host speaks version " + std::to_string(p_.protocol_version) +
+             ": flash firmware that matches this host (or run the matching host)");
+        return;
+      }
+      mcu_clock_hz_ = static_cast<uint32_t>(hz);
+      ClockSyncParams cp;
+      cp.nominal_hz = static_cast<double>(hz);
+      clock_.configure(cp);
+      uint8_t buf[40];
+      MsgWriter w(buf, sizeof buf);
+      w.u8(static_cast<uint8_t>(MsgType::kConfigure))
+          .var(static_cast<uint64_t>(std::llround(p_.encoder_period_s * static_cast<double>(hz))))
+          .var(static_cast<uint64_t>(p_.samples_per_report))
+          .var(static_cast<uint64_t>(std::llround(p_.watchdog_s * static_cast<double>(hz))));
+      outbox_.emplace_front(buf, buf + w.size());
+      state_ = McuState::kReady;
+      burst_left_ = p_.clock_query_burst;
+      next_query_s_ = now_s_;
+      return;
+    }
+    case MsgType::kClockResponse: {
+      const uint64_t token = r.var();
+      const int64_t clock = static_cast<int64_t>(r.var());
+      if (!r.ok()) return;
+      for (auto it = queries_.begin(); it != queries_.end(); ++it)
+        if (it->first == token) {
+          clock_.add_sample(it->second, now_s_, clock);
+          queries_.erase(it);
+          break;
+        }
+      return;
+    }
+    case MsgType::kStatus: {
+      DeviceStatus s;
+      s.clock = static_cast<int64_t>(r.var());
+      s.steps_executed = r.var();
+      s.position_steps = r.zz();
+      s.queued_runs = r.var();
+      s.step_hash = r.var();
+      const uint8_t flags = r.u8();
+      if (!r.ok()) return;
+      s.enabled = flags & protocol::kStatusEnabled;
+      s.stopped = flags & protocol::kStatusStopped;
+      status_ = s;
+      return;
+    }
+    case MsgType::kEncoderReport: {
+      const int64_t first = static_cast<int64_t>(r.var());
+      const int64_t period = static_cast<int64_t>(r.var());
+      const uint64_t count = r.var();
+      int64_t counts = r.zz();
+      for (uint64_t i = 0; i < count && r.ok(); ++i) {
+        if (i > 0) counts += r.zz();
+        if (r.ok()) samples_.push_back({first + static_cast<int64_t>(i) * period, counts});
+      }
+      return;
+    }
+    case MsgType::kErrorReport: {
+      const auto code = static_cast<McuError>(r.u8());
+      const int64_t clock = static_cast<int64_t>(r.var());
+      const int64_t detail = r.zz();
+      std::string msg = "MCU '" + p_.name + "' (" + transport_.describe() + ") reports " +
+                        protocol::mcu_error_name(code) + " at clock " + std::to_string(clock) +
+                        " (detail " + std::to_string(detail) + ")";
+      if (code == McuError::kVersionMismatch) {
+        fail(msg + ": device speaks protocol version " + std::to_string(detail) + ", host speaks " +
+             std::to_string(p_.protocol_version));
+      } else if (code == McuError::kQueueUnderrun || code == McuError::kWatchdog ||
+                 code == McuError::kEmergencyStop || code == McuError::kBatchOverlap ||
+                 code == McuError::kQueueOverflow) {
+        fail(msg + "; the MCU stopped its motor");
+      } else {
+        events_.push_back(std::move(msg));
+      }
+      return;
+    }
+    default:
+      events_.push_back("MCU '" + p_.name + "': unexpected message type " + std::to_string(static_cast<int>(type)));
+      return;
+  }
+}
+
+}  // namespace feedloop::drivers

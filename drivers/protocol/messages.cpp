@@ -1,0 +1,21 @@
+// Names of MCU error codes for messages to the user.
+#include "drivers/protocol/messages.hpp"
+
+namespace feedloop::protocol {
+
+const char* mcu_error_name(McuError e) {
+  switch (e) {
+    case McuError::kNone: return "none";
+    case McuError::kVersionMismatch: return "protocol version mismatch";
+    case McuError::kQueueUnderrun: return "step queue underrun (step time already in the past)";
+    case McuError::kWatchdog: return "watchdog: no message from the host while enabled";
+    case McuError::kQueueOverflow: return "step queue overflow";
+    case McuError::kBadMessage: return "malformed or unknown message";
+    case McuError::kEmergencyStop: return "emergency stop";
+    case McuError::kNotIdentified: return "command before identify";
+    case McuError::kBatchOverlap: return "step batch overlaps the previous one";
+  }
+  return "unknown error";
+}
+
+}  // namespace feedloop::protocol

@@ -1,0 +1,121 @@
+// Message types of the feedloop MCU protocol (docs/protocol.md, "Messages"). Every payload of a
+// data frame is one message: a type byte followed by its fields (varints, zigzag varints for
+// signed values). Encoding/decoding is header-only and allocation-free: the device uses it.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "drivers/protocol/frame.hpp"
+#include "drivers/protocol/varint.hpp"
+
+namespace feedloop::protocol {
+
+// Bumped on any incompatible change; host and device refuse to talk across versions.
+inline constexpr uint16_t kProtocolVersion = 1;
+
+enum class MsgType : uint8_t {
+  // host -> device
+  kIdentify = 0x01,      // u16 version
+  kConfigure = 0x02,     // encoder_period_ticks, samples_per_report, watchdog_ticks
+  kQueueSteps = 0x03,    // u8 axis, run_codec body (first_clock, runs)
+  kClockQuery = 0x04,    // token
+  kEnable = 0x05,        // u8 on
+  kEmergencyStop = 0x06, // -
+  kHeartbeat = 0x07,     // -
+  kStatusQuery = 0x08,   // -
+  // device -> host
+  kIdentifyResponse = 0x81,  // u16 version, clock_hz, u8 axis, u8 name_len, name
+  kClockResponse = 0x84,     // token, clock
+  kStatus = 0x87,            // clock, steps_executed, zz position, queued_runs, step_hash, u8 flags
+  kEncoderReport = 0x88,     // first_clock, period_ticks, n, zz counts[0], zz deltas...
+  kErrorReport = 0x89,       // u8 code, clock, zz detail
+};
+
+enum class McuError : uint8_t {
+  kNone = 0,
+  kVersionMismatch = 1,  // detail: the device's version
+  kQueueUnderrun = 2,    // a step time already in the past; detail: ticks late
+  kWatchdog = 3,         // no message from the host within watchdog_ticks while enabled
+  kQueueOverflow = 4,    // step queue full; detail: runs dropped
+  kBadMessage = 5,       // detail: message type
+  kEmergencyStop = 6,
+  kNotIdentified = 7,    // a command before a successful identify; detail: message type
+  kBatchOverlap = 8,     // a batch starts before the previous one ended; detail: ticks
+};
+
+const char* mcu_error_name(McuError e);
+
+// Status flags.
+inline constexpr uint8_t kStatusEnabled = 0x01;
+inline constexpr uint8_t kStatusStopped = 0x02;  // shut down after an error until re-identified
+
+// Bounded writer over a caller buffer; ok() false once anything did not fit.
+class MsgWriter {
+ public:
+  MsgWriter(uint8_t* buf, size_t cap) : buf_(buf), cap_(cap) {}
+  MsgWriter& u8(uint8_t v) {
+    if (pos_ < cap_) buf_[pos_++] = v; else ok_ = false;
+    return *this;
+  }
+  MsgWriter& u16(uint16_t v) { return u8(v & 0xFF).u8(v >> 8); }
+  MsgWriter& var(uint64_t v) {
+    const size_t p = put_varint(buf_, pos_, cap_, v);
+    if (p == 0) ok_ = false; else pos_ = p;
+    return *this;
+  }
+  MsgWriter& zz(int64_t v) { return var(zigzag(v)); }
+  MsgWriter& bytes(const uint8_t* d, size_t n) {
+    for (size_t i = 0; i < n; ++i) u8(d[i]);
+    return *this;
+  }
+  bool ok() const { return ok_; }
+  size_t size() const { return pos_; }
+
+ private:
+  uint8_t* buf_;
+  size_t cap_, pos_ = 0;
+  bool ok_ = true;
+};
+
+class MsgReader {
+ public:
+  MsgReader(const uint8_t* buf, size_t len) : buf_(buf), len_(len) {}
+  uint8_t u8() {
+    if (pos_ < len_) return buf_[pos_++];
+    ok_ = false;
+    return 0;
+  }
+  uint16_t u16() {
+    const uint16_t lo = u8();
+    return static_cast<uint16_t>(lo | (u8() << 8));
+  }
+  uint64_t var() {
+    uint64_t v = 0;
+    if (!get_varint(buf_, len_, pos_, v)) ok_ = false;
+    return v;
+  }
+  int64_t zz() { return unzigzag(var()); }
+  const uint8_t* rest(size_t& n) {
+    n = len_ - pos_;
+    return buf_ + pos_;
+  }
+  const uint8_t* take(size_t n) {
+    if (pos_ + n > len_) {
+      ok_ = false;
+      return buf_ + len_;
+    }
+    const uint8_t* p = buf_ + pos_;
+    pos_ += n;
+    return p;
+  }
+  bool ok() const { return ok_; }
+  bool at_end() const { return pos_ == len_; }
+
+ private:
+  const uint8_t* buf_;
+  size_t len_, pos_ = 0;
+  bool ok_ = true;
+};
+
+}  // namespace feedloop::protocol

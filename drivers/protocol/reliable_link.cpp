@@ -1,0 +1,112 @@
+// Go-Back-N link: see reliable_link.hpp.
+#include "drivers/protocol/reliable_link.hpp"
+
+namespace feedloop::protocol {
+
+void ReliableLink::configure(const LinkParams& params, FrameOutput* out, PayloadHandler* in) {
+  params_ = params;
+  if (params_.window < 1) params_.window = 1;
+  if (params_.window > kMaxWindow) params_.window = kMaxWindow;
+  out_ = out;
+  in_ = in;
+  head_ = count_ = 0;
+  next_seq_ = expected_ = 0;
+  rto_ns_ = params_.rto_ns;
+  epoch_ = params_.initial_epoch & 0x0F;
+  peer_epoch_ = -1;
+  reset_pending_ = false;
+  ack_pending_ = false;
+  decoder_.clear();
+}
+
+void ReliableLink::reset() {
+  head_ = count_ = 0;
+  next_seq_ = 0;
+  reset_pending_ = true;
+  epoch_ = (epoch_ + 1) & 0x0F;
+  rto_ns_ = params_.rto_ns;
+  ++stats_.resets;
+}
+
+bool ReliableLink::send(const uint8_t* payload, size_t n, int64_t now_ns) {
+  if (!can_send() || n > kMaxPayload) return false;
+  const int idx = (head_ + count_) % kMaxWindow;
+  Slot& s = slots_[idx];
+  s.seq = next_seq_++;
+  s.flags = static_cast<uint8_t>(kFlagData | (epoch_ << 4));
+  if (reset_pending_) {
+    s.flags |= kFlagReset;
+    reset_pending_ = false;
+  }
+  s.len = n;
+  for (size_t i = 0; i < n; ++i) s.payload[i] = payload[i];
+  if (count_ == 0) timer_start_ns_ = now_ns;
+  ++count_;
+  transmit(idx, false);
+  return true;
+}
+
+void ReliableLink::transmit(int idx, bool retransmission) {
+  const Slot& s = slots_[idx];
+  const size_t n = encode_frame(frame_, s.flags, s.seq, expected_, s.payload, s.len);
+  ack_pending_ = false;  // the frame carries our ack
+  if (retransmission) ++stats_.retransmitted; else ++stats_.sent;
+  if (out_ != nullptr) out_->write_frame(frame_, n);
+}
+
+void ReliableLink::send_ack() {
+  const size_t n = encode_frame(frame_, 0, 0, expected_, nullptr, 0);
+  ack_pending_ = false;
+  ++stats_.acks_sent;
+  if (out_ != nullptr) out_->write_frame(frame_, n);
+}
+
+void ReliableLink::on_bytes(const uint8_t* data, size_t n, int64_t now_ns) {
+  while (n > 0) {
+    const size_t took = decoder_.feed(data, n);
+    data += took;
+    n -= took;
+    FrameView f;
+    while (decoder_.next(f)) on_frame(f, now_ns);
+  }
+  if (ack_pending_) send_ack();
+}
+
+void ReliableLink::on_frame(const FrameView& f, int64_t now_ns) {
+  // Cumulative ack: everything before f.ack has arrived at the peer.
+  const uint8_t acked = static_cast<uint8_t>(f.ack - (next_seq_ - count_));
+  if (acked > 0 && acked <= count_) {
+    head_ = (head_ + acked) % kMaxWindow;
+    count_ -= acked;
+    timer_start_ns_ = now_ns;
+    rto_ns_ = params_.rto_ns;
+  }
+  if (!(f.flags & kFlagData)) return;
+  if (f.flags & kFlagReset) {
+    // Honour a reset once per epoch (retransmissions of the same reset are duplicates).
+    const int epoch = f.flags >> 4;
+    if (epoch != peer_epoch_) {
+      peer_epoch_ = epoch;
+      expected_ = f.seq;
+    }
+  }
+  ack_pending_ = true;
+  if (f.seq == expected_) {
+    ++expected_;
+    ++stats_.delivered;
+    if (in_ != nullptr) in_->on_payload(f.payload, f.len);
+  } else if (static_cast<uint8_t>(expected_ - f.seq) <= 128) {
+    ++stats_.duplicates_dropped;
+  } else {
+    ++stats_.out_of_order_dropped;
+  }
+}
+
+void ReliableLink::poll(int64_t now_ns) {
+  if (count_ == 0 || now_ns - timer_start_ns_ < rto_ns_) return;
+  for (int i = 0; i < count_; ++i) transmit((head_ + i) % kMaxWindow, true);
+  timer_start_ns_ = now_ns;
+  rto_ns_ = rto_ns_ * 2 > params_.rto_max_ns ? params_.rto_max_ns : rto_ns_ * 2;
+}
+
+}  // namespace feedloop::protocol
