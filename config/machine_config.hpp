@@ -95,7 +95,7 @@ struct ServoConfig {
 enum class ControlMode { open_loop, pi };
 
 struct ControlConfig {
-  ControlMode mode = ControlMode::pi;
+  ControlMode mode = ControlMode::open_loop;  // pi needs encoders
   double kp = 0.5;                            // thesis Sect. 5: P = 0.5
   double ki_per_s = 20.0;                     // thesis Sect. 5: I = 20
   double max_correction_mm_s = 50.0;          // clamp of the PI correction (per period: / rate_hz)

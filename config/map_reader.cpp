@@ -25,6 +25,11 @@ std::string range_text(const Range& r) {
   return "finite";
 }
 
+std::string with_article(const std::string& noun) {
+  const bool vowel = !noun.empty() && std::string_view("aeiou").find(noun[0]) != std::string_view::npos;
+  return (vowel ? "an " : "a ") + noun;
+}
+
 bool in_range(double v, const Range& r) {
   if (r.min_open ? !(v > r.min) : !(v >= r.min)) return false;
   if (r.max_open ? !(v < r.max) : !(v <= r.max)) return false;
@@ -165,9 +170,10 @@ bool MapReader::number(std::string_view key, double& out, Range range, Need need
     }
     const units::Dimension want = key_unit ? key_unit->dim : units::Dimension{};
     if (!(written->dim == want)) {
-      diag_->add(v.Mark(), key_path(key) + ": '" + v.Scalar() + "' is a " +
-                               units::dimension_name(written->dim) + ", but " + std::string(key) +
-                               " is a " + units::dimension_name(want) +
+      diag_->add(v.Mark(), key_path(key) + ": '" + v.Scalar() + "' is " +
+                               with_article(units::dimension_name(written->dim)) + ", but " +
+                               std::string(key) + " is " +
+                               with_article(units::dimension_name(want)) +
                                (key_unit ? " (" + key_unit->symbol + ")" : std::string()));
       return false;
     }
