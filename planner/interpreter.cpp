@@ -1,0 +1,297 @@
+// G-code interpretation (see interpreter.hpp).
+#include "planner/interpreter.hpp"
+
+#include <cmath>    // isfinite, abs
+#include <cstdio>   // snprintf
+#include <utility>  // std::move
+
+#include "planner/arc.hpp"
+
+namespace feedloop::planner {
+
+namespace {
+constexpr char kAxisLetter[kAxes] = {'X', 'Y', 'Z', 'E'};
+constexpr double kMaxArcSegments = 1e6;
+
+bool all_finite(const gcode::Command& c) {
+  for (char p = 'A'; p <= 'Z'; ++p) {
+    if (c.has(p) && !std::isfinite(c.get(p))) return false;
+  }
+  return true;
+}
+}  // namespace
+
+Interpreter::Interpreter(const PlannerConfig& config, const Kinematics& kinematics, Planner& planner)
+    : cfg_(config), kin_(kinematics), planner_(planner) {
+  st_.machine_mm = planner.position();
+  st_.logical_mm = st_.machine_mm;
+  st_.print_accel_mm_s2 = config.print_accel_mm_s2;
+  st_.retract_accel_mm_s2 = config.retract_accel_mm_s2;
+  st_.travel_accel_mm_s2 = config.travel_accel_mm_s2;
+  st_.max_axis_velocity_mm_s = config.max_axis_velocity_mm_s;
+  st_.max_axis_accel_mm_s2 = config.max_axis_accel_mm_s2;
+  st_.junction_deviation_mm = planner.junction_deviation();
+  st_.retract_length_mm = config.retract_length_mm;
+  st_.retract_velocity_mm_s = config.retract_velocity_mm_s;
+  st_.retract_zlift_mm = config.retract_zlift_mm;
+  st_.unretract_extra_mm = config.unretract_extra_mm;
+  st_.unretract_velocity_mm_s = config.unretract_velocity_mm_s;
+}
+
+Status Interpreter::fail(const gcode::Command& c, std::string message) {
+  char head[32];
+  std::snprintf(head, sizeof head, "%c%d: ", c.letter, c.code);
+  return Error{head + std::move(message), c.where};
+}
+
+Status Interpreter::execute(const gcode::Command& c) {
+  if (c.empty()) return {};
+  if (!all_finite(c)) return fail(c, "parameter is not a finite number");
+  if (c.letter == 'G') {
+    switch (c.code) {
+      case 0: case 1: return linear(c);
+      case 2: return arc(c, true);
+      case 3: return arc(c, false);
+      case 4: {
+        const double s = c.has('S') ? c.get('S') : c.get('P') / 1000.0;
+        if (s < 0.0) return fail(c, "dwell time must be >= 0");
+        planner_.dwell(s, c.where.line);
+        return {};
+      }
+      case 10: return retract(c, false);
+      case 11: return retract(c, true);
+      case 17: return {};
+      case 18: case 19: return fail(c, "only the XY plane (G17) is supported for arcs");
+      case 20: st_.unit_mm = 25.4; return {};
+      case 21: st_.unit_mm = 1.0; return {};
+      case 28: return home(c);
+      case 90: st_.relative_xyz = false; st_.e_mode = EMode::follow_xyz; return {};
+      case 91: st_.relative_xyz = true; st_.e_mode = EMode::follow_xyz; return {};
+      case 92: return set_position(c);
+      default: ++ignored_; return {};
+    }
+  }
+  if (c.letter == 'M') {
+    switch (c.code) {
+      case 82: st_.e_mode = EMode::absolute; return {};
+      case 83: st_.e_mode = EMode::relative; return {};
+      case 220:
+        if (c.has('S')) {
+          if (!(c.get('S') > 0.0)) return fail(c, "speed factor S must be > 0 %");
+          st_.speed_factor = c.get('S') / 100.0;
+        }
+        return {};
+      case 221:
+        if (c.has('S')) {
+          if (!(c.get('S') >= 0.0)) return fail(c, "flow factor S must be >= 0 %");
+          st_.flow_factor = c.get('S') / 100.0;
+        }
+        return {};
+      case 400: planner_.wait_for_moves(c.where.line); return {};
+      case 201: case 203: case 204: case 205: case 207: case 208: return limits(c);
+      default: ++ignored_; return {};
+    }
+  }
+  ++ignored_;
+  return {};
+}
+
+Vec4 Interpreter::logical_target(const gcode::Command& c) const {
+  Vec4 t = st_.logical_mm;
+  for (int i = 0; i < kAxes; ++i) {
+    if (!c.has(kAxisLetter[i])) continue;
+    const double v = c.get(kAxisLetter[i]) * st_.unit_mm;
+    const bool rel = i == kE ? st_.e_relative() : st_.relative_xyz;
+    t[i] = rel ? st_.logical_mm[i] + v : v;
+  }
+  return t;
+}
+
+Vec4 Interpreter::to_machine(const Vec4& logical) const {
+  Vec4 m;
+  for (int i = 0; i < 3; ++i) m[i] = logical[i] + st_.offset_mm[i];
+  m[kZ] += st_.hop_mm;
+  m[kE] = st_.machine_mm[kE] + (logical[kE] - st_.logical_mm[kE]) * st_.flow_factor;
+  return m;
+}
+
+double Interpreter::accel_for(const Vec4& from, const Vec4& to) const {
+  const bool xyz = from[0] != to[0] || from[1] != to[1] || from[2] != to[2];
+  const bool e = from[kE] != to[kE];
+  if (!xyz) return st_.retract_accel_mm_s2;  // E-only (Marlin: retract_acceleration)
+  return e ? st_.print_accel_mm_s2 : st_.travel_accel_mm_s2;
+}
+
+Status Interpreter::check(const Vec4& from, const Vec4& to, const gcode::Command& c) const {
+  const bool xyz = from[0] != to[0] || from[1] != to[1] || from[2] != to[2];
+  if (!xyz) return {};
+  Status s = kin_.check_segment({from[0], from[1], from[2]}, {to[0], to[1], to[2]});
+  if (!s) return fail(c, "move rejected, nothing executed: " + s.error().message);
+  return {};
+}
+
+void Interpreter::push(const Vec4& to, double velocity_mm_s, double accel_mm_s2, int line) {
+  planner_.add_move({to, velocity_mm_s, accel_mm_s2, line});
+  ++moves_;
+}
+
+Status Interpreter::linear(const gcode::Command& c) {
+  double feed = st_.feedrate_mm_s;
+  if (c.has('F')) {
+    if (!(c.get('F') > 0.0)) return fail(c, "feedrate F must be > 0");
+    feed = c.get('F') * st_.unit_mm / 60.0;
+  }
+  const Vec4 logical = logical_target(c);
+  const Vec4 to = to_machine(logical);
+  if (Status s = check(st_.machine_mm, to, c); !s) return s;
+  // commit
+  st_.feedrate_mm_s = feed;
+  push(to, feed * st_.speed_factor, accel_for(st_.machine_mm, to), c.where.line);
+  st_.logical_mm = logical;
+  st_.machine_mm = to;
+  return {};
+}
+
+Status Interpreter::arc(const gcode::Command& c, bool clockwise) {
+  double feed = st_.feedrate_mm_s;
+  if (c.has('F')) {
+    if (!(c.get('F') > 0.0)) return fail(c, "feedrate F must be > 0");
+    feed = c.get('F') * st_.unit_mm / 60.0;
+  }
+  const bool use_r = c.has('R');
+  if (!use_r && !c.has('I') && !c.has('J')) return fail(c, "arc needs I/J or R");
+  if (use_r && (c.has('I') || c.has('J'))) return fail(c, "arc takes either I/J or R, not both");
+  const Vec4 logical = logical_target(c);
+  const Vec4 to = to_machine(logical);
+  const Vec4 from = st_.machine_mm;
+  Result<ArcPlan> plan = plan_arc(from, to, clockwise, use_r, c.get('I') * st_.unit_mm, c.get('J') * st_.unit_mm,
+                                  c.get('R') * st_.unit_mm, cfg_.arc_tolerance_mm);
+  if (!plan) return fail(c, plan.error().message);
+  if (plan->segments > kMaxArcSegments) return fail(c, "arc needs too many segments for the tolerance");
+  // Check every segment before queueing any.
+  Vec4 a = from;
+  for (int k = 1; k <= plan->segments; ++k) {
+    const Vec4 b = arc_point(*plan, from, to, k);
+    if (Status s = check(a, b, c); !s) return s;
+    a = b;
+  }
+  st_.feedrate_mm_s = feed;
+  const double accel = accel_for(from, to);
+  for (int k = 1; k <= plan->segments; ++k) push(arc_point(*plan, from, to, k), feed * st_.speed_factor, accel, c.where.line);
+  st_.logical_mm = logical;
+  st_.machine_mm = to;
+  return {};
+}
+
+Status Interpreter::home(const gcode::Command& c) {
+  const bool any = c.has('X') || c.has('Y') || c.has('Z');
+  Vec4 to = st_.machine_mm;
+  bool homed[3];
+  for (int i = 0; i < 3; ++i) {
+    homed[i] = !any || c.has(kAxisLetter[i]);
+    if (homed[i]) to[i] = cfg_.home_position_mm[i];
+  }
+  if (Status s = check(st_.machine_mm, to, c); !s) return s;
+  push(to, cfg_.homing_velocity_mm_s, st_.travel_accel_mm_s2, c.where.line);
+  planner_.mark_homed(c.where.line);
+  // After homing, logical == machine on the homed axes (G92 offsets of those axes are cleared).
+  for (int i = 0; i < 3; ++i) {
+    if (!homed[i]) continue;
+    st_.offset_mm[i] = 0.0;
+    st_.logical_mm[i] = to[i];
+  }
+  if (homed[kZ]) st_.hop_mm = 0.0;
+  st_.machine_mm = to;
+  return {};
+}
+
+Status Interpreter::retract(const gcode::Command& c, bool recover) {
+  if (c.has('L') || c.has('P')) return fail(c, "G10 L/P (tool/work offsets) is not supported; G10 alone retracts");
+  if (!recover) {
+    if (st_.retracted) return {};
+    Vec4 e_to = st_.machine_mm;
+    e_to[kE] -= st_.retract_length_mm;
+    Vec4 z_to = e_to;
+    z_to[kZ] += st_.retract_zlift_mm;
+    if (Status s = check(e_to, z_to, c); !s) return s;
+    push(e_to, st_.retract_velocity_mm_s, st_.retract_accel_mm_s2, c.where.line);
+    if (st_.retract_zlift_mm > 0.0) push(z_to, cfg_.max_axis_velocity_mm_s[kZ], st_.travel_accel_mm_s2, c.where.line);
+    st_.hop_mm = st_.retract_zlift_mm;
+    st_.retracted = true;
+    st_.machine_mm = z_to;
+    return {};
+  }
+  if (!st_.retracted) return {};
+  Vec4 z_to = st_.machine_mm;
+  z_to[kZ] -= st_.hop_mm;
+  if (Status s = check(st_.machine_mm, z_to, c); !s) return s;
+  Vec4 e_to = z_to;
+  e_to[kE] += st_.retract_length_mm + st_.unretract_extra_mm;
+  if (st_.hop_mm > 0.0) push(z_to, cfg_.max_axis_velocity_mm_s[kZ], st_.travel_accel_mm_s2, c.where.line);
+  push(e_to, st_.unretract_velocity_mm_s, st_.retract_accel_mm_s2, c.where.line);
+  st_.hop_mm = 0.0;
+  st_.retracted = false;
+  st_.machine_mm = e_to;
+  return {};
+}
+
+Status Interpreter::set_position(const gcode::Command& c) {
+  for (int i = 0; i < kAxes; ++i) {
+    if (!c.has(kAxisLetter[i])) continue;
+    const double v = c.get(kAxisLetter[i]) * st_.unit_mm;
+    if (i < 3) st_.offset_mm[i] = st_.machine_mm[i] - st_.hop_mm * (i == kZ) - v;
+    st_.logical_mm[i] = v;  // E: the machine E is unchanged, only the logical origin moves
+  }
+  return {};
+}
+
+Status Interpreter::limits(const gcode::Command& c) {
+  const double u = st_.unit_mm;
+  auto positive = [&](char p) { return !c.has(p) || c.get(p) > 0.0; };
+  switch (c.code) {
+    case 201:
+    case 203: {
+      for (int i = 0; i < kAxes; ++i) {
+        if (!positive(kAxisLetter[i])) return fail(c, std::string("limit ") + kAxisLetter[i] + " must be > 0");
+      }
+      Vec4& target = c.code == 201 ? st_.max_axis_accel_mm_s2 : st_.max_axis_velocity_mm_s;
+      for (int i = 0; i < kAxes; ++i) {
+        if (c.has(kAxisLetter[i])) target[i] = c.get(kAxisLetter[i]) * u;
+      }
+      planner_.set_axis_limits(st_.max_axis_velocity_mm_s, st_.max_axis_accel_mm_s2);
+      return {};
+    }
+    case 204:
+      if (!positive('P') || !positive('R') || !positive('T') || !positive('S')) return fail(c, "accelerations must be > 0");
+      if (c.has('S')) st_.print_accel_mm_s2 = st_.travel_accel_mm_s2 = c.get('S') * u;  // legacy: both
+      if (c.has('P')) st_.print_accel_mm_s2 = c.get('P') * u;
+      if (c.has('R')) st_.retract_accel_mm_s2 = c.get('R') * u;
+      if (c.has('T')) st_.travel_accel_mm_s2 = c.get('T') * u;
+      return {};
+    case 205:
+      if (c.has('J')) {
+        if (!(c.get('J') > 0.0)) return fail(c, "junction deviation J must be > 0");
+        st_.junction_deviation_mm = c.get('J') * u;
+        planner_.set_junction_deviation(st_.junction_deviation_mm);
+      }
+      for (int i = 0; i < kAxes; ++i) {
+        if (c.has(kAxisLetter[i])) st_.jerk_mm_s[i] = c.get(kAxisLetter[i]) * u;
+      }
+      return {};
+    case 207:
+      if (c.has('S') && c.get('S') < 0.0) return fail(c, "retract length must be >= 0");
+      if (!positive('F')) return fail(c, "retract feedrate must be > 0");
+      if (c.has('S')) st_.retract_length_mm = c.get('S') * u;
+      if (c.has('F')) st_.retract_velocity_mm_s = c.get('F') * u / 60.0;
+      if (c.has('Z')) st_.retract_zlift_mm = std::abs(c.get('Z') * u);
+      return {};
+    case 208:
+      if (!positive('F')) return fail(c, "recover feedrate must be > 0");
+      if (c.has('S')) st_.unretract_extra_mm = c.get('S') * u;
+      if (c.has('F')) st_.unretract_velocity_mm_s = c.get('F') * u / 60.0;
+      return {};
+    default: return {};
+  }
+}
+
+}  // namespace feedloop::planner

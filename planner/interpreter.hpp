@@ -1,0 +1,81 @@
+// The G-code machine state and its execution: turns gcode::Commands into planner moves.
+//   G0/G1 lines, G2/G3 arcs (I J or R, split within config.arc_tolerance_mm), G4 dwell,
+//   G10/G11 firmware retraction (M207/M208 set it), G17 (only the XY plane), G20/G21 units,
+//   G28 home (simulated: a move to config.home_position_mm), G90/G91, G92 (incl. G92 E0),
+//   M82/M83, M220/M221 overrides, M400 (a moves_done event the caller can wait on),
+//   M201/M203 per-axis limits, M204 P/R/T/S as Marlin 2 defines them (P printing moves, R
+//   E-only retract moves, T travel moves, S legacy = P and T), M205 J junction deviation.
+//   M205 X/Y/Z/E (classic jerk) are recorded but not used for planning: Marlin 2 ignores them
+//   too when CLASSIC_JERK is off (junction deviation is the cornering model then).
+// Every command is validated completely before anything changes: a rejected command (unreachable
+// or out-of-travel target, bad arc, unsupported form) returns an Error with the source location
+// and leaves the state and the planner untouched. Commands that are not about motion (heaters,
+// fans, messages) return Ok and are counted in ignored().
+// Owner: the planner thread.
+#pragma once
+
+#include <cstdint>
+
+#include "gcode/command.hpp"
+#include "planner/kinematics.hpp"
+#include "planner/lookahead.hpp"
+
+namespace feedloop::planner {
+
+// How E is interpreted: following G90/G91 (Marlin resets to this on G90/G91), or forced by M82/M83.
+enum class EMode { follow_xyz, absolute, relative };
+
+struct MachineState {
+  Vec4 logical_mm{};   // positions as the G-code sees them (after G92)
+  Vec4 machine_mm{};   // planner coordinates; E accumulates the flow-scaled extrusion
+  Vec4 offset_mm{};    // G92: machine = logical + offset (X Y Z); E is tracked separately
+  bool relative_xyz = false;
+  EMode e_mode = EMode::follow_xyz;
+  double unit_mm = 1.0;           // 25.4 after G20
+  double feedrate_mm_s = 25.0;    // last F
+  double speed_factor = 1.0;      // M220 S / 100
+  double flow_factor = 1.0;       // M221 S / 100
+  double print_accel_mm_s2 = 0.0, retract_accel_mm_s2 = 0.0, travel_accel_mm_s2 = 0.0;  // M204
+  Vec4 max_axis_velocity_mm_s{};  // M203
+  Vec4 max_axis_accel_mm_s2{};    // M201
+  Vec4 jerk_mm_s{};               // M205 X Y Z E, recorded only
+  double junction_deviation_mm = 0.0;
+  bool retracted = false;         // G10 active
+  double hop_mm = 0.0;            // Z lift applied by G10
+  double retract_length_mm = 0.0, retract_velocity_mm_s = 0.0, retract_zlift_mm = 0.0;
+  double unretract_extra_mm = 0.0, unretract_velocity_mm_s = 0.0;
+  bool e_relative() const { return e_mode == EMode::relative || (e_mode == EMode::follow_xyz && relative_xyz); }
+};
+
+class Interpreter {
+ public:
+  Interpreter(const PlannerConfig& config, const Kinematics& kinematics, Planner& planner);
+
+  Status execute(const gcode::Command& cmd);
+  const MachineState& state() const { return st_; }
+  uint64_t ignored() const { return ignored_; }
+  uint64_t moves() const { return moves_; }
+
+ private:
+  Status linear(const gcode::Command& c);
+  Status arc(const gcode::Command& c, bool clockwise);
+  Status home(const gcode::Command& c);
+  Status retract(const gcode::Command& c, bool recover);
+  Status set_position(const gcode::Command& c);
+  Status limits(const gcode::Command& c);
+  // Logical target of a G0-G3 line (unchanged axes stay), and its machine coordinates.
+  Vec4 logical_target(const gcode::Command& c) const;
+  Vec4 to_machine(const Vec4& logical) const;
+  double accel_for(const Vec4& from, const Vec4& to) const;
+  Status check(const Vec4& from, const Vec4& to, const gcode::Command& c) const;
+  void push(const Vec4& to, double velocity_mm_s, double accel_mm_s2, int line);
+  static Status fail(const gcode::Command& c, std::string message);
+
+  PlannerConfig cfg_;
+  const Kinematics& kin_;
+  Planner& planner_;
+  MachineState st_;
+  uint64_t ignored_ = 0, moves_ = 0;
+};
+
+}  // namespace feedloop::planner

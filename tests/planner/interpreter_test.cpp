@@ -1,0 +1,215 @@
+// Interpreter semantics: G90/G91, M82/M83, G92, G20, M204 P/R/T/S, M220/M221, G4, M400, G10/G11,
+// arcs (I J and R) within the chordal tolerance, and whole-command rejection.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "planner/junction.hpp"
+#include "planner_test_util.hpp"
+
+namespace feedloop::planner {
+namespace {
+
+using test::Rig;
+
+TEST(Interpreter, RelativeAndAbsoluteModes) {
+  Rig r(test::cartesian_config());
+  ASSERT_TRUE(r.run("G28"));
+  ASSERT_TRUE(r.run("G1 X10 Y10 F6000"));
+  ASSERT_TRUE(r.run("G91"));
+  ASSERT_TRUE(r.run("G1 X5 E2"));  // G91 makes E relative too (Marlin)
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 15.0);
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kE], 2.0);
+  ASSERT_TRUE(r.run("M82"));  // E absolute while XYZ stay relative
+  ASSERT_TRUE(r.run("G1 X1 E3"));
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 16.0);
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kE], 3.0);
+  ASSERT_TRUE(r.run("G90"));  // resets E to follow XYZ: absolute
+  ASSERT_TRUE(r.run("M83"));
+  ASSERT_TRUE(r.run("G1 X20 E1"));
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 20.0);
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kE], 4.0);
+}
+
+TEST(Interpreter, G92SetsLogicalPositionWithoutMoving) {
+  Rig r(test::cartesian_config());
+  ASSERT_TRUE(r.run("G1 X10 E5 F3000"));
+  const uint64_t before = r.planner.moves_added();
+  ASSERT_TRUE(r.run("G92 E0"));
+  ASSERT_TRUE(r.run("G92 X100"));
+  EXPECT_EQ(r.planner.moves_added(), before);
+  ASSERT_TRUE(r.run("G1 X110 E1"));  // +10 in X, +1 in E
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 20.0);
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kE], 6.0);
+  EXPECT_DOUBLE_EQ(r.interp.state().logical_mm[kX], 110.0);
+  ASSERT_TRUE(r.run("G20"));
+  ASSERT_FALSE(r.run("G1 X110.1").ok());  // 110.1 in is far outside the bed: rejected
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 20.0);
+  ASSERT_TRUE(r.run("G21"));
+}
+
+TEST(Interpreter, InchUnitsScaleCoordinatesAndFeedrate) {
+  Rig r(test::cartesian_config());
+  ASSERT_TRUE(r.run("G20"));
+  ASSERT_TRUE(r.run("G1 X2 F600"));  // 50.8 mm at 600 in/min = 254 mm/s
+  r.planner.flush();
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 50.8);
+  ASSERT_EQ(r.rec.moves.size(), 1u);
+  EXPECT_NEAR(r.rec.moves[0].v_cruise_mm_s, 254.0, 1e-9);  // reachable: sqrt(a L / 2) = 276 > 254
+}
+
+TEST(Interpreter, M204SelectsPrintRetractAndTravelAcceleration) {
+  Rig r(test::cartesian_config());
+  ASSERT_TRUE(r.run("M204 P1000 R500 T2000"));
+  ASSERT_TRUE(r.run("G1 X50 E2 F6000"));  // print move
+  ASSERT_TRUE(r.run("G1 E1"));            // retract (E-only)
+  ASSERT_TRUE(r.run("G1 X100"));          // travel
+  ASSERT_TRUE(r.run("M204 S800"));        // legacy: print and travel
+  ASSERT_TRUE(r.run("G1 X120 E2"));
+  ASSERT_TRUE(r.run("G1 X140"));
+  r.planner.flush();
+  ASSERT_EQ(r.rec.moves.size(), 5u);
+  EXPECT_DOUBLE_EQ(r.rec.moves[0].accel_mm_s2, 1000.0);
+  EXPECT_DOUBLE_EQ(r.rec.moves[1].accel_mm_s2, 500.0);
+  EXPECT_FALSE(r.rec.moves[1].kinematic);
+  EXPECT_DOUBLE_EQ(r.rec.moves[2].accel_mm_s2, 2000.0);
+  EXPECT_DOUBLE_EQ(r.rec.moves[3].accel_mm_s2, 800.0);
+  EXPECT_DOUBLE_EQ(r.rec.moves[4].accel_mm_s2, 800.0);
+  EXPECT_DOUBLE_EQ(r.interp.state().retract_accel_mm_s2, 500.0);
+}
+
+TEST(Interpreter, SpeedAndFlowOverrides) {
+  Rig r(test::cartesian_config());
+  ASSERT_TRUE(r.run("M220 S50"));
+  ASSERT_TRUE(r.run("M221 S90"));
+  ASSERT_TRUE(r.run("G1 X200 E10 F6000"));  // 100 mm/s requested -> 50 mm/s
+  r.planner.flush();
+  ASSERT_EQ(r.rec.moves.size(), 1u);
+  EXPECT_NEAR(r.rec.moves[0].v_cruise_mm_s, 50.0, 1e-9);
+  EXPECT_NEAR(r.rec.moves[0].end_mm[kE], 9.0, 1e-12);  // flow 90 %
+  EXPECT_NEAR(r.interp.state().logical_mm[kE], 10.0, 1e-12);
+  EXPECT_FALSE(r.run("M220 S0").ok());
+  EXPECT_DOUBLE_EQ(r.interp.state().speed_factor, 0.5);
+}
+
+TEST(Interpreter, DwellAndWaitAreEvents) {
+  Rig r(test::cartesian_config());
+  ASSERT_TRUE(r.run("G1 X30 F6000"));
+  ASSERT_TRUE(r.run("G4 P500"));
+  ASSERT_TRUE(r.run("G1 X60"));
+  ASSERT_TRUE(r.run("M400"));
+  ASSERT_EQ(r.rec.events.size(), 2u);
+  ASSERT_EQ(r.rec.moves.size(), 2u);
+  EXPECT_EQ(r.rec.events[0].kind, EventKind::dwell);
+  EXPECT_DOUBLE_EQ(r.rec.events[0].duration_s, 0.5);
+  EXPECT_DOUBLE_EQ(r.rec.events[0].time_s, r.rec.moves[0].end_time_s());
+  EXPECT_DOUBLE_EQ(r.rec.moves[1].start_time_s, r.rec.moves[0].end_time_s() + 0.5);
+  EXPECT_EQ(r.rec.events[1].kind, EventKind::moves_done);
+  EXPECT_DOUBLE_EQ(r.rec.events[1].time_s, r.rec.moves[1].end_time_s());
+  EXPECT_EQ(r.planner.queued(), 0u);
+}
+
+TEST(Interpreter, FirmwareRetraction) {
+  Rig r(test::cartesian_config());
+  ASSERT_TRUE(r.run("M207 S1.5 F2400 Z0.4"));
+  ASSERT_TRUE(r.run("M208 S0.1 F1200"));
+  ASSERT_TRUE(r.run("G1 X10 Z1 F3000"));
+  ASSERT_TRUE(r.run("G10"));
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kE], -1.5);
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kZ], 1.4);
+  EXPECT_DOUBLE_EQ(r.interp.state().logical_mm[kZ], 1.0);
+  ASSERT_TRUE(r.run("G10"));  // already retracted: nothing
+  ASSERT_TRUE(r.run("G11"));
+  EXPECT_NEAR(r.interp.state().machine_mm[kE], 0.1, 1e-12);
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kZ], 1.0);
+  r.planner.flush();
+  ASSERT_EQ(r.rec.moves.size(), 5u);
+  EXPECT_NEAR(r.rec.moves[1].v_cruise_mm_s, 40.0, 1e-9) << "retract at F2400";
+  EXPECT_NEAR(r.rec.moves[4].v_cruise_mm_s, 20.0, 1e-9) << "recover at F1200";
+}
+
+TEST(Interpreter, RejectedMoveChangesNothing) {
+  Rig r(test::cartesian_config());
+  ASSERT_TRUE(r.run("G1 X10 Y10 F3000"));
+  const MachineState before = r.interp.state();
+  const uint64_t added = r.planner.moves_added();
+  gcode::Command c = *gcode::parse_line("G1 X250 Y10 E3 F1200", {"part.gcode", 42, 0});
+  Status s = r.interp.execute(c);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.error().where.line, 42);
+  EXPECT_NE(s.error().to_string().find("part.gcode:42"), std::string::npos);
+  EXPECT_NE(s.error().message.find("X250"), std::string::npos) << s.error().message;
+  EXPECT_EQ(r.planner.moves_added(), added);
+  EXPECT_EQ(r.interp.state().machine_mm, before.machine_mm);
+  EXPECT_EQ(r.interp.state().logical_mm, before.logical_mm);
+  EXPECT_DOUBLE_EQ(r.interp.state().feedrate_mm_s, before.feedrate_mm_s);  // F not taken either
+  // An arc whose ends are on the bed but whose middle is not: no segment of it is queued.
+  Status a = r.run("G2 X30 Y10 I10 J0");  // centre (20, 10), r 10: the CW half over the top
+  ASSERT_TRUE(a.ok());
+  const uint64_t after_arc = r.planner.moves_added();
+  Status b = r.run("G2 X30 Y10 I-15 J0");  // full circle around (15, 10), r 15: dips to y = -5
+  ASSERT_FALSE(b.ok());
+  EXPECT_NE(b.error().message.find("Y-"), std::string::npos) << b.error().message;
+  EXPECT_EQ(r.planner.moves_added(), after_arc);
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 30.0);
+}
+
+TEST(Interpreter, DeltaRejectsUnreachableMoveWhole) {
+  Rig r(test::delta_config());
+  ASSERT_TRUE(r.run("G28"));
+  ASSERT_TRUE(r.run("G1 X0 Y0 Z10 F6000"));
+  const uint64_t added = r.planner.moves_added();
+  Status s = r.run("G1 X100 Y100 Z10");  // radius 141 > 135
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("print radius"), std::string::npos) << s.error().message;
+  EXPECT_EQ(r.planner.moves_added(), added);
+  r.planner.flush();
+  for (const PlannedMove& m : r.rec.moves) {
+    EXPECT_LE(std::hypot(m.end_mm[0], m.end_mm[1]), 135.0);
+  }
+}
+
+// Arc points lie on the circle and every chord stays within the tolerance of it.
+void check_arc(Rig& r, const std::string& line, double cx, double cy, double radius, double tol, double sweep_rad) {
+  r.planner.flush();
+  const size_t first = r.rec.moves.size();
+  ASSERT_TRUE(r.run(line)) << line;
+  r.planner.flush();
+  double max_sagitta = 0.0, swept = 0.0;
+  for (size_t i = first; i < r.rec.moves.size(); ++i) {
+    const PlannedMove& m = r.rec.moves[i];
+    const double re = std::hypot(m.end_mm[0] - cx, m.end_mm[1] - cy);
+    EXPECT_NEAR(re, radius, 1e-9);
+    const double mx = 0.5 * (m.start_mm[0] + m.end_mm[0]) - cx, my = 0.5 * (m.start_mm[1] + m.end_mm[1]) - cy;
+    max_sagitta = std::max(max_sagitta, radius - std::hypot(mx, my));
+    const double a0 = std::atan2(m.start_mm[1] - cy, m.start_mm[0] - cx), a1 = std::atan2(m.end_mm[1] - cy, m.end_mm[0] - cx);
+    swept += std::remainder(a1 - a0, 2.0 * M_PI);
+  }
+  EXPECT_LE(max_sagitta, tol * (1.0 + 1e-9));
+  EXPECT_GT(max_sagitta, 0.5 * tol) << "segments should not be needlessly short";
+  EXPECT_NEAR(swept, sweep_rad, 1e-9);
+}
+
+TEST(Interpreter, ArcsStayWithinChordalTolerance) {
+  PlannerConfig c = test::cartesian_config();
+  c.arc_tolerance_mm = 0.005;
+  Rig r(c);
+  ASSERT_TRUE(r.run("G1 X100 Y50 F6000"));
+  check_arc(r, "G3 X100 Y50 I0 J20 E5", 100.0, 70.0, 20.0, 0.005, 2.0 * M_PI);  // full circle CCW
+  check_arc(r, "G2 X120 Y70 I0 J20", 100.0, 70.0, 20.0, 0.005, -1.5 * M_PI);      // CW three quarters
+  check_arc(r, "G2 X140 Y70 R10", 130.0, 70.0, 10.0, 0.005, -M_PI);              // R: half circle
+  check_arc(r, "G3 X150 Y80 R-10", 150.0, 70.0, 10.0, 0.005, 1.5 * M_PI);        // R < 0: the long way
+  // E of the full circle rose linearly with the angle: constant E per mm on every segment
+  EXPECT_FALSE(r.run("G2 X200 Y70 R5").ok());  // R smaller than half the chord
+}
+
+TEST(Interpreter, M205SetsJunctionDeviationAndRecordsJerk) {
+  Rig r(test::cartesian_config());
+  ASSERT_TRUE(r.run("M205 X8 Y8 Z0.4 E4.5 J0.02"));
+  EXPECT_DOUBLE_EQ(r.planner.junction_deviation(), 0.02);
+  EXPECT_DOUBLE_EQ(r.interp.state().jerk_mm_s[kX], 8.0);
+  EXPECT_DOUBLE_EQ(r.interp.state().jerk_mm_s[kE], 4.5);
+}
+
+}  // namespace
+}  // namespace feedloop::planner
