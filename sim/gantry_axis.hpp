@@ -6,11 +6,14 @@
 //        (one microstep per pulse) with time constant tau = c1/k1
 //   x1, v1  rotor (linear coordinates, Eq. 11)     x2, v2  carriage
 //   xf, vf  frame (only moves with the extra_resonance effect)
+//   z       friction bristle deflection (only with the coulomb_friction effect)
 // Forces:
 //   motor  F_m = F_max(|v1|) sin(2 pi (u_f - x1) / lambda) + c1 (du_f/dt - v1)   (Eq. 2-3, 9)
 //          lambda = 4 full steps (one electrical period, n_r teeth); F_max = k1 lambda / (2 pi)
 //   belt   F_t = K2(x2, sgn) (x1 - x2), K2 of Eq. 6                               (Eq. 5-7)
-//   rails  -c2 v2 (Eq. 10), plus Coulomb friction when enabled
+//   rails  -c2 v2 (Eq. 10), plus Coulomb friction when enabled: a Dahl bristle model
+//          dz/dt = v2 (1 - sgn(v2) z / z_max), F_c z / z_max, which sticks at rest (holds any
+//          force below F_c) and slides with F_c, without a velocity singularity
 // In the linear regime this is exactly Eq. 13: k1 (u_f - x1) + c1 (du_f/dt - v1) = k1 (u - x1)
 // - c1 v1 because tau du_f/dt = u - u_f with tau = c1/k1. Damping relative to the moving field
 // (instead of to ground) is what lets the rotor run at print speeds: with the fitted c1 to ground
@@ -34,8 +37,8 @@ namespace feedloop::sim {
 
 class GantryAxis final : public device::MotorPort {
  public:
-  using State = Eigen::Matrix<double, 7, 1>;
-  enum Index : int { kField = 0, kRotor, kRotorVel, kCarriage, kCarriageVel, kFrame, kFrameVel };
+  using State = Eigen::Matrix<double, 8, 1>;
+  enum Index : int { kField = 0, kRotor, kRotorVel, kCarriage, kCarriageVel, kFrame, kFrameVel, kBristle };
 
   static Result<GantryAxis> create(const GantryAxisParams& p);
 
@@ -97,7 +100,6 @@ class GantryAxis final : public device::MotorPort {
   double tau_s_ = 0.0;       // field time constant c1/k1
   double k_hat_ = 0.0;       // belt unit stiffness, N (k2 * L)
   double read_delay_s_ = 0.0;
-  double coulomb_v_eps_ = 0.0;
   double frame_k_ = 0.0, frame_c_ = 0.0;
 };
 

@@ -60,8 +60,9 @@ struct GantryAxisParams {
   int full_steps_per_rev = 200;           // 1.8 deg hybrid stepper: n_r = full_steps_per_rev / 4 rotor teeth
   int microsteps = 16;                    // the equilibrium moves by one microstep per step pulse
   // Pull-out force falls with speed (the winding inductance of Eq. 3 limits the phase current):
-  // F_max(v) = F_hold / sqrt(1 + (v / corner)^2). 0 disables the roll-off.
-  double pullout_corner_speed_mm_s = 150.0;
+  // Every electromagnetic force is scaled by 1 / sqrt(1 + (v1 / corner)^2). 0 disables the
+  // roll-off. Calibrated so the presets reproduce Sect. 5.3-5.4 qualitatively (docs/simulator.md).
+  double pullout_corner_speed_mm_s = 100.0;
   // Belt (Eq. 5-7): K2 = k_hat / (L - (x0 + x2) sgn(x1 - x2)) with k_hat = belt_stiffness * L,
   // so K2 = belt_stiffness_n_m at x0 + x2 = 0 (the identification position) in both directions.
   double belt_stiffness_n_m = 109783.0;  // k2
