@@ -208,3 +208,31 @@ TEST(Files, MissingFileIsAnErrorNamingThePath) {
 
 }  // namespace
 }  // namespace feedloop::config
+
+namespace feedloop::config {
+namespace {
+
+TEST(Kinematics, CorexyUsesTheCartesianAxisNames) {
+  const MachineConfig c = must_load(testing::edit(testing::kMinimal, "kinematics: cartesian",
+                                                  "kinematics: corexy"));
+  EXPECT_EQ(c.kinematics, Kinematics::corexy);
+  EXPECT_NE(c.axis("y"), nullptr);
+  EXPECT_FALSE(c.delta);
+}
+
+TEST(Integers, AcceptExponentsUnitsAndHex) {
+  std::string y = std::string(testing::kMinimal) + "stepgen: {mcu_clock_hz: 48 MHz}\n";
+  y = testing::edit(y, "  - name: mcu_z\n    axes: [z]\n    transport: mock\n",
+                    "  - name: mcu_z\n    axes: [z]\n    transport: usb\n"
+                    "    usb: {vid: 0x1d50, pid: 24843}\n    clock_hz: 168e6\n");
+  const MachineConfig c = must_load(y);
+  EXPECT_EQ(c.stepgen.mcu_clock_hz, 48000000);
+  EXPECT_EQ(c.mcus[0].clock_hz, 48000000);   // inherits stepgen's
+  EXPECT_EQ(c.mcus[1].clock_hz, 168000000);  // its own
+  EXPECT_EQ(c.mcus[1].usb.vid, 0x1d50);
+  EXPECT_EQ(c.mcus[1].usb.pid, 24843);
+  EXPECT_FALSE(load_config_text(testing::edit(y, "168e6", "168.5"), "t.yaml").ok());
+}
+
+}  // namespace
+}  // namespace feedloop::config
