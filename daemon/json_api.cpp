@@ -45,9 +45,13 @@ void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::st
   try {
     req = json::parse(line);
   } catch (const json::parse_error& e) {
-    // e.byte is the 1-based position of the error in the line.
+    // e.byte is the 1-based position of the error in the line; keep the library's reason only.
+    std::string why = e.what();
+    if (const size_t p = why.find("column "); p != std::string::npos) {
+      if (const size_t colon = why.find(": ", p); colon != std::string::npos) why = why.substr(colon + 2);
+    }
     reply(json_rpc_error(nullptr, -32700,
-                         "parse error at column " + std::to_string(e.byte) + ": " + e.what()));
+                         "parse error at column " + std::to_string(e.byte) + ": " + why));
     return;
   }
   if (!req.is_object() || req.value("jsonrpc", "") != "2.0" || !req.contains("method") ||

@@ -1,0 +1,239 @@
+// End-to-end tests of feedloopd's client channels against a running daemon: the Unix socket and
+// the pty with the Marlin host protocol, the JSON API, print ownership, slow clients, shutdown.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <filesystem>
+
+#include "tests/daemon/daemon_fixture.hpp"
+#include "tests/daemon/line_client.hpp"
+
+namespace feedloop::testing {
+namespace {
+
+using nlohmann::json;
+
+class Channels : public DaemonFixture {};
+
+json call(LineClient& c, const json& req) {
+  EXPECT_TRUE(c.send_line(req.dump()));
+  for (int i = 0; i < 100; ++i) {  // skip notifications
+    auto line = c.read_line(5000);
+    if (!line) return json();
+    json r = json::parse(*line);
+    if (r.contains("id")) return r;
+  }
+  return json();
+}
+
+TEST_F(Channels, UnixSocketSpeaksTheMarlinHostProtocol) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(c.send_line("M115"));
+  auto fw = c.read_line();
+  ASSERT_TRUE(fw);
+  EXPECT_NE(fw->find("FIRMWARE_NAME:feedloop"), std::string::npos);
+  EXPECT_EQ(c.read_line(), "ok");
+
+  ASSERT_TRUE(c.send_line(numbered(0, "M110 N0")));
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line(numbered(1, "G1 X12.5 Y-3 F3000")));
+  EXPECT_EQ(c.read_line(), "ok");
+  // A corrupted checksum: the line is refused and resent, nothing moves.
+  std::string bad = numbered(2, "G1 X99");
+  bad.back() = bad.back() == '0' ? '1' : '0';
+  ASSERT_TRUE(c.send_line(bad));
+  EXPECT_EQ(c.read_line(), "Error:checksum mismatch, Last Line: 1");
+  EXPECT_EQ(c.read_line(), "Resend: 2");
+  EXPECT_EQ(c.read_line(), "ok");
+  // A skipped line number.
+  ASSERT_TRUE(c.send_line(numbered(3, "G1 X98")));
+  EXPECT_EQ(c.read_line(), "Error:Line Number is not Last Line Number+1, Last Line: 1");
+  EXPECT_EQ(c.read_line(), "Resend: 2");
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line(numbered(2, "G1 Z0.3")));
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("M114"));
+  auto pos = c.read_line();
+  ASSERT_TRUE(pos);
+  EXPECT_EQ(pos->rfind("X:12.500 Y:-3.000 Z:0.300", 0), 0u) << *pos;
+  EXPECT_EQ(c.read_line(), "ok");
+  // A line that fails validation: an error with its location, and nothing executes.
+  ASSERT_TRUE(c.send_line("G1 X5 Q7"));
+  auto err = c.read_line();
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->rfind("Error:", 0), 0u);
+  EXPECT_NE(err->find("socket#1:8:7:"), std::string::npos) << *err;  // 8th line, column 7
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("M114"));
+  pos = c.read_line();
+  ASSERT_TRUE(pos);
+  EXPECT_EQ(pos->rfind("X:12.500", 0), 0u) << *pos;
+}
+
+TEST_F(Channels, PtyLooksLikeAMarlinSerialPort) {
+  LineClient tty;
+  ASSERT_TRUE(tty.open_tty(daemon_->pty_link())) << daemon_->pty_link();
+  ASSERT_TRUE(tty.send_line(numbered(0, "M110 N0")));
+  EXPECT_EQ(tty.read_line(), "ok");
+  ASSERT_TRUE(tty.send_line(numbered(1, "G1 X4 Y4 F6000")));
+  EXPECT_EQ(tty.read_line(), "ok");
+  ASSERT_TRUE(tty.send_line("M105"));
+  auto t = tty.read_line();
+  ASSERT_TRUE(t);
+  EXPECT_EQ(t->rfind("ok T:", 0), 0u) << *t;
+  // Closing and reopening the port keeps the daemon serving it.
+  tty.close();
+  LineClient again;
+  ASSERT_TRUE(again.open_tty(daemon_->pty_link()));
+  ASSERT_TRUE(again.send_line("M114"));
+  auto pos = again.read_until("X:");
+  ASSERT_TRUE(pos);
+  EXPECT_EQ(pos->rfind("X:4.000 Y:4.000", 0), 0u) << *pos;
+}
+
+TEST_F(Channels, JsonApiAnswersStatusRunsGcodeAndStreamsSubscriptions) {
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  json info = call(api, {{"jsonrpc", "2.0"}, {"id", 1}, {"method", "info"}});
+  EXPECT_EQ(info["result"]["kinematics"], "cartesian");
+  EXPECT_TRUE(info["result"]["simulated"].get<bool>());
+
+  json run = call(api, {{"jsonrpc", "2.0"}, {"id", 2}, {"method", "gcode"},
+                        {"params", {{"script", "G91\nG1 X7 Y2\nG1 X1\nM114"}}}});
+  ASSERT_TRUE(run.contains("result")) << run.dump();
+  ASSERT_EQ(run["result"]["results"].size(), 4u);
+  EXPECT_EQ(run["result"]["results"][3]["reply"].get<std::string>().rfind("X:8.000 Y:2.000", 0), 0u);
+
+  json st = call(api, {{"jsonrpc", "2.0"}, {"id", 3}, {"method", "status"}});
+  EXPECT_DOUBLE_EQ(st["result"]["position_mm"]["x"].get<double>(), 8.0);
+  EXPECT_EQ(st["result"]["state"], "idle");
+  for (int i = 0; i < 200 && st["result"]["servo"]["cycles"].get<uint64_t>() < 10; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));  // the servo loop is running
+    st = call(api, {{"jsonrpc", "2.0"}, {"id", 3}, {"method", "status"}});
+  }
+  EXPECT_GE(st["result"]["servo"]["cycles"].get<uint64_t>(), 10u);
+
+  json bad_line = call(api, {{"jsonrpc", "2.0"}, {"id", 4}, {"method", "gcode"},
+                             {"params", {{"script", "G1 X1\nG1 X2 W3\nG1 X50"}}}});
+  const json& results = bad_line["result"]["results"];
+  ASSERT_EQ(results.size(), 2u) << bad_line.dump();  // stops at the failing line
+  EXPECT_FALSE(results[1]["ok"].get<bool>());
+  EXPECT_NE(results[1]["error"].get<std::string>().find(":2:"), std::string::npos);
+
+  EXPECT_EQ(call(api, {{"jsonrpc", "2.0"}, {"id", 5}, {"method", "nope"}})["error"]["code"], -32601);
+  ASSERT_TRUE(api.send_line("{\"jsonrpc\": \"2.0\", \"id\": 6, \"method\": }"));
+  json perr = json::parse(*api.read_line());
+  EXPECT_EQ(perr["error"]["code"], -32700);
+  EXPECT_NE(perr["error"]["message"].get<std::string>().find("column 39: syntax error"), std::string::npos)
+      << perr.dump();
+
+  json sub = call(api, {{"jsonrpc", "2.0"}, {"id", 7}, {"method", "subscribe"},
+                        {"params", {{"topics", {"status"}}, {"interval_ms", 20}}}});
+  EXPECT_TRUE(sub["result"]["status"].get<bool>());
+  int notifications = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (notifications < 5 && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(5)) {
+    auto line = api.read_line(1000);
+    ASSERT_TRUE(line);
+    json n = json::parse(*line);
+    if (n.value("method", "") == "status") {
+      EXPECT_TRUE(n["params"].contains("position_mm"));
+      ++notifications;
+    }
+  }
+  EXPECT_EQ(notifications, 5);
+  const double elapsed_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_GT(elapsed_s, 0.06);  // paced by the interval, not a flood
+}
+
+TEST_F(Channels, OneClientOwnsThePrintAtATime) {
+  LineClient a, b;
+  ASSERT_TRUE(a.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(b.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(a.send_line("G1 X1"));
+  EXPECT_EQ(a.read_line(), "ok");
+  ASSERT_TRUE(b.send_line("G1 X2"));
+  auto busy = b.read_line();
+  ASSERT_TRUE(busy);
+  EXPECT_EQ(busy->rfind("Error:busy: the print is owned by", 0), 0u) << *busy;
+  EXPECT_EQ(b.read_line(), "ok");
+  ASSERT_TRUE(b.send_line("M105"));  // queries are answered for everyone
+  EXPECT_EQ(b.read_line()->rfind("ok T:", 0), 0u);
+  a.close();  // the owner leaves: ownership is released
+  std::optional<std::string> reply;
+  for (int i = 0; i < 50; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    ASSERT_TRUE(b.send_line("G1 X2"));
+    reply = b.read_line();
+    if (reply == "ok") break;
+    b.read_line();  // the ok after the busy error
+  }
+  EXPECT_EQ(reply, "ok");
+  ASSERT_TRUE(b.send_line("M114"));
+  EXPECT_EQ(b.read_line()->rfind("X:2.000", 0), 0u);
+}
+
+TEST_F(Channels, AClientThatNeverReadsDoesNotStallMotion) {
+  LineClient sleeper;  // subscribes to fast status notifications and never reads them
+  ASSERT_TRUE(sleeper.connect_unix(daemon_->api_socket_path()));
+  ASSERT_TRUE(sleeper.send_line(R"({"jsonrpc":"2.0","id":1,"method":"subscribe","params":{"topics":["status"],"interval_ms":20}})"));
+  LineClient printer;
+  ASSERT_TRUE(printer.connect_unix(daemon_->socket_path()));
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 1; i <= 2000; ++i) {
+    ASSERT_TRUE(printer.send_line("G1 X" + std::to_string(i % 100) + " Y" + std::to_string(i % 37)));
+    ASSERT_EQ(printer.read_line(), "ok") << "at line " << i;
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30));
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  json st = call(api, {{"jsonrpc", "2.0"}, {"id", 2}, {"method", "status"}});
+  EXPECT_EQ(st["result"]["commands"]["executed"].get<uint64_t>(), 2000u);
+}
+
+TEST_F(Channels, OverlongLinesAreRejectedWithoutGrowingMemory) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  std::string huge(3 * 1024 * 1024, 'X');
+  std::thread writer([&] { c.send("G1 " + huge + "\nG1 X3\n"); });
+  auto err = c.read_line(10000);
+  writer.join();
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->rfind("Error:", 0), 0u) << *err;
+  EXPECT_EQ(c.read_line(), "ok");
+  EXPECT_EQ(c.read_line(), "ok");  // G1 X3 still runs
+  ASSERT_TRUE(c.send_line("M114"));
+  EXPECT_EQ(c.read_line()->rfind("X:3.000", 0), 0u);
+}
+
+TEST_F(Channels, ShutdownUnderLoadStopsPromptlyAndCleansUp) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  std::atomic<bool> stop{false};
+  std::atomic<int> acked{0};
+  std::thread load([&] {
+    for (int i = 0; !stop.load(); ++i) {
+      if (!c.send_line("G1 X" + std::to_string(i % 50))) break;
+      if (c.read_line(2000) != "ok") break;
+      ++acked;
+    }
+  });
+  while (acked.load() < 200) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  const auto t0 = std::chrono::steady_clock::now();
+  daemon_->request_shutdown("test");
+  thread_.join();
+  const double stop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  stop = true;
+  load.join();
+  EXPECT_LT(stop_s, 2.0);
+  EXPECT_EQ(exit_code_, 0);
+  EXPECT_FALSE(std::filesystem::exists(dir_ + "/feedloop.sock"));
+  EXPECT_FALSE(std::filesystem::exists(dir_ + "/api.sock"));
+  EXPECT_FALSE(std::filesystem::exists(dir_ + "/ttyFeedloop"));
+}
+
+}  // namespace
+}  // namespace feedloop::testing
