@@ -1,0 +1,52 @@
+// Linear two-mass model of one belt-driven stepper axis of the thesis gantry
+// (closed-loop-gantry-thesis.txt, Appendix D.2-D.3, Eq. 13-18, Tables 2-4).
+//
+//   m1 x1'' = -k1 (x1 - u) + (k2/e)(x2 - x1) - c1 x1'      (Eq. 13, motor side, linear coordinates)
+//   m2 x2'' = -k2 (x2 - x1) - c2 x2'                       (Eq. 13, carriage/load side)
+// u: magnetic equilibrium position commanded by the driver; y = x2: carriage position.
+// m1 = J/r^2, k1 = T_max n_r / r^2, c1 = c1'/r^2 (Eq. 14). Position-to-position: static gain 1
+// for every e (at rest x2 = x1 = u).
+#pragma once
+
+#include "core/result.hpp"
+#include "model/lti.hpp"
+
+namespace feedloop::model {
+
+struct GantryAxisParams {
+  double m1_kg = 0.130;       // motor inertia as a mass, J/r^2 (Table 3)
+  double m2_kg = 0.45;        // load mass (Table 2)
+  double k1_n_m = 355e3;      // motor "spring" T_max n_r / r^2 (Table 4)
+  double k2_n_m = 110e3;      // belt spring (Table 4)
+  double c1_n_s_m = 2100.0;   // motor damping (Table 4)
+  double c2_n_s_m = 112.0;    // bearing damping (Table 4)
+  double e_frac = 1.0;        // belt transmission efficiency e (Eq. 7); Eq. 16 assumes e = 1
+};
+
+// Table 3-4 parameters of the thesis's X axis (extruder carriage) and Y axis (whole X gantry).
+GantryAxisParams thesis_x_axis();
+GantryAxisParams thesis_y_axis();
+
+// Masses, stiffnesses > 0, dampings >= 0, 0 < e <= 1, all finite.
+Status validate(const GantryAxisParams& p);
+
+// Eq. 15 with state q = [x1, x1', x2, x2'], input u, output y = x2 (SI: m, m/s).
+StateSpace gantry_state_space(const GantryAxisParams& p);
+
+// Eq. 16 generalised to any e (Eq. 16 is the case e = 1):
+//   G(s) = k1 k2 / { m1 m2 s^4 + (c1 m2 + c2 m1) s^3 + (c1 c2 + (k1 + k2/e) m2 + k2 m1) s^2
+//                    + (c1 k2 + c2 (k1 + k2/e)) s + k1 k2 },
+// returned normalised to a monic denominator as in Eq. 17.
+TransferFunction gantry_transfer_function(const GantryAxisParams& p);
+
+// The fitted structure of Eq. 17: phi0 / (s^4 + psi3 s^3 + psi2 s^2 + psi1 s + psi0).
+struct GantryFittedTf {
+  double phi0, psi3, psi2, psi1, psi0;
+  TransferFunction tf() const { return {{phi0}, {1.0, psi3, psi2, psi1, psi0}}; }
+};
+
+// The Matlab fits of Eq. 18 for the X and Y axes.
+GantryFittedTf thesis_eq18_x();
+GantryFittedTf thesis_eq18_y();
+
+}  // namespace feedloop::model
