@@ -33,15 +33,21 @@ Joints DeltaKinematics::inverse(const Vec3& p) const {
 }
 
 Joints DeltaKinematics::joint_velocity(const Vec3& p, const Vec3& v) const {
-  const Joints q = inverse(p);
-  Joints qd{};
+  Joints q, qd;
+  inverse_with_velocity(p, v, q, qd);
+  return qd;
+}
+
+void DeltaKinematics::inverse_with_velocity(const Vec3& p, const Vec3& v, Joints& q, Joints& qd) const {
+  const double l2 = g_.arm_length_mm * g_.arm_length_mm;
   for (int i = 0; i < 3; ++i) {
     const double sx = p[0] - tower_[i][0], sy = p[1] - tower_[i][1];
-    const double sz = p[2] + g_.nozzle_offset_mm - q[i];  // Eq. 7
+    const double root = std::sqrt(l2 - sx * sx - sy * sy);
+    q[i] = p[2] + g_.nozzle_offset_mm + root;
+    const double sz = -root;  // Eq. 7: z + H_ez - q_i
     // Eq. 9-10: s_i^T (Xdot + p qdot_i) = 0 with p = [0 0 -1] => qdot_i = s_i^T Xdot / s_iz
     qd[i] = (sx * v[0] + sy * v[1] + sz * v[2]) / sz;
   }
-  return qd;
 }
 
 Eigen::Matrix3d DeltaKinematics::jacobian(const Vec3& p) const {

@@ -22,6 +22,7 @@ class DeltaKinematics final : public Kinematics {
   KinematicsKind kind() const override { return KinematicsKind::delta; }
   Joints inverse(const Vec3& p) const override;
   Joints joint_velocity(const Vec3& p, const Vec3& v) const override;
+  void inverse_with_velocity(const Vec3& p, const Vec3& v, Joints& q, Joints& qd) const override;
   Result<Vec3> forward(const Joints& q) const override;
   Status check_point(const Vec3& p) const override;
   // Samples the segment every geometry.check_step_mm (and both ends). The disk, the arm-angle

@@ -70,8 +70,8 @@ void JointEmitter::emit_hermite(const PlannedMove& m, JointSink& sink) const {
     const double t_end = t_begin + p.duration_s;
     double ta = t_begin;
     Vec3 xa = xyz_at(m, p.s0_mm);
-    Joints qa = kin_.inverse(xa);
-    Joints va = kin_.joint_velocity(xa, {m.unit[0] * p.v0_mm_s, m.unit[1] * p.v0_mm_s, m.unit[2] * p.v0_mm_s});
+    Joints qa, va;
+    kin_.inverse_with_velocity(xa, {m.unit[0] * p.v0_mm_s, m.unit[1] * p.v0_mm_s, m.unit[2] * p.v0_mm_s}, qa, va);
     while (ta < t_end - kMinPiece_s) {
       // next grid point k * period strictly after ta (absolute servo grid), or the piece end
       double tb = (std::floor(ta / period_s_ + 1e-9) + 1.0) * period_s_;
@@ -79,8 +79,8 @@ void JointEmitter::emit_hermite(const PlannedMove& m, JointSink& sink) const {
       const double tau = tb - p.t_s - m.start_time_s;
       const double s = p.distance_mm(tau), v = p.velocity_mm_s(tau);
       const Vec3 xb = xyz_at(m, s);
-      const Joints qb = kin_.inverse(xb);
-      const Joints vb = kin_.joint_velocity(xb, {m.unit[0] * v, m.unit[1] * v, m.unit[2] * v});
+      Joints qb, vb;
+      kin_.inverse_with_velocity(xb, {m.unit[0] * v, m.unit[1] * v, m.unit[2] * v}, qb, vb);
       const double h = tb - ta;
       for (int j = 0; j < 3; ++j) {
         const double slope = (qb[j] - qa[j]) / h;

@@ -24,6 +24,11 @@ class Kinematics {
   virtual Joints inverse(const Vec3& p_mm) const = 0;
   // Joint velocities for Cartesian velocity v at point p (qdot = J^-1 Xdot). RT-safe.
   virtual Joints joint_velocity(const Vec3& p_mm, const Vec3& v_mm_s) const = 0;
+  // Both at once (the delta shares the square roots). RT-safe.
+  virtual void inverse_with_velocity(const Vec3& p_mm, const Vec3& v_mm_s, Joints& q_mm, Joints& qdot_mm_s) const {
+    q_mm = inverse(p_mm);
+    qdot_mm_s = joint_velocity(p_mm, v_mm_s);
+  }
   // Cartesian position from joint positions; an error when the joints are inconsistent.
   virtual Result<Vec3> forward(const Joints& q_mm) const = 0;
 

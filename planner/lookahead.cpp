@@ -45,18 +45,23 @@ void Planner::add_move(const MoveRequest& req) {
   }
   if (count_ == ring_.size()) {
     flush_lazy();
-    if (count_ == ring_.size()) plan_and_emit(false, 1);  // window full and nothing final: force one
+    ++lazy_flushes_;
+    if (count_ == ring_.size()) {  // window full and nothing final: force one
+      plan_and_emit(false, 1);
+      ++forced_flushes_;
+    }
   }
 
   Queued& q = at(count_);
   PlannedMove& m = q.m;
-  m = PlannedMove{};
+  // Every field is assigned here or in emit_front (no struct-wide reset: it is the hot path).
   m.index = next_index_++;
   m.line = req.line;
   m.start_mm = start;
   m.end_mm = req.end_mm;
   m.length_mm = length;
   m.kinematic = kinematic;
+  m.piece_count = 0;
   double v = std::min(req.velocity_mm_s, cfg_.max_velocity_mm_s);
   double a = std::min(req.accel_mm_s2, cfg_.max_accel_mm_s2);
   for (int i = 0; i < kAxes; ++i) {
@@ -169,7 +174,7 @@ void Planner::emit_front(size_t n) {
     print_time_s_ += m.duration_s;
     last_end_v2 = q.end_v2;
     sink_.on_move(m);
-    head_ = (head_ + 1) % ring_.size();
+    if (++head_ == ring_.size()) head_ = 0;
     --count_;
   }
   if (count_ == 0) return;

@@ -54,6 +54,9 @@ class Planner {
   double print_time_s() const { return print_time_s_; }  // end of the last emitted move or dwell
   uint64_t moves_added() const { return next_index_; }
   size_t queued() const { return count_; }
+  // Times the window was full with no final move, so the oldest was planned to a possible stop.
+  uint64_t forced_flushes() const { return forced_flushes_; }
+  uint64_t lazy_flushes() const { return lazy_flushes_; }
   const PlannerConfig& config() const { return cfg_; }
 
  private:
@@ -63,7 +66,11 @@ class Planner {
     double start_v2, cruise_v2, end_v2;
     double peak_accel_mm_s2;  // S-curve peak bound (the move's accel limit)
   };
-  Queued& at(size_t i) { return ring_[(head_ + i) % ring_.size()]; }
+  Queued& at(size_t i) {
+    size_t k = head_ + i;
+    if (k >= ring_.size()) k -= ring_.size();
+    return ring_[k];
+  }
   void plan_and_emit(bool lazy, size_t max_emit);
   void emit_front(size_t n);
   double corner_limit_v2(const Queued& prev, const Queued& next) const;
@@ -78,6 +85,7 @@ class Planner {
   double jd_mm_;
   double print_time_s_ = 0.0;
   uint64_t next_index_ = 0;
+  uint64_t forced_flushes_ = 0, lazy_flushes_ = 0;
 };
 
 }  // namespace feedloop::planner
