@@ -42,13 +42,12 @@ GantryAxis::GantryAxis(const GantryAxisParams& p)
                   (p.effects.time_delay.enabled ? p.effects.time_delay.delay_ms * 1e-3 : 0.0);
   if (p.effects.extra_resonance.enabled) {
     const auto& er = p.effects.extra_resonance;
-    const double m_tot = er.frame_mass_kg + p.rotor_mass_kg + p.carriage_mass_kg;
     const double w = 2.0 * kPi * er.freq_hz;
-    frame_k_ = m_tot * w * w;
-    frame_c_ = 2.0 * er.damping * m_tot * w;
+    extra_k_ = er.mass_kg * w * w;
+    extra_c_ = 2.0 * er.damping * er.mass_kg * w;
   }
   const double x0_m = p.initial_pos_mm * 1e-3;
-  x_ << x0_m, x0_m, 0.0, x0_m, 0.0, 0.0, 0.0, 0.0;
+  x_ << x0_m, x0_m, 0.0, x0_m, 0.0, x0_m, 0.0, 0.0;
   history_.clear(0.0, x0_m);
 }
 
@@ -59,7 +58,7 @@ double GantryAxis::commanded_mm() const {
 GantryAxis::State GantryAxis::derivative(const State& x, double u_m) const {
   const GantryEffects& fx = p_.effects;
   const double uf = x[kField], y1 = x[kRotor], v1 = x[kRotorVel];
-  const double y2 = x[kCarriage], v2 = x[kCarriageVel], xf = x[kFrame], vf = x[kFrameVel];
+  const double y2 = x[kCarriage], v2 = x[kCarriageVel], x3 = x[kExtra], v3 = x[kExtraVel];
 
   // Driver field: tau du_f/dt = u - u_f.
   const double duf = (u_m - uf) / tau_s_;
@@ -103,15 +102,12 @@ GantryAxis::State GantryAxis::derivative(const State& x, double u_m) const {
   }
 
   const double f_rotor = f_motor - f_belt / p_.efficiency;
-  // Frame (extra_resonance): it carries the stator, the idler and the rails, so it feels the
-  // reactions of every force above (the belt's only through the efficiency loss).
-  double af = 0.0;
-  if (fx.extra_resonance.enabled) {
-    af = (-frame_k_ * xf - frame_c_ * vf - f_motor - f_rail - (f_belt - f_belt / p_.efficiency)) /
-         fx.extra_resonance.frame_mass_kg;
-  }
+  // Extra mass on its mount (extra_resonance): a spring-damper to the carriage.
+  double f_mount = 0.0;
+  if (fx.extra_resonance.enabled) f_mount = extra_k_ * (x3 - y2) + extra_c_ * (v3 - v2);
+  const double a3 = fx.extra_resonance.enabled ? -f_mount / fx.extra_resonance.mass_kg : 0.0;
   State d;
-  d << duf, v1, f_rotor / p_.rotor_mass_kg - af, v2, (f_belt + f_rail) / p_.carriage_mass_kg - af, vf, af, dz;
+  d << duf, v1, f_rotor / p_.rotor_mass_kg, v2, (f_belt + f_rail + f_mount) / p_.carriage_mass_kg, v3, a3, dz;
   return d;
 }
 

@@ -1,11 +1,11 @@
 // One belt-driven stepper axis in the time domain: the thesis's NONLINEAR model (Appendix D,
 // Eq. 1-7) with a microstepping driver, plus the optional effects of gantry_params.hpp.
 //
-// State (SI, positions relative to the frame):
+// State (SI, positions in machine coordinates):
 //   u_f  driver field position: the electromagnetic equilibrium, following the step command u
 //        (one microstep per pulse) with time constant tau = c1/k1
 //   x1, v1  rotor (linear coordinates, Eq. 11)     x2, v2  carriage
-//   xf, vf  frame (only moves with the extra_resonance effect)
+//   x3, v3  the extra_resonance mass on its mount on the carriage (only with that effect)
 //   z       friction bristle deflection (only with the coulomb_friction effect)
 // Forces:
 //   motor  F_m = F_max(|v1|) sin(2 pi (u_f - x1) / lambda) + c1 (du_f/dt - v1)   (Eq. 2-3, 9)
@@ -38,7 +38,7 @@ namespace feedloop::sim {
 class GantryAxis final : public device::MotorPort {
  public:
   using State = Eigen::Matrix<double, 8, 1>;
-  enum Index : int { kField = 0, kRotor, kRotorVel, kCarriage, kCarriageVel, kFrame, kFrameVel, kBristle };
+  enum Index : int { kField = 0, kRotor, kRotorVel, kCarriage, kCarriageVel, kExtra, kExtraVel, kBristle };
 
   static Result<GantryAxis> create(const GantryAxisParams& p);
 
@@ -52,7 +52,7 @@ class GantryAxis final : public device::MotorPort {
 
   // Ground truth, for tests and benchmarks.
   double time_s() const { return t_s_; }
-  double carriage_mm() const { return x_[kCarriage] * 1e3; }          // relative to the frame
+  double carriage_mm() const { return x_[kCarriage] * 1e3; }
   double carriage_velocity_mm_s() const { return x_[kCarriageVel] * 1e3; }
   double rotor_mm() const { return x_[kRotor] * 1e3; }
   double field_mm() const { return x_[kField] * 1e3; }
@@ -72,8 +72,7 @@ class GantryAxis final : public device::MotorPort {
   State derivative(const State& x, double u_m) const;
   const State& state() const { return x_; }
   // Small-signal model around the current state (call at rest). Input: the field command u in
-  // mm; output: carriage position relative to the frame in mm (what the encoder sees, before
-  // quantisation and delay).
+  // mm; output: carriage position in mm (what the encoder sees, before quantisation and delay).
   LinearModel linearize() const;
 
  private:
@@ -100,7 +99,7 @@ class GantryAxis final : public device::MotorPort {
   double tau_s_ = 0.0;       // field time constant c1/k1
   double k_hat_ = 0.0;       // belt unit stiffness, N (k2 * L)
   double read_delay_s_ = 0.0;
-  double frame_k_ = 0.0, frame_c_ = 0.0;
+  double extra_k_ = 0.0, extra_c_ = 0.0;  // mount of the extra_resonance mass
 };
 
 }  // namespace feedloop::sim

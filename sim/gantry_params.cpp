@@ -63,7 +63,7 @@ Status validate(const GantryAxisParams& p) {
   }
   if (e.extra_resonance.enabled) {
     if (Status s = positive(e.extra_resonance.freq_hz, "extra_resonance.freq_hz"); !s) return s;
-    if (Status s = positive(e.extra_resonance.frame_mass_kg, "extra_resonance.frame_mass_kg"); !s) return s;
+    if (Status s = positive(e.extra_resonance.mass_kg, "extra_resonance.mass_kg"); !s) return s;
     if (!(e.extra_resonance.damping >= 0.0)) return Error{"extra_resonance.damping must be >= 0", {}};
     if (e.extra_resonance.freq_hz > 0.2 * p.substep_hz)
       return Error{"extra_resonance.freq_hz must be below substep_hz / 5", {}};

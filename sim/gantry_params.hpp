@@ -27,11 +27,11 @@ struct PeriodicPosition {  // pulley runout / microstep nonlinearity
   double period_mm = 33.93;  // one pulley revolution at r = 5.40 mm
   double amplitude_um = 0.0;
 };
-struct ExtraResonance {  // a frame (base) mode: the motor, idler and rails sit on a sprung frame
+struct ExtraResonance {  // a third mass on a flexible mount on the carriage (e.g. a hotend, a cable chain)
   bool enabled = false;
-  double freq_hz = 0.0;
-  double damping = 0.05;       // damping ratio of the frame mode
-  double frame_mass_kg = 2.0;  // the frame's own mass (the encoder scale is on the frame)
+  double freq_hz = 0.0;   // natural frequency of the mass on its mount, sqrt(k3 / m3)
+  double damping = 0.05;  // damping ratio of the mount
+  double mass_kg = 0.15;  // m3; the carriage shows an anti-resonance at freq_hz and a resonance just above
 };
 struct TimeDelay {
   bool enabled = false;
