@@ -1,0 +1,197 @@
+// feedloopd as a process: config checking, signals (SIGHUP reload, SIGTERM), systemd
+// notifications and watchdog, the systemd unit, and Printrun's pronsole printing a real file
+// over the pty.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <sys/socket.h>
+#include <sys/un.h>
+
+#include <filesystem>
+#include <fstream>
+#include <regex>
+
+#include "config/config.hpp"
+#include "tests/daemon/daemon_fixture.hpp"
+#include "tests/daemon/line_client.hpp"
+#include "tests/daemon/subprocess.hpp"
+
+namespace feedloop::testing {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+void write_file(const std::string& path, const std::string& text) {
+  std::ofstream(path) << text;
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream f(path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+class Process : public ::testing::Test {
+ protected:
+  void SetUp() override { dir_ = make_temp_dir("proc"); }
+  void TearDown() override { fs::remove_all(dir_); }
+  // The embedded config with its name replaced; sockets go to ${RUNTIME_DIR} = dir_.
+  std::string config_text(const std::string& name) {
+    std::string yaml(config::default_config_yaml());
+    yaml = std::regex_replace(yaml, std::regex("^name: .*$", std::regex::multiline),
+                              "name: \"" + name + "\"");
+    return yaml;
+  }
+  std::vector<std::string> env() { return {"RUNTIME_DIRECTORY=" + dir_, "STATE_DIRECTORY=" + dir_}; }
+  json api_call(const std::string& method) {
+    LineClient c;
+    if (!c.connect_unix(dir_ + "/api.sock", 200)) return json();
+    c.send_line(json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", method}}.dump());
+    auto line = c.read_line(5000);
+    return line ? json::parse(*line) : json();
+  }
+  std::string dir_;
+};
+
+TEST_F(Process, CheckConfigReportsEveryProblemWithItsLocation) {
+  const std::string path = dir_ + "/bad.yaml";
+  std::string yaml = config_text("bad");
+  const int lines = static_cast<int>(std::count(yaml.begin(), yaml.end(), '\n'));
+  yaml += "planer:\n  max_velocity_mm_s: 5\n";
+  write_file(path, yaml);
+  Subprocess p({FEEDLOOPD_PATH, "--check-config", "--config", path}, {}, dir_ + "/out.txt");
+  EXPECT_EQ(p.wait(20), 1);
+  const std::string out = p.output();
+  EXPECT_NE(out.find(path + ":" + std::to_string(lines + 1) + ":1:"), std::string::npos) << out;
+  EXPECT_NE(out.find("planner"), std::string::npos) << out;  // the suggestion
+
+  write_file(dir_ + "/good.yaml", config_text("good"));
+  Subprocess ok({FEEDLOOPD_PATH, "--check-config", "--config", dir_ + "/good.yaml"}, {},
+                dir_ + "/out2.txt");
+  EXPECT_EQ(ok.wait(20), 0) << ok.output();
+}
+
+TEST_F(Process, SighupReloadsTheConfigAndSigtermStopsCleanly) {
+  const std::string path = dir_ + "/printer.yaml";
+  write_file(path, config_text("first"));
+  Subprocess d({FEEDLOOPD_PATH, "--config", path}, env(), dir_ + "/daemon.log");
+  ASSERT_TRUE(d.wait_for_output("ready", 20)) << d.output();
+  EXPECT_EQ(api_call("info")["result"]["name"], "first");
+
+  write_file(path, config_text("second"));
+  d.signal(SIGHUP);
+  std::string name;
+  for (int i = 0; i < 200 && name != "second"; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    name = api_call("info")["result"].value("name", "");
+  }
+  EXPECT_EQ(name, "second");
+  EXPECT_EQ(api_call("status")["result"]["config_reloads"], 1);
+
+  write_file(path, "name: [unclosed\n");  // a broken config is refused; the running one stays
+  d.signal(SIGHUP);
+  ASSERT_TRUE(d.wait_for_output("config reload failed", 10)) << d.output();
+  EXPECT_EQ(api_call("info")["result"]["name"], "second");
+
+  d.signal(SIGTERM);
+  EXPECT_EQ(d.wait(10), 0) << d.output();
+  EXPECT_NE(d.output().find("feedloopd stopped"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir_ + "/feedloop.sock"));
+  EXPECT_FALSE(fs::exists(dir_ + "/ttyFeedloop"));
+}
+
+TEST_F(Process, NotifiesSystemdAndPetsTheWatchdogWhileHealthy) {
+  const std::string notify_path = dir_ + "/notify";
+  const int sock = ::socket(AF_UNIX, SOCK_DGRAM, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", notify_path.c_str());
+  ASSERT_EQ(::bind(sock, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  timeval tv{0, 200000};
+  ::setsockopt(sock, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  auto e = env();
+  e.push_back("NOTIFY_SOCKET=" + notify_path);
+  e.push_back("WATCHDOG_USEC=400000");
+  Subprocess d({FEEDLOOPD_PATH}, e, dir_ + "/daemon.log");
+  int ready = 0, pets = 0, stopping = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (std::chrono::steady_clock::now() - t0 < std::chrono::milliseconds(1500)) {
+    char buf[512];
+    const ssize_t n = ::recv(sock, buf, sizeof buf - 1, 0);
+    if (n <= 0) continue;
+    const std::string msg(buf, static_cast<size_t>(n));
+    ready += msg.find("READY=1") != std::string::npos;
+    pets += msg.find("WATCHDOG=1") != std::string::npos;
+  }
+  EXPECT_EQ(ready, 1);
+  EXPECT_GE(pets, 8);  // every 100 ms for 1.5 s, minus start-up
+  EXPECT_LE(pets, 16);
+  d.signal(SIGTERM);
+  for (int i = 0; i < 20 && !stopping; ++i) {
+    char buf[512];
+    const ssize_t n = ::recv(sock, buf, sizeof buf - 1, 0);
+    if (n > 0) stopping += std::string(buf, static_cast<size_t>(n)).find("STOPPING=1") != std::string::npos;
+  }
+  EXPECT_EQ(stopping, 1);
+  EXPECT_EQ(d.wait(10), 0);
+  ::close(sock);
+}
+
+TEST_F(Process, SystemdUnitVerifies) {
+  if (std::system("command -v systemd-analyze >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "systemd-analyze not installed: the unit was NOT verified";
+  const std::string unit = read_file(std::string(FEEDLOOP_SOURCE_DIR) + "/systemd/feedloopd.service");
+  for (const char* key : {"Type=notify", "WatchdogSec=", "RuntimeDirectory=feedloop", "User=feedloop",
+                          "LimitRTPRIO=", "LimitMEMLOCK=infinity", "DeviceAllow=char-ttyACM rw",
+                          "ExecReload=/bin/kill -HUP $MAINPID"})
+    EXPECT_NE(unit.find(key), std::string::npos) << key;
+  EXPECT_EQ(unit.find("PrivateDevices=yes"), std::string::npos) << "would hide serial/USB devices";
+  const std::string copy = dir_ + "/feedloopd.service";
+  write_file(copy, std::regex_replace(unit, std::regex("/usr/bin/feedloopd"), FEEDLOOPD_PATH));
+  Subprocess v({"systemd-analyze", "verify", copy}, {}, dir_ + "/verify.txt");
+  EXPECT_EQ(v.wait(60), 0) << v.output();
+  EXPECT_EQ(v.output(), "") << "systemd-analyze printed warnings";
+}
+
+// Printrun's pronsole (Debian package printrun) connects to the pty, sends a real sliced file
+// line by line with its own host protocol and gets an ok for every line.
+TEST_F(Process, PronsolePrintsARealFileOverThePty) {
+  const std::string gcode = std::string(FEEDLOOP_SHARED_DIR) + "/gcode/cube20_cartesian.gcode";
+  if (!fs::exists(gcode)) GTEST_SKIP() << "corpus " << gcode << " absent: pronsole test skipped";
+  if (std::system("command -v pronsole >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "pronsole (Debian package printrun) not installed: test skipped";
+  Subprocess d({FEEDLOOPD_PATH}, env(), dir_ + "/daemon.log");
+  ASSERT_TRUE(d.wait_for_output("ready", 20)) << d.output();
+  const std::string link = dir_ + "/ttyFeedloop";
+  Subprocess p({"pronsole", "-e", "connect " + link + " 250000", "-e", "load " + gcode, "-e", "print"},
+               {"HOME=" + dir_, "DISPLAY="}, dir_ + "/pronsole.log");
+  const bool ended = p.wait_for_output("Print ended", 240);
+  p.write_stdin("exit force\n");
+  p.close_stdin();
+  p.wait(10);
+  ASSERT_TRUE(ended) << p.output().substr(0, 4000);
+  EXPECT_EQ(p.output().find("Error:"), std::string::npos) << p.output().substr(0, 4000);
+  // Every command line of the file was executed or answered by the daemon, none rejected.
+  std::ifstream f(gcode);
+  int64_t commands = 0;
+  for (std::string line; std::getline(f, line);) {
+    line = line.substr(0, line.find(';'));
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (line.rfind("M73", 0) == 0 || line.rfind("M117", 0) == 0 || line.rfind("M105", 0) == 0) continue;
+    ++commands;
+  }
+  // "Print ended" is logged when the last line is sent; wait for its ok.
+  json st = api_call("status");
+  for (int i = 0; i < 100 && st["result"]["commands"]["executed"].get<int64_t>() < commands; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    st = api_call("status");
+  }
+  EXPECT_EQ(st["result"]["commands"]["rejected"], 0);
+  EXPECT_EQ(st["result"]["commands"]["executed"].get<int64_t>(), commands);
+  d.signal(SIGTERM);
+  EXPECT_EQ(d.wait(10), 0);
+}
+
+}  // namespace
+}  // namespace feedloop::testing
