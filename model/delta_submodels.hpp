@@ -25,6 +25,21 @@ TransferFunction carriage_position_tf(const DeltaParams& p);
 // Eq. 34 alone.
 TransferFunction carriage_electrical_tf(const DeltaParams& p);
 
+// Sub-model 1 (Eq. 1) as state space for one carriage: inputs [q_d, F_q] (commanded position,
+// external force in N), output q; states [z1, z2, q, q'] with the electrical filter in position
+// units (z1 = d0 xi, z2 = sqrt(d0) xi', u = d0 xi + d1 xi'). SI (m, N).
+//   q = G_qd(s) q_d + G_Fq(s) F_q                                                      (Eq. 1)
+StateSpace carriage_state_space(const DeltaParams& p);
+
+// Eq. 68: characteristic polynomial D_ji(s) (descending powers, s^4..s^0) of carriage i's
+// mechanical FRF when the effector moves along task axis j alone, alpha = alpha_ji of Eq. 69.
+// AsPrinted reproduces the paper's s^2 term alpha (c+b) b_j; Expanded is the actual expansion of
+//   (m s^2 + (c+b) s + k)(m2 s^2 + b_j s + k_j) + alpha s^2 (m1 m2 s^2 + (m1+m2)(b_j s + k_j)),
+// whose s^2 term has (c+b) b_j without alpha (DESIGN.md). They agree only when alpha = 1.
+enum class Eq68Form { AsPrinted, Expanded };
+std::vector<double> eq68_characteristic_polynomial(const DeltaParams& p, double alpha, int axis_j,
+                                                   Eq68Form form);
+
 // Eq. 61/67: diagonal of W(s), the end-effector's force (N) per displacement (m) per task axis:
 //   w_j(s) = s^2 (m1 m2 s^2 + (m1 + m2)(b_j s + k_j)) / (m2 s^2 + b_j s + k_j),   j in {x, y, z};
 // with m2 = 0: w_j(s) = m1 s^2 (rigid effector).

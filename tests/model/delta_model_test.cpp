@@ -293,3 +293,34 @@ TEST(DeltaLpv, CreateRejectsBadParameters) {
   EXPECT_FALSE(model.at({0, 250, 30}).ok());
   EXPECT_FALSE(model.frf(Eigen::Vector3d(0, 0, 30), fm::FrequencyGrid{5.0, 1.0, 0.5}).ok());
 }
+
+TEST(DeltaCarriage, StateSpaceIsEq1) {
+  const fm::DeltaParams p;
+  const fm::StateSpace ss = fm::carriage_state_space(p);
+  for (double f : {2.0, 60.0, 107.3, 125.0, 500.0}) {
+    const Eigen::MatrixXcd h = fm::frequency_response(ss, jw(f));
+    EXPECT_LT(std::abs(h(0, 0) - fm::carriage_position(p, jw(f))), 1e-10);
+    EXPECT_LT(std::abs(h(0, 1) - fm::carriage_force(p, jw(f))), 1e-15);
+  }
+  auto g = fm::dc_gain(ss);
+  ASSERT_TRUE(g.ok());
+  EXPECT_NEAR((*g)(0, 0), 1.0, 1e-12);
+  EXPECT_NEAR((*g)(0, 1), -1.0 / p.k_n_m, 1e-15);
+}
+
+TEST(DeltaEffector, Eq68AsPrintedDiffersFromItsExpansion) {
+  const fm::DeltaParams p;
+  const double m = p.m_kg(), cb = p.c_n_s_m + p.b_n_s_m;
+  for (double alpha : {1.0 / 9, 1.0 / 3, 1.0}) {
+    const auto ex = fm::eq68_characteristic_polynomial(p, alpha, 2, fm::Eq68Form::Expanded);
+    const auto pr = fm::eq68_characteristic_polynomial(p, alpha, 2, fm::Eq68Form::AsPrinted);
+    for (double f : {7.0, 90.0}) {
+      const Complex s = jw(f);
+      const Complex bk = p.b_z_n_s_m * s + p.k_z_n_m;
+      const Complex product = (m * s * s + cb * s + p.k_n_m) * (p.m2_kg * s * s + bk) +
+                              alpha * s * s * (p.m1_kg * p.m2_kg * s * s + (p.m1_kg + p.m2_kg) * bk);
+      EXPECT_LT(std::abs(fm::polynomial_value(ex, s) - product), 1e-9 * std::abs(product));
+    }
+    EXPECT_NEAR(pr[2] - ex[2], (alpha - 1.0) * cb * p.b_z_n_s_m, 1e-9);
+  }
+}
