@@ -52,6 +52,7 @@ struct PlannedMove {
   double accel_t_s = 0.0, cruise_t_s = 0.0, decel_t_s = 0.0;  // trapezoid phases
   std::array<ProfilePiece, 7> pieces{};
   int piece_count = 0;
+  bool jerk_bounded = true;    // S-curve: every piece honours the configured jerk bound
 
   double end_time_s() const { return start_time_s + duration_s; }
 };

@@ -25,6 +25,13 @@ void push_piece(PlannedMove& m, double duration, double a0, double jerk) {
   m.pieces[m.piece_count++] = p;
 }
 
+// Shortest duration of a jerk-limited speed change |dv| with peak acceleration A and jerk J.
+double min_phase_time(double adv, double A, double J) {
+  if (adv <= 0.0) return 0.0;
+  if (adv >= A * A / J) return adv / A + A / J;
+  return 2.0 * std::sqrt(adv / J);
+}
+
 // One speed-change phase of duration T and signed change dv.
 void push_phase(PlannedMove& m, double T, double dv, ProfileShape shape, double jerk, double peak_accel) {
   if (T <= 0.0) return;
@@ -40,15 +47,18 @@ void push_phase(PlannedMove& m, double T, double dv, ProfileShape shape, double 
     A = 0.5 * (jerk * T - std::sqrt(disc));
   } else {
     A = 2.0 * adv / T;  // triangular acceleration
+    m.jerk_bounded = false;
   }
   A = std::clamp(A, adv / T, std::max(adv / T, std::min(2.0 * adv / T, peak_accel)));
   const double tj = std::max(0.0, T - adv / A);
   const double tc = std::max(0.0, T - 2.0 * tj);
   if (tj <= 0.0) {
     push_piece(m, T, dv / T, 0.0);
+    if (adv > 0.0) m.jerk_bounded = false;
     return;
   }
   const double j = A / tj;
+  if (j > jerk * (1.0 + 1e-9)) m.jerk_bounded = false;
   push_piece(m, tj, 0.0, sign * j);
   push_piece(m, tc, sign * A, 0.0);
   push_piece(m, tj, sign * A, -sign * j);
@@ -63,10 +73,23 @@ void build_profile(PlannedMove& m, ProfileShape shape, double max_jerk_mm_s3, do
   m.decel_t_s = (vc - v1) / a;
   const double accel_d = 0.5 * (v0 + vc) * m.accel_t_s;
   const double decel_d = 0.5 * (v1 + vc) * m.decel_t_s;
-  const double cruise_d = std::max(0.0, m.length_mm - accel_d - decel_d);
+  double cruise_d = std::max(0.0, m.length_mm - accel_d - decel_d);
+  m.jerk_bounded = true;
+  m.piece_count = 0;
+  if (shape == ProfileShape::scurve && vc > 0.0) {
+    // Lengthen phases that are too short for the jerk bound, paying with cruise distance.
+    const double ta = std::max(m.accel_t_s, min_phase_time(vc - v0, peak_accel_mm_s2, max_jerk_mm_s3));
+    const double td = std::max(m.decel_t_s, min_phase_time(vc - v1, peak_accel_mm_s2, max_jerk_mm_s3));
+    const double extra_d = 0.5 * (v0 + vc) * (ta - m.accel_t_s) + 0.5 * (v1 + vc) * (td - m.decel_t_s);
+    // Not enough cruise: lengthen both phases by the same fraction of what they need (smoother,
+    // but the jerk bound is then not met; push_phase clears jerk_bounded).
+    const double f = extra_d <= cruise_d ? 1.0 : cruise_d / extra_d;
+    cruise_d -= f * extra_d;
+    m.accel_t_s += f * (ta - m.accel_t_s);
+    m.decel_t_s += f * (td - m.decel_t_s);
+  }
   m.cruise_t_s = vc > 0.0 ? cruise_d / vc : 0.0;
   m.duration_s = m.accel_t_s + m.cruise_t_s + m.decel_t_s;
-  m.piece_count = 0;
   push_phase(m, m.accel_t_s, vc - v0, shape, max_jerk_mm_s3, peak_accel_mm_s2);
   push_piece(m, m.cruise_t_s, 0.0, 0.0);
   push_phase(m, m.decel_t_s, v1 - vc, shape, max_jerk_mm_s3, peak_accel_mm_s2);

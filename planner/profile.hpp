@@ -4,13 +4,18 @@
 //
 // Trapezoid: accel_t = (v_c - v_0)/a, decel_t = (v_c - v_1)/a,
 //            cruise_t = (L - (v_c^2 - v_0^2)/2a - (v_c^2 - v_1^2)/2a) / v_c.
-// S-curve (optional): every accel/decel phase keeps its duration T and speed change dv (so the
-// distance (v_0 + v_1) T / 2, the lookahead plan and the print time are unchanged, as in Marlin's
-// Bezier S-curve) but the acceleration ramps with constant jerk: jerk-up tj, constant A for tc,
-// jerk-down tj, with T = 2 tj + tc and dv = A (tj + tc). A is the smallest peak acceleration that
-// honours the jerk bound J: A = (J T - sqrt(J^2 T^2 - 4 J dv)) / 2 when J T^2 >= 4 dv; a phase too
-// short for that uses a triangular acceleration (A = 2 dv / T, jerk 4 dv / T^2 > J). The peak
-// never exceeds the move's acceleration limit (the planner plans with accel * scurve_accel_ratio).
+// S-curve (optional): every accel/decel phase keeps its speed change dv but the acceleration
+// ramps with constant jerk: jerk-up tj, constant A for tc, jerk-down tj, T = 2 tj + tc,
+// dv = A (tj + tc). The phase needs at least
+//   T_min = dv / A_max + A_max / J   (dv >= A_max^2 / J),   T_min = 2 sqrt(dv / J)   otherwise,
+// so it lasts T_s = max(T_trapezoid, T_min) and uses the smallest peak acceleration that fits:
+//   A = (J T_s - sqrt(J^2 T_s^2 - 4 J dv)) / 2.
+// A phase longer than its trapezoid covers (v_0 + v_1)(T_s - T)/2 more distance, taken from the
+// cruise phase. The junction speeds of the lookahead stay as planned, so when the cruise phase is
+// too short for that, both phases get the same fraction of their extension that the cruise
+// distance allows, and the jerk exceeds J (PlannedMove::jerk_bounded is false then; Marlin's
+// Bezier S-curve never lengthens phases and so never bounds the jerk). The peak acceleration never
+// exceeds the move's limit; the lookahead plans with accel * scurve_accel_ratio.
 #pragma once
 
 #include "planner/move.hpp"
