@@ -284,6 +284,7 @@ struct RecorderConfig {
   bool operator==(const RecorderConfig&) const = default;
 };
 
+// Same order as spdlog::level::level_enum (the daemon casts between them).
 enum class LogLevel { trace, debug, info, warn, error, critical, off };
 
 struct LoggingConfig {
