@@ -1,0 +1,39 @@
+// feedloop: the command-line tool.
+//
+//   feedloop print FILE          stream a G-code file to a running feedloopd
+//   feedloop help                this text
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "cli/print_command.hpp"
+
+namespace {
+
+void usage(std::FILE* out) {
+  std::fputs(
+      "usage: feedloop COMMAND [ARGS]\n"
+      "commands:\n"
+      "  print FILE [--socket PATH] [--window N]   stream G-code to a running feedloopd\n"
+      "run 'feedloop COMMAND --help' for a command's options\n",
+      out);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    usage(stderr);
+    return 2;
+  }
+  const std::string cmd = argv[1];
+  std::vector<std::string> args(argv + 2, argv + argc);
+  if (cmd == "print") return feedloop::cli::print_command(args);
+  if (cmd == "help" || cmd == "--help" || cmd == "-h") {
+    usage(stdout);
+    return 0;
+  }
+  std::fprintf(stderr, "feedloop: unknown command '%s'\n", cmd.c_str());
+  usage(stderr);
+  return 2;
+}
