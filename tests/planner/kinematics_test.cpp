@@ -119,3 +119,27 @@ TEST(LinearKinematics, CoreXYMapsAndInverts) {
 
 }  // namespace
 }  // namespace feedloop::planner
+
+namespace feedloop::planner {
+namespace {
+
+TEST(PlannerConfig, ValidateRejectsBadValuesWithAMessage) {
+  EXPECT_TRUE(test::cartesian_config().validate().ok());
+  EXPECT_TRUE(test::delta_config().validate().ok());
+  PlannerConfig c = test::cartesian_config();
+  c.max_axis_accel_mm_s2[kY] = 0.0;
+  Status s = c.validate();
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("accel"), std::string::npos);
+  c = test::cartesian_config();
+  c.sharp.alpha_a_deg = 30.0;  // above alpha_b
+  EXPECT_FALSE(c.validate().ok());
+  c = test::delta_config();
+  c.delta.arm_length_mm = 100.0;  // shorter than the radius
+  EXPECT_FALSE(c.validate().ok());
+  // Klipper's conversion: scv 5 mm/s at 3000 mm/s^2
+  EXPECT_NEAR(test::cartesian_config().junction_deviation(), 25.0 * (std::sqrt(2.0) - 1.0) / 3000.0, 1e-15);
+}
+
+}  // namespace
+}  // namespace feedloop::planner
