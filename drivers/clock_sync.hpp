@@ -2,10 +2,14 @@
 // ticks, STYLE.md convention 2). Each clock query gives a sample (host send time s, host receive
 // time r, MCU clock c read in between). The MCU read happened at an unknown time in [s, r]; the
 // midpoint m = (s + r)/2 is off by at most rtt/2. The model is  c = c_ref + f (m - m_ref)
-// (offset and frequency f, i.e. drift): weighted least squares over the last `window` samples,
-// weights 1/(rtt - min_rtt + rtt_floor)^2 so that the fast round trips dominate (as Klipper's
-// clocksync keeps the minimum-RTT sample). With fewer than two samples spanning at least
-// min_span_s, the nominal frequency is used and only the offset is fitted.
+// (offset and frequency f, i.e. drift): least squares over the fast round trips among the last
+// `window` samples (rtt <= min + max(rtt_floor, 2 (q25 - min)); slow round trips, e.g.
+// retransmitted queries, carry little information; Klipper's clocksync similarly prefers the
+// minimum-RTT sample). Averaging many samples cancels the
+// zero-mean part of the up/down asymmetry; a systematic asymmetry cannot be observed by any
+// round-trip method. Until the kept samples span min_span_s, the nominal frequency is used and
+// only the offset is fitted. The offset then comes from intersecting the recent samples
+// feasible intervals (see fit()), which converges to the fastest round trips.
 #pragma once
 
 #include <cstdint>
@@ -17,9 +21,10 @@ namespace feedloop::drivers {
 
 struct ClockSyncParams {
   double nominal_hz = 20e6;
-  int window = 64;
+  int window = 256;  // 25 s at 10 queries/s: the frequency needs a long baseline
   double rtt_floor_s = 50e-6;
   double min_span_s = 0.5;
+  int offset_window = 64;  // samples intersected for the offset
 };
 
 class ClockSync {
@@ -44,6 +49,7 @@ class ClockSync {
   };
   ClockSyncParams p_;
   std::vector<Sample> ring_;
+  std::vector<double> scratch_;
   int head_ = 0, count_ = 0;
   double freq_hz_ = 20e6, c_ref_ = 0.0, m_ref_ = 0.0, min_rtt_s_ = 0.0;
 };

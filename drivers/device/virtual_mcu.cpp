@@ -55,9 +55,9 @@ bool VirtualMcu::pop_frame(uint8_t* out, size_t& n) {
   return true;
 }
 
-void VirtualMcu::send_msg(const uint8_t* p, size_t n) {
+void VirtualMcu::send_msg(const uint8_t* p, size_t n, bool droppable) {
   if (pending_count_ == 0 && link_.send(p, n, now_ns())) return;
-  if (pending_count_ == kMaxPending) {
+  if (pending_count_ == kMaxPending || (droppable && pending_count_ >= kMaxPending / 2)) {
     ++status_.reports_dropped;
     return;
   }
@@ -114,7 +114,7 @@ void VirtualMcu::send_encoder_report() {
     ++status_.reports_dropped;
     return;
   }
-  send_msg(buf, w.size());
+  send_msg(buf, w.size(), true);
 }
 
 void VirtualMcu::stop(McuError code, int64_t detail) {
@@ -124,6 +124,7 @@ void VirtualMcu::stop(McuError code, int64_t detail) {
   status_.enabled = false;
   status_.stopped = true;
   status_.queued_runs = 0;
+  status_.stop_reason = code;
   send_error(code, detail);
 }
 

@@ -43,6 +43,7 @@ struct VirtualMcuStatus {
   bool enabled = false;
   bool stopped = false;
   protocol::McuError last_error = protocol::McuError::kNone;
+  protocol::McuError stop_reason = protocol::McuError::kNone;  // why the device last stopped
   uint64_t errors = 0;
   uint64_t reports_dropped = 0;
   uint64_t frames_dropped = 0;
@@ -89,7 +90,9 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
   void write_frame(const uint8_t* frame, size_t n) override;
   void on_payload(const uint8_t* p, size_t n) override;
   void handle_queue_steps(protocol::MsgReader& r);
-  void send_msg(const uint8_t* p, size_t n);
+  // Sends now or queues behind the window; `droppable` messages (encoder reports) give way when
+  // the queue is half full, so error reports and replies always find room.
+  void send_msg(const uint8_t* p, size_t n, bool droppable = false);
   void flush_pending();
   void send_error(protocol::McuError code, int64_t detail);
   void send_status();

@@ -120,6 +120,7 @@ void McuSession::poll(double now_s) {
     }
     state_ = state_before_disconnect_;
     events_.push_back("MCU '" + p_.name + "' (" + transport_.describe() + ") reconnected");
+    link_.retransmit_now(ns(now_s));
   }
   if (!transport_.connected()) {
     mark_disconnected("link down");

@@ -1,8 +1,9 @@
 // Frames on the byte stream (docs/protocol.md, "Frames"):
 //
-//   0x7E | len | flags | seq | ack | payload[len] | crc16 hi | crc16 lo
+//   0x7E | len | flags | seq lo | seq hi | ack lo | ack hi | payload[len] | crc16 hi | crc16 lo
 //
-// len <= kMaxPayload; the CRC16-CCITT covers len..payload. flags: kFlagData (the frame carries a
+// len <= kMaxPayload; seq and ack are 16-bit little endian (a frame would have to be delayed by
+// 65536 frames to be mistaken for a new one); the CRC16-CCITT covers len..payload. flags: kFlagData (the frame carries a
 // sequenced payload numbered seq), kFlagReset (the sender restarted its link: the receiver
 // resets its expected sequence to seq, once per link epoch: flags bits 4-7). ack is the next sequence number the sender expects
 // (cumulative acknowledgement). A receiver resynchronises by length + CRC: on a bad length or
@@ -20,7 +21,7 @@ namespace feedloop::protocol {
 
 inline constexpr uint8_t kSync = 0x7E;
 inline constexpr size_t kMaxPayload = 240;
-inline constexpr size_t kHeaderBytes = 5;
+inline constexpr size_t kHeaderBytes = 7;
 inline constexpr size_t kFrameOverhead = kHeaderBytes + 2;
 inline constexpr size_t kMaxFrame = kMaxPayload + kFrameOverhead;
 inline constexpr uint8_t kFlagData = 0x01;
@@ -28,21 +29,23 @@ inline constexpr uint8_t kFlagReset = 0x02;
 
 struct FrameView {
   uint8_t flags = 0;
-  uint8_t seq = 0;
-  uint8_t ack = 0;
+  uint16_t seq = 0;
+  uint16_t ack = 0;
   const uint8_t* payload = nullptr;
   size_t len = 0;
 };
 
 // Writes a frame into out (at least kMaxFrame bytes); returns its size, 0 if len is too big.
-inline size_t encode_frame(uint8_t* out, uint8_t flags, uint8_t seq, uint8_t ack, const uint8_t* payload,
+inline size_t encode_frame(uint8_t* out, uint8_t flags, uint16_t seq, uint16_t ack, const uint8_t* payload,
                            size_t len) {
   if (len > kMaxPayload) return 0;
   out[0] = kSync;
   out[1] = static_cast<uint8_t>(len);
   out[2] = flags;
-  out[3] = seq;
-  out[4] = ack;
+  out[3] = static_cast<uint8_t>(seq & 0xFF);
+  out[4] = static_cast<uint8_t>(seq >> 8);
+  out[5] = static_cast<uint8_t>(ack & 0xFF);
+  out[6] = static_cast<uint8_t>(ack >> 8);
   if (len > 0) std::memcpy(out + kHeaderBytes, payload, len);
   const uint16_t crc = crc16_ccitt(out + 1, kHeaderBytes - 1 + len);
   out[kHeaderBytes + len] = static_cast<uint8_t>(crc >> 8);
@@ -98,8 +101,8 @@ class FrameDecoder {
         continue;
       }
       f.flags = buf_[2];
-      f.seq = buf_[3];
-      f.ack = buf_[4];
+      f.seq = static_cast<uint16_t>(buf_[3] | (buf_[4] << 8));
+      f.ack = static_cast<uint16_t>(buf_[5] | (buf_[6] << 8));
       f.payload = buf_ + kHeaderBytes;
       f.len = plen;
       pending_ = total;

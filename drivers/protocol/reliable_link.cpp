@@ -74,12 +74,23 @@ void ReliableLink::on_bytes(const uint8_t* data, size_t n, int64_t now_ns) {
 
 void ReliableLink::on_frame(const FrameView& f, int64_t now_ns) {
   // Cumulative ack: everything before f.ack has arrived at the peer.
-  const uint8_t acked = static_cast<uint8_t>(f.ack - (next_seq_ - count_));
+  const uint16_t acked = static_cast<uint16_t>(f.ack - static_cast<uint16_t>(next_seq_ - count_));
   if (acked > 0 && acked <= count_) {
-    head_ = (head_ + acked) % kMaxWindow;
-    count_ -= acked;
+    head_ = (head_ + static_cast<int>(acked)) % kMaxWindow;
+    count_ -= static_cast<int>(acked);
     timer_start_ns_ = now_ns;
     rto_ns_ = params_.rto_ns;
+    dup_acks_ = 0;
+  } else if (acked == 0 && count_ > 0 && !(f.flags & kFlagData)) {
+    // A pure ack that does not advance: the peer saw a gap (a lost or reordered frame). After
+    // two of them, go back N at once instead of waiting for the timeout (fast retransmit),
+    // at most once per fast_retransmit_gap.
+    if (++dup_acks_ >= 2 && now_ns - last_fast_ns_ >= params_.fast_retransmit_gap_ns) {
+      dup_acks_ = 0;
+      last_fast_ns_ = now_ns;
+      for (int i = 0; i < count_; ++i) transmit((head_ + i) % kMaxWindow, true);
+      timer_start_ns_ = now_ns;
+    }
   }
   if (!(f.flags & kFlagData)) return;
   if (f.flags & kFlagReset) {
@@ -95,7 +106,7 @@ void ReliableLink::on_frame(const FrameView& f, int64_t now_ns) {
     ++expected_;
     ++stats_.delivered;
     if (in_ != nullptr) in_->on_payload(f.payload, f.len);
-  } else if (static_cast<uint8_t>(expected_ - f.seq) <= 128) {
+  } else if (static_cast<uint16_t>(expected_ - f.seq) <= 32768) {
     ++stats_.duplicates_dropped;
   } else {
     ++stats_.out_of_order_dropped;
@@ -107,6 +118,16 @@ void ReliableLink::poll(int64_t now_ns) {
   for (int i = 0; i < count_; ++i) transmit((head_ + i) % kMaxWindow, true);
   timer_start_ns_ = now_ns;
   rto_ns_ = rto_ns_ * 2 > params_.rto_max_ns ? params_.rto_max_ns : rto_ns_ * 2;
+}
+
+}  // namespace feedloop::protocol
+
+namespace feedloop::protocol {
+
+void ReliableLink::retransmit_now(int64_t now_ns) {
+  rto_ns_ = params_.rto_ns;
+  for (int i = 0; i < count_; ++i) transmit((head_ + i) % kMaxWindow, true);
+  timer_start_ns_ = now_ns;
 }
 
 }  // namespace feedloop::protocol

@@ -1,7 +1,8 @@
 // Reliable, in-order, exactly-once delivery of payloads over an unreliable frame stream
 // (docs/protocol.md, "Acknowledgement and retransmission"): Go-Back-N with a window of up to
 // kMaxWindow frames in flight, cumulative acknowledgements, a retransmit timeout with
-// exponential backoff (reset on progress). A receiver accepts only the next expected sequence
+// exponential backoff (reset on progress), fast retransmit after two duplicate acks (the
+// receiver acks at once on a gap, like a NAK). A receiver accepts only the next expected sequence
 // number; duplicates, reordered and late frames are dropped and re-acknowledged, so the
 // sender's go-back-N retransmission fills the gap.
 //
@@ -35,6 +36,7 @@ struct LinkParams {
   int64_t rto_ns = 25'000'000;           // first retransmit timeout
   int64_t rto_max_ns = 1'000'000'000;    // backoff limit
   int initial_epoch = 0;                 // 0..15; reset() moves to the next epoch
+  int64_t fast_retransmit_gap_ns = 5'000'000;  // minimum time between fast retransmits
 };
 
 struct LinkStats {
@@ -59,6 +61,8 @@ class ReliableLink {
   void on_bytes(const uint8_t* data, size_t n, int64_t now_ns);
   // Retransmits on timeout. Call periodically.
   void poll(int64_t now_ns);
+  // Retransmits everything in flight now with the initial timeout (after a reconnect).
+  void retransmit_now(int64_t now_ns);
 
   const LinkStats& stats() const { return stats_; }
   const FrameDecoderStats& decoder_stats() const { return decoder_.stats(); }
@@ -69,7 +73,7 @@ class ReliableLink {
   void send_ack();
 
   struct Slot {
-    uint8_t seq = 0;
+    uint16_t seq = 0;
     uint8_t flags = 0;
     size_t len = 0;
     uint8_t payload[kMaxPayload] = {};
@@ -80,14 +84,16 @@ class ReliableLink {
   FrameDecoder decoder_;
   Slot slots_[kMaxWindow];
   int head_ = 0, count_ = 0;   // ring of unacknowledged frames, oldest at head_
-  uint8_t next_seq_ = 0;       // sequence number of the next new frame
-  uint8_t expected_ = 0;       // next sequence number expected from the peer
+  uint16_t next_seq_ = 0;      // sequence number of the next new frame
+  uint16_t expected_ = 0;      // next sequence number expected from the peer
   bool reset_pending_ = false; // next new frame carries kFlagReset
   int epoch_ = 0;              // own link epoch (flags bits 4-7), changes on reset()
   int peer_epoch_ = -1;        // epoch of the peer's last honoured reset
   bool ack_pending_ = false;
   int64_t timer_start_ns_ = 0;
   int64_t rto_ns_ = 0;
+  int dup_acks_ = 0;
+  int64_t last_fast_ns_ = INT64_MIN / 2;
   uint8_t frame_[kMaxFrame] = {};
   LinkStats stats_;
 };

@@ -42,6 +42,7 @@ class StepBatcher final : public RunSink {
       open_batch(start_clock);
       enc_.append(run);
     }
+    if (enc_.runs() == 1) first_step_clock_ = start_clock + run.interval_ticks;
     last_clock_ = run_end_clock(start_clock, run);
   }
   // Sends the open batch, if any.
@@ -53,6 +54,10 @@ class StepBatcher final : public RunSink {
     bytes_total_ += enc_.size();
     ++batches_total_;
     if (sink_ != nullptr) sink_->on_batch(b);
+  }
+  // Sends the open batch if its first step is at or before deadline_clock.
+  void flush_if_due(int64_t deadline_clock) {
+    if (open_ && enc_.runs() > 0 && first_step_clock_ <= deadline_clock) flush();
   }
   uint64_t body_bytes_total() const { return bytes_total_; }
   uint64_t batches_total() const { return batches_total_; }
@@ -69,7 +74,7 @@ class StepBatcher final : public RunSink {
   bool open_ = false;
   RunEncoder enc_;
   uint8_t buf_[kMaxBody] = {};
-  int64_t first_clock_ = 0, last_clock_ = 0;
+  int64_t first_clock_ = 0, last_clock_ = 0, first_step_clock_ = 0;
   uint64_t bytes_total_ = 0, batches_total_ = 0;
 };
 

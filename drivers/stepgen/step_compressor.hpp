@@ -56,6 +56,12 @@ class StepCompressor final : public StepSink {
   }
   // Emits the pending run (end of a batch or of the stream).
   void flush();
+  // Emits the pending run if its first step is at or before deadline_clock: a run stays open
+  // while later steps can extend it, so the caller (the engine) must close runs whose steps are
+  // about to be due on the MCU. RT-safe.
+  void flush_if_due(int64_t deadline_clock) {
+    if (n_ > 0 && P_ + I_ <= deadline_clock) emit();
+  }
 
   int64_t last_emitted_clock() const { return P_; }
   const StepCompressorStats& stats() const { return stats_; }

@@ -1,7 +1,7 @@
 // Mock transport with fault injection: see mock_transport.hpp.
 #include "drivers/transport/mock_transport.hpp"
 
-#include <algorithm>  // std::min
+#include <algorithm>  // std::min, std::max
 
 #include "drivers/protocol/frame.hpp"
 
@@ -36,7 +36,11 @@ void MockTransport::schedule(Queue& q, const uint8_t* data, size_t n, double t_s
     f[static_cast<size_t>(u(rng_) * static_cast<double>(n)) % n] ^= static_cast<uint8_t>(1 + (rng_() % 255));
     ++stats_.corrupted;
   }
-  double t = t_s + faults_.latency_s + faults_.jitter_s * u(rng_);
+  // A link is FIFO: latency jitter alone never reorders frames; only the reorder and delay
+  // faults hold a frame back so that later ones overtake it.
+  double& fifo_t = (&q == &to_device_) ? last_to_device_s_ : last_to_host_s_;
+  double t = std::max(t_s + faults_.latency_s + faults_.jitter_s * u(rng_), fifo_t);
+  fifo_t = t;
   if (u(rng_) < faults_.reorder) {
     t += faults_.reorder_extra_s;
     ++stats_.reordered;

@@ -65,6 +65,7 @@ class MockTransport final : public Transport {
   std::mt19937_64 rng_;
   bool open_ = false, plugged_ = true;
   double now_s_ = 0.0;
+  double last_to_device_s_ = 0.0, last_to_host_s_ = 0.0;  // FIFO delivery times
   Queue to_device_, to_host_;
   std::vector<uint8_t> rx_;  // bytes due at the host, not yet read
   MockStats stats_;

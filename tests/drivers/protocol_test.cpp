@@ -12,7 +12,7 @@
 namespace feedloop::protocol {
 namespace {
 
-std::vector<uint8_t> make_frame(uint8_t seq, const std::vector<uint8_t>& payload) {
+std::vector<uint8_t> make_frame(uint16_t seq, const std::vector<uint8_t>& payload) {
   std::vector<uint8_t> f(kMaxFrame);
   f.resize(encode_frame(f.data(), kFlagData, seq, 0, payload.data(), payload.size()));
   return f;
@@ -33,7 +33,7 @@ TEST(Frame, RoundTripAnyChunking) {
     for (auto& b : p) b = static_cast<uint8_t>(rng());
     if (!p.empty() && (i % 3 == 0)) p[0] = kSync;  // sync bytes inside payloads are fine
     payloads.push_back(p);
-    const auto f = make_frame(static_cast<uint8_t>(i), p);
+    const auto f = make_frame(static_cast<uint16_t>(i), p);
     stream.insert(stream.end(), f.begin(), f.end());
   }
   FrameDecoder dec;
@@ -46,7 +46,7 @@ TEST(Frame, RoundTripAnyChunking) {
       fed += dec.feed(stream.data() + pos + fed, chunk - fed);
       while (dec.next(v)) {
         ASSERT_LT(got, payloads.size());
-        EXPECT_EQ(v.seq, static_cast<uint8_t>(got));
+        EXPECT_EQ(v.seq, got);
         EXPECT_EQ(std::vector<uint8_t>(v.payload, v.payload + v.len), payloads[got]);
         ++got;
       }
@@ -61,11 +61,11 @@ TEST(Frame, ResyncsAfterGarbageAndCorruption) {
   std::mt19937_64 rng(2);
   std::vector<uint8_t> stream;
   int good = 0;
-  for (int i = 0; i < 250; ++i) {  // seq is 8 bits: stay below 256
+  for (int i = 0; i < 250; ++i) {
     // Garbage (with sync bytes in it) between frames.
     const int g = static_cast<int>(rng() % 40);
     for (int k = 0; k < g; ++k) stream.push_back((rng() % 4 == 0) ? kSync : static_cast<uint8_t>(rng()));
-    auto f = make_frame(static_cast<uint8_t>(i), std::vector<uint8_t>(1 + rng() % 60, static_cast<uint8_t>(i)));
+    auto f = make_frame(static_cast<uint16_t>(i), std::vector<uint8_t>(1 + rng() % 60, static_cast<uint8_t>(i)));
     if (i % 5 == 0) {
       f[1 + rng() % (f.size() - 1)] ^= 0x10;  // corrupted frame: must be rejected
     } else {
@@ -84,7 +84,7 @@ TEST(Frame, ResyncsAfterGarbageAndCorruption) {
     while (dec.next(v)) {
       // A good frame has payload bytes all equal to its seq.
       bool consistent = v.len > 0;
-      for (size_t k = 0; k < v.len; ++k) consistent &= (v.payload[k] == v.seq);
+      for (size_t k = 0; k < v.len; ++k) consistent &= (v.payload[k] == static_cast<uint8_t>(v.seq));
       if (consistent && v.seq % 5 != 0) ++got; else ++wrong;
     }
   }
