@@ -1,0 +1,143 @@
+// feedloop-vmcu: a virtual MCU (drivers/device/virtual_mcu.hpp) as its own process on a
+// pseudo-terminal, with an ideal motor, so the real serial path can be tested end to end.
+//
+//   feedloop-vmcu --pty [--link PATH] [--name NAME] [--axis N] [--clock-hz HZ] [--drift-ppm PPM]
+//                 [--offset-s S] [--steps-per-mm X] [--protocol-version N]
+//
+// Prints "PTY <slave path>" on stdout once ready (and makes PATH a symlink to it with --link),
+// then runs in real time until SIGTERM/SIGINT. The ideal motor's encoder reads the commanded
+// position with AS5311 resolution (0.49 um counts).
+#include <fcntl.h>   // posix_openpt, O_RDWR
+#include <poll.h>    // poll
+#include <signal.h>  // sigaction
+#include <stdlib.h>  // grantpt, unlockpt, ptsname
+#include <termios.h> // cfmakeraw
+#include <unistd.h>  // read, write, symlink, unlink
+
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <string>
+
+#include "core/clock.hpp"
+#include "drivers/device/virtual_mcu.hpp"
+
+namespace {
+
+volatile std::sig_atomic_t g_stop = 0;
+void on_signal(int) { g_stop = 1; }
+
+struct IdealMotor final : feedloop::device::MotorPort {
+  double steps_per_mm = 80.0;
+  int64_t steps = 0;
+  void step(double, int d) override { steps += d; }
+  void set_enabled(double, bool) override {}
+  int64_t read_encoder_counts(double) override {
+    return static_cast<int64_t>(std::llround(static_cast<double>(steps) / steps_per_mm / 0.49e-3));
+  }
+};
+
+int usage(const char* argv0) {
+  std::fprintf(stderr,
+               "usage: %s --pty [--link PATH] [--name NAME] [--axis N] [--clock-hz HZ] [--drift-ppm PPM]\n"
+               "          [--offset-s S] [--steps-per-mm X] [--protocol-version N]\n",
+               argv0);
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using feedloop::device::VirtualMcu;
+  feedloop::device::VirtualMcuParams params;
+  std::snprintf(params.name, sizeof params.name, "vmcu");
+  IdealMotor motor;
+  bool pty = false;
+  std::string link;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
+    const char* v = nullptr;
+    if (a == "--pty") pty = true;
+    else if (a == "--link" && (v = next())) link = v;
+    else if (a == "--name" && (v = next())) std::snprintf(params.name, sizeof params.name, "%s", v);
+    else if (a == "--axis" && (v = next())) params.axis = static_cast<uint8_t>(std::atoi(v));
+    else if (a == "--clock-hz" && (v = next())) params.clock_hz = std::atof(v);
+    else if (a == "--drift-ppm" && (v = next())) params.drift_ppm = std::atof(v);
+    else if (a == "--offset-s" && (v = next())) params.offset_s = std::atof(v);
+    else if (a == "--steps-per-mm" && (v = next())) motor.steps_per_mm = std::atof(v);
+    else if (a == "--protocol-version" && (v = next())) params.protocol_version = static_cast<uint16_t>(std::atoi(v));
+    else return usage(argv[0]);
+  }
+  if (!pty) return usage(argv[0]);
+  if (!(params.clock_hz > 1e3) || !(motor.steps_per_mm > 0)) {
+    std::fprintf(stderr, "feedloop-vmcu: --clock-hz must be > 1000 and --steps-per-mm > 0\n");
+    return 2;
+  }
+
+  const int master = ::posix_openpt(O_RDWR | O_NOCTTY);
+  if (master < 0 || ::grantpt(master) != 0 || ::unlockpt(master) != 0) {
+    std::perror("feedloop-vmcu: cannot create a pseudo-terminal");
+    return 1;
+  }
+  const std::string slave_path = ::ptsname(master);
+  // Keep the slave open ourselves: raw mode sticks, and the master never sees EIO while the
+  // host is not connected.
+  const int slave = ::open(slave_path.c_str(), O_RDWR | O_NOCTTY);
+  termios tio{};
+  if (slave >= 0 && ::tcgetattr(slave, &tio) == 0) {
+    ::cfmakeraw(&tio);
+    ::tcsetattr(slave, TCSANOW, &tio);
+  }
+  if (!link.empty()) {
+    ::unlink(link.c_str());
+    if (::symlink(slave_path.c_str(), link.c_str()) != 0) {
+      std::perror(("feedloop-vmcu: cannot create link " + link).c_str());
+      return 1;
+    }
+  }
+  struct sigaction sa{};
+  sa.sa_handler = on_signal;
+  ::sigaction(SIGTERM, &sa, nullptr);
+  ::sigaction(SIGINT, &sa, nullptr);
+
+  auto mcu = std::make_unique<VirtualMcu>(params, &motor);
+  feedloop::MonotonicClock clock;
+  const int64_t t0_ns = clock.now_ns();
+  auto now_s = [&] { return feedloop::seconds_from_ns(clock.now_ns() - t0_ns); };
+  std::printf("PTY %s\n", slave_path.c_str());
+  std::fflush(stdout);
+
+  uint8_t buf[4096];
+  uint8_t frame[feedloop::protocol::kMaxFrame];
+  while (!g_stop) {
+    const double wait_s = std::min(1e-3, std::max(0.0, mcu->next_event_time() - now_s()));
+    pollfd p{master, POLLIN, 0};
+    const int r = ::poll(&p, 1, static_cast<int>(wait_s * 1000.0));
+    const double t = now_s();
+    if (r > 0 && (p.revents & POLLIN)) {
+      const ssize_t n = ::read(master, buf, sizeof buf);
+      if (n > 0) mcu->receive(buf, static_cast<size_t>(n), t);
+    }
+    mcu->run_until(t);
+    size_t n = 0;
+    while (mcu->pop_frame(frame, n)) {
+      size_t off = 0;
+      while (off < n) {
+        const ssize_t w = ::write(master, frame + off, n - off);
+        if (w <= 0) break;
+        off += static_cast<size_t>(w);
+      }
+    }
+  }
+  if (!link.empty()) ::unlink(link.c_str());
+  const auto& st = mcu->status();
+  std::fprintf(stderr, "feedloop-vmcu %s: %llu steps executed, position %lld, %llu errors\n", params.name,
+               static_cast<unsigned long long>(st.steps_executed), static_cast<long long>(st.position_steps),
+               static_cast<unsigned long long>(st.errors));
+  if (slave >= 0) ::close(slave);
+  ::close(master);
+  return 0;
+}
