@@ -119,6 +119,17 @@ void write_motion(Writer& w, const MachineConfig& c) {
   w.word("type", enum_name(shaper_names(), f.shaper.type));
   w.num("freq_hz", f.shaper.freq_hz);
   w.num("damping", f.shaper.damping);
+  if (!f.shaper.axes.empty()) {
+    w.begin("axes");
+    for (const AxisShaperConfig& a : f.shaper.axes) {
+      w.begin(a.axis);
+      w.word("type", enum_name(shaper_names(), a.type));
+      w.num("freq_hz", a.freq_hz);
+      w.num("damping", a.damping);
+      w.end();
+    }
+    w.end();
+  }
   w.end();
   w.begin("lpv");
   w.num("preview_ms", f.lpv.preview_ms);

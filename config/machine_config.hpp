@@ -108,10 +108,27 @@ struct ControlConfig {
 enum class FeedforwardType { none, shaper, lpv };
 enum class ShaperType { zv, mzv, ei };
 
+// One axis's shaper. Fields an axis entry leaves out are taken from the common values at load.
+struct AxisShaperConfig {
+  std::string axis;
+  ShaperType type = ShaperType::mzv;
+  double freq_hz = 40.0;
+  double damping = 0.1;
+  bool operator==(const AxisShaperConfig&) const = default;
+};
+
 struct ShaperConfig {
   ShaperType type = ShaperType::mzv;
   double freq_hz = 40.0;
   double damping = 0.1;
+  std::vector<AxisShaperConfig> axes;  // per-axis overrides (the X and Y resonances differ)
+
+  // The shaper of one axis: its override, else the common values.
+  AxisShaperConfig for_axis(const std::string& axis_name) const {
+    for (const AxisShaperConfig& a : axes)
+      if (a.axis == axis_name) return a;
+    return AxisShaperConfig{axis_name, type, freq_hz, damping};
+  }
   bool operator==(const ShaperConfig&) const = default;
 };
 

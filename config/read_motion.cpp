@@ -63,6 +63,22 @@ void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) 
   sh.choice("type", fc.shaper.type, shaper_names());
   sh.number("freq_hz", fc.shaper.freq_hz, Range::closed(1.0, 500.0));
   sh.number("damping", fc.shaper.damping, Range::open(0.0, 1.0));
+  MapReader per_axis = sh.sub("axes");
+  for (const std::string& name : per_axis.keys()) {
+    const YAML::Mark where = per_axis.key_mark(name);
+    MapReader a(per_axis.get(name), per_axis.key_path(name), diag, where);
+    if (cfg.axis(name) == nullptr) {
+      diag.add(where, per_axis.path() + ": '" + name + "' is not an axis in axes");
+      continue;
+    }
+    AxisShaperConfig own = fc.shaper.for_axis(name);  // inherit the common values
+    a.choice("type", own.type, shaper_names());
+    a.number("freq_hz", own.freq_hz, Range::closed(1.0, 500.0));
+    a.number("damping", own.damping, Range::open(0.0, 1.0));
+    a.finish();
+    fc.shaper.axes.push_back(own);
+  }
+  per_axis.finish();
   sh.finish();
   MapReader lpv = ff.sub("lpv");
   lpv.number("preview_ms", fc.lpv.preview_ms, Range::closed(0.0, 1000.0));
