@@ -1,0 +1,60 @@
+// USB bulk transport with libusb-1.0: finds the MCU by VID/PID (and serial number when given),
+// detaches a kernel driver if needed, claims the interface and moves frames over a pair of bulk
+// endpoints. An unplug shows up as LIBUSB_ERROR_NO_DEVICE: connected() turns false and open()
+// finds the device again after a replug. Errors say what is wrong and what to do (no device,
+// permissions, interface busy). Owner: the I/O thread.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "drivers/transport.hpp"
+
+struct libusb_context;
+struct libusb_device_handle;
+
+namespace feedloop::drivers {
+
+struct UsbParams {
+  uint16_t vendor_id = 0x1d50;   // OpenMoko's VID range, as many open firmwares use
+  uint16_t product_id = 0x614e;
+  std::string serial;            // empty: the first matching device
+  int interface_number = 0;
+  uint8_t endpoint_out = 0x01;
+  uint8_t endpoint_in = 0x81;
+  unsigned write_timeout_ms = 100;
+};
+
+struct UsbDeviceInfo {
+  uint16_t vendor_id = 0, product_id = 0;
+  int bus = 0, address = 0;
+  std::string serial;  // empty when it could not be read (permissions)
+};
+
+class UsbTransport final : public Transport {
+ public:
+  explicit UsbTransport(UsbParams params);
+  ~UsbTransport() override;
+  UsbTransport(const UsbTransport&) = delete;
+  UsbTransport& operator=(const UsbTransport&) = delete;
+
+  Status open() override;
+  void close() override;
+  bool connected() const override { return handle_ != nullptr; }
+  Status write(const uint8_t* data, size_t n) override;
+  Result<size_t> read(uint8_t* buf, size_t cap) override;
+  void poll(double now_s, double max_wait_s) override;
+  std::string describe() const override;
+
+  // Every USB device libusb can see (for `feedloop` diagnostics); an error if libusb fails.
+  static Result<std::vector<UsbDeviceInfo>> list_devices();
+
+ private:
+  Status init_context();
+  UsbParams p_;
+  libusb_context* ctx_ = nullptr;
+  libusb_device_handle* handle_ = nullptr;
+};
+
+}  // namespace feedloop::drivers
