@@ -1,11 +1,13 @@
 // feedloop: the command-line tool.
 //
 //   feedloop print FILE          stream a G-code file to a running feedloopd
+//   feedloop batch FILE          the pipeline in virtual time against an ideal plant
 //   feedloop help                this text
 #include <cstdio>
 #include <string>
 #include <vector>
 
+#include "cli/batch_command.hpp"
 #include "cli/print_command.hpp"
 
 namespace {
@@ -15,6 +17,7 @@ void usage(std::FILE* out) {
       "usage: feedloop COMMAND [ARGS]\n"
       "commands:\n"
       "  print FILE [--socket PATH] [--window N]   stream G-code to a running feedloopd\n"
+      "  batch FILE [--config CFG] [--json OUT]    whole pipeline in virtual time, no hardware\n"
       "run 'feedloop COMMAND --help' for a command's options\n",
       out);
 }
@@ -29,6 +32,7 @@ int main(int argc, char** argv) {
   const std::string cmd = argv[1];
   std::vector<std::string> args(argv + 2, argv + argc);
   if (cmd == "print") return feedloop::cli::print_command(args);
+  if (cmd == "batch") return feedloop::cli::batch_command(args);
   if (cmd == "help" || cmd == "--help" || cmd == "-h") {
     usage(stdout);
     return 0;

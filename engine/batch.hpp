@@ -1,0 +1,46 @@
+// Batch mode: a whole G-code file through the pipeline in virtual time, without hardware
+// (`feedloop batch FILE --config CFG`). Parser -> interpreter -> lookahead -> joint segments ->
+// step generation -> compression -> batches, against an ideal plant (the batches are encoded and
+// counted, as Klipper's batch mode writes its MCU commands to a file).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "config/machine_config.hpp"
+#include "core/result.hpp"
+#include "engine/step_pipeline.hpp"
+
+namespace feedloop::engine {
+
+struct BatchOptions {
+  // Called now and then with the fraction of the file read (0..1).
+  std::function<void(double fraction)> on_progress;
+  size_t max_messages = 20;  // warnings kept in the summary
+};
+
+struct BatchSummary {
+  std::string file;
+  int64_t lines = 0;
+  int64_t commands = 0;
+  int64_t rejected = 0;         // lines that failed to parse or execute (nothing of them ran)
+  int64_t unknown_commands = 0;
+  uint64_t moves = 0;
+  double print_time_s = 0.0;
+  std::array<std::string, kJoints> joint_names;
+  std::array<JointStepStats, kJoints> joints{};
+  uint64_t total_steps = 0;
+  uint64_t wire_bytes = 0;      // QUEUE_STEPS messages incl. message header and frame overhead
+  double wire_bytes_per_step = 0.0;
+  uint64_t check_failures = 0;
+  double wall_s = 0.0;
+  std::vector<std::string> messages;  // first rejected lines / warnings, "file:line:col: ..."
+};
+
+Result<BatchSummary> run_batch(const std::string& gcode_path, const config::MachineConfig& cfg,
+                               const BatchOptions& options = {});
+
+}  // namespace feedloop::engine

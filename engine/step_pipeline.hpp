@@ -1,0 +1,83 @@
+// Joint motion -> exact step times -> compressed runs -> batches, for every joint:
+//
+//   JointSegment --StepGenerator--> step ticks --StepTap--> StepCompressor --> StepBatcher --> BatchSink
+//
+// The same object serves batch mode (BatchSink counts bytes; an ideal plant) and the daemon's
+// servo thread (BatchSink = the MCU sessions). RT-safe after construction: no allocation.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+
+#include "drivers/stepgen/step_batcher.hpp"
+#include "drivers/stepgen/step_compressor.hpp"
+#include "drivers/stepgen/step_generator.hpp"
+#include "engine/config_mapping.hpp"
+#include "planner/joint_output.hpp"
+
+namespace feedloop::engine {
+
+struct StepPipelineParams {
+  std::array<double, kJoints> steps_per_mm{};
+  double mcu_clock_hz = 72e6;
+  double max_step_error_us = 5.0;  // bound on |compressed - exact| step time
+  size_t max_batch_bytes = 200;    // body of one QUEUE_STEPS message
+};
+
+struct JointStepStats {
+  uint64_t steps = 0;
+  uint64_t runs = 0;
+  uint64_t batches = 0;
+  uint64_t body_bytes = 0;
+  double max_step_rate_hz = 0.0;  // 1 / shortest interval between two steps
+  uint64_t check_failures = 0;    // runs that failed the re-expansion check (expected 0)
+};
+
+class StepPipeline final : public planner::JointSink {
+ public:
+  StepPipeline(const StepPipelineParams& params, stepgen::BatchSink* sink);
+
+  void on_joint_segment(int joint, const JointSegment& segment) override;
+  // Sets a joint's position without steps (start of a stream).
+  void set_position_mm(int joint, double pos_mm) { joints_[static_cast<size_t>(joint)]->gen.set_position_mm(pos_mm); }
+  // Closes runs and batches whose first step is due by `deadline_s` (print time).
+  void flush_due(double deadline_s);
+  // Emits everything pending (end of a stream).
+  void flush();
+
+  JointStepStats stats(int joint) const;
+  int64_t position_steps(int joint) const { return joints_[static_cast<size_t>(joint)]->gen.position_steps(); }
+  const StepPipelineParams& params() const { return params_; }
+
+ private:
+  // Watches the exact step times on their way to the compressor: the max step rate is the
+  // shortest interval between two steps in the same direction (a reversal exactly at a step
+  // threshold makes a step and its undo arbitrarily close; that is not a rate).
+  struct StepTap final : stepgen::StepSink {
+    stepgen::StepSink* next = nullptr;
+    double last_ticks = -1e300;
+    int8_t last_dir = 0;
+    double min_interval_ticks = 1e300;
+    void on_steps(const double* ticks, const int8_t* dirs, size_t n) override {
+      for (size_t i = 0; i < n; ++i) {
+        const double d = ticks[i] - last_ticks;
+        if (dirs[i] == last_dir && d < min_interval_ticks) min_interval_ticks = d;
+        last_ticks = ticks[i];
+        last_dir = dirs[i];
+      }
+      next->on_steps(ticks, dirs, n);
+    }
+  };
+  struct Joint {
+    stepgen::StepGenerator gen;
+    StepTap tap;
+    stepgen::StepCompressor compressor;
+    stepgen::StepBatcher batcher;
+  };
+
+  StepPipelineParams params_;
+  std::array<std::unique_ptr<Joint>, kJoints> joints_;
+};
+
+}  // namespace feedloop::engine
