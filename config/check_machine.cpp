@@ -82,6 +82,15 @@ void check_machine(const MachineConfig& cfg, const Marks& marks, Diagnostics& di
   }
   if (cfg.kinematics == Kinematics::delta && cfg.delta) check_delta_reach(cfg, marks, diag);
 
+  // Step batches must be sent at least two servo periods ahead of their execution, or every
+  // period would arrive late at the MCU.
+  const double period_ms = 1000.0 / cfg.servo.rate_hz;
+  if (cfg.stepgen.queue_ahead_ms < 2.0 * period_ms)
+    diag.add(marks.stepgen, "stepgen.queue_ahead_ms (" + format_number(cfg.stepgen.queue_ahead_ms) +
+                                ") must be at least two servo periods (" +
+                                format_number(2.0 * period_ms) + " ms at servo.rate_hz " +
+                                format_number(cfg.servo.rate_hz) + ")");
+
   if (cfg.control.mode == ControlMode::pi) {
     bool any_encoder = false;
     for (const AxisConfig& a : cfg.axes) any_encoder = any_encoder || a.encoder.has_value();

@@ -31,6 +31,7 @@ void read_document(const YAML::Node& doc, MachineConfig& cfg, Diagnostics& diag)
   const bool kin_ok = root.choice("kinematics", cfg.kinematics, kinematics_names(), Need::required);
   marks.control = root.key_mark("control");
   marks.feedforward = root.key_mark("feedforward");
+  marks.stepgen = root.key_mark("stepgen");
   if (kin_ok) {  // the axis set depends on the kinematics; without it, axis errors would be noise
     read_axes(root, cfg, marks, diag);
     read_delta(root, cfg, marks, diag);

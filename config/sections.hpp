@@ -24,6 +24,7 @@ struct Marks {
   YAML::Mark mcus;
   YAML::Mark control;
   YAML::Mark feedforward;
+  YAML::Mark stepgen;
 };
 
 void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag);

@@ -221,6 +221,13 @@ TEST(ConfigErrors, EffectParametersAreChecked) {
                pos_of(y, "{freq_hz: 90}"));
 }
 
+TEST(ConfigErrors, StepQueueShorterThanTwoServoPeriods) {
+  const std::string y = std::string(kMinimal) + "servo: {rate_hz: 200}\nstepgen:\n  queue_ahead_ms: 5\n";
+  expect_error(y, "stepgen.queue_ahead_ms (5) must be at least two servo periods (10 ms at "
+                  "servo.rate_hz 200)",
+               pos_of(y, "stepgen:"));
+}
+
 // ---- delta ----
 
 std::string delta_yaml() {

@@ -236,3 +236,32 @@ TEST(Integers, AcceptExponentsUnitsAndHex) {
 
 }  // namespace
 }  // namespace feedloop::config
+
+namespace feedloop::config {
+namespace {
+
+// Thesis Eq. 16 coefficients from the config's Table 3-4 parameters against the fitted transfer
+// functions of Eq. 18: a typo in the example's model values shows up here.
+TEST(Examples, GantryParametersReproduceTheFittedTransferFunctions) {
+  Result<MachineConfig> r = load_config_file(testing::example_path("cartesian_sim.yaml"));
+  ASSERT_TRUE(r.ok());
+  struct Fit {
+    const char* axis;
+    double psi3, psi2, psi1, psi0;
+  };
+  const Fit fits[] = {{"x", 16380.8, 7.82543e6, 4.82342e9, 6.65380e11},
+                      {"y", 3220.54, 3.38821e6, 2.70238e8, 5.56597e10}};
+  for (const Fit& f : fits) {
+    const GantryModelConfig* g = gantry(*r, f.axis);
+    ASSERT_NE(g, nullptr) << f.axis;
+    const double m1 = g->m1_kg, m2 = g->m2_kg, k1 = g->k1_n_per_m, k2 = g->k2_n_per_m;
+    const double c1 = g->c1_ns_per_m, c2 = g->c2_ns_per_m, mm = m1 * m2;
+    EXPECT_NEAR((c1 * m2 + c2 * m1) / mm, f.psi3, 0.01 * f.psi3) << f.axis;
+    EXPECT_NEAR((c1 * c2 + k1 * m2 + k2 * m1 + k2 * m2) / mm, f.psi2, 0.01 * f.psi2) << f.axis;
+    EXPECT_NEAR((c1 * k2 + c2 * k1 + c2 * k2) / mm, f.psi1, 0.01 * f.psi1) << f.axis;
+    EXPECT_NEAR(k1 * k2 / mm, f.psi0, 0.01 * f.psi0) << f.axis;
+  }
+}
+
+}  // namespace
+}  // namespace feedloop::config
