@@ -8,7 +8,7 @@
 // then runs in real time until SIGTERM/SIGINT. The ideal motor's encoder reads the commanded
 // position with AS5311 resolution (0.49 um counts).
 #include <fcntl.h>   // posix_openpt, O_RDWR
-#include <poll.h>    // poll
+#include <poll.h>    // ppoll
 #include <signal.h>  // sigaction
 #include <stdlib.h>  // grantpt, unlockpt, ptsname
 #include <termios.h> // cfmakeraw
@@ -115,7 +115,9 @@ int main(int argc, char** argv) {
   while (!g_stop) {
     const double wait_s = std::min(1e-3, std::max(0.0, mcu->next_event_time() - now_s()));
     pollfd p{master, POLLIN, 0};
-    const int r = ::poll(&p, 1, static_cast<int>(wait_s * 1000.0));
+    const auto wait_ns = static_cast<long>(wait_s * 1e9);
+    timespec ts{0, wait_ns};
+    const int r = ::ppoll(&p, 1, &ts, nullptr);
     const double t = now_s();
     if (r > 0 && (p.revents & POLLIN)) {
       const ssize_t n = ::read(master, buf, sizeof buf);
@@ -134,9 +136,14 @@ int main(int argc, char** argv) {
   }
   if (!link.empty()) ::unlink(link.c_str());
   const auto& st = mcu->status();
-  std::fprintf(stderr, "feedloop-vmcu %s: %llu steps executed, position %lld, %llu errors\n", params.name,
-               static_cast<unsigned long long>(st.steps_executed), static_cast<long long>(st.position_steps),
-               static_cast<unsigned long long>(st.errors));
+  const auto& ls = mcu->link_stats();
+  std::fprintf(stderr,
+               "feedloop-vmcu %s: %llu steps executed, position %lld, %llu errors; link: %llu frames sent, "
+               "%llu retransmitted, %llu delivered, %llu duplicates dropped\n",
+               params.name, static_cast<unsigned long long>(st.steps_executed),
+               static_cast<long long>(st.position_steps), static_cast<unsigned long long>(st.errors),
+               static_cast<unsigned long long>(ls.sent), static_cast<unsigned long long>(ls.retransmitted),
+               static_cast<unsigned long long>(ls.delivered), static_cast<unsigned long long>(ls.duplicates_dropped));
   if (slave >= 0) ::close(slave);
   ::close(master);
   return 0;

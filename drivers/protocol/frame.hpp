@@ -5,7 +5,8 @@
 // len <= kMaxPayload; seq and ack are 16-bit little endian (a frame would have to be delayed by
 // 65536 frames to be mistaken for a new one); the CRC16-CCITT covers len..payload. flags: kFlagData (the frame carries a
 // sequenced payload numbered seq), kFlagReset (the sender restarted its link: the receiver
-// resets its expected sequence to seq, once per link epoch: flags bits 4-7). ack is the next sequence number the sender expects
+// resets its expected sequence to seq, once per link epoch: flags bits 4-7), kFlagNak (on a
+// pure ack: the receiver saw a gap, retransmit now). ack is the next sequence number the sender expects
 // (cumulative acknowledgement). A receiver resynchronises by length + CRC: on a bad length or
 // CRC it drops one byte and looks for the next sync byte. No byte stuffing.
 // Header-only, fixed buffers: used by the host and the device.
@@ -26,6 +27,7 @@ inline constexpr size_t kFrameOverhead = kHeaderBytes + 2;
 inline constexpr size_t kMaxFrame = kMaxPayload + kFrameOverhead;
 inline constexpr uint8_t kFlagData = 0x01;
 inline constexpr uint8_t kFlagReset = 0x02;
+inline constexpr uint8_t kFlagNak = 0x04;  // pure ack: a frame after a gap arrived
 
 struct FrameView {
   uint8_t flags = 0;

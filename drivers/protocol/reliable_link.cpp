@@ -1,6 +1,9 @@
 // Go-Back-N link: see reliable_link.hpp.
 #include "drivers/protocol/reliable_link.hpp"
 
+#include <algorithm>  // std::clamp
+#include <cmath>      // fabs
+
 namespace feedloop::protocol {
 
 void ReliableLink::configure(const LinkParams& params, FrameOutput* out, PayloadHandler* in) {
@@ -42,12 +45,20 @@ bool ReliableLink::send(const uint8_t* payload, size_t n, int64_t now_ns) {
   for (size_t i = 0; i < n; ++i) s.payload[i] = payload[i];
   if (count_ == 0) timer_start_ns_ = now_ns;
   ++count_;
-  transmit(idx, false);
+  transmit(idx, false, now_ns);
   return true;
 }
 
-void ReliableLink::transmit(int idx, bool retransmission) {
-  const Slot& s = slots_[idx];
+int64_t ReliableLink::base_rto_ns() const {
+  if (srtt_ns_ <= 0.0) return params_.rto_ns;
+  const auto r = static_cast<int64_t>(srtt_ns_ + 4.0 * rttvar_ns_);
+  return std::clamp(r, params_.rto_ns, params_.rto_max_ns);
+}
+
+void ReliableLink::transmit(int idx, bool retransmission, int64_t now_ns) {
+  Slot& s = slots_[idx];
+  s.sent_ns = now_ns;
+  s.retransmitted = retransmission;
   const size_t n = encode_frame(frame_, s.flags, s.seq, expected_, s.payload, s.len);
   ack_pending_ = false;  // the frame carries our ack
   if (retransmission) ++stats_.retransmitted; else ++stats_.sent;
@@ -55,8 +66,9 @@ void ReliableLink::transmit(int idx, bool retransmission) {
 }
 
 void ReliableLink::send_ack() {
-  const size_t n = encode_frame(frame_, 0, 0, expected_, nullptr, 0);
+  const size_t n = encode_frame(frame_, nak_pending_ ? kFlagNak : 0, 0, expected_, nullptr, 0);
   ack_pending_ = false;
+  nak_pending_ = false;
   ++stats_.acks_sent;
   if (out_ != nullptr) out_->write_frame(frame_, n);
 }
@@ -76,21 +88,30 @@ void ReliableLink::on_frame(const FrameView& f, int64_t now_ns) {
   // Cumulative ack: everything before f.ack has arrived at the peer.
   const uint16_t acked = static_cast<uint16_t>(f.ack - static_cast<uint16_t>(next_seq_ - count_));
   if (acked > 0 && acked <= count_) {
+    // Round-trip sample from the newest acknowledged frame if it was sent only once (Karn);
+    // RTO = srtt + 4 rttvar (RFC 6298), within [rto_ns, rto_max_ns].
+    const Slot& newest = slots_[(head_ + static_cast<int>(acked) - 1) % kMaxWindow];
+    if (!newest.retransmitted) {
+      const double rtt = static_cast<double>(now_ns - newest.sent_ns);
+      if (srtt_ns_ <= 0.0) {
+        srtt_ns_ = rtt;
+        rttvar_ns_ = 0.5 * rtt;
+      } else {
+        rttvar_ns_ = 0.75 * rttvar_ns_ + 0.25 * std::fabs(srtt_ns_ - rtt);
+        srtt_ns_ = 0.875 * srtt_ns_ + 0.125 * rtt;
+      }
+    }
     head_ = (head_ + static_cast<int>(acked)) % kMaxWindow;
     count_ -= static_cast<int>(acked);
     timer_start_ns_ = now_ns;
-    rto_ns_ = params_.rto_ns;
-    dup_acks_ = 0;
-  } else if (acked == 0 && count_ > 0 && !(f.flags & kFlagData)) {
-    // A pure ack that does not advance: the peer saw a gap (a lost or reordered frame). After
-    // two of them, go back N at once instead of waiting for the timeout (fast retransmit),
-    // at most once per fast_retransmit_gap.
-    if (++dup_acks_ >= 2 && now_ns - last_fast_ns_ >= params_.fast_retransmit_gap_ns) {
-      dup_acks_ = 0;
-      last_fast_ns_ = now_ns;
-      for (int i = 0; i < count_; ++i) transmit((head_ + i) % kMaxWindow, true);
-      timer_start_ns_ = now_ns;
-    }
+    rto_ns_ = base_rto_ns();
+  }
+  if ((f.flags & kFlagNak) && count_ > 0 && now_ns - last_fast_ns_ >= params_.fast_retransmit_gap_ns) {
+    // The peer saw a gap (a frame after a lost or reordered one): go back N at once instead of
+    // waiting for the timeout (fast retransmit), at most once per fast_retransmit_gap.
+    last_fast_ns_ = now_ns;
+    for (int i = 0; i < count_; ++i) transmit((head_ + i) % kMaxWindow, true, now_ns);
+    timer_start_ns_ = now_ns;
   }
   if (!(f.flags & kFlagData)) return;
   if (f.flags & kFlagReset) {
@@ -99,6 +120,9 @@ void ReliableLink::on_frame(const FrameView& f, int64_t now_ns) {
     if (epoch != peer_epoch_) {
       peer_epoch_ = epoch;
       expected_ = f.seq;
+      // The peer restarted: what we still had in flight was for its previous incarnation.
+      // Restart our own numbering too (our next frame carries kFlagReset).
+      if (!reset_pending_ && (next_seq_ != 0 || count_ != 0)) reset();
     }
   }
   ack_pending_ = true;
@@ -110,12 +134,13 @@ void ReliableLink::on_frame(const FrameView& f, int64_t now_ns) {
     ++stats_.duplicates_dropped;
   } else {
     ++stats_.out_of_order_dropped;
+    nak_pending_ = true;  // a frame ahead of the expected one: something was lost
   }
 }
 
 void ReliableLink::poll(int64_t now_ns) {
   if (count_ == 0 || now_ns - timer_start_ns_ < rto_ns_) return;
-  for (int i = 0; i < count_; ++i) transmit((head_ + i) % kMaxWindow, true);
+  for (int i = 0; i < count_; ++i) transmit((head_ + i) % kMaxWindow, true, now_ns);
   timer_start_ns_ = now_ns;
   rto_ns_ = rto_ns_ * 2 > params_.rto_max_ns ? params_.rto_max_ns : rto_ns_ * 2;
 }
@@ -125,8 +150,8 @@ void ReliableLink::poll(int64_t now_ns) {
 namespace feedloop::protocol {
 
 void ReliableLink::retransmit_now(int64_t now_ns) {
-  rto_ns_ = params_.rto_ns;
-  for (int i = 0; i < count_; ++i) transmit((head_ + i) % kMaxWindow, true);
+  rto_ns_ = base_rto_ns();
+  for (int i = 0; i < count_; ++i) transmit((head_ + i) % kMaxWindow, true, now_ns);
   timer_start_ns_ = now_ns;
 }
 

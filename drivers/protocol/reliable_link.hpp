@@ -1,8 +1,9 @@
 // Reliable, in-order, exactly-once delivery of payloads over an unreliable frame stream
 // (docs/protocol.md, "Acknowledgement and retransmission"): Go-Back-N with a window of up to
-// kMaxWindow frames in flight, cumulative acknowledgements, a retransmit timeout with
-// exponential backoff (reset on progress), fast retransmit after two duplicate acks (the
-// receiver acks at once on a gap, like a NAK). A receiver accepts only the next expected sequence
+// kMaxWindow frames in flight, cumulative acknowledgements, an adaptive retransmit timeout
+// (srtt + 4 rttvar, at least rto_ns; Karn's rule) with exponential backoff (reset on progress), and fast retransmit when the peer reports a gap
+// (a pure ack with kFlagNak, sent when a frame arrives ahead of the expected one, like
+// Klipper's NAK; duplicates are acked without it so they never trigger retransmissions). A receiver accepts only the next expected sequence
 // number; duplicates, reordered and late frames are dropped and re-acknowledged, so the
 // sender's go-back-N retransmission fills the gap.
 //
@@ -33,7 +34,7 @@ class PayloadHandler {
 
 struct LinkParams {
   int window = 12;                       // frames in flight (<= kMaxWindow)
-  int64_t rto_ns = 25'000'000;           // first retransmit timeout
+  int64_t rto_ns = 25'000'000;           // minimum (and initial) retransmit timeout
   int64_t rto_max_ns = 1'000'000'000;    // backoff limit
   int initial_epoch = 0;                 // 0..15; reset() moves to the next epoch
   int64_t fast_retransmit_gap_ns = 5'000'000;  // minimum time between fast retransmits
@@ -69,12 +70,15 @@ class ReliableLink {
 
  private:
   void on_frame(const FrameView& f, int64_t now_ns);
-  void transmit(int slot_index, bool retransmission);
+  void transmit(int slot_index, bool retransmission, int64_t now_ns);
+  int64_t base_rto_ns() const;
   void send_ack();
 
   struct Slot {
     uint16_t seq = 0;
     uint8_t flags = 0;
+    bool retransmitted = false;
+    int64_t sent_ns = 0;
     size_t len = 0;
     uint8_t payload[kMaxPayload] = {};
   };
@@ -92,7 +96,8 @@ class ReliableLink {
   bool ack_pending_ = false;
   int64_t timer_start_ns_ = 0;
   int64_t rto_ns_ = 0;
-  int dup_acks_ = 0;
+  bool nak_pending_ = false;   // the next pure ack carries kFlagNak
+  double srtt_ns_ = 0.0, rttvar_ns_ = 0.0;  // smoothed round trip and its variation
   int64_t last_fast_ns_ = INT64_MIN / 2;
   uint8_t frame_[kMaxFrame] = {};
   LinkStats stats_;

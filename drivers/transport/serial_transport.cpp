@@ -1,7 +1,7 @@
 // Serial transport (Boost.Asio serial_port + termios raw mode): see serial_transport.hpp.
 #include "drivers/transport/serial_transport.hpp"
 
-#include <poll.h>     // poll
+#include <poll.h>     // poll, ppoll
 #include <termios.h>  // cfmakeraw, tcsetattr
 
 #include <boost/asio/io_context.hpp>
@@ -95,7 +95,11 @@ Result<size_t> SerialTransport::read(uint8_t* buf, size_t cap) {
 void SerialTransport::poll(double /*now_s*/, double max_wait_s) {
   if (!impl_->up || max_wait_s <= 0.0) return;
   pollfd p{impl_->port.native_handle(), POLLIN, 0};
-  ::poll(&p, 1, static_cast<int>(max_wait_s * 1000.0));
+  // ppoll: sub-millisecond waits sleep instead of spinning (a sleeping process is woken
+  // promptly by the scheduler; a spinning one competes for the CPU).
+  const auto ns = static_cast<long>(max_wait_s * 1e9);
+  timespec ts{ns / 1'000'000'000, ns % 1'000'000'000};
+  ::ppoll(&p, 1, &ts, nullptr);
 }
 
 }  // namespace feedloop::drivers

@@ -211,6 +211,11 @@ TEST(McuSession, IdentifiesAndExecutesEveryStep) {
   ASSERT_TRUE(rig.wait_ready(1.0));
   EXPECT_EQ(rig.session->mcu_clock_hz(), 20000000u);
   expect_exactly_once(run_motion(rig, 1), "no faults");
+  // A clean link needs no retransmission in either direction.
+  std::printf("retransmitted: host %llu, device %llu\n", (unsigned long long)rig.session->link_stats().retransmitted,
+              (unsigned long long)rig.mcu->link_stats().retransmitted);
+  EXPECT_EQ(rig.session->link_stats().retransmitted, 0u);
+  EXPECT_EQ(rig.mcu->link_stats().retransmitted, 0u);
 }
 
 struct FaultCase {
