@@ -20,6 +20,38 @@ void Diagnostics::add(int line, int column, std::string message) {
   errors_.push_back(Error{std::move(message), SourceLocation{source_, line, column}});
 }
 
+void Diagnostics::note_known_key(const std::string& section, const std::string& key) {
+  known_.emplace_back(key, section);
+}
+
+void Diagnostics::add_unknown_key(const YAML::Mark& mark, const std::string& section,
+                                  const std::string& key, const std::string& suggestion) {
+  unknown_.push_back(Unknown{mark.is_null() ? 0 : mark.line + 1, mark.is_null() ? 0 : mark.column + 1,
+                             section, key, suggestion});
+}
+
+void Diagnostics::resolve_unknown_keys() {
+  for (const Unknown& u : unknown_) {
+    std::string msg = "unknown key '" + u.key + "' in " +
+                      (u.section.empty() ? std::string("the config") : u.section);
+    // Valid elsewhere? Name up to two sections that know it; else suggest a near key.
+    std::vector<std::string> homes;
+    for (const auto& [key, section] : known_) {
+      const std::string home = section.empty() ? std::string("the top level") : section;
+      if (key == u.key && section != u.section &&
+          std::find(homes.begin(), homes.end(), home) == homes.end())
+        homes.push_back(home);
+    }
+    if (!homes.empty()) {
+      msg += " (it belongs in " + homes[0] + (homes.size() > 1 ? " or " + homes[1] : "") + ")";
+    } else if (!u.suggestion.empty()) {
+      msg += " (did you mean '" + u.suggestion + "'?)";
+    }
+    add(u.line, u.column, std::move(msg));
+  }
+  unknown_.clear();
+}
+
 Error Diagnostics::combined() const {
   if (errors_.empty()) return Error{"no problems", SourceLocation{source_, 0, 0}};
   // Problems sorted by position read best; stable so equal positions keep discovery order.

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <string_view>
 #include <vector>
 
@@ -22,7 +23,14 @@ class Diagnostics {
   void add(const YAML::Mark& mark, std::string message);
   void add(int line, int column, std::string message);
 
-  bool empty() const { return errors_.empty(); }
+  // Unknown keys are reported at the end (resolve_unknown_keys), once every section has said
+  // which keys it knows: a key that is valid in another section gets "(it belongs in planner)".
+  void note_known_key(const std::string& section, const std::string& key);
+  void add_unknown_key(const YAML::Mark& mark, const std::string& section, const std::string& key,
+                       const std::string& suggestion);
+  void resolve_unknown_keys();
+
+  bool empty() const { return errors_.empty() && unknown_.empty(); }
   const std::vector<Error>& errors() const { return errors_; }
   const std::string& source() const { return source_; }
 
@@ -32,8 +40,14 @@ class Diagnostics {
   Error combined() const;
 
  private:
+  struct Unknown {
+    int line, column;
+    std::string section, key, suggestion;
+  };
   std::string source_;
   std::vector<Error> errors_;
+  std::vector<Unknown> unknown_;
+  std::vector<std::pair<std::string, std::string>> known_;  // (key, section)
 };
 
 // Levenshtein distance, for "did you mean" suggestions.

@@ -1,6 +1,7 @@
 // Entry points of the config library: YAML text or file in, a fully validated MachineConfig or
 // every problem out. Reads the sections in dependency order (kinematics before axes, axes before
 // anything that names an axis), then the whole-machine checks.
+#include <algorithm>  // stable_sort
 #include <cerrno>   // errno
 #include <cstring>  // strerror
 #include <fstream>
@@ -46,6 +47,7 @@ void read_document(const YAML::Node& doc, MachineConfig& cfg, Diagnostics& diag)
   read_simulator(root, cfg, diag);
   read_io(root, cfg, diag);
   root.finish();
+  diag.resolve_unknown_keys();
   if (kin_ok) check_machine(cfg, marks, diag);
 }
 
@@ -68,7 +70,11 @@ std::vector<Error> load(std::string_view yaml, const std::string& source, Machin
     diag.add(0, 0, std::string("internal error while reading the config: ") + e.what());
   }
   if (diag.empty() && out != nullptr) *out = std::move(cfg);
-  return diag.errors();
+  std::vector<Error> errors = diag.errors();
+  std::stable_sort(errors.begin(), errors.end(), [](const Error& a, const Error& b) {
+    return std::pair(a.where.line, a.where.column) < std::pair(b.where.line, b.where.column);
+  });
+  return errors;
 }
 
 }  // namespace

@@ -52,9 +52,8 @@ bool split_number(std::string_view text, double& value, std::string& unit) {
   const char* end = text.data() + text.size();
   const auto [ptr, ec] = std::from_chars(begin, end, value, std::chars_format::general);
   if (ec != std::errc() || !std::isfinite(value)) return false;
+  // The rest is the unit, with or without a space ("5 um", "5um"); the caller checks it.
   unit = std::string(trim(std::string_view(ptr, static_cast<std::size_t>(end - ptr))));
-  // "12abc" is not a number with unit "abc" unless a separator or a letter starts the unit; a
-  // unit directly after the digits ("5um") is accepted.
   return true;
 }
 
@@ -301,13 +300,10 @@ void MapReader::report_bad_choice(std::string_view key, const std::string& got,
 }
 
 void MapReader::finish() {
+  for (const std::string& k : asked_) diag_->note_known_key(path_, k);
   for (const Entry& e : entries_) {
     if (e.used) continue;
-    std::string msg = "unknown key '" + e.key + "' in " +
-                      (path_.empty() ? std::string("the config") : path_);
-    if (const std::string s = closest_match(e.key, asked_); !s.empty())
-      msg += " (did you mean '" + s + "'?)";
-    diag_->add(e.key_node.Mark(), msg);
+    diag_->add_unknown_key(e.key_node.Mark(), path_, e.key, closest_match(e.key, asked_));
   }
 }
 

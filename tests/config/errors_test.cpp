@@ -55,6 +55,12 @@ TEST(ConfigErrors, UnknownTopLevelSectionWithSuggestion) {
                pos_of(y, "planer"));
 }
 
+TEST(ConfigErrors, KeyInTheWrongSectionNamesItsHome) {
+  const std::string y = std::string(kMinimal) + "servo:\n  junction_deviation_mm: 0.02\n";
+  expect_error(y, "unknown key 'junction_deviation_mm' in servo (it belongs in planner)",
+               pos_of(y, "junction_deviation_mm"));
+}
+
 TEST(ConfigErrors, WrongTypeScalar) {
   const std::string y = edit(kMinimal, "max_velocity_mm_s: 10", "max_velocity_mm_s: fast");
   expect_error(y, "axes.z.max_velocity_mm_s must be a number, got 'fast'", pos_of(y, "fast"));
