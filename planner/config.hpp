@@ -75,7 +75,6 @@ struct PlannerConfig {
 
   ProfileShape profile = ProfileShape::trapezoid;
   double max_jerk_mm_s3 = 1.0e5;   // S-curve jerk bound
-  double scurve_accel_ratio = 0.6; // S-curve: plan with accel * ratio, peak stays <= accel
 
   size_t lookahead_moves = 256;    // bounded window
   double arc_tolerance_mm = 0.01;  // chordal tolerance of G2/G3 segments

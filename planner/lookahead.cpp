@@ -8,6 +8,7 @@
 
 #include "planner/junction.hpp"
 #include "planner/profile.hpp"
+#include "planner/scurve.hpp"
 
 namespace feedloop::planner {
 
@@ -30,6 +31,32 @@ double Planner::corner_limit_v2(const Queued& prev, const Queued& next) const {
     return v * v;
   }
   return junction_deviation_v2(up, un, jd_mm_, prev.m.accel_mm_s2, next.m.accel_mm_s2, prev.delta_v2, next.delta_v2);
+}
+
+double Planner::reach_v2(const Queued& q, double v2) const {
+  if (cfg_.profile != ProfileShape::scurve) return v2 + q.delta_v2;
+  const double v = scurve_reach(std::sqrt(v2), q.m.length_mm, q.peak_accel_mm_s2, cfg_.max_jerk_mm_s3);
+  return v * v;
+}
+
+double Planner::reach_smoothed_v2(const Queued& q, double v2) const {
+  if (cfg_.profile != ProfileShape::scurve) return v2 + q.smooth_delta_v2;
+  const double v = scurve_reach(std::sqrt(v2), q.m.length_mm * (1.0 - cfg_.min_cruise_ratio), q.peak_accel_mm_s2,
+                                cfg_.max_jerk_mm_s3);
+  return v * v;
+}
+
+double Planner::smoothed_peak_v2(const Queued& q, double start_v2, double end_v2) const {
+  if (cfg_.profile != ProfileShape::scurve) return (start_v2 + end_v2 + q.smooth_delta_v2) * 0.5;
+  const double v = scurve_peak(std::sqrt(start_v2), std::sqrt(end_v2), q.m.length_mm * (1.0 - cfg_.min_cruise_ratio),
+                               q.peak_accel_mm_s2, cfg_.max_jerk_mm_s3);
+  return v * v;
+}
+
+double Planner::peak_v2(const Queued& q, double start_v2, double end_v2) const {
+  if (cfg_.profile != ProfileShape::scurve) return (start_v2 + end_v2 + q.delta_v2) * 0.5;
+  const double v = scurve_peak(std::sqrt(start_v2), std::sqrt(end_v2), q.m.length_mm, q.peak_accel_mm_s2, cfg_.max_jerk_mm_s3);
+  return v * v;
 }
 
 void Planner::add_move(const MoveRequest& req) {
@@ -73,10 +100,8 @@ void Planner::add_move(const MoveRequest& req) {
     }
   }
   v = std::max(v, 1e-3);  // a zero feedrate would never finish
-  const double peak_a = a;
-  if (cfg_.profile == ProfileShape::scurve) a *= cfg_.scurve_accel_ratio;
   m.accel_mm_s2 = a;
-  q.peak_accel_mm_s2 = peak_a;
+  q.peak_accel_mm_s2 = a;
 
   q.max_cruise_v2 = v * v;
   q.delta_v2 = 2.0 * a * length;
@@ -86,9 +111,9 @@ void Planner::add_move(const MoveRequest& req) {
   if (count_ > 0) {
     const Queued& p = at(count_ - 1);
     if (p.m.kinematic && kinematic) {
-      q.max_start_v2 = std::min({q.max_cruise_v2, p.max_cruise_v2, p.max_start_v2 + p.delta_v2, corner_limit_v2(p, q)});
+      q.max_start_v2 = std::min({q.max_cruise_v2, p.max_cruise_v2, reach_v2(p, p.max_start_v2), corner_limit_v2(p, q)});
     }
-    q.max_smoothed_v2 = std::min(q.max_start_v2, p.max_smoothed_v2 + p.smooth_delta_v2);
+    q.max_smoothed_v2 = std::min(q.max_start_v2, reach_smoothed_v2(p, p.max_smoothed_v2));
   }
   q.start_v2 = q.cruise_v2 = q.end_v2 = 0.0;
   ++count_;
@@ -112,19 +137,19 @@ void Planner::plan_and_emit(bool lazy, size_t max_emit) {
   };
   for (size_t i = count_; i-- > 0;) {
     Queued& mv = at(i);
-    const double reachable_start_v2 = next_end_v2 + mv.delta_v2;
+    const double reachable_start_v2 = reach_v2(mv, next_end_v2);
     const double start_v2 = std::min(mv.max_start_v2, reachable_start_v2);
-    const double reachable_smoothed_v2 = next_smoothed_v2 + mv.smooth_delta_v2;
+    const double reachable_smoothed_v2 = reach_smoothed_v2(mv, next_smoothed_v2);
     const double smoothed_v2 = std::min(mv.max_smoothed_v2, reachable_smoothed_v2);
     if (smoothed_v2 < reachable_smoothed_v2) {
       // This move can accelerate.
-      if (smoothed_v2 + mv.smooth_delta_v2 > next_smoothed_v2 || nd > 0) {
+      if (reach_smoothed_v2(mv, smoothed_v2) > next_smoothed_v2 || nd > 0) {
         // It can decelerate too, or it is a full accel move after a full decel move.
         if (update_flush_count && peak_cruise_v2 > 0.0) {
           flush_count = i;
           update_flush_count = false;
         }
-        peak_cruise_v2 = std::min(mv.max_cruise_v2, (smoothed_v2 + reachable_smoothed_v2) * 0.5);
+        peak_cruise_v2 = std::min(mv.max_cruise_v2, smoothed_peak_v2(mv, smoothed_v2, next_smoothed_v2));
         if (nd > 0) {
           if (!update_flush_count && i < flush_count) {
             double mc_v2 = peak_cruise_v2;
@@ -137,7 +162,7 @@ void Planner::plan_and_emit(bool lazy, size_t max_emit) {
         }
       }
       if (!update_flush_count && i < flush_count) {
-        const double cruise_v2 = std::min({(start_v2 + reachable_start_v2) * 0.5, mv.max_cruise_v2, peak_cruise_v2});
+        const double cruise_v2 = std::min({peak_v2(mv, start_v2, next_end_v2), mv.max_cruise_v2, peak_cruise_v2});
         set_junction(mv, std::min(start_v2, cruise_v2), cruise_v2, std::min(next_end_v2, cruise_v2));
       }
     } else {
@@ -154,25 +179,31 @@ void Planner::plan_and_emit(bool lazy, size_t max_emit) {
   // Moves still delayed at the front accelerate all the way: cruise as the plain pass allows.
   for (size_t k = nd; k-- > 0;) {
     Queued& mv = at(delayed_[k]);
-    const double reach = delayed_end_[k] + mv.delta_v2;
-    const double cruise_v2 = std::min((delayed_start_[k] + reach) * 0.5, mv.max_cruise_v2);
+    const double cruise_v2 = std::min(peak_v2(mv, delayed_start_[k], delayed_end_[k]), mv.max_cruise_v2);
     set_junction(mv, std::min(delayed_start_[k], cruise_v2), cruise_v2, std::min(delayed_end_[k], cruise_v2));
   }
   emit_front(flush_count);
 }
 
 void Planner::emit_front(size_t n) {
-  double last_end_v2 = 0.0;
   for (size_t k = 0; k < n; ++k) {
     Queued& q = at(0);
     PlannedMove& m = q.m;
+    if (k == 0 && q.start_v2 < last_exit_v2_) {
+      // The previous batch already left at last_exit_v2_ (<= this move's reachable start, which
+      // emit_front enforced through max_start_v2); a later pass may have capped this move's cruise
+      // (minimum-cruise-ratio smoothing) below it. Keep the speed continuous: cruise at least at
+      // the entry speed.
+      q.start_v2 = last_exit_v2_;
+      q.cruise_v2 = std::max(q.cruise_v2, q.start_v2);
+    }
     m.v_entry_mm_s = std::sqrt(q.start_v2);
     m.v_cruise_mm_s = std::sqrt(q.cruise_v2);
     m.v_exit_mm_s = std::sqrt(q.end_v2);
     build_profile(m, cfg_.profile, cfg_.max_jerk_mm_s3, q.peak_accel_mm_s2);
     m.start_time_s = print_time_s_;
     print_time_s_ += m.duration_s;
-    last_end_v2 = q.end_v2;
+    last_exit_v2_ = q.end_v2;
     sink_.on_move(m);
     if (++head_ == ring_.size()) head_ = 0;
     --count_;
@@ -181,12 +212,12 @@ void Planner::emit_front(size_t n) {
   // The first queued move now starts at the emitted exit speed; keep the forward bounds
   // (max_start_v2 <= prev.max_start_v2 + prev.delta_v2) consistent with it.
   Queued* prev = &at(0);
-  prev->max_start_v2 = std::min(prev->max_start_v2, last_end_v2);
+  prev->max_start_v2 = std::min(prev->max_start_v2, last_exit_v2_);
   prev->max_smoothed_v2 = std::min(prev->max_smoothed_v2, prev->max_start_v2);
   for (size_t i = 1; i < count_; ++i) {
     Queued& q = at(i);
-    const double ms = std::min(q.max_start_v2, prev->max_start_v2 + prev->delta_v2);
-    const double sm = std::min({q.max_smoothed_v2, ms, prev->max_smoothed_v2 + prev->smooth_delta_v2});
+    const double ms = std::min(q.max_start_v2, reach_v2(*prev, prev->max_start_v2));
+    const double sm = std::min({q.max_smoothed_v2, ms, reach_smoothed_v2(*prev, prev->max_smoothed_v2)});
     if (ms == q.max_start_v2 && sm == q.max_smoothed_v2) break;
     q.max_start_v2 = ms;
     q.max_smoothed_v2 = sm;

@@ -7,6 +7,7 @@
 // Algorithm (Klipper toolhead.py LookAheadQueue, restated):
 //   per move:  max_cruise_v2 = v^2, delta_v2 = 2 a L, smooth_delta_v2 = 2 a (1 - min_cruise_ratio) L
 //   junction:  max_start_v2 = min(v^2, v_prev^2, corner limit, prev.max_start_v2 + prev.delta_v2)
+//   (with the S-curve, "+ delta_v2" and the cruise peak are jerk-limited: scurve.hpp)
 //   backward pass from the end of the queue assuming a stop there: start_v2 = min(max_start_v2,
 //   next_start_v2 + delta_v2); the "smoothed" pass with smooth_delta_v2 caps the cruise speed
 //   of accelerate-then-decelerate moves (peak_cruise_v2).
@@ -74,6 +75,13 @@ class Planner {
   void plan_and_emit(bool lazy, size_t max_emit);
   void emit_front(size_t n);
   double corner_limit_v2(const Queued& prev, const Queued& next) const;
+  // Highest speed^2 reachable over the move from speed^2 v2 (v2 + 2 a L, or jerk-limited), and
+  // the highest cruise speed^2 between the given start and end (S-curve: scurve.hpp).
+  double reach_v2(const Queued& q, double v2) const;
+  double peak_v2(const Queued& q, double start_v2, double end_v2) const;
+  // The same over (1 - min_cruise_ratio) of the move: Klipper's accel-to-decel smoothing.
+  double reach_smoothed_v2(const Queued& q, double v2) const;
+  double smoothed_peak_v2(const Queued& q, double start_v2, double end_v2) const;
 
   PlannerConfig cfg_;
   MoveSink& sink_;
@@ -84,6 +92,7 @@ class Planner {
   Vec4 position_{};
   double jd_mm_;
   double print_time_s_ = 0.0;
+  double last_exit_v2_ = 0.0;  // exit speed^2 of the last emitted move
   uint64_t next_index_ = 0;
   uint64_t forced_flushes_ = 0, lazy_flushes_ = 0;
 };

@@ -1,6 +1,8 @@
 // Closed-form trapezoid and jerk-limited S-curve pieces (see profile.hpp).
 #include "planner/profile.hpp"
 
+#include "planner/scurve.hpp"
+
 #include <algorithm>  // std::max, std::min, std::clamp
 #include <cmath>      // sqrt
 
@@ -25,13 +27,6 @@ void push_piece(PlannedMove& m, double duration, double a0, double jerk) {
   m.pieces[m.piece_count++] = p;
 }
 
-// Shortest duration of a jerk-limited speed change |dv| with peak acceleration A and jerk J.
-double min_phase_time(double adv, double A, double J) {
-  if (adv <= 0.0) return 0.0;
-  if (adv >= A * A / J) return adv / A + A / J;
-  return 2.0 * std::sqrt(adv / J);
-}
-
 // One speed-change phase of duration T and signed change dv.
 void push_phase(PlannedMove& m, double T, double dv, ProfileShape shape, double jerk, double peak_accel) {
   if (T <= 0.0) return;
@@ -42,7 +37,8 @@ void push_phase(PlannedMove& m, double T, double dv, ProfileShape shape, double 
     return;
   }
   double A;  // peak |acceleration|
-  const double disc = jerk * jerk * T * T - 4.0 * jerk * adv;
+  double disc = jerk * jerk * T * T - 4.0 * jerk * adv;
+  if (disc < 0.0 && disc > -1e-9 * jerk * jerk * T * T) disc = 0.0;  // T at its minimum, rounded
   if (disc >= 0.0) {
     A = 0.5 * (jerk * T - std::sqrt(disc));
   } else {
@@ -76,17 +72,11 @@ void build_profile(PlannedMove& m, ProfileShape shape, double max_jerk_mm_s3, do
   double cruise_d = std::max(0.0, m.length_mm - accel_d - decel_d);
   m.jerk_bounded = true;
   m.piece_count = 0;
-  if (shape == ProfileShape::scurve && vc > 0.0) {
-    // Lengthen phases that are too short for the jerk bound, paying with cruise distance.
-    const double ta = std::max(m.accel_t_s, min_phase_time(vc - v0, peak_accel_mm_s2, max_jerk_mm_s3));
-    const double td = std::max(m.decel_t_s, min_phase_time(vc - v1, peak_accel_mm_s2, max_jerk_mm_s3));
-    const double extra_d = 0.5 * (v0 + vc) * (ta - m.accel_t_s) + 0.5 * (v1 + vc) * (td - m.decel_t_s);
-    // Not enough cruise: lengthen both phases by the same fraction of what they need (smoother,
-    // but the jerk bound is then not met; push_phase clears jerk_bounded).
-    const double f = extra_d <= cruise_d ? 1.0 : cruise_d / extra_d;
-    cruise_d -= f * extra_d;
-    m.accel_t_s += f * (ta - m.accel_t_s);
-    m.decel_t_s += f * (td - m.decel_t_s);
+  if (shape == ProfileShape::scurve) {
+    // Jerk-limited phases of minimum duration; the lookahead chose speeds that fit (scurve.hpp).
+    m.accel_t_s = scurve_min_time(vc - v0, peak_accel_mm_s2, max_jerk_mm_s3);
+    m.decel_t_s = scurve_min_time(vc - v1, peak_accel_mm_s2, max_jerk_mm_s3);
+    cruise_d = std::max(0.0, m.length_mm - 0.5 * (v0 + vc) * m.accel_t_s - 0.5 * (v1 + vc) * m.decel_t_s);
   }
   m.cruise_t_s = vc > 0.0 ? cruise_d / vc : 0.0;
   m.duration_s = m.accel_t_s + m.cruise_t_s + m.decel_t_s;

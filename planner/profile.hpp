@@ -4,18 +4,12 @@
 //
 // Trapezoid: accel_t = (v_c - v_0)/a, decel_t = (v_c - v_1)/a,
 //            cruise_t = (L - (v_c^2 - v_0^2)/2a - (v_c^2 - v_1^2)/2a) / v_c.
-// S-curve (optional): every accel/decel phase keeps its speed change dv but the acceleration
-// ramps with constant jerk: jerk-up tj, constant A for tc, jerk-down tj, T = 2 tj + tc,
-// dv = A (tj + tc). The phase needs at least
-//   T_min = dv / A_max + A_max / J   (dv >= A_max^2 / J),   T_min = 2 sqrt(dv / J)   otherwise,
-// so it lasts T_s = max(T_trapezoid, T_min) and uses the smallest peak acceleration that fits:
-//   A = (J T_s - sqrt(J^2 T_s^2 - 4 J dv)) / 2.
-// A phase longer than its trapezoid covers (v_0 + v_1)(T_s - T)/2 more distance, taken from the
-// cruise phase. The junction speeds of the lookahead stay as planned, so when the cruise phase is
-// too short for that, both phases get the same fraction of their extension that the cruise
-// distance allows, and the jerk exceeds J (PlannedMove::jerk_bounded is false then; Marlin's
-// Bezier S-curve never lengthens phases and so never bounds the jerk). The peak acceleration never
-// exceeds the move's limit; the lookahead plans with accel * scurve_accel_ratio.
+// S-curve (optional): every speed change dv ramps the acceleration with constant jerk J:
+// jerk-up tj, constant A for tc, jerk-down tj, T = 2 tj + tc, dv = A (tj + tc), starting and
+// ending at zero acceleration, in the minimum time T(dv) of scurve.hpp (peak A = the move's
+// acceleration limit, or sqrt(J dv) when dv is small). The lookahead already chose entry, cruise
+// and exit speeds whose jerk-limited changes fit in the move, so the cruise distance
+// L - D(v_0, v_c) - D(v_1, v_c) is never negative and every piece honours J and A.
 #pragma once
 
 #include "planner/move.hpp"

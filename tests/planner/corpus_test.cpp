@@ -113,7 +113,7 @@ FileResult check_file(const std::string& path, const PlannerConfig& cfg) {
     } else {
       // S-curve: peak acceleration within the move's limit, jerk within the bound when claimed,
       // and the pieces cover exactly the move
-      const double a_limit = m.accel_mm_s2 / cfg.scurve_accel_ratio;
+      const double a_limit = m.accel_mm_s2;
       for (int k = 0; k < m.piece_count; ++k) {
         const ProfilePiece& p = m.pieces[k];
         const double peak = std::max(std::abs(p.a0_mm_s2), std::abs(p.accel_mm_s2(p.duration_s)));
@@ -160,9 +160,12 @@ FileResult check_file(const std::string& path, const PlannerConfig& cfg) {
   } else {
     std::printf("S-curve: %.1f %% of the moves honour the jerk bound %.0f mm/s^3\n", 100.0 * fr.jerk_bounded / fr.moves,
                 cfg.max_jerk_mm_s3);
+    EXPECT_EQ(fr.jerk_bounded, fr.moves) << "the jerk-aware lookahead bounds every move";
   }
   EXPECT_EQ(failures, 0) << path;
-  EXPECT_EQ(fr.unexplained, 0u) << path << ": junctions slower than both the formula and acceleration require";
+  if (cfg.profile == ProfileShape::trapezoid) {
+    EXPECT_EQ(fr.unexplained, 0u) << path << ": junctions slower than both the formula and acceleration require";
+  }
   std::printf("%-42s moves %7zu  print time %8.1f s", std::filesystem::path(path).filename().c_str(), fr.moves, total);
   if (cfg.profile == ProfileShape::trapezoid) {
     std::printf(" (integrated %8.1f s, %+.4f %%)", fr.integrated_s + dwell_s, 100.0 * (fr.integrated_s - fr.time_s) / fr.time_s);
@@ -194,7 +197,7 @@ TEST(PlannerCorpus, SmallWindowAndSCurveKeepTheInvariants) {
   c.lookahead_moves = 256;
   c.profile = ProfileShape::scurve;
   const FileResult s = check_file(star, c);
-  EXPECT_GT(s.time_s, big.time_s) << "S-curve plans with a reduced acceleration";
+  EXPECT_GT(s.time_s, big.time_s) << "jerk-limited speed changes take longer";
 }
 
 // The delta benchy's first 300 s of print through the 1 ms Hermite joint output: every piece's

@@ -102,7 +102,6 @@ TEST(Lookahead, SCurveKeepsTheJerkAndAccelBounds) {
   PlannerConfig c = test::cartesian_config();
   c.profile = ProfileShape::scurve;
   c.max_jerk_mm_s3 = 1.0e5;
-  c.scurve_accel_ratio = 0.6;
   const auto m = plan(c, {{0, 0, 0, 0}, {150, 0, 0, 0}, {150, 150, 0, 0}, {150, 152, 0, 0}}, 250.0, 3000.0);
   ASSERT_EQ(m.size(), 3u);
   int bounded_moves = 0;
@@ -129,7 +128,7 @@ TEST(Lookahead, SCurveKeepsTheJerkAndAccelBounds) {
       for (int k = 0; k < mv.piece_count; ++k) EXPECT_LE(std::abs(mv.pieces[k].jerk_mm_s3), c.max_jerk_mm_s3 * (1 + 1e-9));
     }
   }
-  EXPECT_GE(bounded_moves, 2);  // the last, 2 mm long move has too little cruise to lengthen its phases
+  EXPECT_EQ(bounded_moves, 3);
 }
 
 TEST(Lookahead, WindowIsBoundedAndTheQueueCanAlwaysStop) {
@@ -163,6 +162,36 @@ TEST(Lookahead, WindowIsBoundedAndTheQueueCanAlwaysStop) {
     EXPECT_LE(m.v_exit_mm_s * m.v_exit_mm_s, room * (1 + 1e-9) + 1e-9) << "move " << i;
   }
   EXPECT_DOUBLE_EQ(rec.moves.back().v_exit_mm_s, 0.0);
+}
+
+}  // namespace
+}  // namespace feedloop::planner
+
+#include "planner/scurve.hpp"
+
+namespace feedloop::planner {
+namespace {
+
+TEST(SCurveMath, ReachInvertsDistanceAndPeakFillsTheMove) {
+  const double A = 3000.0, J = 1.0e5;  // A^2 / J = 90 mm/s: both regimes below
+  for (double v_lo : {0.0, 5.0, 40.0, 150.0}) {
+    for (double L : {0.01, 0.3, 2.0, 20.0, 200.0}) {
+      const double v_hi = scurve_reach(v_lo, L, A, J);
+      EXPECT_NEAR(scurve_distance(v_lo, v_hi, A, J), L, 1e-9 * (1 + L)) << v_lo << " " << L;
+      // by hand for the triangular regime: T = 2 sqrt(dv / J)
+      const double dv = v_hi - v_lo;
+      if (dv < A * A / J) {
+        EXPECT_NEAR(scurve_min_time(dv, A, J), 2.0 * std::sqrt(dv / J), 1e-15);
+      } else {
+        EXPECT_NEAR(scurve_min_time(dv, A, J), dv / A + A / J, 1e-15);
+      }
+      const double vc = scurve_peak(v_lo, 0.5 * v_lo, L, A, J);
+      EXPECT_GE(vc, v_lo);
+      if (vc > v_lo + 1e-6) {
+        EXPECT_NEAR(scurve_distance(v_lo, vc, A, J) + scurve_distance(0.5 * v_lo, vc, A, J), L, 1e-6 * (1 + L));
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -82,6 +82,14 @@ TEST(PlannerProperties, RandomSequencesKeepTheInvariants) {
       double room = 0.0;
       for (uint64_t k = i + 1; k < rec.added_at_emit[i] && k < mv.size(); ++k) room += dv2[k];
       EXPECT_LE(m.v_exit_mm_s * m.v_exit_mm_s, room * (1 + 1e-9) + 1e-9) << trial << "/" << i;
+      if (c.profile == ProfileShape::scurve) {
+        EXPECT_TRUE(m.jerk_bounded) << trial << "/" << i;
+        for (int k = 0; k < m.piece_count; ++k) {
+          const ProfilePiece& pc = m.pieces[k];
+          EXPECT_LE(std::abs(pc.jerk_mm_s3), c.max_jerk_mm_s3 * (1 + 1e-9));
+          EXPECT_LE(std::abs(pc.accel_mm_s2(pc.duration_s)), m.accel_mm_s2 * (1 + 1e-9));
+        }
+      }
       // the sampled path ends exactly at the end point
       const PathState st = path_state(m, m.duration_s);
       EXPECT_NEAR(st.s_mm, m.length_mm, 1e-9 + 1e-9 * m.length_mm);
