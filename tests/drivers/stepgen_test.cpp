@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <cstdlib>
+#include <new>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -208,6 +211,59 @@ TEST(RunCodec, RejectsTruncatedInput) {
   EXPECT_EQ(r.add_ticks, -3);
   EXPECT_EQ(r.count, 17u);
   EXPECT_EQ(r.direction, -1);
+}
+
+}  // namespace
+}  // namespace feedloop::stepgen
+
+// ---- RT discipline: the step path allocates nothing in steady state (STYLE.md convention 6).
+namespace {
+std::atomic<uint64_t> g_allocations{0};
+}  // namespace
+void* operator new(std::size_t n) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace feedloop::stepgen {
+namespace {
+
+struct CountingSink final : BatchSink {
+  uint64_t bytes = 0;
+  void on_batch(const StepBatch& b) override { bytes += b.body_bytes; }
+};
+
+TEST(StepPath, NoAllocationInSteadyState) {
+  std::mt19937_64 rng(8);
+  const auto segs = testing::trapezoid_stream(rng, 300);
+  const auto cubic = testing::cubic_stream(rng, 3000);
+  CountingSink sink;
+  StepBatcher batcher;
+  batcher.configure(0, 200, &sink);
+  StepCompressor comp;
+  comp.configure({100.0, 65535}, &batcher);
+  StepGenerator gen;
+  gen.configure(80.0, TickMap{0.0, 20e6}, &comp);
+  const uint64_t before = g_allocations.load();
+  for (const auto& s : segs) gen.add_segment(s);
+  JointSegment c0 = cubic.front();
+  const double shift = segs.back().end_s() - c0.t0_s, dpos = segs.back().position_mm(segs.back().end_s()) - c0.c0_mm;
+  for (auto c : cubic) {
+    c.t0_s += shift;
+    c.c0_mm += dpos;
+    gen.add_segment(c);
+    comp.flush_if_due(static_cast<int64_t>(c.t0_s * 20e6));
+  }
+  gen.flush();
+  comp.flush();
+  batcher.flush();
+  const uint64_t allocations = g_allocations.load() - before;
+  EXPECT_GT(sink.bytes, 1000u);
+  EXPECT_GT(gen.steps_emitted(), 100000u);
+  EXPECT_EQ(allocations, 0u);
 }
 
 }  // namespace
