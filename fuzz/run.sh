@@ -18,6 +18,10 @@ target="$build_dir/fuzz/fuzz_gcode_parser"
 work=$(mktemp -d "${TMPDIR:-/tmp}/fuzz_gcode.XXXXXX")
 mkdir -p "$work/corpus" "$work/artifacts"
 cp "$here"/corpus/gcode/* "$work/corpus/"
+# Megabyte lines (generated, not kept in the repository): one over the default 256 KiB cap with
+# a valid command after it, one without any newline. The first byte is the target's mode byte.
+{ printf '\000G1 X'; head -c 1100000 /dev/zero | tr '\0' '7'; printf '\nG1 X1\n'; } > "$work/corpus/megabyte_line"
+{ printf '\002M117 '; head -c 600000 /dev/zero | tr '\0' '*'; } > "$work/corpus/no_newline"
 echo "fuzzing for ${seconds}s in $work" >&2
 set +e
 "$target" "$work/corpus" \
@@ -30,6 +34,8 @@ set +e
 rc=${PIPESTATUS[0]}
 set -e
 findings=$(ls "$work/artifacts" | wc -l)
+grep -E '^#[0-9]+' "$work/fuzz.log" | tail -n 1 | cut -c1-110 >&2 || true
+grep -E '^stat::' "$work/fuzz.log" >&2 || true
 echo "exit code $rc, findings $findings, corpus $(ls "$work/corpus" | wc -l) files; log: $work/fuzz.log" >&2
 if [[ $rc -ne 0 || $findings -ne 0 ]]; then
   exit 1
