@@ -3,6 +3,10 @@
 //
 //   feedloop-vmcu --pty [--link PATH] [--name NAME] [--axis N] [--clock-hz HZ] [--drift-ppm PPM]
 //                 [--offset-s S] [--steps-per-mm X] [--protocol-version N]
+//                 [--drop P] [--corrupt P] [--duplicate P] [--seed N]
+//
+// The fault options exercise the pty path: each frame the device sends, and each chunk of bytes
+// it reads, is dropped / has one byte corrupted / is sent twice with the given probability.
 //
 // Prints "PTY <slave path>" on stdout once ready (and makes PATH a symlink to it with --link),
 // then runs in real time until SIGTERM/SIGINT. The ideal motor's encoder reads the commanded
@@ -19,6 +23,7 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <random>
 #include <string>
 
 #include "core/clock.hpp"
@@ -42,7 +47,8 @@ struct IdealMotor final : feedloop::device::MotorPort {
 int usage(const char* argv0) {
   std::fprintf(stderr,
                "usage: %s --pty [--link PATH] [--name NAME] [--axis N] [--clock-hz HZ] [--drift-ppm PPM]\n"
-               "          [--offset-s S] [--steps-per-mm X] [--protocol-version N]\n",
+               "          [--offset-s S] [--steps-per-mm X] [--protocol-version N]\n"
+               "          [--drop P] [--corrupt P] [--duplicate P] [--seed N]\n",
                argv0);
   return 2;
 }
@@ -56,6 +62,8 @@ int main(int argc, char** argv) {
   IdealMotor motor;
   bool pty = false;
   std::string link;
+  double p_drop = 0.0, p_corrupt = 0.0, p_dup = 0.0;
+  unsigned long long seed = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
@@ -69,6 +77,10 @@ int main(int argc, char** argv) {
     else if (a == "--offset-s" && (v = next())) params.offset_s = std::atof(v);
     else if (a == "--steps-per-mm" && (v = next())) motor.steps_per_mm = std::atof(v);
     else if (a == "--protocol-version" && (v = next())) params.protocol_version = static_cast<uint16_t>(std::atoi(v));
+    else if (a == "--drop" && (v = next())) p_drop = std::atof(v);
+    else if (a == "--corrupt" && (v = next())) p_corrupt = std::atof(v);
+    else if (a == "--duplicate" && (v = next())) p_dup = std::atof(v);
+    else if (a == "--seed" && (v = next())) seed = std::strtoull(v, nullptr, 10);
     else return usage(argv[0]);
   }
   if (!pty) return usage(argv[0]);
@@ -110,6 +122,16 @@ int main(int argc, char** argv) {
   std::printf("PTY %s\n", slave_path.c_str());
   std::fflush(stdout);
 
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  auto write_all = [&](const uint8_t* d, size_t n) {
+    size_t off = 0;
+    while (off < n) {
+      const ssize_t w = ::write(master, d + off, n - off);
+      if (w <= 0) break;
+      off += static_cast<size_t>(w);
+    }
+  };
   uint8_t buf[4096];
   uint8_t frame[feedloop::protocol::kMaxFrame];
   while (!g_stop) {
@@ -121,17 +143,18 @@ int main(int argc, char** argv) {
     const double t = now_s();
     if (r > 0 && (p.revents & POLLIN)) {
       const ssize_t n = ::read(master, buf, sizeof buf);
-      if (n > 0) mcu->receive(buf, static_cast<size_t>(n), t);
+      if (n > 0 && !(u(rng) < p_drop)) {
+        if (u(rng) < p_corrupt) buf[rng() % static_cast<size_t>(n)] ^= 0x5A;
+        mcu->receive(buf, static_cast<size_t>(n), t);
+      }
     }
     mcu->run_until(t);
     size_t n = 0;
     while (mcu->pop_frame(frame, n)) {
-      size_t off = 0;
-      while (off < n) {
-        const ssize_t w = ::write(master, frame + off, n - off);
-        if (w <= 0) break;
-        off += static_cast<size_t>(w);
-      }
+      if (u(rng) < p_drop) continue;
+      if (u(rng) < p_corrupt) frame[rng() % n] ^= 0x5A;
+      write_all(frame, n);
+      if (u(rng) < p_dup) write_all(frame, n);
     }
   }
   if (!link.empty()) ::unlink(link.c_str());

@@ -40,9 +40,13 @@ struct Collect final : stepgen::BatchSink {
   }
 };
 
-TEST(SerialPty, EveryStepExactlyOnceOverARealPty) {
+class SerialPtyMotion : public ::testing::TestWithParam<std::vector<std::string>> {};
+
+TEST_P(SerialPtyMotion, EveryStepExactlyOnce) {
   testing::VmcuProcess vmcu;
-  ASSERT_TRUE(vmcu.start(kVmcu, {"--name", "pty-x", "--drift-ppm", "50"})) << vmcu.error();
+  std::vector<std::string> args{"--name", "pty-x", "--drift-ppm", "50"};
+  args.insert(args.end(), GetParam().begin(), GetParam().end());
+  ASSERT_TRUE(vmcu.start(kVmcu, args)) << vmcu.error();
   SerialTransport transport(vmcu.pty());
   McuSessionParams sp;
   sp.name = "pty-x";
@@ -105,6 +109,13 @@ TEST(SerialPty, EveryStepExactlyOnceOverARealPty) {
   EXPECT_FALSE(st.stopped);
   EXPECT_EQ(session.state(), McuState::kReady);
 }
+
+// Clean, and with faults injected by feedloop-vmcu on the pty in both directions.
+INSTANTIATE_TEST_SUITE_P(Pty, SerialPtyMotion,
+                         ::testing::Values(std::vector<std::string>{},
+                                           std::vector<std::string>{"--drop", "0.05", "--corrupt", "0.05",
+                                                                    "--duplicate", "0.05", "--seed", "3"}),
+                         [](const auto& tp) { return tp.param.empty() ? std::string("clean") : std::string("faults"); });
 
 TEST(SerialPty, VersionMismatchRefused) {
   testing::VmcuProcess vmcu;
