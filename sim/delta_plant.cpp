@@ -111,8 +111,9 @@ DeltaPlant::State DeltaPlant::derivative(const State& x, const Eigen::Vector3d& 
   d.segment<3>(kV) = (force - f_m2) / m1 + gvec;
   // Rigid-body rotation: I_w omega' = tau - omega x I_w omega (Euler, world frame).
   const Eigen::Matrix3d inertia = rot * p_.effector_inertia_kg_m2.asDiagonal() * rot.transpose();
+  const Eigen::Matrix3d inertia_inv = rot * p_.effector_inertia_kg_m2.cwiseInverse().asDiagonal() * rot.transpose();
   d.segment<3>(kTh) = om;
-  d.segment<3>(kW) = inertia.ldlt().solve(torque - om.cross(inertia * om));
+  d.segment<3>(kW) = inertia_inv * (torque - om.cross(inertia * om));
   return d;
 }
 
