@@ -76,6 +76,15 @@ TEST(Corpus, RepoSamplesParseWithoutErrors) {
   }
 }
 
+TEST(Corpus, MissingFileIsAnErrorNamingIt) {
+  int lines = 0;
+  Status st = for_each_file_line("no/such/file.gcode", [&](const SplitLine&) { ++lines; });
+  ASSERT_FALSE(st.ok());
+  EXPECT_EQ(st.error().where.source, "no/such/file.gcode");
+  EXPECT_NE(st.error().message.find("cannot open"), std::string::npos);
+  EXPECT_EQ(lines, 0);
+}
+
 TEST(Corpus, SharedFilesParseWithoutErrors) {
   const auto files = files_in(kShared);
   if (files.empty()) GTEST_SKIP() << "shared G-code corpus not found at " << kShared << " (skipped)";

@@ -112,5 +112,14 @@ TEST(LineSplitter, MegabyteLinesKeepMemoryBounded) {
   EXPECT_EQ(s.buffered_bytes(), 0u);
 }
 
+TEST(LineSplitter, TooLongLastLineWithoutNewlineIsReportedByFinish) {
+  const Collected c = split("G28\n" + std::string(3000, 'Z'), 512, 1000);
+  ASSERT_EQ(c.text.size(), 2u);
+  EXPECT_EQ(c.text[0], "G28");
+  EXPECT_TRUE(c.too_long[1]);
+  EXPECT_EQ(c.length[1], 3000u);
+  EXPECT_EQ(c.number[1], 2);
+}
+
 }  // namespace
 }  // namespace feedloop::gcode
