@@ -206,5 +206,29 @@ TEST(HostProtocol, TooLongLineIsAnErrorWithOk) {
   EXPECT_EQ(r.text, "Error:pty:1: line too long (300000 bytes); ignored\nok\n");
 }
 
+TEST(HostProtocol, StreamWithAMegabyteLineKeepsWorking) {
+  // Bytes as a pty delivers them: a numbered stream with a 1 MB garbage line in the middle.
+  HostProtocol p("pty");
+  LineSplitter splitter;
+  std::string stream = "M110 N0\n" + numbered(1, "G28") + "\n" + std::string(1 << 20, 'G') + "\n" +
+                       numbered(2, "G1 X5") + "\n";
+  std::string replies;
+  std::vector<double> executed;
+  Reply r;
+  Command c;
+  auto on_line = [&](const SplitLine& l) {
+    r.clear();
+    const Action a = l.too_long ? p.on_too_long(l, r) : p.on_line(l.text, r, c);
+    if (a == Action::kExecute) executed.push_back(c.get('X', -1));
+    replies += r.text;
+  };
+  for (size_t i = 0; i < stream.size(); i += 4096)
+    splitter.feed(std::string_view(stream).substr(i, 4096), on_line);
+  splitter.finish(on_line);
+  EXPECT_EQ(replies, "ok\nok\nError:pty:3: line too long (1048576 bytes); ignored\nok\nok\n");
+  EXPECT_EQ(executed, (std::vector<double>{-1, 5}));
+  EXPECT_EQ(p.last_line_number(), 2);
+}
+
 }  // namespace
 }  // namespace feedloop::gcode
