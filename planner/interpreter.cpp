@@ -215,7 +215,7 @@ Status Interpreter::retract(const gcode::Command& c, bool recover) {
     z_to[kZ] += st_.retract_zlift_mm;
     if (Status s = check(e_to, z_to, c); !s) return s;
     push(e_to, st_.retract_velocity_mm_s, st_.retract_accel_mm_s2, c.where.line);
-    if (st_.retract_zlift_mm > 0.0) push(z_to, cfg_.max_axis_velocity_mm_s[kZ], st_.travel_accel_mm_s2, c.where.line);
+    if (st_.retract_zlift_mm > 0.0) push(z_to, st_.max_axis_velocity_mm_s[kZ], st_.travel_accel_mm_s2, c.where.line);
     st_.hop_mm = st_.retract_zlift_mm;
     st_.retracted = true;
     st_.machine_mm = z_to;
@@ -227,7 +227,7 @@ Status Interpreter::retract(const gcode::Command& c, bool recover) {
   if (Status s = check(st_.machine_mm, z_to, c); !s) return s;
   Vec4 e_to = z_to;
   e_to[kE] += st_.retract_length_mm + st_.unretract_extra_mm;
-  if (st_.hop_mm > 0.0) push(z_to, cfg_.max_axis_velocity_mm_s[kZ], st_.travel_accel_mm_s2, c.where.line);
+  if (st_.hop_mm > 0.0) push(z_to, st_.max_axis_velocity_mm_s[kZ], st_.travel_accel_mm_s2, c.where.line);
   push(e_to, st_.unretract_velocity_mm_s, st_.retract_accel_mm_s2, c.where.line);
   st_.hop_mm = 0.0;
   st_.retracted = false;
