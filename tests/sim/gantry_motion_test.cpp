@@ -209,3 +209,32 @@ TEST(GantryMotion, DisabledMotorHoldsNoTorque) {
 
 }  // namespace
 }  // namespace feedloop::sim
+
+#include "sim/cartesian_plant.hpp"
+
+namespace feedloop::sim {
+namespace {
+
+TEST(CartesianPlant, ThreeIndependentAxesWithTheirOwnNoise) {
+  auto plant = CartesianPlant::create(CartesianPlantParams{});
+  ASSERT_TRUE(plant.ok());
+  StepDriver x(plant->port(0), plant->axis(0).mm_per_step());
+  for (int k = 1; k <= 1000; ++k) x.update(k * 1e-4, 0.5 * k / 1000.0);
+  plant->advance_to(0.5);
+  EXPECT_NEAR(plant->axis(0).carriage_mm(), x.commanded_mm(), 1e-4);
+  EXPECT_EQ(plant->axis(1).carriage_mm(), 0.0);
+  int differ = 0;
+  for (int k = 1; k <= 200; ++k) {  // Y and Z at rest: noise only, different per axis
+    const double t = 0.5 + k * 1e-3;
+    differ += plant->port(1).read_encoder_counts(t) != plant->port(2).read_encoder_counts(t);
+  }
+  EXPECT_GT(differ, 50);
+  CartesianPlantParams bad;
+  bad.axes[2].microsteps = 0;
+  auto r = CartesianPlant::create(bad);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message.find("axis z"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace feedloop::sim
