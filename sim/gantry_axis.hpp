@@ -73,6 +73,9 @@ class GantryAxis final : public device::MotorPort {
   const State& state() const { return x_; }
   // Small-signal model around the current state (call at rest). Input: the field command u in
   // mm; output: carriage position in mm (what the encoder sees, before quantisation and delay).
+  // Where x0 + x2 != 0 the belt is piecewise linear at rest (Eq. 6); the central difference then
+  // gives the mean of its two stiffnesses. Non-smooth effects (backlash, friction) linearise to
+  // their local slope.
   LinearModel linearize() const;
 
  private:
