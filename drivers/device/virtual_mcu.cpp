@@ -17,10 +17,30 @@ namespace {
 constexpr int64_t kNever = INT64_MAX;
 }
 
-VirtualMcu::VirtualMcu(const VirtualMcuParams& params, MotorPort* port)
-    : params_(params), port_(port), rate_hz_(params.clock_hz * (1.0 + params.drift_ppm * 1e-6)) {
+VirtualMcu::VirtualMcu(const VirtualMcuParams& params, MotorPort* port) : VirtualMcu(params, &port, 1) {}
+
+VirtualMcu::VirtualMcu(const VirtualMcuParams& params, MotorPort* const* ports, int num_axes)
+    : params_(params), rate_hz_(params.clock_hz * (1.0 + params.drift_ppm * 1e-6)) {
   link_.configure(params_.link, this, this);
-  status_.step_hash = kStepHashSeed;
+  num_axes_ = num_axes < 1 ? 1 : (num_axes > kMaxAxes ? kMaxAxes : num_axes);
+  for (int i = 0; i < num_axes_; ++i) {
+    axes_[i].port = ports[i];
+    axes_[i].st.step_hash = kStepHashSeed;
+  }
+  status_.num_axes = num_axes_;
+  sync_status();
+}
+
+void VirtualMcu::sync_status() {
+  for (int i = 0; i < num_axes_; ++i) {
+    axes_[i].st.queued_runs = static_cast<uint32_t>(axes_[i].run_count);
+    status_.axes[i] = axes_[i].st;
+  }
+  const AxisStatus& a0 = axes_[0].st;
+  status_.steps_executed = a0.steps_executed;
+  status_.position_steps = a0.position_steps;
+  status_.step_hash = a0.step_hash;
+  status_.queued_runs = a0.queued_runs;
 }
 
 int64_t VirtualMcu::clock_at(double t_s) const {
@@ -85,31 +105,30 @@ void VirtualMcu::send_error(McuError code, int64_t detail) {
 }
 
 void VirtualMcu::send_status() {
-  uint8_t buf[64];
+  uint8_t buf[8 + kMaxAxes * 40];
   MsgWriter w(buf, sizeof buf);
   const uint8_t flags = static_cast<uint8_t>((status_.enabled ? protocol::kStatusEnabled : 0) |
                                              (status_.stopped ? protocol::kStatusStopped : 0));
-  w.u8(static_cast<uint8_t>(MsgType::kStatus))
-      .var(static_cast<uint64_t>(now_clock_))
-      .var(status_.steps_executed)
-      .zz(status_.position_steps)
-      .var(static_cast<uint64_t>(run_count_))
-      .var(status_.step_hash)
-      .u8(flags);
+  w.u8(static_cast<uint8_t>(MsgType::kStatus)).var(static_cast<uint64_t>(now_clock_)).u8(flags).u8(static_cast<uint8_t>(num_axes_));
+  for (int i = 0; i < num_axes_; ++i) {
+    const Axis& a = axes_[i];
+    w.var(a.st.steps_executed).zz(a.st.position_steps).var(static_cast<uint64_t>(a.run_count)).var(a.st.step_hash);
+  }
   send_msg(buf, w.size());
 }
 
-void VirtualMcu::send_encoder_report() {
+void VirtualMcu::send_encoder_report(int axis) {
   if (nsamples_ == 0) return;
+  const Axis& a = axes_[axis];
   uint8_t buf[protocol::kMaxPayload];
   MsgWriter w(buf, sizeof buf);
   w.u8(static_cast<uint8_t>(MsgType::kEncoderReport))
-      .var(static_cast<uint64_t>(sample_first_clock_))
+      .u8(static_cast<uint8_t>(axis))
+      .var(static_cast<uint64_t>(a.sample_first_clock))
       .var(static_cast<uint64_t>(encoder_period_ticks_))
       .var(static_cast<uint64_t>(nsamples_))
-      .zz(samples_[0]);
-  for (int i = 1; i < nsamples_; ++i) w.zz(samples_[i] - samples_[i - 1]);
-  nsamples_ = 0;
+      .zz(a.samples[0]);
+  for (int i = 1; i < nsamples_; ++i) w.zz(a.samples[i] - a.samples[i - 1]);
   if (!w.ok()) {
     ++status_.reports_dropped;
     return;
@@ -118,46 +137,49 @@ void VirtualMcu::send_encoder_report() {
 }
 
 void VirtualMcu::stop(McuError code, int64_t detail) {
-  run_head_ = run_count_ = 0;
-  have_queued_end_ = false;
-  if (status_.enabled && port_ != nullptr) port_->set_enabled(true_time_at(now_clock_), false);
+  for (int i = 0; i < num_axes_; ++i) {
+    Axis& a = axes_[i];
+    a.run_head = a.run_count = 0;
+    a.have_queued_end = false;
+    if (status_.enabled && a.port != nullptr) a.port->set_enabled(true_time_at(now_clock_), false);
+  }
   status_.enabled = false;
   status_.stopped = true;
-  status_.queued_runs = 0;
+  sync_status();
   status_.stop_reason = code;
   send_error(code, detail);
 }
 
-void VirtualMcu::activate_head() {
-  const QueuedRun& q = runs_[run_head_];
-  last_step_clock_ = q.start_clock;
-  interval_ = q.run.interval_ticks;
-  next_step_clock_ = last_step_clock_ + interval_;
-  run_k_ = 0;
+void VirtualMcu::activate_head(Axis& a) {
+  const QueuedRun& q = a.runs[a.run_head];
+  a.last_step_clock = q.start_clock;
+  a.interval = q.run.interval_ticks;
+  a.next_step_clock = a.last_step_clock + a.interval;
+  a.run_k = 0;
 }
 
-void VirtualMcu::do_step() {
-  const QueuedRun& q = runs_[run_head_];
+void VirtualMcu::do_step(Axis& a) {
+  const QueuedRun& q = a.runs[a.run_head];
   const int dir = q.run.direction;
-  if (port_ != nullptr) port_->step(true_time_at(next_step_clock_), dir);
-  status_.position_steps += dir;
-  ++status_.steps_executed;
-  status_.step_hash = step_hash_update(status_.step_hash, next_step_clock_, dir);
-  last_step_clock_ = next_step_clock_;
-  interval_ += q.run.add_ticks;
-  if (++run_k_ == q.run.count) {
-    run_head_ = (run_head_ + 1) % kMaxRuns;
-    --run_count_;
-    status_.queued_runs = static_cast<uint32_t>(run_count_);
-    if (run_count_ > 0) activate_head();
+  if (a.port != nullptr) a.port->step(true_time_at(a.next_step_clock), dir);
+  a.st.position_steps += dir;
+  ++a.st.steps_executed;
+  a.st.step_hash = step_hash_update(a.st.step_hash, a.next_step_clock, dir);
+  a.last_step_clock = a.next_step_clock;
+  a.interval += q.run.add_ticks;
+  if (++a.run_k == q.run.count) {
+    a.run_head = (a.run_head + 1) % kMaxRuns;
+    --a.run_count;
+    if (a.run_count > 0) activate_head(a);
   } else {
-    next_step_clock_ = last_step_clock_ + interval_;
+    a.next_step_clock = a.last_step_clock + a.interval;
   }
 }
 
 double VirtualMcu::next_event_time() const {
   int64_t e = kNever;
-  if (run_count_ > 0) e = next_step_clock_;
+  for (int i = 0; i < num_axes_; ++i)
+    if (axes_[i].run_count > 0 && axes_[i].next_step_clock < e) e = axes_[i].next_step_clock;
   if (encoder_period_ticks_ > 0 && next_sample_clock_ < e) e = next_sample_clock_;
   if (status_.enabled && watchdog_ticks_ > 0 && last_host_clock_ + watchdog_ticks_ < e)
     e = last_host_clock_ + watchdog_ticks_;
@@ -173,7 +195,13 @@ void VirtualMcu::run_until(double t_s) {
   for (;;) {
     int64_t e = kNever;
     int what = 0;
-    if (run_count_ > 0) { e = next_step_clock_; what = 1; }
+    Axis* step_axis = nullptr;
+    for (int i = 0; i < num_axes_; ++i)
+      if (axes_[i].run_count > 0 && axes_[i].next_step_clock < e) {
+        e = axes_[i].next_step_clock;
+        what = 1;
+        step_axis = &axes_[i];
+      }
     if (encoder_period_ticks_ > 0 && next_sample_clock_ < e) { e = next_sample_clock_; what = 2; }
     if (status_.enabled && watchdog_ticks_ > 0 && last_host_clock_ + watchdog_ticks_ < e) {
       e = last_host_clock_ + watchdog_ticks_;
@@ -182,17 +210,25 @@ void VirtualMcu::run_until(double t_s) {
     if (e > target) break;
     if (e > now_clock_) now_clock_ = e;
     if (what == 1) {
-      do_step();
+      do_step(*step_axis);
     } else if (what == 2) {
-      if (nsamples_ == 0) sample_first_clock_ = next_sample_clock_;
-      samples_[nsamples_++] = port_ != nullptr ? port_->read_encoder_counts(true_time_at(next_sample_clock_)) : 0;
+      for (int i = 0; i < num_axes_; ++i) {
+        Axis& a = axes_[i];
+        if (nsamples_ == 0) a.sample_first_clock = next_sample_clock_;
+        a.samples[nsamples_] = a.port != nullptr ? a.port->read_encoder_counts(true_time_at(next_sample_clock_)) : 0;
+      }
+      ++nsamples_;
       next_sample_clock_ += encoder_period_ticks_;
-      if (nsamples_ >= samples_per_report_) send_encoder_report();
+      if (nsamples_ >= samples_per_report_) {
+        for (int i = 0; i < num_axes_; ++i) send_encoder_report(i);
+        nsamples_ = 0;
+      }
     } else {
       stop(McuError::kWatchdog, now_clock_ - last_host_clock_);
     }
   }
   if (target > now_clock_) now_clock_ = target;
+  sync_status();
   flush_pending();
   link_.poll(now_ns());
 }
@@ -204,7 +240,12 @@ void VirtualMcu::receive(const uint8_t* data, size_t n, double t_s) {
 }
 
 void VirtualMcu::handle_queue_steps(MsgReader& r) {
-  r.u8();  // axis (one MCU per axis: informational)
+  const int axis = r.u8();
+  if (!r.ok() || axis >= num_axes_) {
+    send_error(McuError::kBadMessage, static_cast<int64_t>(MsgType::kQueueSteps));
+    return;
+  }
+  Axis& a = axes_[axis];
   size_t n = 0;
   const uint8_t* body = r.rest(n);
   stepgen::RunDecoder dec;
@@ -213,8 +254,8 @@ void VirtualMcu::handle_queue_steps(MsgReader& r) {
     return;
   }
   int64_t p = dec.first_clock();
-  if (have_queued_end_ && p < queued_end_clock_) {
-    stop(McuError::kBatchOverlap, queued_end_clock_ - p);
+  if (a.have_queued_end && p < a.queued_end_clock) {
+    stop(McuError::kBatchOverlap, a.queued_end_clock - p);
     return;
   }
   bool first = true;
@@ -232,18 +273,18 @@ void VirtualMcu::handle_queue_steps(MsgReader& r) {
       }
       first = false;
     }
-    if (run_count_ == kMaxRuns) {
-      stop(McuError::kQueueOverflow, 1);
+    if (a.run_count == kMaxRuns) {
+      stop(McuError::kQueueOverflow, axis);
       return;
     }
-    const int idx = (run_head_ + run_count_) % kMaxRuns;
-    runs_[idx] = {p, run};
-    if (++run_count_ == 1) activate_head();
+    const int idx = (a.run_head + a.run_count) % kMaxRuns;
+    a.runs[idx] = {p, run};
+    if (++a.run_count == 1) activate_head(a);
     p = stepgen::run_end_clock(p, run);
   }
-  queued_end_clock_ = p;
-  have_queued_end_ = true;
-  status_.queued_runs = static_cast<uint32_t>(run_count_);
+  a.queued_end_clock = p;
+  a.have_queued_end = true;
+  sync_status();
 }
 
 void VirtualMcu::on_payload(const uint8_t* p, size_t n) {
@@ -258,7 +299,7 @@ void VirtualMcu::on_payload(const uint8_t* p, size_t n) {
     w.u8(static_cast<uint8_t>(MsgType::kIdentifyResponse))
         .u16(params_.protocol_version)
         .var(static_cast<uint64_t>(params_.clock_hz))
-        .u8(params_.axis)
+        .u8(num_axes_ == 1 ? params_.axis : static_cast<uint8_t>(0x80 | num_axes_))
         .u8(static_cast<uint8_t>(name_len))
         .bytes(reinterpret_cast<const uint8_t*>(params_.name), name_len);
     send_msg(buf, w.size());
@@ -307,7 +348,9 @@ void VirtualMcu::on_payload(const uint8_t* p, size_t n) {
     }
     case MsgType::kEnable: {
       const bool on = r.u8() != 0 && !status_.stopped;
-      if (on != status_.enabled && port_ != nullptr) port_->set_enabled(true_time_at(now_clock_), on);
+      if (on != status_.enabled)
+        for (int i = 0; i < num_axes_; ++i)
+          if (axes_[i].port != nullptr) axes_[i].port->set_enabled(true_time_at(now_clock_), on);
       status_.enabled = on;
       return;
     }

@@ -1,6 +1,7 @@
 // The device side of the MCU protocol, written once as portable C++ with fixed buffers (no heap
 // anywhere): the "virtual MCU" of DESIGN.md. One instance per axis (the thesis's one-MCU-per-axis
-// architecture). It
+// architecture) or per board with up to kMaxAxes motors, each with its own step queue, MotorPort
+// and encoder. It
 //  - keeps its own tick clock, which runs at clock_hz * (1 + drift_ppm 1e-6) from an offset,
 //  - executes a queue of compressed step runs (drivers/stepgen/step_run.hpp) at their clocks,
 //    calling device::MotorPort::step with the true time of each step,
@@ -28,17 +29,27 @@ struct VirtualMcuParams {
   double clock_hz = 20e6;     // nominal tick rate (reported to the host)
   double drift_ppm = 0.0;     // true rate = clock_hz * (1 + drift_ppm * 1e-6)
   double offset_s = 0.0;      // clock(t) = (t + offset_s) * true rate
-  uint8_t axis = 0;
+  uint8_t axis = 0;           // informational (reported in IDENTIFY_RESPONSE with one motor)
   char name[16] = "mcu";
   uint16_t protocol_version = protocol::kProtocolVersion;  // tests set another to provoke a mismatch
   protocol::LinkParams link;
 };
 
-struct VirtualMcuStatus {
+struct AxisStatus {
   uint64_t steps_executed = 0;
   int64_t position_steps = 0;
   uint64_t step_hash = 0;            // FNV-1a over (clock, direction) of every executed step
   uint32_t queued_runs = 0;
+};
+
+struct VirtualMcuStatus {
+  // Totals / axis 0 (the one-MCU-per-axis case); per motor in axes[].
+  uint64_t steps_executed = 0;
+  int64_t position_steps = 0;
+  uint64_t step_hash = 0;
+  uint32_t queued_runs = 0;
+  AxisStatus axes[4];
+  int num_axes = 1;
   bool identified = false;
   bool enabled = false;
   bool stopped = false;
@@ -63,12 +74,17 @@ inline constexpr uint64_t kStepHashSeed = 1469598103934665603ull;
 
 class VirtualMcu final : private protocol::FrameOutput, private protocol::PayloadHandler {
  public:
-  static constexpr int kMaxRuns = 8192;
+  static constexpr int kMaxAxes = 4;
+  static constexpr int kMaxRuns = 4096;  // per axis
   static constexpr int kMaxOutFrames = 64;
   static constexpr int kMaxPending = 16;
   static constexpr int kMaxSamples = 64;
 
+  // One motor.
   VirtualMcu(const VirtualMcuParams& params, MotorPort* port);
+  // Several motors (a board): ports[0..num_axes), num_axes <= kMaxAxes; QUEUE_STEPS' axis byte
+  // selects the motor.
+  VirtualMcu(const VirtualMcuParams& params, MotorPort* const* ports, int num_axes);
 
   // Bytes from the host that arrive at true time t_s (everything due before is processed first).
   void receive(const uint8_t* data, size_t n, double t_s);
@@ -89,44 +105,50 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
  private:
   void write_frame(const uint8_t* frame, size_t n) override;
   void on_payload(const uint8_t* p, size_t n) override;
+  struct QueuedRun {
+    int64_t start_clock;
+    stepgen::StepRun run;
+  };
+  struct Axis {
+    MotorPort* port = nullptr;
+    QueuedRun runs[kMaxRuns];
+    int run_head = 0, run_count = 0;
+    int64_t queued_end_clock = 0;  // clock of the last queued step
+    bool have_queued_end = false;
+    int64_t last_step_clock = 0, next_step_clock = 0, interval = 0;
+    uint32_t run_k = 0;  // steps of the head run already executed
+    AxisStatus st;
+    int64_t sample_first_clock = 0;
+    int64_t samples[kMaxSamples] = {};
+  };
   void handle_queue_steps(protocol::MsgReader& r);
+  void sync_status();
   // Sends now or queues behind the window; `droppable` messages (encoder reports) give way when
   // the queue is half full, so error reports and replies always find room.
   void send_msg(const uint8_t* p, size_t n, bool droppable = false);
   void flush_pending();
   void send_error(protocol::McuError code, int64_t detail);
   void send_status();
-  void send_encoder_report();
+  void send_encoder_report(int axis);
   void stop(protocol::McuError code, int64_t detail);
-  void do_step();
-  void activate_head();
+  void do_step(Axis& a);
+  void activate_head(Axis& a);
   int64_t now_ns() const;
 
-  struct QueuedRun {
-    int64_t start_clock;
-    stepgen::StepRun run;
-  };
   VirtualMcuParams params_;
-  MotorPort* port_;
   double rate_hz_;  // true tick rate
   protocol::ReliableLink link_;
   VirtualMcuStatus status_;
   int64_t now_clock_ = 0;
 
-  // Step queue (ring) and the state of the run being executed.
-  QueuedRun runs_[kMaxRuns];
-  int run_head_ = 0, run_count_ = 0;
-  int64_t queued_end_clock_ = 0;  // clock of the last queued step
-  bool have_queued_end_ = false;
-  int64_t last_step_clock_ = 0, next_step_clock_ = 0, interval_ = 0;
-  uint32_t run_k_ = 0;  // steps of the head run already executed
+  // Per-motor step queues (rings) and the runs being executed.
+  Axis axes_[kMaxAxes];
+  int num_axes_ = 1;
 
-  // Encoder sampling.
+  // Encoder sampling (all motors sampled together).
   int64_t encoder_period_ticks_ = 0;
   int samples_per_report_ = 10;
   int64_t next_sample_clock_ = 0;
-  int64_t sample_first_clock_ = 0;
-  int64_t samples_[kMaxSamples] = {};
   int nsamples_ = 0;
 
   // Watchdog.

@@ -160,7 +160,8 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
     case MsgType::kIdentifyResponse: {
       const uint16_t version = r.u16();
       const uint64_t hz = r.var();
-      r.u8();  // axis
+      const uint8_t axis_byte = r.u8();  // the axis, or 0x80 | motor count for a board
+      mcu_axes_ = (axis_byte & 0x80) ? (axis_byte & 0x7F) : 1;
       const size_t name_len = r.u8();
       const uint8_t* name = r.take(name_len);
       if (!r.ok()) {
@@ -205,25 +206,35 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
     case MsgType::kStatus: {
       DeviceStatus s;
       s.clock = static_cast<int64_t>(r.var());
-      s.steps_executed = r.var();
-      s.position_steps = r.zz();
-      s.queued_runs = r.var();
-      s.step_hash = r.var();
       const uint8_t flags = r.u8();
-      if (!r.ok()) return;
+      const int motors = r.u8();
+      for (int i = 0; i < motors && r.ok(); ++i) {
+        AxisDeviceStatus a;
+        a.steps_executed = r.var();
+        a.position_steps = r.zz();
+        a.queued_runs = r.var();
+        a.step_hash = r.var();
+        s.axes.push_back(a);
+      }
+      if (!r.ok() || s.axes.empty()) return;
       s.enabled = flags & protocol::kStatusEnabled;
       s.stopped = flags & protocol::kStatusStopped;
+      s.steps_executed = s.axes[0].steps_executed;
+      s.position_steps = s.axes[0].position_steps;
+      s.queued_runs = s.axes[0].queued_runs;
+      s.step_hash = s.axes[0].step_hash;
       status_ = s;
       return;
     }
     case MsgType::kEncoderReport: {
+      const int axis = r.u8();
       const int64_t first = static_cast<int64_t>(r.var());
       const int64_t period = static_cast<int64_t>(r.var());
       const uint64_t count = r.var();
       int64_t counts = r.zz();
       for (uint64_t i = 0; i < count && r.ok(); ++i) {
         if (i > 0) counts += r.zz();
-        if (r.ok()) samples_.push_back({first + static_cast<int64_t>(i) * period, counts});
+        if (r.ok()) samples_.push_back({axis, first + static_cast<int64_t>(i) * period, counts});
       }
       return;
     }

@@ -35,18 +35,28 @@ struct McuSessionParams {
 enum class McuState { kIdle, kIdentifying, kReady, kDisconnected, kFailed };
 
 struct EncoderSample {
+  int axis = 0;  // motor index on the MCU
   int64_t clock = 0;
   int64_t counts = 0;
 };
 
+struct AxisDeviceStatus {
+  uint64_t steps_executed = 0;
+  int64_t position_steps = 0;
+  uint64_t queued_runs = 0;
+  uint64_t step_hash = 0;  // device::step_hash_update over every executed step
+};
+
 struct DeviceStatus {
   int64_t clock = 0;
+  bool enabled = false;
+  bool stopped = false;
+  std::vector<AxisDeviceStatus> axes;  // one per motor of the MCU
+  // Motor 0 (the one-MCU-per-axis case).
   uint64_t steps_executed = 0;
   int64_t position_steps = 0;
   uint64_t queued_runs = 0;
   uint64_t step_hash = 0;
-  bool enabled = false;
-  bool stopped = false;
 };
 
 class McuSession final : private protocol::FrameOutput, private protocol::PayloadHandler {
@@ -80,6 +90,7 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   uint64_t frames_written() const { return frames_written_; }
   const protocol::LinkStats& link_stats() const { return link_.stats(); }
   uint32_t mcu_clock_hz() const { return mcu_clock_hz_; }
+  int mcu_axes() const { return mcu_axes_; }
 
  private:
   void write_frame(const uint8_t* frame, size_t n) override;
@@ -104,6 +115,7 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   uint64_t next_token_ = 1;
   std::deque<std::pair<uint64_t, double>> queries_;  // token, send time
   uint32_t mcu_clock_hz_ = 0;
+  int mcu_axes_ = 1;
   std::vector<EncoderSample> samples_;
   std::vector<std::string> events_;
   std::optional<DeviceStatus> status_;

@@ -367,3 +367,74 @@ TEST(ClockSync, AccuracyUnderJitterAndDrift) {
 
 }  // namespace
 }  // namespace feedloop::drivers
+
+namespace feedloop::drivers {
+namespace {
+
+// One MCU per board: two motors behind one link, each with its own queue and encoder.
+TEST(McuSession, BoardWithTwoMotorsExecutesBothStreams) {
+  RecordingMotor m0, m1;
+  device::MotorPort* ports[2] = {&m0, &m1};
+  auto mcu = std::make_unique<device::VirtualMcu>(mcu_params(), ports, 2);
+  MockTransport transport(*mcu, MockFaults{}, "board");
+  McuSessionParams sp;
+  sp.name = "board";
+  McuSession session(sp, transport);
+  double now = 0.0;
+  auto advance = [&](double until) {
+    while (now < until) session.poll(now += 1e-4);
+  };
+  ASSERT_TRUE(session.start(now).ok());
+  advance(2.0);
+  ASSERT_TRUE(session.ready());
+  EXPECT_EQ(session.mcu_axes(), 2);
+  SessionSink sink0, sink1;
+  sink0.session = sink1.session = &session;
+  stepgen::StepBatcher b0, b1;
+  b0.configure(0, 200, &sink0);
+  b1.configure(1, 200, &sink1);
+  stepgen::StepCompressor c0, c1;
+  c0.configure({100.0, 65535}, &b0);
+  c1.configure({100.0, 65535}, &b1);
+  const stepgen::TickMap map = session.tick_map();
+  stepgen::StepGenerator g0, g1;
+  g0.configure(80.0, map, &c0);
+  g1.configure(80.0, map, &c1);
+  c0.reset(static_cast<int64_t>(map.ticks(now)), map.ticks(now));
+  c1.reset(static_cast<int64_t>(map.ticks(now)), map.ticks(now));
+  std::mt19937_64 r0(21), r1(22);
+  auto s0 = testing::trapezoid_stream(r0, 15), s1 = testing::trapezoid_stream(r1, 15);
+  for (auto& s : s0) s.t0_s += now + 0.5;
+  for (auto& s : s1) s.t0_s += now + 0.5;
+  // Everything fits the device queues: send it all at once.
+  for (const auto& s : s0) g0.add_segment(s);
+  for (const auto& s : s1) g1.add_segment(s);
+  g0.flush();
+  g1.flush();
+  c0.flush();
+  c1.flush();
+  b0.flush();
+  b1.flush();
+  session.set_enabled(true);
+  advance(std::max(s0.back().end_s(), s1.back().end_s()) + 0.3);
+  session.request_status();
+  advance(now + 0.2);
+  const Expected e0 = expand(sink0.bodies), e1 = expand(sink1.bodies);
+  ASSERT_TRUE(session.last_status().has_value());
+  const auto& st = *session.last_status();
+  ASSERT_EQ(st.axes.size(), 2u);
+  EXPECT_GT(e0.clocks.size(), 1000u);
+  EXPECT_GT(e1.clocks.size(), 1000u);
+  EXPECT_EQ(m0.t.size(), e0.clocks.size());
+  EXPECT_EQ(m1.t.size(), e1.clocks.size());
+  EXPECT_EQ(st.axes[0].step_hash, e0.hash);
+  EXPECT_EQ(st.axes[1].step_hash, e1.hash);
+  EXPECT_EQ(m0.dir, e0.dirs);
+  EXPECT_EQ(m1.dir, e1.dirs);
+  int samples_axis1 = 0;
+  for (const auto& s : session.take_encoder_samples()) samples_axis1 += s.axis == 1;
+  EXPECT_GT(samples_axis1, 1000);
+}
+
+}  // namespace
+}  // namespace feedloop::drivers
