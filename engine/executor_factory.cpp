@@ -1,11 +1,31 @@
 #include "engine/executor_factory.hpp"
 
-#include "engine/position_executor.hpp"
+#include "engine/config_mapping.hpp"
+#include "engine/motion_executor.hpp"
 
 namespace feedloop::engine {
+namespace {
 
-Result<std::unique_ptr<CommandExecutor>> make_executor(const config::MachineConfig& /*cfg*/) {
-  return std::unique_ptr<CommandExecutor>(std::make_unique<PositionExecutor>());
+// Until the simulator is wired to the MCU sessions: batches go to an ideal plant that executes
+// every step exactly (counted, not simulated).
+struct IdealPlant final : stepgen::BatchSink {
+  void on_batch(const stepgen::StepBatch& b) override { steps += b.steps; }
+  uint64_t steps = 0;
+};
+
+}  // namespace
+
+Result<std::unique_ptr<CommandExecutor>> make_executor(const config::MachineConfig& cfg) {
+  const planner::PlannerConfig pcfg = planner_config(cfg);
+  if (Status s = pcfg.validate(); !s) return s.error();
+  StepPipelineParams sp;
+  sp.steps_per_mm = steps_per_mm(cfg);
+  sp.mcu_clock_hz = static_cast<double>(cfg.stepgen.mcu_clock_hz);
+  sp.max_step_error_us = cfg.stepgen.max_step_error_us;
+  MotionOptions mo;
+  mo.lead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
+  return std::unique_ptr<CommandExecutor>(
+      std::make_unique<MotionExecutor>(pcfg, sp, std::make_shared<IdealPlant>(), mo));
 }
 
 MachineOptions machine_options(const config::MachineConfig& cfg) {

@@ -95,7 +95,9 @@ bool Machine::healthy() const {
   return last != 0 && clock_.now_ns() - last < window_ns;
 }
 
-bool Machine::idle() const { return queue_.empty() && !executing_.load(); }
+bool Machine::idle() const {
+  return queue_.empty() && !executing_.load() && !executor_->motion_pending();
+}
 
 void Machine::publish_status() {
   MachineStatus s;
@@ -161,6 +163,7 @@ void Machine::planner_main() {
       bed_.advance(seconds_from_ns(now - last_heater_ns));
       last_heater_ns = now;
       if (estop_.load()) cancel_.store(true);  // stays latched
+      executor_->idle_tick(cancel_);
       publish_status();
       continue;
     }
@@ -191,6 +194,12 @@ void Machine::servo_main() {
   ServoStatus st;
   int64_t deadline = clock_.now_ns() + period_ns;
   while (!stopping_.load(std::memory_order_relaxed)) {
+    if (clock_.is_virtual() && !executor_->motion_pending()) {
+      // Virtual time moves only while there is motion to simulate; otherwise wait for work.
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+      servo_last_cycle_ns_.store(clock_.now_ns(), std::memory_order_release);
+      continue;
+    }
     clock_.sleep_until_ns(deadline);
     const int64_t wake = clock_.now_ns();
     const int64_t late_ns = wake - deadline;
@@ -200,7 +209,7 @@ void Machine::servo_main() {
       st.deadline_misses += static_cast<uint64_t>(late_ns / period_ns);
       deadline += (late_ns / period_ns) * period_ns;
     }
-    // The servo cycle proper (control law, step batches) runs here.
+    executor_->servo_cycle(wake, cancel_.load(std::memory_order_relaxed));
     st.last_wake_ns = wake;
     servo_status_.store(st);
     servo_last_cycle_ns_.store(wake, std::memory_order_release);

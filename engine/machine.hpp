@@ -51,8 +51,11 @@ struct ServoStatus {
   LatencyHistogram latency;
 };
 
-// Executes commands in order on the planner thread. Implementations: MinimalExecutor (heaters,
-// dwell, positions) and the motion executor (interpreter + lookahead + joint segments).
+// The machine's motion back end. Planner-thread side: execute() runs commands in order and
+// idle_tick() is called when no command is waiting. Servo-thread side: servo_cycle() runs once
+// per period and must be real-time safe (no allocation, no locks, no blocking). Implementations:
+// PositionExecutor (positions only, no motion) and MotionExecutor (interpreter, lookahead, joint
+// segments, step pipeline).
 class CommandExecutor {
  public:
   virtual ~CommandExecutor() = default;
@@ -61,6 +64,12 @@ class CommandExecutor {
   virtual Status execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) = 0;
   // Planned position X Y Z E after the last executed command.
   virtual void position(double out_mm[4]) const = 0;
+  // Planner thread, when idle: e.g. release the lookahead's tail after a pause in the input.
+  virtual void idle_tick(const std::atomic<bool>& /*cancel*/) {}
+  // Servo thread, once per period. RT-safe.
+  virtual void servo_cycle(int64_t /*now_ns*/, bool /*cancel*/) {}
+  // True while moves are queued anywhere or being executed. Any thread.
+  virtual bool motion_pending() const { return false; }
 };
 
 struct MachineOptions {

@@ -24,8 +24,14 @@ void StepPipeline::on_joint_segment(int joint, const JointSegment& segment) {
   joints_[static_cast<size_t>(joint)]->gen.add_segment(segment);
 }
 
+void StepPipeline::set_time_offset_s(double offset_s) {
+  offset_s_ = offset_s;
+  for (auto& j : joints_) j->gen.set_tick_map({offset_s * params_.mcu_clock_hz, params_.mcu_clock_hz});
+}
+
 void StepPipeline::flush_due(double deadline_s) {
-  const auto deadline_clock = static_cast<int64_t>(std::ceil(deadline_s * params_.mcu_clock_hz));
+  const auto deadline_clock =
+      static_cast<int64_t>(std::ceil((deadline_s + offset_s_) * params_.mcu_clock_hz));
   for (auto& j : joints_) {
     j->gen.flush();
     j->compressor.flush_if_due(deadline_clock);

@@ -41,6 +41,9 @@ class StepPipeline final : public planner::JointSink {
   void on_joint_segment(int joint, const JointSegment& segment) override;
   // Sets a joint's position without steps (start of a stream).
   void set_position_mm(int joint, double pos_mm) { joints_[static_cast<size_t>(joint)]->gen.set_position_mm(pos_mm); }
+  // MCU time = print time + offset: re-anchors the print-time line on the MCU clock (the daemon
+  // does this when motion starts from rest). Call only when no steps are pending.
+  void set_time_offset_s(double offset_s);
   // Closes runs and batches whose first step is due by `deadline_s` (print time).
   void flush_due(double deadline_s);
   // Emits everything pending (end of a stream).
@@ -77,6 +80,7 @@ class StepPipeline final : public planner::JointSink {
   };
 
   StepPipelineParams params_;
+  double offset_s_ = 0.0;
   std::array<std::unique_ptr<Joint>, kJoints> joints_;
 };
 

@@ -38,7 +38,7 @@ TEST_F(Channels, UnixSocketSpeaksTheMarlinHostProtocol) {
 
   ASSERT_TRUE(c.send_line(numbered(0, "M110 N0")));
   EXPECT_EQ(c.read_line(), "ok");
-  ASSERT_TRUE(c.send_line(numbered(1, "G1 X12.5 Y-3 F3000")));
+  ASSERT_TRUE(c.send_line(numbered(1, "G1 X12.5 Y3 F3000")));
   EXPECT_EQ(c.read_line(), "ok");
   // A corrupted checksum: the line is refused and resent, nothing moves.
   std::string bad = numbered(2, "G1 X99");
@@ -57,7 +57,7 @@ TEST_F(Channels, UnixSocketSpeaksTheMarlinHostProtocol) {
   ASSERT_TRUE(c.send_line("M114"));
   auto pos = c.read_line();
   ASSERT_TRUE(pos);
-  EXPECT_EQ(pos->rfind("X:12.500 Y:-3.000 Z:0.300", 0), 0u) << *pos;
+  EXPECT_EQ(pos->rfind("X:12.500 Y:3.000 Z:0.300", 0), 0u) << *pos;
   EXPECT_EQ(c.read_line(), "ok");
   // A line that fails validation: an error with its location, and nothing executes.
   ASSERT_TRUE(c.send_line("G1 X5 Q7"));
@@ -108,6 +108,11 @@ TEST_F(Channels, JsonApiAnswersStatusRunsGcodeAndStreamsSubscriptions) {
 
   json st = call(api, {{"jsonrpc", "2.0"}, {"id", 3}, {"method", "status"}});
   EXPECT_DOUBLE_EQ(st["result"]["position_mm"]["x"].get<double>(), 8.0);
+  EXPECT_EQ(st["result"]["state"], "busy");  // the moves take real time on the machine
+  for (int i = 0; i < 500 && st["result"]["state"] != "idle"; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    st = call(api, {{"jsonrpc", "2.0"}, {"id", 3}, {"method", "status"}});
+  }
   EXPECT_EQ(st["result"]["state"], "idle");
   for (int i = 0; i < 200 && st["result"]["servo"]["cycles"].get<uint64_t>() < 10; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));  // the servo loop is running

@@ -1,0 +1,97 @@
+// The motion back end of the machine: the same stages as batch mode, split across the planner
+// and servo threads.
+//
+//   planner thread: Interpreter -> Planner (lookahead) -> JointEmitter -> SpscQueue<JointItem>
+//   servo thread:   SpscQueue -> StepPipeline (exact steps, compression, batches) -> BatchSink
+//
+// Time: the planner works in print time. When motion starts from rest, the servo thread anchors
+// print time on the machine clock so that the first segment starts `lead_s` after now
+// (mcu_time = print_time + offset); steps are generated and batches closed `lead_s` ahead of
+// their execution (Klipper queues >= 100 ms ahead). When the queue runs dry and the last segment
+// has been executed, the anchor is released and the next motion re-anchors.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <memory>
+
+#include "core/spsc_queue.hpp"
+#include "engine/config_mapping.hpp"
+#include "engine/machine.hpp"
+#include "engine/step_pipeline.hpp"
+#include "planner/interpreter.hpp"
+#include "planner/joint_output.hpp"
+#include "planner/kinematics.hpp"
+#include "planner/lookahead.hpp"
+
+namespace feedloop::engine {
+
+struct MotionOptions {
+  double lead_s = 0.1;              // steps are queued this far ahead of execution
+  size_t joint_queue_capacity = 1 << 15;
+  double input_pause_flush_s = 0.05;  // flush the lookahead after this long without commands
+};
+
+struct JointItem {
+  int32_t joint = 0;
+  JointSegment segment;
+};
+
+// Figures the servo side publishes (relaxed atomics; for status and tests).
+struct MotionTelemetry {
+  std::atomic<double> print_time_s{0.0};  // print time now (while anchored)
+  std::atomic<uint64_t> segments{0};
+  std::atomic<uint64_t> batches{0};
+  std::atomic<uint64_t> anchors{0};       // motion starts from rest
+  std::atomic<bool> anchored{false};
+};
+
+class MotionExecutor final : public CommandExecutor, private planner::MoveSink, private planner::JointSink {
+ public:
+  // `batches` receives the step batches on the servo thread (an MCU session, or a counter).
+  MotionExecutor(const planner::PlannerConfig& pcfg, const StepPipelineParams& sp,
+                 std::shared_ptr<stepgen::BatchSink> batches, MotionOptions options = {});
+
+  Status execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) override;
+  void position(double out_mm[4]) const override;
+  void idle_tick(const std::atomic<bool>& cancel) override;
+  void servo_cycle(int64_t now_ns, bool cancel) override;
+  bool motion_pending() const override;
+
+  const MotionTelemetry& telemetry() const { return telemetry_; }
+  const StepPipeline& steps() const { return steps_; }  // servo thread owns it
+  uint64_t moves() const { return interp_->moves(); }
+
+ private:
+  void on_move(const planner::PlannedMove& m) override;
+  void on_event(const planner::PlannerEvent& e) override;
+  void on_joint_segment(int joint, const JointSegment& segment) override;
+  // Planner thread: blocks until the servo thread has executed print time `t_s`.
+  void wait_print_time(double t_s, const std::atomic<bool>& cancel);
+
+  planner::PlannerConfig pcfg_;
+  MotionOptions options_;
+  std::unique_ptr<planner::Kinematics> kin_;
+  planner::Planner planner_;
+  std::unique_ptr<planner::Interpreter> interp_;
+  planner::JointEmitter emitter_;
+  SpscQueue<JointItem> queue_;
+  std::shared_ptr<stepgen::BatchSink> batches_;
+  StepPipeline steps_;  // servo thread
+
+  // planner thread
+  const std::atomic<bool>* cancel_ = nullptr;
+  double wait_until_s_ = -1.0;  // set by a moves_done event during execute()
+  std::chrono::steady_clock::time_point last_command_{};
+  std::atomic<double> planned_end_s_{0.0};  // end of the last segment handed to the servo
+  std::atomic<uint64_t> pushed_{0};
+  std::atomic<size_t> planner_queued_{0};  // mirror of planner_.queued() for the other threads
+
+  // servo thread
+  double offset_s_ = 0.0;
+  double executed_end_s_ = 0.0;
+  std::atomic<uint64_t> popped_{0};
+  MotionTelemetry telemetry_;
+};
+
+}  // namespace feedloop::engine
