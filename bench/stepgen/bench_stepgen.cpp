@@ -4,7 +4,8 @@
 // Columns: workload, error bound, steps, ns/step for generation alone, ns/step for
 // generation+compression+batch encoding, Msteps/s, run bytes per step, wire bytes per step
 // (including frame and message headers, docs/protocol.md), mean steps per run.
-#include <chrono>
+#include <time.h>  // clock_gettime
+
 #include <cstdio>
 #include <cstring>
 #include <random>
@@ -38,8 +39,12 @@ struct Row {
   double err_us, steps, gen_ns, total_ns, msteps_s, run_bps, wire_bps, steps_per_run;
 };
 
+// Thread CPU time: robust against other processes on a shared machine (this is single-threaded
+// work, so CPU time is what one core spends on it).
 double now_s() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
 Row run(const std::string& name, const std::vector<JointSegment>& segs, double spm, double err_us) {

@@ -11,6 +11,9 @@ constexpr double kAddBound = 1e7;  // |A| box before the second step bounds it (
 constexpr double kEps = 1e-7;      // slack for the floating polygon; runs are verified exactly
 constexpr int kAddTries = 24;      // integer adds tried around the polygon's centre
 constexpr int kMaxCuts = 12;       // cutting-plane rounds per search
+using detail::ceil_i;
+using detail::floor_i;
+using detail::round_i;
 }  // namespace
 
 void StepCompressor::configure(const StepCompressorParams& params, RunSink* sink) {
@@ -18,7 +21,8 @@ void StepCompressor::configure(const StepCompressorParams& params, RunSink* sink
   if (params_.max_run_count < 1) params_.max_run_count = 1;
   sink_ = sink;
   T_.assign(params_.max_run_count + 2, 0.0);
-  lo_.assign(params_.max_run_count + 2, 0.0);
+  lo_i_.assign(params_.max_run_count + 2, 0);
+  hi_i_.assign(params_.max_run_count + 2, 0);
   stats_ = {};
   reset(0, 0.0);
 }
@@ -30,47 +34,30 @@ void StepCompressor::reset(int64_t last_step_clock, double last_step_target_tick
   poly_init_ = false;
 }
 
-void StepCompressor::push(double target, int8_t direction) {
-  const double lo =
-      target - std::min(params_.max_error_ticks, 0.5 * (target - prev_target_));
-  prev_target_ = target;
+void StepCompressor::push_slow(double target, double lo, int8_t direction) {
   if (n_ > 0 && direction != dir_) emit();
   dir_ = direction;
   const uint32_t k = n_ + 1;
-  T_[k] = target;
-  lo_[k] = lo;
+  set_point(k, target, lo);
   if (n_ == 0) {
     start_run_with_first_point();
     return;
   }
-  if (k <= params_.max_run_count) {
-    // Fast path: the candidate's next step, two integer additions.
-    const int64_t m = pos_ + iv_;
-    const double rel = static_cast<double>(m - P_);
-    if (iv_ >= 1 && rel >= lower(k) && rel <= upper(k)) {
-      pos_ = m;
-      iv_ += A_;
-      n_ = k;
-      return;
-    }
-    if (search_candidate(k)) {
-      const int64_t kk = k;
-      pos_ = P_ + kk * I_ + A_ * (kk * (kk - 1) / 2);
-      iv_ = I_ + kk * A_;
-      n_ = k;
-      return;
-    }
+  if (k <= params_.max_run_count && search_candidate(k)) {
+    const int64_t kk = k;
+    pos_ = P_ + kk * I_ + A_ * (kk * (kk - 1) / 2);
+    iv_ = I_ + kk * A_;
+    n_ = k;
+    return;
   }
   emit();
-  T_[1] = target;
-  lo_[1] = lo;
+  set_point(1, target, lo);
   start_run_with_first_point();
 }
 
 void StepCompressor::start_run_with_first_point() {
-  const double L = lower(1), U = upper(1);
-  const double lo_i = std::max(1.0, std::ceil(L)), hi_i = std::floor(U);
-  int64_t I = std::llround(T_[1] - static_cast<double>(P_));
+  const double lo_i = std::max(1.0, lower(1)), hi_i = upper(1);
+  int64_t I = round_i(T_[1] - static_cast<double>(P_));
   if (lo_i <= hi_i) {
     I = std::clamp<int64_t>(I, static_cast<int64_t>(lo_i), static_cast<int64_t>(hi_i));
   } else {
@@ -112,11 +99,12 @@ void StepCompressor::clip(double ni, double na, double c) {
 
 uint32_t StepCompressor::first_violation(int64_t I, int64_t A, uint32_t n) const {
   int64_t rel = 0, iv = I;
+  const int64_t* lo = lo_i_.data();
+  const int64_t* hi = hi_i_.data();
   for (uint32_t k = 1; k <= n; ++k) {
     if (iv < 1) return k;
     rel += iv;
-    const double r = static_cast<double>(rel);
-    if (r < lower(k) || r > upper(k)) return k;
+    if (rel < lo[k] || rel > hi[k]) return k;
     iv += A;
   }
   return 0;
@@ -158,10 +146,20 @@ bool StepCompressor::search_candidate(uint32_t n) {
       ca += poly_[j].a;
     }
     ca /= nv_;
-    const double alo_d = std::ceil(amin - kEps), ahi_d = std::floor(amax + kEps);
-    if (alo_d > ahi_d) return false;
-    const int64_t alo = static_cast<int64_t>(alo_d), ahi = static_cast<int64_t>(ahi_d);
-    const int64_t a0 = std::clamp<int64_t>(std::llround(ca), alo, ahi);
+    const int64_t alo = ceil_i(amin - kEps), ahi = floor_i(amax + kEps);
+    if (alo > ahi) return false;
+    // Preferred add: the one whose run follows the newest steps' local interval
+    // (m_n - m_{n-1} = I + (n-1) A = T_n - T_{n-1} together with m_n = T_n), so the run
+    // extrapolates the trend; the polygon's centroid when that is outside the polygon.
+    double a_pref = ca;
+    if (n >= 3) {
+      const uint32_t j = n - 1;  // the newest two steps (longer baselines did worse)
+      const double nd = n, jd = j;
+      const double tn = T_[n] - static_cast<double>(P_), tj = T_[j] - static_cast<double>(P_);
+      const double a_trend = (jd * tn - nd * tj) / (0.5 * jd * nd * (nd - jd));
+      if (a_trend >= amin && a_trend <= amax) a_pref = a_trend;
+    }
+    const int64_t a0 = std::clamp<int64_t>(round_i(a_pref), alo, ahi);
     uint32_t cut = 0;
     bool any = false;
     for (int t = 0; t < kAddTries && cut == 0; ++t) {
@@ -188,12 +186,11 @@ bool StepCompressor::search_candidate(uint32_t n) {
         }
       }
       if (imin > imax) continue;
-      const double ilo_d = std::ceil(imin - kEps), ihi_d = std::floor(imax + kEps);
-      if (ilo_d > ihi_d) continue;
-      const int64_t ilo = static_cast<int64_t>(ilo_d), ihi = static_cast<int64_t>(ihi_d);
+      const int64_t ilo = ceil_i(imin - kEps), ihi = floor_i(imax + kEps);
+      if (ilo > ihi) continue;
       // Prefer the I that puts the newest step n on its exact time: the next steps continue it.
       const double kn_d = n, i_exact = (T_[n] - static_cast<double>(P_) - 0.5 * kn_d * (kn_d - 1.0) * ad) / kn_d;
-      const int64_t i = std::clamp<int64_t>(std::llround(i_exact), ilo, ihi);
+      const int64_t i = std::clamp<int64_t>(round_i(i_exact), ilo, ihi);
       any = true;
       ++stats_.verifies;
       const uint32_t bad = first_violation(i, a, n);

@@ -19,6 +19,7 @@
 // (never expected; tests assert zero).
 #pragma once
 
+#include <algorithm>  // std::min
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -27,6 +28,19 @@
 #include "drivers/stepgen/step_run.hpp"
 
 namespace feedloop::stepgen {
+
+namespace detail {
+// Inline rounding (libm's ceil/floor/llround are calls without SSE4.1); |x| < 2^62.
+inline int64_t ceil_i(double x) {
+  const auto t = static_cast<int64_t>(x);
+  return static_cast<double>(t) < x ? t + 1 : t;
+}
+inline int64_t floor_i(double x) {
+  const auto t = static_cast<int64_t>(x);
+  return static_cast<double>(t) > x ? t - 1 : t;
+}
+inline int64_t round_i(double x) { return floor_i(x + 0.5); }
+}  // namespace detail
 
 struct StepCompressorParams {
   double max_error_ticks = 100.0;  // 5 us at 20 MHz
@@ -49,8 +63,23 @@ class StepCompressor final : public StepSink {
   // Starts a new stream: the previous step is at last_step_clock (no pending run).
   void reset(int64_t last_step_clock, double last_step_target_ticks);
 
-  // RT-safe (no allocation).
-  void push(double target_ticks, int8_t direction);
+  // RT-safe (no allocation). The common case (the candidate run takes the step) is inline.
+  void push(double target_ticks, int8_t direction) {
+    const double lo = target_ticks - std::min(params_.max_error_ticks, 0.5 * (target_ticks - prev_target_));
+    prev_target_ = target_ticks;
+    if (n_ > 0 && direction == dir_ && n_ < params_.max_run_count) {
+      const uint32_t k = n_ + 1;
+      set_point(k, target_ticks, lo);
+      const int64_t rel = pos_ + iv_ - P_;  // the candidate's next step: two integer additions
+      if (iv_ >= 1 && rel >= lo_i_[k] && rel <= hi_i_[k]) {
+        pos_ += iv_;
+        iv_ += A_;
+        n_ = k;
+        return;
+      }
+    }
+    push_slow(target_ticks, lo, direction);
+  }
   void on_steps(const double* ticks, const int8_t* directions, size_t n) override {
     for (size_t i = 0; i < n; ++i) push(ticks[i], directions[i]);
   }
@@ -78,14 +107,24 @@ class StepCompressor final : public StepSink {
   void clip_strip(uint32_t k);
   void clip(double ni, double na, double c);  // keep ni*I + na*A <= c
   void emit();
-  double lower(uint32_t k) const { return lo_[k] - static_cast<double>(P_); }
-  double upper(uint32_t k) const { return T_[k] + params_.max_error_ticks - static_cast<double>(P_); }
+  // Window of step k relative to P, rounded inwards to whole ticks (model times are integers).
+  double lower(uint32_t k) const { return static_cast<double>(lo_i_[k]); }
+  double upper(uint32_t k) const { return static_cast<double>(hi_i_[k]); }
+  void set_point(uint32_t k, double target, double lo_abs) {
+    T_[k] = target;
+    const double p = static_cast<double>(P_);
+    lo_i_[k] = detail::ceil_i(lo_abs - p);
+    hi_i_[k] = detail::floor_i(target + params_.max_error_ticks - p);
+  }
+  void push_slow(double target, double lo, int8_t direction);
 
   StepCompressorParams params_;
   RunSink* sink_ = nullptr;
   StepCompressorStats stats_;
-  // Points of the current run, 1-based (index 0 unused): targets T and lower bounds L.
-  std::vector<double> T_, lo_;
+  // Points of the current run, 1-based (index 0 unused): exact targets T (absolute ticks) and
+  // the integer window [lo_i, hi_i] relative to P.
+  std::vector<double> T_;
+  std::vector<int64_t> lo_i_, hi_i_;
   double prev_target_ = 0.0;   // exact time of the step before the newest point
   int64_t P_ = 0;              // clock of the last emitted step (run reference)
   uint32_t n_ = 0;             // accepted steps in the current run

@@ -103,7 +103,7 @@ void StepGenerator::cubic_piece(double t0_s, double a, double b, double c, doubl
   const int8_t d = s_end > s_a ? 1 : -1;
   double lo = tau_a;  // s(lo) is before the threshold
   double x = static_cast<double>(n_) + 0.5 * d;
-  constexpr double kTolS = 1e-10;  // 0.1 ns: far below a tick
+  constexpr double kTolS = 1e-9;  // 1 ns: far below a tick (14 ns at 72 MHz)
   while ((d > 0) ? (x <= s_end) : (x >= s_end)) {
     double hi = tau_b;
     // Newton start: linear extrapolation from lo.
