@@ -106,9 +106,11 @@ void StepGenerator::cubic_piece(double t0_s, double a, double b, double c, doubl
   constexpr double kTolS = 1e-9;  // 1 ns: far below a tick (14 ns at 72 MHz)
   while ((d > 0) ? (x <= s_end) : (x >= s_end)) {
     double hi = tau_b;
-    // Newton start: linear extrapolation from lo.
-    const double v = ds(lo);
-    double t = (v != 0.0) ? lo + (x - s(lo)) / v : 0.5 * (lo + hi);
+    // Newton start: the root of the second-order Taylor expansion at lo (the same stable
+    // formula as the quadratic pieces); its error is O(e u^3), so one Newton step confirms it.
+    const double v = ds(lo), w = c + 3.0 * e * lo, D = x - s(lo);
+    const double den = v + d * std::sqrt(std::max(0.0, v * v + 4.0 * w * D));
+    double t = (den != 0.0) ? lo + 2.0 * D / den : 0.5 * (lo + hi);
     if (!(t > lo && t < hi)) t = 0.5 * (lo + hi);
     double blo = lo;
     for (int it = 0; it < 100; ++it) {
