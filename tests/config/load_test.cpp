@@ -26,7 +26,7 @@ const GantryModelConfig* gantry(const MachineConfig& c, const std::string& axis)
   return nullptr;
 }
 
-TEST(Examples, CartesianSimHasTheThesisGantry) {
+TEST(ConfigExamples, CartesianSimHasTheThesisGantry) {
   Result<MachineConfig> r = load_config_file(example_path("cartesian_sim.yaml"));
   ASSERT_TRUE(r.ok()) << r.error().to_string();
   const MachineConfig& c = *r;
@@ -59,7 +59,7 @@ TEST(Examples, CartesianSimHasTheThesisGantry) {
   EXPECT_EQ(c.sockets.mode, 0660u);
 }
 
-TEST(Examples, DeltaSimHasCanonicalGeometryAndTableOne) {
+TEST(ConfigExamples, DeltaSimHasCanonicalGeometryAndTableOne) {
   Result<MachineConfig> r = load_config_file(example_path("delta_sim.yaml"));
   ASSERT_TRUE(r.ok()) << r.error().to_string();
   const MachineConfig& c = *r;
@@ -84,7 +84,7 @@ TEST(Examples, DeltaSimHasCanonicalGeometryAndTableOne) {
   EXPECT_EQ(c.axis("x"), nullptr);
 }
 
-TEST(Examples, CartesianUsbHasOneUsbMcuPerAxis) {
+TEST(ConfigExamples, CartesianUsbHasOneUsbMcuPerAxis) {
   Result<MachineConfig> r = load_config_file(example_path("cartesian_usb.yaml"));
   ASSERT_TRUE(r.ok()) << r.error().to_string();
   ASSERT_EQ(r->mcus.size(), 4u);
@@ -99,7 +99,7 @@ TEST(Examples, CartesianUsbHasOneUsbMcuPerAxis) {
   EXPECT_EQ(r->servo.cpu, 1);
 }
 
-TEST(EmbeddedDefault, IsCartesianSimYaml) {
+TEST(ConfigEmbeddedDefault, IsCartesianSimYaml) {
   EXPECT_EQ(std::string(default_config_yaml()),
             testing::read_text(example_path("cartesian_sim.yaml")));
   Result<MachineConfig> file = load_config_file(example_path("cartesian_sim.yaml"));
@@ -108,7 +108,7 @@ TEST(EmbeddedDefault, IsCartesianSimYaml) {
   EXPECT_EQ(default_config().axes.size(), 4u);
 }
 
-TEST(RoundTrip, ToYamlReloadsEqual) {
+TEST(ConfigRoundTrip, ToYamlReloadsEqual) {
   for (const char* name : {"cartesian_sim.yaml", "delta_sim.yaml", "cartesian_usb.yaml"}) {
     Result<MachineConfig> a = load_config_file(example_path(name));
     ASSERT_TRUE(a.ok()) << name;
@@ -120,7 +120,7 @@ TEST(RoundTrip, ToYamlReloadsEqual) {
   }
 }
 
-TEST(RoundTrip, AllEffectsAndSerialTransport) {
+TEST(ConfigRoundTrip, AllEffectsAndSerialTransport) {
   std::string y = kMinimal;
   y += "simulator:\n"
        "  seed: 42\n"
@@ -149,7 +149,7 @@ TEST(RoundTrip, AllEffectsAndSerialTransport) {
   EXPECT_TRUE(a == b);
 }
 
-TEST(Defaults, FillEverythingAFileLeavesOut) {
+TEST(ConfigDefaults, FillEverythingAFileLeavesOut) {
   const MachineConfig c = must_load(kMinimal);
   const MachineConfig d;  // struct defaults
   EXPECT_DOUBLE_EQ(c.planner.junction_deviation_mm, 0.013);
@@ -170,7 +170,7 @@ TEST(Defaults, FillEverythingAFileLeavesOut) {
   EXPECT_EQ(c.model.gantry[0].stepper.rotor_teeth, 50);
 }
 
-TEST(Units, WrittenUnitsConvertToTheKeysUnit) {
+TEST(ConfigUnits, WrittenUnitsConvertToTheKeysUnit) {
   std::string y = edit(kMinimal, "max_accel_mm_s2: 3000\n  y:", "max_accel_mm_s2: 3.5 m/s^2\n  y:");
   y = edit(y, "resolution_um: 0.49", "resolution_um: 0.00049 mm");
   y = edit(y, "k1_n_per_m: 355e3", "k1_n_per_m: 355 kN/m");
@@ -185,7 +185,7 @@ TEST(Units, WrittenUnitsConvertToTheKeysUnit) {
   EXPECT_DOUBLE_EQ(c.simulator.sample_delay_us, 250.0);
 }
 
-TEST(Paths, ExpandRuntimeAndStateDirs) {
+TEST(ConfigPaths, ExpandRuntimeAndStateDirs) {
   const PathVars v{"/run/feedloop", "/var/lib/feedloop"};
   Result<std::string> a = expand_path("${RUNTIME_DIR}/feedloop.sock", v);
   ASSERT_TRUE(a.ok());
@@ -199,7 +199,7 @@ TEST(Paths, ExpandRuntimeAndStateDirs) {
   EXPECT_FALSE(env.state_dir.empty());
 }
 
-TEST(Files, MissingFileIsAnErrorNamingThePath) {
+TEST(ConfigFiles, MissingFileIsAnErrorNamingThePath) {
   Result<MachineConfig> r = load_config_file("no/such/dir/printer.yaml");
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.error().where.source, "no/such/dir/printer.yaml");
@@ -212,7 +212,7 @@ TEST(Files, MissingFileIsAnErrorNamingThePath) {
 namespace feedloop::config {
 namespace {
 
-TEST(Kinematics, CorexyUsesTheCartesianAxisNames) {
+TEST(ConfigKinematics, CorexyUsesTheCartesianAxisNames) {
   const MachineConfig c = must_load(testing::edit(testing::kMinimal, "kinematics: cartesian",
                                                   "kinematics: corexy"));
   EXPECT_EQ(c.kinematics, Kinematics::corexy);
@@ -220,7 +220,7 @@ TEST(Kinematics, CorexyUsesTheCartesianAxisNames) {
   EXPECT_FALSE(c.delta);
 }
 
-TEST(Integers, AcceptExponentsUnitsAndHex) {
+TEST(ConfigIntegers, AcceptExponentsUnitsAndHex) {
   std::string y = std::string(testing::kMinimal) + "stepgen: {mcu_clock_hz: 48 MHz}\n";
   y = testing::edit(y, "  - name: mcu_z\n    axes: [z]\n    transport: mock\n",
                     "  - name: mcu_z\n    axes: [z]\n    transport: usb\n"
@@ -242,7 +242,7 @@ namespace {
 
 // Thesis Eq. 16 coefficients from the config's Table 3-4 parameters against the fitted transfer
 // functions of Eq. 18: a typo in the example's model values shows up here.
-TEST(Examples, GantryParametersReproduceTheFittedTransferFunctions) {
+TEST(ConfigExamples, GantryParametersReproduceTheFittedTransferFunctions) {
   Result<MachineConfig> r = load_config_file(testing::example_path("cartesian_sim.yaml"));
   ASSERT_TRUE(r.ok());
   struct Fit {

@@ -30,7 +30,7 @@ std::string mutate(std::string text, std::mt19937& rng) {
   return text;
 }
 
-TEST(Mutations, EveryProblemIsLocatedAndNothingThrows) {
+TEST(ConfigMutations, EveryProblemIsLocatedAndNothingThrows) {
   std::mt19937 rng(20261122);
   int rejected = 0, accepted = 0;
   for (const char* name : {"cartesian_sim.yaml", "delta_sim.yaml", "cartesian_usb.yaml"}) {

@@ -56,7 +56,7 @@ std::string full_yaml() {
   return y;
 }
 
-TEST(SchemaDoc, EveryWrittenKeyIsInTheReadme) {
+TEST(ConfigSchemaDoc, EveryWrittenKeyIsInTheReadme) {
   const std::string readme =
       testing::read_text(std::string(FEEDLOOP_SOURCE_DIR) + "/config/README.md");
   ASSERT_FALSE(readme.empty());
@@ -71,7 +71,7 @@ TEST(SchemaDoc, EveryWrittenKeyIsInTheReadme) {
   for (const std::string& k : keys) EXPECT_TRUE(documented(readme, k)) << "undocumented key: " << k;
 }
 
-TEST(Shaper, PerAxisOverridesInheritTheCommonValues) {
+TEST(ConfigShaper, PerAxisOverridesInheritTheCommonValues) {
   Result<MachineConfig> r = load_config_text(full_yaml(), "full.yaml");
   ASSERT_TRUE(r.ok()) << r.error().to_string();
   const ShaperConfig& s = r->feedforward.shaper;
@@ -88,7 +88,7 @@ TEST(Shaper, PerAxisOverridesInheritTheCommonValues) {
   EXPECT_TRUE(*back == *r);
 }
 
-TEST(Shaper, OverrideForAMissingAxisIsAnError) {
+TEST(ConfigShaper, OverrideForAMissingAxisIsAnError) {
   const std::string y = std::string(testing::kMinimal) +
                         "feedforward:\n  shaper:\n    axes:\n      q: {freq_hz: 40}\n";
   const std::vector<Error> errors = check_config_text(y, "s.yaml");
@@ -97,7 +97,7 @@ TEST(Shaper, OverrideForAMissingAxisIsAnError) {
   EXPECT_EQ(errors[0].where.line, testing::pos_of(y, "q: {").line);
 }
 
-TEST(Diff, ChangedSectionsAgreesWithEquality) {
+TEST(ConfigDiff, ChangedSectionsAgreesWithEquality) {
   const MachineConfig base = default_config();
   EXPECT_TRUE(changed_sections(base, base).empty());
   MachineConfig c = base;

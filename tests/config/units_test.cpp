@@ -10,7 +10,7 @@
 namespace feedloop::config {
 namespace {
 
-TEST(Units, ParsesCompoundUnitsToSi) {
+TEST(ConfigUnits, ParsesCompoundUnitsToSi) {
   const auto accel = units::parse_unit("mm/s^2");
   ASSERT_TRUE(accel);
   EXPECT_DOUBLE_EQ(accel->to_si, 1e-3);
@@ -39,7 +39,7 @@ TEST(Units, ParsesCompoundUnitsToSi) {
   EXPECT_DOUBLE_EQ(units::parse_unit("µm")->to_si, 1e-6);
 }
 
-TEST(Units, HertzAndRadiansPerSecondShareADimensionButNotWithBareRate) {
+TEST(ConfigUnits, HertzAndRadiansPerSecondShareADimensionButNotWithBareRate) {
   const auto hz = units::parse_unit("Hz");
   const auto rad_s = units::parse_unit("rad/s");
   ASSERT_TRUE(hz && rad_s);
@@ -49,7 +49,7 @@ TEST(Units, HertzAndRadiansPerSecondShareADimensionButNotWithBareRate) {
   EXPECT_FALSE(hz->dim == units::parse_unit("1/s")->dim);
 }
 
-TEST(Units, RejectsUnknownOrMalformedUnits) {
+TEST(ConfigUnits, RejectsUnknownOrMalformedUnits) {
   EXPECT_FALSE(units::parse_unit("furlongs"));
   EXPECT_FALSE(units::parse_unit("mm/"));
   EXPECT_FALSE(units::parse_unit("m/s/s"));
@@ -57,7 +57,7 @@ TEST(Units, RejectsUnknownOrMalformedUnits) {
   EXPECT_FALSE(units::parse_unit(""));
 }
 
-TEST(Units, KeySuffixFixesTheUnitLongestSuffixFirst) {
+TEST(ConfigUnits, KeySuffixFixesTheUnitLongestSuffixFirst) {
   EXPECT_EQ(units::dimension_name(units::unit_for_key("max_accel_mm_s2")->dim), "acceleration");
   EXPECT_EQ(units::dimension_name(units::unit_for_key("max_velocity_mm_s")->dim), "velocity");
   EXPECT_EQ(units::dimension_name(units::unit_for_key("steps_per_mm")->dim), "inverse length");
@@ -69,7 +69,7 @@ TEST(Units, KeySuffixFixesTheUnitLongestSuffixFirst) {
   EXPECT_FALSE(units::unit_for_key("damping"));
 }
 
-TEST(Numbers, SplitsValueAndUnitAndRoundTripsText) {
+TEST(ConfigNumbers, SplitsValueAndUnitAndRoundTripsText) {
   double v = 0;
   std::string unit;
   ASSERT_TRUE(split_number("3000 mm/s^2", v, unit));
@@ -89,7 +89,7 @@ TEST(Numbers, SplitsValueAndUnitAndRoundTripsText) {
   }
 }
 
-TEST(Suggestions, EditDistanceAndClosestMatch) {
+TEST(ConfigSuggestions, EditDistanceAndClosestMatch) {
   EXPECT_EQ(edit_distance("steps_per_mn", "steps_per_mm"), 1u);
   EXPECT_EQ(edit_distance("kitten", "sitting"), 3u);
   EXPECT_EQ(closest_match("max_accel_mm_s", {"max_accel_mm_s2", "max_velocity_mm_s"}),
