@@ -324,3 +324,29 @@ TEST(DeltaEffector, Eq68AsPrintedDiffersFromItsExpansion) {
     EXPECT_NEAR(pr[2] - ex[2], (alpha - 1.0) * cb * p.b_z_n_s_m, 1e-9);
   }
 }
+
+TEST(DeltaEffector, ForearmHalfMassOptionAddsThreeHalvesMf) {
+  fm::DeltaParams p;
+  const Complex s = jw(0.01);
+  const double base = (fm::effector_dynamic_stiffness(p, s)(2) / (s * s)).real();
+  p.forearm_half_mass_on_m1 = true;
+  const double with = (fm::effector_dynamic_stiffness(p, s)(2) / (s * s)).real();
+  EXPECT_NEAR(with - base, 1.5 * p.m_f_kg, 1e-5);
+}
+
+TEST(DeltaForce, TableIEffectiveMassesAtCentre) {
+  // Vertical effective mass per carriage (row sums of (m1+m2) T Jbar) with Table I's offsets.
+  for (auto form : {fm::ForceTransform::Paper, fm::ForceTransform::VirtualWork}) {
+    const auto model = make(fm::DeltaParams{}, form);
+    auto op = model.at(kCentre);
+    ASSERT_TRUE(op.ok());
+    const Eigen::Vector3d v = model.effective_mass_kg(*op) * Eigen::Vector3d::Ones();
+    std::cout << fm::to_string(form) << " Table I vertical effective mass A/B/C: " << v.transpose() << " kg\n";
+    EXPECT_NEAR(v.sum(), form == fm::ForceTransform::Paper ? 0.651 / 3 : 0.651, 1e-9);
+    if (form == fm::ForceTransform::VirtualWork) {
+      EXPECT_NEAR(v(0), v(1), 1e-12);  // the offset does no work: equal shares
+    } else {
+      EXPECT_LT(v(1), 0.1 * v(0));  // B almost unloaded by the paper's P_B
+    }
+  }
+}
