@@ -205,6 +205,12 @@ struct DeltaLpvConfig {
 struct ModelConfig {
   std::vector<GantryModelConfig> gantry;  // per axis, in file order
   std::optional<DeltaLpvConfig> delta_lpv;
+
+  const GantryModelConfig* gantry_for(const std::string& axis_name) const {
+    for (const GantryModelConfig& g : gantry)
+      if (g.axis == axis_name) return &g;
+    return nullptr;
+  }
   bool operator==(const ModelConfig&) const = default;
 };
 
@@ -262,6 +268,15 @@ struct TimeDelayConfig { double delay_ms = 2.0; std::vector<std::string> axes;
   bool operator==(const TimeDelayConfig&) const = default; };
 struct ScaleErrorConfig { double scale = 1.003; std::vector<std::string> axes;
   bool operator==(const ScaleErrorConfig&) const = default; };
+
+// Whether an effect (any of the structs above) acts on `axis_name`: an empty list means all axes.
+template <class Effect>
+bool applies_to(const Effect& effect, const std::string& axis_name) {
+  if (effect.axes.empty()) return true;
+  for (const std::string& a : effect.axes)
+    if (a == axis_name) return true;
+  return false;
+}
 
 struct SimEffectsConfig {
   std::optional<CoulombFrictionConfig> coulomb_friction;

@@ -142,6 +142,12 @@ TEST(ConfigRoundTrip, AllEffectsAndSerialTransport) {
   EXPECT_EQ(a.simulator.effects.periodic_position->axes, (std::vector<std::string>{"x", "y"}));
   EXPECT_DOUBLE_EQ(a.simulator.effects.scale_error->scale, 1.003);
   EXPECT_TRUE(a.simulator.effects.coulomb_friction->axes.empty());  // every axis
+  EXPECT_TRUE(applies_to(*a.simulator.effects.coulomb_friction, "z"));
+  EXPECT_TRUE(applies_to(*a.simulator.effects.backlash, "x"));
+  EXPECT_FALSE(applies_to(*a.simulator.effects.backlash, "y"));
+  ASSERT_NE(a.model.gantry_for("x"), nullptr);
+  EXPECT_DOUBLE_EQ(a.model.gantry_for("x")->k2_n_per_m, 110e3);
+  EXPECT_EQ(a.model.gantry_for("y"), nullptr);
   EXPECT_EQ(a.simulator.seed, 42u);
   EXPECT_EQ(a.mcus[2].serial.device, "/dev/ttyACM0");
   EXPECT_EQ(a.mcus[2].serial.baud, 115200);
