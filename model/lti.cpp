@@ -1,7 +1,8 @@
 // Continuous LTI helpers (see lti.hpp).
 #include "model/lti.hpp"
 
-#include <cmath>     // std::isfinite
+#include <algorithm>  // std::max
+#include <cmath>     // std::isfinite, std::abs
 #include <numbers>   // std::numbers::pi
 #include <string>
 
@@ -81,6 +82,41 @@ Complex polynomial_value(const std::vector<double>& coeffs_desc, Complex s) {
   Complex v = 0.0;
   for (double c : coeffs_desc) v = v * s + c;
   return v;
+}
+
+std::vector<double> characteristic_polynomial(const Eigen::MatrixXd& m) {
+  std::vector<Complex> c{1.0};
+  if (m.rows() > 0) {
+    const Eigen::VectorXcd ev = Eigen::EigenSolver<Eigen::MatrixXd>(m, false).eigenvalues();
+    for (int k = 0; k < ev.size(); ++k) {
+      std::vector<Complex> next(c.size() + 1, 0.0);
+      for (size_t i = 0; i < c.size(); ++i) {
+        next[i] += c[i];
+        next[i + 1] -= c[i] * ev(k);
+      }
+      c.swap(next);
+    }
+  }
+  std::vector<double> r(c.size());
+  for (size_t i = 0; i < c.size(); ++i) r[i] = c[i].real();  // complex pairs: imaginary parts cancel
+  return r;
+}
+
+Result<TransferFunction> siso_transfer_function(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B,
+                                                const Eigen::MatrixXd& C, const Eigen::MatrixXd& D) {
+  if (Status st = check_dimensions(StateSpace{A, B, C, D}); !st) return st.error();
+  if (B.cols() != 1 || C.rows() != 1) return Error{"siso_transfer_function needs one input and one output", {}};
+  const std::vector<double> den = characteristic_polynomial(A);
+  const std::vector<double> closed = characteristic_polynomial(A - B * C);
+  std::vector<double> num(den.size());
+  for (size_t i = 0; i < den.size(); ++i) num[i] = D(0, 0) * den[i] + closed[i] - den[i];
+  // Drop leading coefficients that are rounding noise (relative to the largest one).
+  double scale = 0.0;
+  for (double v : num) scale = std::max(scale, std::abs(v));
+  size_t first = 0;
+  while (first + 1 < num.size() && std::abs(num[first]) <= 1e-12 * scale) ++first;
+  num.erase(num.begin(), num.begin() + static_cast<std::ptrdiff_t>(first));
+  return TransferFunction{num, den};
 }
 
 Complex TransferFunction::at_hz(double f_hz) const {

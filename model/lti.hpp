@@ -64,4 +64,14 @@ struct TransferFunction {
   std::vector<Complex> poles() const { return polynomial_roots(den); }
 };
 
+// det(zI - M) as a polynomial in descending powers (from the eigenvalues of M).
+std::vector<double> characteristic_polynomial(const Eigen::MatrixXd& m);
+
+// The transfer function of a single-input single-output realisation (A, B, C, D), in s for a
+// continuous system or in z for a discrete one (same algebra):
+//   num = D det(zI - A) + det(zI - A + B C) - det(zI - A),  den = det(zI - A).
+// Its zeros are the transmission zeros (e.g. for ZPETC). Error unless B is n x 1 and C is 1 x n.
+Result<TransferFunction> siso_transfer_function(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B,
+                                                const Eigen::MatrixXd& C, const Eigen::MatrixXd& D);
+
 }  // namespace feedloop::model

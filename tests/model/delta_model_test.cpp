@@ -350,3 +350,44 @@ TEST(DeltaForce, TableIEffectiveMassesAtCentre) {
     }
   }
 }
+
+TEST(DeltaCarriage, ZohKeepsTheZeroOutsideTheUnitCircle) {
+  const fm::DeltaParams p;
+  const fm::StateSpace ss = fm::select(fm::carriage_state_space(p), 0, 0);  // q_d -> q
+  auto tc = fm::siso_transfer_function(ss.A, ss.B, ss.C, ss.D);
+  ASSERT_TRUE(tc.ok());
+  int rhp = 0;
+  for (const auto& z : tc->zeros())
+    if (z.real() > 0) {
+      ++rhp;
+      EXPECT_NEAR(z.real(), 674.2, 0.5);
+    }
+  EXPECT_EQ(rhp, 1);
+  auto d = fm::discretize_zoh(ss, 1e-3);
+  ASSERT_TRUE(d.ok());
+  auto td = fm::siso_transfer_function(d->Ad, d->Bd, d->C, d->D);
+  ASSERT_TRUE(td.ok());
+  // Two zeros leave the unit circle: the image of the RHP zero (close to exp(674.2 T)) and a
+  // negative real sampling zero (relative degree 2 with the fast -k/c zero).
+  int outside = 0, mapped = 0, sampling = 0;
+  for (const auto& z : td->zeros()) {
+    std::cout << "ZOH 1 kHz carriage zero " << z << " |z| = " << std::abs(z) << "\n";
+    if (std::abs(z) <= 1.0) continue;
+    ++outside;
+    EXPECT_NEAR(z.imag(), 0.0, 1e-6);
+    if (z.real() > 0) {
+      ++mapped;
+      EXPECT_NEAR(z.real(), std::exp(0.6742), 0.01);
+    } else {
+      ++sampling;
+    }
+  }
+  EXPECT_EQ(outside, 2);
+  EXPECT_EQ(mapped, 1);
+  EXPECT_EQ(sampling, 1);
+  // The discrete transfer function reproduces the discrete frequency response.
+  for (double f : {5.0, 60.0, 200.0}) {
+    const Complex z = std::exp(Complex(0, 2 * kPi * f * 1e-3));
+    EXPECT_LT(std::abs(td->evaluate(z) - fm::frequency_response(*d, f)(0, 0)), 1e-8);
+  }
+}
