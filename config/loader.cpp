@@ -33,12 +33,11 @@ void read_document(const YAML::Node& doc, MachineConfig& cfg, Diagnostics& diag)
   marks.control = root.key_mark("control");
   marks.feedforward = root.key_mark("feedforward");
   marks.stepgen = root.key_mark("stepgen");
-  if (kin_ok) {  // the axis set depends on the kinematics; without it, axis errors would be noise
-    read_axes(root, cfg, marks, diag);
+  read_axes(root, cfg, marks, diag, kin_ok);
+  if (kin_ok) {
     read_delta(root, cfg, marks, diag);
   } else {
-    root.get("axes");
-    root.get("delta");
+    root.get("delta");  // depends on the kinematics: not checked without it
   }
   read_planner(root, cfg, diag);
   read_servo_control(root, cfg, diag);

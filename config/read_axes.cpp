@@ -16,10 +16,14 @@ const std::vector<std::string>& allowed_axes(Kinematics k) {
   return k == Kinematics::delta ? abce : xyze;
 }
 
-void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag) {
+void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag,
+               bool kinematics_known) {
   MapReader axes = root.sub("axes", Need::required);
   marks.axes = axes.mark();
-  const std::vector<std::string>& allowed = allowed_axes(cfg.kinematics);
+  // With a broken kinematics line the axes are still checked, against every possible name.
+  static const std::vector<std::string> any_axis = {"x", "y", "z", "A", "B", "C", "e"};
+  const std::vector<std::string>& allowed =
+      kinematics_known ? allowed_axes(cfg.kinematics) : any_axis;
   const std::string kin = enum_name(kinematics_names(), cfg.kinematics);
   for (const std::string& name : axes.keys()) {
     const YAML::Mark where = axes.key_mark(name);
@@ -66,7 +70,7 @@ void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& d
     cfg.axes.push_back(axis);
   }
   axes.finish();
-  if (!axes.present()) return;  // already reported as missing or malformed
+  if (!axes.present() || !kinematics_known) return;  // already reported
   for (const std::string& need : required_axes(cfg.kinematics))
     if (cfg.axis(need) == nullptr && marks.axis.count(need) == 0)
       diag.add(axes.mark(), "kinematics " + kin + " needs axis '" + need + "', missing from axes");

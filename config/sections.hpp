@@ -27,7 +27,8 @@ struct Marks {
   YAML::Mark stepgen;
 };
 
-void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag);
+void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag,
+               bool kinematics_known);
 void read_delta(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag);
 void read_planner(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag);

@@ -179,6 +179,16 @@ TEST(ConfigErrors, UnknownEnumValueWithSuggestion) {
                pos_of(y, "cartesain"));
 }
 
+TEST(ConfigErrors, AxesAreCheckedEvenWhenTheKinematicsIsBroken) {
+  std::string y = edit(kMinimal, "kinematics: cartesian", "kinematics: 3");
+  y = edit(y, "steps_per_mm: 400", "steps_per_mm: 0");
+  const std::vector<Error> errors = check_config_text(y, "printer.yaml");
+  EXPECT_EQ(errors.size(), 2u) << all(errors);
+  EXPECT_EQ(find_error(errors, "axes.z.steps_per_mm must be > 0").where.line,
+            pos_of(y, "steps_per_mm: 0").line);
+  EXPECT_EQ(find_error(errors, "kinematics must be one of").where.line, 1);
+}
+
 TEST(ConfigErrors, DuplicateMcuName) {
   const std::string y = edit(kMinimal, "name: mcu_z", "name: mcu_xy");
   expect_error(y, "duplicate mcu name 'mcu_xy' (first at line 36)", pos_of(y, "name: mcu_xy\n    axes: [z]"));
