@@ -43,7 +43,7 @@ void StepCompressor::push_slow(double target, double lo, int8_t direction) {
     start_run_with_first_point();
     return;
   }
-  if (k <= params_.max_run_count && search_candidate(k)) {
+  if (k <= params_.max_run_count && (try_trend(k) || search_candidate(k))) {
     const int64_t kk = k;
     pos_ = P_ + kk * I_ + A_ * (kk * (kk - 1) / 2);
     iv_ = I_ + kk * A_;
@@ -116,6 +116,23 @@ void StepCompressor::clip_strip(uint32_t k) {
   clip(-kk, -tk, -lower(k));
 }
 
+// Cheap first attempt without the polygon: the run that passes through the newest step's exact
+// time with the newest interval (its add from the last two steps), verified exactly.
+bool StepCompressor::try_trend(uint32_t n) {
+  if (n < 3) return false;
+  ++stats_.trend_tries;
+  const double nd = n, p = static_cast<double>(P_);
+  const double tn = T_[n] - p, d = T_[n] - T_[n - 1];
+  const double tri = 0.5 * nd * (nd - 1.0);
+  const int64_t a = round_i((nd * d - tn) / tri);
+  const int64_t i = round_i((tn - tri * static_cast<double>(a)) / nd);
+  if (first_violation(i, a, n) != 0) return false;
+  ++stats_.trend_hits;
+  I_ = i;
+  A_ = a;
+  return true;
+}
+
 // Cutting planes: the polygon holds the box, the strips of the steps that rejected a candidate
 // (and the first and newest steps), and the interval-positivity constraints; all of them stay
 // valid for the rest of the run, so the polygon only ever gets clipped, never rebuilt. A
@@ -134,9 +151,10 @@ bool StepCompressor::search_candidate(uint32_t n) {
     poly_init_ = true;
   }
   clip_strip(n);
-  const double kn = n;
-  clip(-1.0, -(kn - 1.0), -1.0);  // last interval I + (n-1) A >= 1 (intervals are linear in k)
+  // Interval positivity (I + (k-1) A >= 1) is clipped in only once a candidate violates it;
+  // it almost never binds (intervals are thousands of ticks).
   uint32_t last_cut = n;
+  bool positivity_clipped = false;
   for (int iter = 0; iter < kMaxCuts; ++iter) {
     if (nv_ < 3) return false;
     double amin = poly_[0].a, amax = poly_[0].a, ca = 0.0;
@@ -200,8 +218,16 @@ bool StepCompressor::search_candidate(uint32_t n) {
         return true;
       }
       if (bad != last_cut) cut = bad;  // else: floating-point edge; try the next add
+      // A non-positive interval: the next round clips the positivity constraint instead.
+      if (!positivity_clipped && i + static_cast<int64_t>(bad - 1) * a < 1) cut = UINT32_MAX;
     }
     if (!any || cut == 0) return false;
+    if (cut == UINT32_MAX) {
+      const double kn = n;
+      clip(-1.0, -(kn - 1.0), -1.0);  // last interval I + (n-1) A >= 1 (intervals are linear in k)
+      positivity_clipped = true;
+      continue;
+    }
     clip_strip(cut);
     last_cut = cut;
   }

@@ -52,6 +52,7 @@ struct StepCompressorStats {
   uint64_t runs = 0;
   uint64_t candidate_searches = 0;
   uint64_t clips = 0, clip_vertices = 0, verifies = 0, add_tries = 0;  // cost counters of the searches
+  uint64_t trend_tries = 0, trend_hits = 0;  // cheap candidates tried before a polygon search
   uint64_t check_failures = 0;
   uint64_t window_violations = 0;  // steps closer than one tick: error bound could not be met
 };
@@ -102,6 +103,7 @@ class StepCompressor final : public StepSink {
   };
   void start_run_with_first_point();
   bool search_candidate(uint32_t n);
+  bool try_trend(uint32_t n);
   // 0 if (I, A) keeps steps 1..n in their windows, else the first step that it violates.
   uint32_t first_violation(int64_t I, int64_t A, uint32_t n) const;
   void clip_strip(uint32_t k);
