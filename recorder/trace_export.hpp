@@ -1,0 +1,36 @@
+// Flight-recorder log(s) -> trace CSV v1 (DESIGN.md, "Contracts"): for every joint that has step
+// runs or encoder samples, <a>_cmd_mm = steps sent x mm/step, reconstructed exactly from the step
+// runs at each sample time, and <a>_meas_mm = encoder counts x resolution (linear interpolation
+// between samples; held before the first and after the last). A joint without encoder samples
+// gets meas = cmd, said in a '#' line. Rows every 1/rate_hz from the first to the last data time.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/result.hpp"
+
+namespace feedloop::recorder {
+
+struct ExportOptions {
+  double rate_hz = 1000.0;
+};
+
+struct TraceColumns {
+  double t0_s = 0.0;                       // MCU time of the first row (time_s is relative to it)
+  double rate_hz = 0.0;
+  std::vector<double> time_s;
+  std::vector<std::string> joints;         // names of the exported joints
+  std::vector<std::vector<double>> cmd_mm, meas_mm;  // [joint][row]
+  std::vector<std::string> comments;       // '#' lines (without the '# ')
+};
+
+// Reads the logs in order (parts of one print, or one file). Error when a file cannot be read,
+// when the logs have no step or encoder data, or the rate is not positive. A damaged tail is a
+// warning in `comments`, the data before it is exported.
+Result<TraceColumns> build_trace(const std::vector<std::string>& logs, const ExportOptions& options);
+
+// Writes trace CSV v1.
+Status write_trace_csv(const TraceColumns& trace, const std::string& csv_path);
+
+}  // namespace feedloop::recorder
