@@ -98,14 +98,15 @@ void StepCompressor::clip(double ni, double na, double c) {
 }
 
 uint32_t StepCompressor::first_violation(int64_t I, int64_t A, uint32_t n) const {
-  int64_t rel = 0, iv = I;
+  // Newest steps first: a candidate that fails usually fails there (the run drifts away from
+  // the targets as it grows), so failures are found in a few steps; a pass scans all n.
   const int64_t* lo = lo_i_.data();
   const int64_t* hi = hi_i_.data();
-  for (uint32_t k = 1; k <= n; ++k) {
-    if (iv < 1) return k;
-    rel += iv;
+  if (I + static_cast<int64_t>(n - 1) * A < 1 || I < 1) return n;  // intervals are linear in k
+  for (uint32_t k = n; k >= 1; --k) {
+    const int64_t kk = k;
+    const int64_t rel = kk * I + A * (kk * (kk - 1) / 2);
     if (rel < lo[k] || rel > hi[k]) return k;
-    iv += A;
   }
   return 0;
 }
