@@ -20,7 +20,7 @@
 // kinematics dtheta/dt = omega; tilts stay below a milliradian), angular velocity omega (3, world
 // frame), extruder motor position (3) and velocity (3): 30 states.
 //
-// Owner: one thread. Carriage ports share one time line: calls must come in non-decreasing time
+// Drivers start enabled. Owner: one thread. Carriage ports share one time line: calls must come in non-decreasing time
 // across all three (an earlier time is applied at the current time and counted in late_events()).
 #pragma once
 

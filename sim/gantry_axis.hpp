@@ -19,6 +19,7 @@
 // (instead of to ground) is what lets the rotor run at print speeds: with the fitted c1 to ground
 // the sine law's pull-out force would be used up by damping above ~17 mm/s. docs/simulator.md.
 //
+// The driver starts enabled and the step counter and encoder start at zero at initial_pos_mm.
 // Owner: one thread (the simulation loop). Calls must come with non-decreasing times; an earlier
 // time is applied at the current time and counted in late_events().
 #pragma once
