@@ -15,8 +15,11 @@ struct FrequencyGrid {
   double step_hz = 0.5;
 
   // Number of points: start, start+step, ... up to stop (inclusive, within 1e-9 of a step).
+  // 0 for an invalid grid (see validate()).
   int size() const {
-    return static_cast<int>(std::floor((stop_hz - start_hz) / step_hz + 1e-9)) + 1;
+    if (!(step_hz > 0.0) || !(stop_hz >= start_hz) || !std::isfinite(stop_hz - start_hz)) return 0;
+    const double n = std::floor((stop_hz - start_hz) / step_hz + 1e-9) + 1.0;
+    return n > 2e9 ? 0 : static_cast<int>(n);
   }
   // Point k computed as start + k*step (no accumulated rounding).
   double at_hz(int k) const { return start_hz + step_hz * k; }
@@ -28,7 +31,7 @@ struct FrequencyGrid {
   Status validate() const {
     if (!(start_hz > 0.0) || !(step_hz > 0.0) || !(stop_hz >= start_hz) || !std::isfinite(stop_hz))
       return Error{"frequency grid needs 0 < start_hz <= stop_hz and step_hz > 0", {}};
-    if (size() > 1000000) return Error{"frequency grid has more than 1e6 points", {}};
+    if (size() == 0 || size() > 1000000) return Error{"frequency grid must have 1 to 1e6 points", {}};
     return {};
   }
 };

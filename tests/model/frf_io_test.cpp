@@ -148,3 +148,12 @@ TEST(FrfMetrics, ErrorReductionEq72) {
   EXPECT_FALSE(fm::error_reduction_pct(m, pred, m, fm::FrfQuantity::Magnitude).ok());
   EXPECT_FALSE(fm::mu_acc(m, std::vector<Complex>{{1, 0}}, fm::FrfQuantity::Magnitude).ok());
 }
+
+TEST(FrfCsv, InvalidGridsHaveNoPoints) {
+  EXPECT_EQ((fm::FrequencyGrid{5.0, 1.0, 0.5}).size(), 0);
+  EXPECT_EQ((fm::FrequencyGrid{1.0, 5.0, 0.0}).size(), 0);
+  EXPECT_EQ((fm::FrequencyGrid{1.0, 1e300, 1e-300}).size(), 0);
+  EXPECT_FALSE((fm::FrequencyGrid{1.0, 5.0, -1.0}).validate().ok());
+  EXPECT_EQ((fm::FrequencyGrid{1.0, 5.0, 2.0}).size(), 3);
+  EXPECT_TRUE((fm::FrequencyGrid{1.0, 5.0, 2.0}).validate().ok());
+}
