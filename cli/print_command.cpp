@@ -212,6 +212,14 @@ int print_command(const std::vector<std::string>& args) {
     progress.update(total_lines > 0 ? std::min(1.0, acked_file_line / total_lines) : 1.0,
                     std::to_string(acked) + " lines acknowledged");
   }
+  // The last lines are acknowledged when planned; M400 returns when the machine has finished.
+  conn.send(numbered_line(next_n, "M400") + "\n");
+  for (;;) {
+    auto reply = conn.read_line(600000);
+    if (!reply || *reply == "ok") break;
+    if (reply->rfind("Error:", 0) == 0) { ++errors; std::fprintf(stderr, "\n%s\n", reply->c_str()); }
+  }
+  progress.update(1.0, std::to_string(acked) + " lines acknowledged, machine finished");
   progress.finish();
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 

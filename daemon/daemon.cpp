@@ -336,6 +336,7 @@ void Daemon::on_command_done(engine::CommandDone d) {
   pending_.erase(it);
   if (Client* c = find_client(p.client_id)) {
     if (c->in_flight > 0) --c->in_flight;
+    c->last_progress_ns = clock_.now_ns();
     if (p.client_id == owner_) owner_last_activity_ns_ = clock_.now_ns();
   }
   if (!d.status) spdlog::warn("command rejected: {}", d.status.error().to_string());
@@ -436,6 +437,12 @@ json Daemon::status() const {
              {{"p50", v.latency.percentile_ns(0.50) / 1000.0},
               {"p99", v.latency.percentile_ns(0.99) / 1000.0},
               {"max", v.latency.max_ns / 1000.0}}}}},
+          {"motion",
+           {{"moving", s.moving},
+            {"print_time_s", s.print_time_s},
+            {"planned_until_s", s.planned_until_s},
+            {"moves_planned", s.moves_planned},
+            {"segments_queued", s.segments_queued}}},
           {"clients", clients_.size()},
           {"owner", o ? json(o->session->name()) : json(nullptr)},
           {"progress_percent", progress_percent_},
@@ -454,6 +461,18 @@ void Daemon::tick() {
     if (!o || (o->in_flight == 0 && !o->parked &&
                now - owner_last_activity_ns_ > ns_from_seconds(options_.ownership_idle_s))) {
       owner_ = 0;
+    }
+  }
+  // Marlin's host keepalive: a command that blocks (the machine is catching up, a heater wait)
+  // gets "echo:busy: processing" every 2 s so hosts do not time out.
+  for (auto& [id, c] : clients_) {
+    if (c.kind != Kind::kMarlin || (c.in_flight == 0 && !c.parked)) {
+      c.last_progress_ns = now;
+      continue;
+    }
+    if (now - c.last_progress_ns > 2 * kNsPerS) {
+      c.session->send_line("echo:busy: processing");
+      c.last_progress_ns = now;
     }
   }
   // Status subscriptions (notifications are droppable for slow readers).

@@ -75,6 +75,7 @@ class Daemon final : public JsonApiBackend {
     std::deque<std::string> backlog;  // lines received while a command is parked
     std::optional<Parked> parked;     // a command waiting for room in the machine queue
     size_t in_flight = 0;             // submitted, not yet done
+    int64_t last_progress_ns = 0;     // last ok, or last keepalive sent
   };
   // A submitted command: who gets the answer.
   struct Pending {

@@ -86,7 +86,11 @@ void Machine::set_error(const std::string& message) {
   last_error_ = message;
 }
 
-MachineStatus Machine::status() const { return status_.load(); }
+MachineStatus Machine::status() const {
+  MachineStatus s = status_.load();
+  if (executor_) executor_->motion_status(s);  // live: the planner thread may be blocked
+  return s;
+}
 
 bool Machine::healthy() const {
   if (estop_.load()) return false;
@@ -108,7 +112,10 @@ void Machine::publish_status() {
   } else {
     s.state = idle() ? MachineState::kIdle : MachineState::kBusy;
   }
-  if (executor_) executor_->position(s.pos_mm);
+  if (executor_) {
+    executor_->position(s.pos_mm);
+    executor_->motion_status(s);
+  }
   s.hotend_c = hotend_.temp_c;
   s.hotend_target_c = hotend_.target_c;
   s.bed_c = bed_.temp_c;

@@ -40,6 +40,13 @@ struct MachineStatus {
   uint32_t queue_capacity = 0;
   uint64_t commands_executed = 0;
   uint64_t commands_rejected = 0;
+  // Motion (filled by the executor)
+  bool moving = false;              // print time is anchored on the machine clock
+  double print_time_s = 0.0;        // print time being executed now
+  double planned_until_s = 0.0;     // end of the last planned segment
+  uint64_t moves_planned = 0;
+  uint64_t segments_queued = 0;     // joint segments waiting for the servo thread
+  uint64_t steps_sent = 0;
   char last_error[192] = {};
 };
 
@@ -70,6 +77,8 @@ class CommandExecutor {
   virtual void servo_cycle(int64_t /*now_ns*/, bool /*cancel*/) {}
   // True while moves are queued anywhere or being executed. Any thread.
   virtual bool motion_pending() const { return false; }
+  // Fills the motion fields of a status snapshot. Any thread.
+  virtual void motion_status(MachineStatus& /*s*/) const {}
 };
 
 struct MachineOptions {

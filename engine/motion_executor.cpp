@@ -12,7 +12,7 @@ MotionExecutor::MotionExecutor(const planner::PlannerConfig& pcfg, const StepPip
       kin_(planner::make_kinematics(pcfg_)),
       planner_(pcfg_, *this),
       emitter_(*kin_, pcfg_.servo_period_s),
-      queue_(options.joint_queue_capacity),
+      queue_(options.move_queue_capacity),
       batches_(std::move(batches)),
       steps_(sp, batches_.get()) {
   interp_ = std::make_unique<planner::Interpreter>(pcfg_, *kin_, planner_);
@@ -22,6 +22,7 @@ Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool
   cancel_ = &cancel;
   wait_until_s_ = -1.0;
   last_command_ = std::chrono::steady_clock::now();
+  if (cmd.letter == 'G' && cmd.code >= 0 && cmd.code <= 3) wait_for_room(cancel);
   Status st = interp_->execute(cmd);
   planner_queued_.store(planner_.queued());
   if (st && wait_until_s_ >= 0.0) wait_print_time(wait_until_s_, cancel);  // M400
@@ -46,21 +47,41 @@ bool MotionExecutor::motion_pending() const {
          telemetry_.anchored.load(std::memory_order_relaxed);
 }
 
-void MotionExecutor::on_move(const planner::PlannedMove& m) { emitter_.emit(m, *this); }
+void MotionExecutor::motion_status(MachineStatus& s) const {
+  s.moving = telemetry_.anchored.load(std::memory_order_relaxed);
+  s.print_time_s = telemetry_.print_time_s.load(std::memory_order_relaxed);
+  s.planned_until_s = planned_end_s_.load(std::memory_order_relaxed);
+  s.moves_planned = moves_emitted_.load(std::memory_order_relaxed);
+  s.segments_queued = pushed_.load() - popped_.load();
+  s.steps_sent = telemetry_.batches.load(std::memory_order_relaxed);
+}
+
+void MotionExecutor::on_move(const planner::PlannedMove& m) {
+  if (pushed_.load() == popped_.load() && !telemetry_.anchored.load())
+    idle_base_s_.store(m.start_time_s);  // the servo side is at rest: motion restarts here
+  while (!queue_.try_push(m)) {
+    if (cancel_ != nullptr && cancel_->load()) return;
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+  }
+  pushed_.fetch_add(1, std::memory_order_release);
+  moves_emitted_.fetch_add(1, std::memory_order_relaxed);
+  if (m.end_time_s() > planned_end_s_.load(std::memory_order_relaxed))
+    planned_end_s_.store(m.end_time_s(), std::memory_order_relaxed);
+}
 
 void MotionExecutor::on_event(const planner::PlannerEvent& e) {
   if (e.kind == planner::EventKind::moves_done) wait_until_s_ = e.time_s;
 }
 
-void MotionExecutor::on_joint_segment(int joint, const JointSegment& segment) {
-  const JointItem item{joint, segment};
-  while (!queue_.try_push(item)) {  // backpressure: the servo side is `queue` seconds behind
-    if (cancel_ != nullptr && cancel_->load()) return;
+void MotionExecutor::wait_for_room(const std::atomic<bool>& cancel) {
+  while (!cancel.load()) {
+    const double executing_s = telemetry_.anchored.load(std::memory_order_relaxed)
+                                   ? telemetry_.print_time_s.load(std::memory_order_relaxed)
+                                   : idle_base_s_.load(std::memory_order_relaxed);
+    if (pushed_.load() == popped_.load() && !telemetry_.anchored.load()) return;
+    if (planned_end_s_.load(std::memory_order_relaxed) - executing_s <= options_.max_buffered_s) return;
     std::this_thread::sleep_for(std::chrono::microseconds(500));
   }
-  pushed_.fetch_add(1, std::memory_order_release);
-  double end = planned_end_s_.load(std::memory_order_relaxed);
-  if (segment.end_s() > end) planned_end_s_.store(segment.end_s(), std::memory_order_relaxed);
 }
 
 void MotionExecutor::wait_print_time(double t_s, const std::atomic<bool>& cancel) {
@@ -76,7 +97,7 @@ void MotionExecutor::wait_print_time(double t_s, const std::atomic<bool>& cancel
 void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   const double now_s = static_cast<double>(now_ns) * 1e-9;
   if (cancel) {  // drop everything not yet turned into steps
-    JointItem drop;
+    planner::PlannedMove drop;
     while (queue_.try_pop(drop)) popped_.fetch_add(1, std::memory_order_release);
     if (telemetry_.anchored.load()) steps_.flush();
     telemetry_.anchored.store(false);
@@ -84,18 +105,17 @@ void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   }
   const double horizon_s = now_s + options_.lead_s;
   bool anchored = telemetry_.anchored.load(std::memory_order_relaxed);
-  while (const JointItem* front = queue_.front()) {
-    if (!anchored) {  // motion starts from rest: print time t0 runs lead_s from now
-      offset_s_ = horizon_s - front->segment.t0_s;
+  while (const planner::PlannedMove* front = queue_.front()) {
+    if (!anchored) {  // motion starts from rest: its print time runs lead_s from now
+      offset_s_ = horizon_s - front->start_time_s;
       steps_.set_time_offset_s(offset_s_);
       anchored = true;
       telemetry_.anchors.fetch_add(1, std::memory_order_relaxed);
     }
-    if (front->segment.t0_s + offset_s_ > horizon_s) break;
-    steps_.on_joint_segment(front->joint, front->segment);
-    executed_end_s_ = std::max(executed_end_s_, front->segment.end_s());
-    JointItem done;
-    queue_.try_pop(done);
+    if (front->start_time_s + offset_s_ > horizon_s) break;
+    emitter_.emit(*front, steps_);  // joint segments straight into step generation
+    executed_end_s_ = std::max(executed_end_s_, front->end_time_s());
+    queue_.try_pop(current_);
     popped_.fetch_add(1, std::memory_order_release);
     telemetry_.segments.fetch_add(1, std::memory_order_relaxed);
   }

@@ -1,8 +1,13 @@
 // The motion back end of the machine: the same stages as batch mode, split across the planner
 // and servo threads.
 //
-//   planner thread: Interpreter -> Planner (lookahead) -> JointEmitter -> SpscQueue<JointItem>
-//   servo thread:   SpscQueue -> StepPipeline (exact steps, compression, batches) -> BatchSink
+//   planner thread: Interpreter -> Planner (lookahead) -> SpscQueue<PlannedMove>
+//   servo thread:   SpscQueue -> JointEmitter -> StepPipeline (exact steps, compression,
+//                   batches) -> BatchSink
+//
+// The planner stays at most `max_buffered_s` of motion ahead of the machine: a motion command
+// waits for room before it is executed (never in the middle of a lookahead flush), so a host's
+// oks follow the machine as on a Marlin printer.
 //
 // Time: the planner works in print time. When motion starts from rest, the servo thread anchors
 // print time on the machine clock so that the first segment starts `lead_s` after now
@@ -28,13 +33,10 @@ namespace feedloop::engine {
 
 struct MotionOptions {
   double lead_s = 0.1;              // steps are queued this far ahead of execution
-  size_t joint_queue_capacity = 1 << 15;
+  size_t move_queue_capacity = 4096;
   double input_pause_flush_s = 0.05;  // flush the lookahead after this long without commands
-};
-
-struct JointItem {
-  int32_t joint = 0;
-  JointSegment segment;
+  double max_buffered_s = 1.0;        // the planner runs at most this far ahead of the machine, so
+                                      // a host's oks follow the motion (Marlin's buffer ~ 16 moves)
 };
 
 // Figures the servo side publishes (relaxed atomics; for status and tests).
@@ -46,7 +48,7 @@ struct MotionTelemetry {
   std::atomic<bool> anchored{false};
 };
 
-class MotionExecutor final : public CommandExecutor, private planner::MoveSink, private planner::JointSink {
+class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
  public:
   // `batches` receives the step batches on the servo thread (an MCU session, or a counter).
   MotionExecutor(const planner::PlannerConfig& pcfg, const StepPipelineParams& sp,
@@ -57,6 +59,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink, 
   void idle_tick(const std::atomic<bool>& cancel) override;
   void servo_cycle(int64_t now_ns, bool cancel) override;
   bool motion_pending() const override;
+  void motion_status(MachineStatus& s) const override;
 
   const MotionTelemetry& telemetry() const { return telemetry_; }
   const StepPipeline& steps() const { return steps_; }  // servo thread owns it
@@ -65,9 +68,10 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink, 
  private:
   void on_move(const planner::PlannedMove& m) override;
   void on_event(const planner::PlannerEvent& e) override;
-  void on_joint_segment(int joint, const JointSegment& segment) override;
   // Planner thread: blocks until the servo thread has executed print time `t_s`.
   void wait_print_time(double t_s, const std::atomic<bool>& cancel);
+  // Planner thread: blocks while more than max_buffered_s of motion is queued.
+  void wait_for_room(const std::atomic<bool>& cancel);
 
   planner::PlannerConfig pcfg_;
   MotionOptions options_;
@@ -75,19 +79,22 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink, 
   planner::Planner planner_;
   std::unique_ptr<planner::Interpreter> interp_;
   planner::JointEmitter emitter_;
-  SpscQueue<JointItem> queue_;
+  SpscQueue<planner::PlannedMove> queue_;
   std::shared_ptr<stepgen::BatchSink> batches_;
   StepPipeline steps_;  // servo thread
 
   // planner thread
   const std::atomic<bool>* cancel_ = nullptr;
   double wait_until_s_ = -1.0;  // set by a moves_done event during execute()
+  std::atomic<double> idle_base_s_{0.0};  // print time where motion restarts from rest
   std::chrono::steady_clock::time_point last_command_{};
   std::atomic<double> planned_end_s_{0.0};  // end of the last segment handed to the servo
   std::atomic<uint64_t> pushed_{0};
+  std::atomic<uint64_t> moves_emitted_{0};
   std::atomic<size_t> planner_queued_{0};  // mirror of planner_.queued() for the other threads
 
   // servo thread
+  planner::PlannedMove current_;  // the move most recently handed to step generation
   double offset_s_ = 0.0;
   double executed_end_s_ = 0.0;
   std::atomic<uint64_t> popped_{0};
