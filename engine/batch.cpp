@@ -1,9 +1,18 @@
+// Batch mode (see batch.hpp). Threads: the calling thread reads, parses, plans and steps its
+// joints; with threads = 2 a worker receives every PlannedMove through an SPSC queue and steps
+// the other joints. Each thread has its own JointEmitter and StepPipeline (joint_mask), and both
+// close runs on the same schedule (every 64 moves), so the output does not depend on threading.
 #include "engine/batch.hpp"
 
+#include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <ctime>
 #include <fstream>
+#include <memory>
+#include <thread>
 
+#include "core/spsc_queue.hpp"
 #include "drivers/protocol/frame.hpp"
 #include "gcode/line_splitter.hpp"
 #include "gcode/parser.hpp"
@@ -13,29 +22,124 @@
 namespace feedloop::engine {
 namespace {
 
-// Planner output -> joint segments -> step pipeline.
-class MovesToSteps final : public planner::MoveSink {
+constexpr unsigned kMainJoints = 0x6u;    // y (or B) and z (or C): stepped by the reading thread
+constexpr unsigned kWorkerJoints = 0x9u;  // x (or A) and the extruder: stepped by the worker
+constexpr size_t kQueueMoves = 1024;      // moves in flight between the threads
+
+double process_cpu_s() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+// Joint segments of the owned joints -> optional tap -> step pipeline.
+class SegmentFanout final : public planner::JointSink {
  public:
-  MovesToSteps(const planner::Kinematics& kin, double period_s, StepPipeline& steps)
-      : emitter_(kin, period_s), steps_(steps) {}
-  void on_move(const planner::PlannedMove& m) override {
-    emitter_.emit(m, steps_);
-    ++moves;
+  SegmentFanout(StepPipeline& steps, planner::JointSink* tap) : steps_(steps), tap_(tap) {}
+  void on_joint_segment(int joint, const JointSegment& segment) override {
+    if (!steps_.owns(joint)) return;
+    if (tap_ != nullptr) tap_->on_joint_segment(joint, segment);
+    steps_.on_joint_segment(joint, segment);
+  }
+
+ private:
+  StepPipeline& steps_;
+  planner::JointSink* tap_;
+};
+
+// Planned moves -> joint segments -> one step pipeline (one thread's share of the joints).
+class MoveStepper {
+ public:
+  MoveStepper(const planner::Kinematics& kin, double period_s, StepPipeline& steps,
+              planner::JointSink* tap)
+      : kin_(kin), emitter_(kin, period_s), steps_(steps), fanout_(steps, tap) {}
+  void on_move(const planner::PlannedMove& m) {
+    if (m.index == 0) {
+      // The step streams start where the first move starts (a delta's carriages are hundreds
+      // of mm up at the home position; starting them at 0 made the first segment a jump).
+      const planner::Joints q = kin_.inverse({m.start_mm[0], m.start_mm[1], m.start_mm[2]});
+      for (int j = 0; j < 3; ++j) steps_.set_position_mm(j, q[static_cast<size_t>(j)]);
+      steps_.set_position_mm(3, m.start_mm[planner::kE]);
+    }
+    emitter_.emit(m, fanout_);
     if (++since_flush_ >= 64) {  // close runs that are complete well behind the newest move
       steps_.flush_due(m.start_time_s - 0.5);
       since_flush_ = 0;
     }
   }
-  uint64_t moves = 0;
 
  private:
+  const planner::Kinematics& kin_;
   planner::JointEmitter emitter_;
   StepPipeline& steps_;
+  SegmentFanout fanout_;
   int since_flush_ = 0;
 };
 
+// The worker: pops moves until the reader says it is done and the queue is empty.
+class StepWorker {
+ public:
+  StepWorker(const planner::Kinematics& kin, double period_s, StepPipeline& steps,
+             planner::JointSink* tap)
+      : queue_(kQueueMoves), stepper_(kin, period_s, steps, tap), steps_(steps) {}
+  ~StepWorker() { finish(); }
+  void start() { thread_ = std::thread([this] { run(); }); }
+  void push(const planner::PlannedMove& m) {
+    for (int spins = 0; !queue_.try_push(m); ++spins) backoff(spins);
+  }
+  void finish() {
+    if (!thread_.joinable()) return;
+    done_.store(true, std::memory_order_release);
+    thread_.join();
+  }
+
+ private:
+  static void backoff(int spins) {
+    if (spins < 64) std::this_thread::yield();
+    else std::this_thread::sleep_for(std::chrono::microseconds(50));
+  }
+  void run() {
+    planner::PlannedMove m;
+    int spins = 0;
+    for (;;) {
+      if (queue_.try_pop(m)) {
+        stepper_.on_move(m);
+        spins = 0;
+        continue;
+      }
+      if (done_.load(std::memory_order_acquire) && queue_.empty()) break;
+      backoff(spins++);
+    }
+    steps_.flush();
+  }
+  SpscQueue<planner::PlannedMove> queue_;
+  MoveStepper stepper_;
+  StepPipeline& steps_;
+  std::atomic<bool> done_{false};
+  std::thread thread_;
+};
+
+// Planner output: counted, stepped here, and handed to the worker if there is one.
+class MoveDispatch final : public planner::MoveSink {
+ public:
+  MoveDispatch(MoveStepper& local, StepWorker* worker) : local_(local), worker_(worker) {}
+  void on_move(const planner::PlannedMove& m) override {
+    if (worker_ != nullptr) worker_->push(m);
+    local_.on_move(m);
+    ++moves;
+  }
+  uint64_t moves = 0;
+
+ private:
+  MoveStepper& local_;
+  StepWorker* worker_;
+};
+
 struct CountingBatchSink final : stepgen::BatchSink {
-  void on_batch(const stepgen::StepBatch&) override {}
+  stepgen::BatchSink* tap = nullptr;
+  void on_batch(const stepgen::StepBatch& b) override {
+    if (tap != nullptr) tap->on_batch(b);
+  }
 };
 
 }  // namespace
@@ -48,17 +152,31 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
   const auto file_bytes = static_cast<double>(in.tellg());
   in.seekg(0);
   const auto t0 = std::chrono::steady_clock::now();
+  const double cpu0 = process_cpu_s();
 
   const planner::PlannerConfig pcfg = planner_config(cfg);
   if (Status s = pcfg.validate(); !s) return s.error();
   const auto kin = planner::make_kinematics(pcfg);
+  const bool threaded = options.threads >= 2;
   StepPipelineParams sp;
   sp.steps_per_mm = steps_per_mm(cfg);
   sp.mcu_clock_hz = static_cast<double>(cfg.stepgen.mcu_clock_hz);
   sp.max_step_error_us = cfg.stepgen.max_step_error_us;
-  CountingBatchSink batches;
+  sp.joint_mask = threaded ? kMainJoints : (kMainJoints | kWorkerJoints);
+  CountingBatchSink batches, worker_batches;
+  batches.tap = worker_batches.tap = options.batch_tap;
   StepPipeline steps(sp, &batches);
-  MovesToSteps sink(*kin, pcfg.servo_period_s, steps);
+  MoveStepper local(*kin, pcfg.servo_period_s, steps, options.segment_tap);
+  std::unique_ptr<StepPipeline> worker_steps;
+  std::unique_ptr<StepWorker> worker;
+  if (threaded) {
+    StepPipelineParams wp = sp;
+    wp.joint_mask = kWorkerJoints;
+    worker_steps = std::make_unique<StepPipeline>(wp, &worker_batches);
+    worker = std::make_unique<StepWorker>(*kin, pcfg.servo_period_s, *worker_steps, options.segment_tap);
+    worker->start();
+  }
+  MoveDispatch sink(local, worker.get());
   planner::Planner planner(pcfg, sink);
   planner::Interpreter interp(pcfg, *kin, planner);
 
@@ -105,11 +223,13 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
   splitter.finish(on_line);
   planner.flush();
   steps.flush();
+  if (worker) worker->finish();
 
   sum.moves = sink.moves;
   sum.print_time_s = planner.print_time_s();
   for (int j = 0; j < kJoints; ++j) {
-    sum.joints[static_cast<size_t>(j)] = steps.stats(j);
+    const StepPipeline& owner = steps.owns(j) ? steps : *worker_steps;
+    sum.joints[static_cast<size_t>(j)] = owner.stats(j);
     const JointStepStats& s = sum.joints[static_cast<size_t>(j)];
     sum.total_steps += s.steps;
     sum.check_failures += s.check_failures;
@@ -119,6 +239,7 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
   sum.wire_bytes_per_step =
       sum.total_steps ? static_cast<double>(sum.wire_bytes) / static_cast<double>(sum.total_steps) : 0.0;
   sum.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  sum.cpu_s = process_cpu_s() - cpu0;
   return sum;
 }
 

@@ -20,6 +20,14 @@ struct BatchOptions {
   // Called now and then with the fraction of the file read (0..1).
   std::function<void(double fraction)> on_progress;
   size_t max_messages = 20;  // warnings kept in the summary
+  // 2: the reading thread parses, plans and steps joints 1-2; a worker steps joints 0 and 3
+  // (moves handed over through an SPSC queue). 1: everything on the calling thread. The runs,
+  // batches and statistics are bit-identical either way.
+  int threads = 2;
+  // Test taps, both optional. Each is called from the thread that steps the joint concerned
+  // (never concurrently for the same joint): keep per-joint state apart.
+  planner::JointSink* segment_tap = nullptr;  // every joint segment before step generation
+  stepgen::BatchSink* batch_tap = nullptr;    // every QUEUE_STEPS batch body
 };
 
 struct BatchSummary {
@@ -37,6 +45,7 @@ struct BatchSummary {
   double wire_bytes_per_step = 0.0;
   uint64_t check_failures = 0;
   double wall_s = 0.0;
+  double cpu_s = 0.0;           // CPU time of the process during the run (all threads)
   std::vector<std::string> messages;  // first rejected lines / warnings, "file:line:col: ..."
 };
 

@@ -7,6 +7,7 @@ namespace feedloop::engine {
 StepPipeline::StepPipeline(const StepPipelineParams& params, stepgen::BatchSink* sink)
     : params_(params) {
   const stepgen::TickMap map{0.0, params.mcu_clock_hz};
+  host_maps_.fill(map);
   for (int j = 0; j < kJoints; ++j) {
     auto jt = std::make_unique<Joint>();
     jt->batcher.configure(static_cast<uint8_t>(j), params.max_batch_bytes, sink);
@@ -21,18 +22,32 @@ StepPipeline::StepPipeline(const StepPipelineParams& params, stepgen::BatchSink*
 }
 
 void StepPipeline::on_joint_segment(int joint, const JointSegment& segment) {
-  joints_[static_cast<size_t>(joint)]->gen.add_segment(segment);
+  if (owns(joint)) joints_[static_cast<size_t>(joint)]->gen.add_segment(segment);
+}
+
+stepgen::TickMap StepPipeline::print_map(int joint) const {
+  const stepgen::TickMap& h = host_maps_[static_cast<size_t>(joint)];
+  return {h.offset_ticks + h.ticks_per_s * offset_s_, h.ticks_per_s};
+}
+
+void StepPipeline::apply_maps() {
+  for (int j = 0; j < kJoints; ++j) joints_[static_cast<size_t>(j)]->gen.set_tick_map(print_map(j));
 }
 
 void StepPipeline::set_time_offset_s(double offset_s) {
   offset_s_ = offset_s;
-  for (auto& j : joints_) j->gen.set_tick_map({offset_s * params_.mcu_clock_hz, params_.mcu_clock_hz});
+  apply_maps();
+}
+
+void StepPipeline::set_clock_maps(const std::array<stepgen::TickMap, kJoints>& host_to_ticks) {
+  host_maps_ = host_to_ticks;
+  apply_maps();
 }
 
 void StepPipeline::flush_due(double deadline_s) {
-  const auto deadline_clock =
-      static_cast<int64_t>(std::ceil((deadline_s + offset_s_) * params_.mcu_clock_hz));
-  for (auto& j : joints_) {
+  for (int jn = 0; jn < kJoints; ++jn) {
+    Joint* j = joints_[static_cast<size_t>(jn)].get();
+    const auto deadline_clock = static_cast<int64_t>(std::ceil(print_map(jn).ticks(deadline_s)));
     j->gen.flush();
     j->compressor.flush_if_due(deadline_clock);
     j->batcher.flush_if_due(deadline_clock);
@@ -53,6 +68,7 @@ JointStepStats StepPipeline::stats(int joint) const {
   s.steps = j.gen.steps_emitted();
   s.runs = j.compressor.stats().runs;
   s.check_failures = j.compressor.stats().check_failures;
+  s.compression = j.compressor.stats();
   s.batches = j.batcher.batches_total();
   s.body_bytes = j.batcher.body_bytes_total();
   if (j.tap.min_interval_ticks < 1e299 && j.tap.min_interval_ticks > 0)

@@ -23,6 +23,9 @@ struct StepPipelineParams {
   double mcu_clock_hz = 72e6;
   double max_step_error_us = 5.0;  // bound on |compressed - exact| step time
   size_t max_batch_bytes = 200;    // body of one QUEUE_STEPS message
+  // Joints this pipeline steps (bit j = joint j); segments of the others are ignored, so two
+  // pipelines on two threads can share one joint-segment stream (batch mode).
+  unsigned joint_mask = 0xFu;
 };
 
 struct JointStepStats {
@@ -32,6 +35,7 @@ struct JointStepStats {
   uint64_t body_bytes = 0;
   double max_step_rate_hz = 0.0;  // 1 / shortest interval between two steps
   uint64_t check_failures = 0;    // runs that failed the re-expansion check (expected 0)
+  stepgen::StepCompressorStats compression{};  // the compressor's cost counters
 };
 
 class StepPipeline final : public planner::JointSink {
@@ -39,11 +43,17 @@ class StepPipeline final : public planner::JointSink {
   StepPipeline(const StepPipelineParams& params, stepgen::BatchSink* sink);
 
   void on_joint_segment(int joint, const JointSegment& segment) override;
+  bool owns(int joint) const { return (params_.joint_mask >> joint) & 1u; }
   // Sets a joint's position without steps (start of a stream).
   void set_position_mm(int joint, double pos_mm) { joints_[static_cast<size_t>(joint)]->gen.set_position_mm(pos_mm); }
-  // MCU time = print time + offset: re-anchors the print-time line on the MCU clock (the daemon
+  // Host time = print time + offset: re-anchors the print-time line on the host clock (the daemon
   // does this when motion starts from rest). Call only when no steps are pending.
   void set_time_offset_s(double offset_s);
+  // Host time -> MCU ticks per joint (each joint's MCU clock as the clock sync estimates it,
+  // drivers/clock_sync.hpp). Default: an ideal clock, ticks = mcu_clock_hz * host time. May be
+  // refreshed between segments while steps are pending (small corrections as the estimate
+  // improves); print time -> ticks is then offset_ticks + rate (print + offset_s).
+  void set_clock_maps(const std::array<stepgen::TickMap, kJoints>& host_to_ticks);
   // Closes runs and batches whose first step is due by `deadline_s` (print time).
   void flush_due(double deadline_s);
   // Emits everything pending (end of a stream).
@@ -79,8 +89,12 @@ class StepPipeline final : public planner::JointSink {
     stepgen::StepBatcher batcher;
   };
 
+  stepgen::TickMap print_map(int joint) const;
+  void apply_maps();
+
   StepPipelineParams params_;
   double offset_s_ = 0.0;
+  std::array<stepgen::TickMap, kJoints> host_maps_{};
   std::array<std::unique_ptr<Joint>, kJoints> joints_;
 };
 
