@@ -1,0 +1,350 @@
+// Output-error fits of the axis model and the greedy effect search (see fit.hpp).
+#include "ident/fit.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <thread>
+
+#include <Eigen/Dense>
+
+namespace feedloop::ident {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// One free parameter: where it lives in the model and how it is transformed for the solver.
+enum class Param { kK1, kK2, kC1, kC2, kPeriod, kPerSin, kPerCos, kFriction, kBacklash, kRatio, kExtraF,
+                   kExtraZeta, kExtraMass, kDelay, kScale };
+
+double& slot(AxisModel& m, Param p) {
+  switch (p) {
+    case Param::kK1: return m.k1_n_m;
+    case Param::kK2: return m.k2_n_m;
+    case Param::kC1: return m.c1_n_s_m;
+    case Param::kC2: return m.c2_n_s_m;
+    case Param::kPeriod: return m.period_mm;
+    case Param::kPerSin: return m.periodic_sin_um;
+    case Param::kPerCos: return m.periodic_cos_um;
+    case Param::kFriction: return m.friction_force_n;
+    case Param::kBacklash: return m.backlash_width_um;
+    case Param::kRatio: return m.stiffness_ratio;
+    case Param::kExtraF: return m.extra_freq_hz;
+    case Param::kExtraZeta: return m.extra_damping;
+    case Param::kExtraMass: return m.extra_mass_kg;
+    case Param::kDelay: return m.delay_ms;
+    case Param::kScale: return m.scale;
+  }
+  return m.k1_n_m;
+}
+
+// Positive parameters are solved in log space; the runout pair and the scale are linear.
+bool is_log(Param p) { return p != Param::kPerSin && p != Param::kPerCos && p != Param::kScale; }
+
+double to_solver(Param p, double v) {
+  if (p == Param::kScale) return (v - 1.0) * 1e3;
+  return is_log(p) ? std::log(std::max(v, 1e-12)) : v;
+}
+double from_solver(Param p, double x) {
+  if (p == Param::kScale) return 1.0 + x * 1e-3;
+  return is_log(p) ? std::exp(std::clamp(x, -40.0, 40.0)) : x;
+}
+double fd_step(Param p) { return is_log(p) ? 1e-3 : (p == Param::kScale ? 1e-3 : 0.02); }
+
+std::vector<Param> effect_params(Effect e) {
+  switch (e) {
+    case Effect::kPeriodicPosition: return {Param::kPeriod, Param::kPerSin, Param::kPerCos};
+    case Effect::kCoulombFriction: return {Param::kFriction};
+    case Effect::kBacklash: return {Param::kBacklash};
+    case Effect::kDirectionStiffness: return {Param::kRatio};
+    case Effect::kExtraResonance: return {Param::kExtraF, Param::kExtraZeta, Param::kExtraMass};
+    case Effect::kTimeDelay: return {Param::kDelay};
+    case Effect::kScaleError: return {Param::kScale};
+  }
+  return {};
+}
+
+std::vector<Param> free_params(const AxisModel& m) {
+  std::vector<Param> ps = {Param::kK1, Param::kK2, Param::kC1, Param::kC2};
+  for (int i = 0; i < kEffectCount; ++i)
+    if (m.enabled[i])
+      for (Param p : effect_params(static_cast<Effect>(i))) ps.push_back(p);
+  return ps;
+}
+
+struct Problem {
+  const std::vector<double>* u;
+  const std::vector<double>* y;
+  double period_s;
+  size_t train_end;
+};
+
+// Simulated output; false when the model cannot be simulated.
+bool run(const AxisModel& m, const Problem& pb, std::vector<double>* out) {
+  return simulate_axis(m, *pb.u, pb.period_s, out).ok();
+}
+
+double sse_train(const std::vector<double>& ys, const Problem& pb) {
+  double s = 0.0;
+  for (size_t k = 0; k < pb.train_end; ++k) {
+    const double d = ((*pb.y)[k] - ys[k]) * 1e3;
+    s += d * d;
+  }
+  return s;
+}
+
+// Levenberg-Marquardt on the training part; residuals in um. Jacobian columns are computed in two
+// threads (the machine has two cores).
+AxisModel levenberg_marquardt(AxisModel m, const std::vector<Param>& ps, const Problem& pb, int iterations) {
+  const size_t n = pb.train_end;
+  const auto np = static_cast<Eigen::Index>(ps.size());
+  std::vector<double> ys;
+  if (!run(m, pb, &ys)) return m;
+  double cost = sse_train(ys, pb);
+  double lambda = 1e-3;
+  Eigen::VectorXd x(np);
+  for (Eigen::Index i = 0; i < np; ++i) x[i] = to_solver(ps[static_cast<size_t>(i)], slot(m, ps[static_cast<size_t>(i)]));
+  Eigen::MatrixXd J(static_cast<Eigen::Index>(n), np);
+  Eigen::VectorXd r(static_cast<Eigen::Index>(n));
+  for (int it = 0; it < iterations; ++it) {
+    for (size_t k = 0; k < n; ++k) r[static_cast<Eigen::Index>(k)] = ((*pb.y)[k] - ys[k]) * 1e3;
+    auto column = [&](Eigen::Index i) {
+      AxisModel mp = m;
+      const Param p = ps[static_cast<size_t>(i)];
+      const double h = fd_step(p);
+      slot(mp, p) = from_solver(p, x[i] + h);
+      std::vector<double> yp;
+      if (!run(mp, pb, &yp)) {
+        J.col(i).setZero();
+        return;
+      }
+      for (size_t k = 0; k < n; ++k) J(static_cast<Eigen::Index>(k), i) = (yp[k] - ys[k]) * 1e3 / h;
+    };
+    std::thread helper([&] {
+      for (Eigen::Index i = 1; i < np; i += 2) column(i);
+    });
+    for (Eigen::Index i = 0; i < np; i += 2) column(i);
+    helper.join();
+    const Eigen::MatrixXd JtJ = J.transpose() * J;
+    const Eigen::VectorXd Jtr = J.transpose() * r;
+    bool improved = false;
+    for (int tries = 0; tries < 6 && !improved; ++tries) {
+      Eigen::MatrixXd Ar = JtJ;
+      for (Eigen::Index i = 0; i < np; ++i) Ar(i, i) += lambda * std::max(JtJ(i, i), 1e-9);
+      const Eigen::VectorXd dx = Ar.ldlt().solve(Jtr);
+      if (!dx.allFinite()) break;
+      AxisModel trial = m;
+      Eigen::VectorXd xt = x + dx;
+      for (Eigen::Index i = 0; i < np; ++i) slot(trial, ps[static_cast<size_t>(i)]) = from_solver(ps[static_cast<size_t>(i)], xt[i]);
+      std::vector<double> yt;
+      if (run(trial, pb, &yt)) {
+        const double c = sse_train(yt, pb);
+        if (c < cost) {
+          const double gain = (cost - c) / cost;
+          m = trial;
+          x = xt;
+          ys.swap(yt);
+          cost = c;
+          lambda = std::max(lambda * 0.3, 1e-7);
+          improved = true;
+          if (gain < 1e-5) return m;
+          break;
+        }
+      }
+      lambda *= 10.0;
+    }
+    if (!improved) break;
+  }
+  return m;
+}
+
+// Initial guess of an effect's parameters, with the current model's other parameters fixed.
+AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb, const std::vector<double>& y_cur) {
+  AxisModel m = cur;
+  m.set(e, true);
+  const size_t n = pb.train_end;
+  const std::vector<double>& u = *pb.u;
+  const std::vector<double>& y = *pb.y;
+  std::vector<double> res(n);
+  for (size_t k = 0; k < n; ++k) res[k] = (y[k] - y_cur[k]) * 1e3;  // um
+  auto grid_sim = [&](Param p, const std::vector<double>& values) {
+    double best = 1e300;
+    double best_v = values.front();
+    for (double v : values) {
+      AxisModel t = m;
+      slot(t, p) = v;
+      std::vector<double> ys;
+      if (!run(t, pb, &ys)) continue;
+      const double c = sse_train(ys, pb);
+      if (c < best) {
+        best = c;
+        best_v = v;
+      }
+    }
+    slot(m, p) = best_v;
+  };
+  switch (e) {
+    case Effect::kPeriodicPosition: {
+      // Residual against commanded position: sin/cos regression over a log grid of periods.
+      double best = -1.0;
+      for (int i = 0; i <= 160; ++i) {
+        const double period = 2.0 * std::pow(60.0, i / 160.0);  // 2 .. 120 mm
+        Eigen::Matrix2d N = Eigen::Matrix2d::Zero();
+        Eigen::Vector2d b = Eigen::Vector2d::Zero();
+        for (size_t k = 0; k < n; ++k) {
+          const double ph = 2.0 * kPi * (u[k] - u[0]) / period;
+          const Eigen::Vector2d f(std::sin(ph), std::cos(ph));
+          N += f * f.transpose();
+          b += f * res[k];
+        }
+        const Eigen::Vector2d ab = N.ldlt().solve(b);
+        const double explained = ab.dot(b);
+        if (explained > best) {
+          best = explained;
+          m.period_mm = period;
+          m.periodic_sin_um = ab[0];
+          m.periodic_cos_um = ab[1];
+        }
+      }
+      break;
+    }
+    case Effect::kScaleError: {
+      double num = 0.0, den = 0.0;
+      for (size_t k = 0; k < n; ++k) {
+        const double g = (y_cur[k] - u[0]) * 1e3;
+        num += g * res[k];
+        den += g * g;
+      }
+      m.scale = (cur.has(Effect::kScaleError) ? cur.scale : 1.0) * (1.0 + (den > 0.0 ? num / den : 0.0));
+      break;
+    }
+    case Effect::kTimeDelay: {
+      double best = 1e300;
+      for (double d = 0.25; d <= 30.0; d += 0.25) {
+        const double s = d * 1e-3 / pb.period_s;
+        const auto w = static_cast<size_t>(std::floor(s));
+        const double f = s - static_cast<double>(w);
+        double c = 0.0;
+        for (size_t k = w + 1; k < n; ++k) {
+          const double yd = (1.0 - f) * y_cur[k - w] + f * y_cur[k - w - 1];
+          const double dd = y[k] - yd;
+          c += dd * dd;
+        }
+        if (c < best) {
+          best = c;
+          m.delay_ms = d;
+        }
+      }
+      break;
+    }
+    case Effect::kBacklash:
+      grid_sim(Param::kBacklash, {1, 2, 4, 8, 16, 32, 64, 128, 256});
+      break;
+    case Effect::kCoulombFriction:
+      grid_sim(Param::kFriction, {0.05, 0.1, 0.2, 0.4, 0.8, 1.6, 3.2, 6.4, 12.8});
+      break;
+    case Effect::kDirectionStiffness:
+      grid_sim(Param::kRatio, {0.4, 0.55, 0.7, 0.85, 1.2, 1.45, 1.8, 2.5});
+      break;
+    case Effect::kExtraResonance: {
+      std::vector<double> f;
+      for (int i = 0; i <= 24; ++i) f.push_back(15.0 * std::pow(200.0 / 15.0, i / 24.0));
+      grid_sim(Param::kExtraF, f);
+      grid_sim(Param::kExtraMass, {0.03, 0.08, 0.15, 0.3, 0.6});
+      break;
+    }
+  }
+  return m;
+}
+
+}  // namespace
+
+double residual_rms_um(const std::vector<double>& y_model_mm, const std::vector<double>& meas_mm, size_t begin,
+                       size_t end) {
+  end = std::min({end, y_model_mm.size(), meas_mm.size()});
+  if (end <= begin) return 0.0;
+  double s = 0.0;
+  for (size_t k = begin; k < end; ++k) {
+    const double d = (meas_mm[k] - y_model_mm[k]) * 1e3;
+    s += d * d;
+  }
+  return std::sqrt(s / static_cast<double>(end - begin));
+}
+
+Result<AxisModel> fit_baseline(const AxisModel& start, const std::vector<double>& cmd_mm,
+                               const std::vector<double>& meas_mm, double period_s, const FitOptions& o) {
+  if (cmd_mm.size() != meas_mm.size()) return Error{"cmd and meas have different lengths", {}};
+  if (cmd_mm.size() < 100) return Error{"trace too short to fit (fewer than 100 samples)", {}};
+  Problem pb{&cmd_mm, &meas_mm, period_s,
+             static_cast<size_t>(static_cast<double>(cmd_mm.size()) * std::clamp(o.train_fraction, 0.1, 1.0))};
+  AxisModel m = start;
+  for (int i = 0; i < kEffectCount; ++i) m.enabled[i] = false;
+  return levenberg_marquardt(m, free_params(m), pb, o.max_iterations);
+}
+
+Result<IdentResult> identify_axis(const std::string& axis_name, const std::vector<double>& cmd_mm,
+                                  const std::vector<double>& meas_mm, double period_s, const FitOptions& o) {
+  auto report = [&](double f, const std::string& what) {
+    if (o.progress) o.progress(f, what);
+  };
+  IdentResult out;
+  out.axis = axis_name;
+  report(0.0, "baseline fit");
+  auto base = fit_baseline(preset_axis_model(axis_name), cmd_mm, meas_mm, period_s, o);
+  if (!base) return base.error();
+  const size_t n = cmd_mm.size();
+  Problem pb{&cmd_mm, &meas_mm, period_s,
+             static_cast<size_t>(static_cast<double>(n) * std::clamp(o.train_fraction, 0.1, 1.0))};
+  out.baseline = base.value();
+  std::vector<double> y_cur;
+  if (!run(out.baseline, pb, &y_cur)) return Error{"baseline model cannot be simulated", {}};
+  out.baseline_rms_um = residual_rms_um(y_cur, meas_mm, 0, n);
+  out.baseline_validation_rms_um = residual_rms_um(y_cur, meas_mm, pb.train_end, n);
+  out.baseline_residual_mm.resize(n);
+  for (size_t k = 0; k < n; ++k) out.baseline_residual_mm[k] = meas_mm[k] - y_cur[k];
+
+  AxisModel cur = out.baseline;
+  double cur_val = out.baseline_validation_rms_um;
+  const int rounds = std::max(o.max_effects, 0);
+  for (int round = 1; round <= rounds; ++round) {
+    int best = -1;
+    AxisModel best_model;
+    double best_val = cur_val;
+    std::vector<double> best_y;
+    int tried = 0;
+    for (int i = 0; i < kEffectCount; ++i) {
+      const auto e = static_cast<Effect>(i);
+      if (cur.has(e)) continue;
+      report((static_cast<double>(round - 1) + static_cast<double>(tried) / (kEffectCount - round + 1)) / rounds,
+             std::string("round ") + std::to_string(round) + ": " + effect_name(e));
+      ++tried;
+      AxisModel guess = initial_guess(cur, e, pb, y_cur);
+      AxisModel fitted = levenberg_marquardt(guess, free_params(guess), pb, o.max_iterations);
+      std::vector<double> ys;
+      if (!run(fitted, pb, &ys)) continue;
+      const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);
+      out.candidates.push_back(CandidateResult{e, val, false, round});
+      if (val < best_val) {
+        best_val = val;
+        best = i;
+        best_model = fitted;
+        best_y = std::move(ys);
+      }
+    }
+    if (best < 0 || best_val > (1.0 - o.min_improvement) * cur_val) break;
+    for (auto& c : out.candidates)
+      if (c.round == round && static_cast<int>(c.effect) == best) c.kept = true;
+    cur = best_model;
+    cur_val = best_val;
+    y_cur = std::move(best_y);
+    out.effects.push_back(static_cast<Effect>(best));
+  }
+  report(1.0, "done");
+  out.augmented = cur;
+  out.augmented_rms_um = residual_rms_um(y_cur, meas_mm, 0, n);
+  out.augmented_validation_rms_um = cur_val;
+  out.augmented_residual_mm.resize(n);
+  for (size_t k = 0; k < n; ++k) out.augmented_residual_mm[k] = meas_mm[k] - y_cur[k];
+  return out;
+}
+
+}  // namespace feedloop::ident

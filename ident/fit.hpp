@@ -1,0 +1,66 @@
+// Fitting the axis model to a trace: the baseline (thesis Eq. 13/17, static gain 1) and the
+// residual loop that finds which effects of the vocabulary the baseline lacks.
+//
+// Every fit is output-error least squares: simulate the model with the commanded position as
+// input and minimise the measured-minus-simulated residual (Levenberg-Marquardt, Eigen, Jacobian by
+// finite differences) on the first `train_fraction` of the trace. The rest is held out.
+//
+// Effect search (greedy forward selection): for every effect not yet in the model, an initial
+// guess from the residual's signature (the residual against position for periodic_position,
+// against the baseline output for scale_error, a lag scan for time_delay, small grids simulated
+// for the others), then a refit of the whole augmented model; the candidate that lowers the
+// held-out RMS most is kept if it lowers it by more than `min_improvement` (relative). Repeat
+// until nothing qualifies. Clean data gives an empty list.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/result.hpp"
+#include "ident/axis_model.hpp"
+
+namespace feedloop::ident {
+
+struct FitOptions {
+  double train_fraction = 0.7;
+  double min_improvement = 0.15;   // keep an effect only if held-out RMS falls by more than this
+  int max_effects = 3;
+  int max_iterations = 12;         // Levenberg-Marquardt iterations per fit
+  // Progress: fraction in [0, 1] and what is being done.
+  std::function<void(double, const std::string&)> progress;
+};
+
+struct CandidateResult {
+  Effect effect;
+  double validation_rms_um = 0.0;  // held-out RMS of baseline + kept effects + this candidate
+  bool kept = false;
+  int round = 0;
+};
+
+struct IdentResult {
+  std::string axis;
+  AxisModel baseline;              // fitted baseline
+  AxisModel augmented;             // fitted baseline + kept effects (== baseline when none)
+  std::vector<Effect> effects;     // kept effects, in the order found
+  double baseline_rms_um = 0.0;    // over the whole trace
+  double augmented_rms_um = 0.0;
+  double baseline_validation_rms_um = 0.0;  // over the held-out part
+  double augmented_validation_rms_um = 0.0;
+  std::vector<CandidateResult> candidates;  // every candidate tried, every round
+  std::vector<double> baseline_residual_mm, augmented_residual_mm;  // measured - simulated
+};
+
+// Residual RMS (um) of a model over samples [begin, end) of the trace.
+double residual_rms_um(const std::vector<double>& y_model_mm, const std::vector<double>& meas_mm, size_t begin,
+                       size_t end);
+
+// Fits the baseline alone (the Eq. 17 coefficients through k1, k2, c1, c2 at fixed masses).
+Result<AxisModel> fit_baseline(const AxisModel& start, const std::vector<double>& cmd_mm,
+                               const std::vector<double>& meas_mm, double period_s, const FitOptions& o);
+
+// The whole loop for one axis of a trace.
+Result<IdentResult> identify_axis(const std::string& axis_name, const std::vector<double>& cmd_mm,
+                                  const std::vector<double>& meas_mm, double period_s, const FitOptions& o);
+
+}  // namespace feedloop::ident
