@@ -39,9 +39,12 @@ struct SpeedParams {
   double m_s_m_s = 0.1;                // m_s: the target path speed (Fig. 7: 0.1 m/s)
   planner::SharpCornerParams sharp{};  // alpha_a 5 deg, alpha_b 20 deg, a_1 0.05, a_2 0.005 (Table II)
   // sharp_corner_arc only: the Eq. 68 sigmoid in metres and its reach W.
-  double a1_m = 1.0e-3;
-  double a2_m = 0.1e-3;
-  double reach_m = 8.0e-3;
+  // a1/a2 = 12 gives a corner speed h_L(0) = 0.026 m_s (the paper's a_1/a_2 = 10: 0.032 m_s);
+  // the short zone suits this model (exact feedforward, no voltage limit): on a real machine the
+  // acceleration limits set it. bench/maneuver/README.md shows how they were chosen.
+  double a1_m = 0.06e-3;
+  double a2_m = 0.005e-3;
+  double reach_m = 2.0e-3;
 };
 
 struct SpeedValue {
