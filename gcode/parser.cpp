@@ -163,8 +163,12 @@ Status LineParser::parse_words() {
   return Status::Ok();
 }
 
+// Printrun starts every print with "N-1 M110*..": a negative line number is accepted (the host
+// protocol then expects N0 next, as Marlin does).
 Status LineParser::parse_line_number(size_t word) {
   const size_t n = s_.size();
+  const bool negative = i_ < n && s_[i_] == '-';
+  if (negative) ++i_;
   if (i_ >= n || !is_digit(s_[i_])) return fail(word, "N needs a line number, e.g. N42");
   int64_t v = 0;
   while (i_ < n && is_digit(s_[i_])) {
@@ -172,7 +176,7 @@ Status LineParser::parse_line_number(size_t word) {
     v = v * 10 + (s_[i_] - '0');
     ++i_;
   }
-  out_.line_number = v;
+  out_.line_number = negative ? -v : v;
   return Status::Ok();
 }
 

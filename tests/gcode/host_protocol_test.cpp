@@ -125,6 +125,10 @@ TEST(HostProtocol, M110ResetsTheExpectedNumber) {
   EXPECT_EQ(send(p, numbered(7, "M110")).reply, "ok\n");
   EXPECT_EQ(p.last_line_number(), 7);
   EXPECT_EQ(send(p, numbered(8, "G90")).action, Action::kExecute);
+  // Printrun's printcore starts a print with "N-1 M110": the next line is N0.
+  EXPECT_EQ(send(p, numbered(-1, "M110")).reply, "ok\n");
+  EXPECT_EQ(p.last_line_number(), -1);
+  EXPECT_EQ(send(p, numbered(0, "G91")).action, Action::kExecute);
 }
 
 TEST(HostProtocol, ParseErrorsReplyErrorAndOkAndExecuteNothing) {
