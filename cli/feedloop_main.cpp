@@ -2,12 +2,14 @@
 //
 //   feedloop print FILE          stream a G-code file to a running feedloopd
 //   feedloop batch FILE          the pipeline in virtual time against an ideal plant
+//   feedloop log info|export     flight-recorder logs
 //   feedloop help                this text
 #include <cstdio>
 #include <string>
 #include <vector>
 
 #include "cli/batch_command.hpp"
+#include "cli/log_command.hpp"
 #include "cli/print_command.hpp"
 
 namespace {
@@ -18,6 +20,8 @@ void usage(std::FILE* out) {
       "commands:\n"
       "  print FILE [--socket PATH] [--window N]   stream G-code to a running feedloopd\n"
       "  batch FILE [--config CFG] [--json OUT]    whole pipeline in virtual time, no hardware\n"
+      "  log info LOG...                           summarise flight-recorder logs\n"
+      "  log export LOG... --csv FILE [--rate-hz N]  recorder logs -> trace CSV v1\n"
       "run 'feedloop COMMAND --help' for a command's options\n",
       out);
 }
@@ -33,6 +37,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 2, argv + argc);
   if (cmd == "print") return feedloop::cli::print_command(args);
   if (cmd == "batch") return feedloop::cli::batch_command(args);
+  if (cmd == "log") return feedloop::cli::log_command(args);
   if (cmd == "help" || cmd == "--help" || cmd == "-h") {
     usage(stdout);
     return 0;
