@@ -1,13 +1,14 @@
 #include "engine/executor_factory.hpp"
 
 #include "engine/config_mapping.hpp"
+#include "engine/mcu_bridge.hpp"
 #include "engine/motion_executor.hpp"
 
 namespace feedloop::engine {
 namespace {
 
-// Until the simulator is wired to the MCU sessions: batches go to an ideal plant that executes
-// every step exactly (counted, not simulated).
+// A config without MCUs: batches go to an ideal plant that executes every step exactly
+// (counted, not simulated).
 struct IdealPlant final : stepgen::BatchSink {
   void on_batch(const stepgen::StepBatch& b) override { steps += b.steps; }
   uint64_t steps = 0;
@@ -24,8 +25,17 @@ Result<std::unique_ptr<CommandExecutor>> make_executor(const config::MachineConf
   sp.max_step_error_us = cfg.stepgen.max_step_error_us;
   MotionOptions mo;
   mo.lead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
-  return std::unique_ptr<CommandExecutor>(
-      std::make_unique<MotionExecutor>(pcfg, sp, std::make_shared<IdealPlant>(), mo));
+  if (cfg.mcus.empty())
+    return std::unique_ptr<CommandExecutor>(
+        std::make_unique<MotionExecutor>(pcfg, sp, std::make_shared<IdealPlant>(), mo));
+  // The MCUs of the config (mock: virtual MCUs driving the plant simulator; serial/usb: sessions
+  // on the real links) behind the step pipeline, serviced by the servo thread.
+  auto bridge = make_mcu_bridge(cfg);
+  if (!bridge.ok()) return bridge.error();
+  std::shared_ptr<McuBridge> b = std::move(bridge.value());
+  auto ex = std::make_unique<MotionExecutor>(pcfg, sp, b, mo);
+  ex->set_backend(b.get());
+  return std::unique_ptr<CommandExecutor>(std::move(ex));
 }
 
 MachineOptions machine_options(const config::MachineConfig& cfg) {

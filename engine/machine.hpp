@@ -47,6 +47,8 @@ struct MachineStatus {
   uint64_t moves_planned = 0;
   uint64_t segments_queued = 0;     // joint segments waiting for the servo thread
   uint64_t steps_sent = 0;
+  double encoder_mm[4] = {0, 0, 0, 0};  // latest encoder reading per joint from the MCUs (NaN: none)
+  uint64_t encoder_samples = 0;         // encoder samples received from the MCUs
   char last_error[192] = {};
 };
 

@@ -22,7 +22,13 @@ Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool
   cancel_ = &cancel;
   wait_until_s_ = -1.0;
   last_command_ = std::chrono::steady_clock::now();
-  if (cmd.letter == 'G' && cmd.code >= 0 && cmd.code <= 3) wait_for_room(cancel);
+  const bool motion = cmd.letter == 'G' && cmd.code >= 0 && cmd.code <= 3;
+  if (motion && backend_ != nullptr && backend_->fault()) {  // rejected: nothing changes
+    char msg[192];
+    backend_->fault_message(msg, sizeof msg);
+    return Error{std::string("motion stopped: ") + msg};
+  }
+  if (motion) wait_for_room(cancel);
   Status st = interp_->execute(cmd);
   planner_queued_.store(planner_.queued());
   if (st && wait_until_s_ >= 0.0) wait_print_time(wait_until_s_, cancel);  // M400
@@ -54,6 +60,11 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
   s.moves_planned = moves_emitted_.load(std::memory_order_relaxed);
   s.segments_queued = pushed_.load() - popped_.load();
   s.steps_sent = telemetry_.batches.load(std::memory_order_relaxed);
+  if (backend_ != nullptr) {  // the MCUs: encoder positions, and a fault naming the MCU
+    for (int j = 0; j < 4; ++j) s.encoder_mm[j] = backend_->encoder_mm(j);
+    s.encoder_samples = backend_->encoder_samples();
+    if (backend_->fault()) backend_->fault_message(s.last_error, sizeof s.last_error);
+  }
 }
 
 void MotionExecutor::on_move(const planner::PlannedMove& m) {
@@ -94,19 +105,41 @@ void MotionExecutor::wait_print_time(double t_s, const std::atomic<bool>& cancel
   }
 }
 
+void MotionExecutor::drop_queued_moves() {
+  planner::PlannedMove drop;
+  while (queue_.try_pop(drop)) popped_.fetch_add(1, std::memory_order_release);
+  if (telemetry_.anchored.load()) steps_.flush();
+  telemetry_.anchored.store(false);
+}
+
 void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   const double now_s = static_cast<double>(now_ns) * 1e-9;
+  bool anchored = telemetry_.anchored.load(std::memory_order_relaxed);
+  if (backend_ != nullptr) {
+    backend_->service(now_s);
+    if (backend_->fault()) {  // an MCU is gone or stopped: stop everything, resync afterwards
+      drop_queued_moves();
+      resync_ = true;
+      return;
+    }
+    if (!anchored && !backend_->ready()) return;  // motion waits for the MCUs and their clocks
+    std::array<stepgen::TickMap, kJoints> maps;
+    for (int j = 0; j < kJoints; ++j) maps[static_cast<size_t>(j)] = backend_->tick_map(j);
+    steps_.set_clock_maps(maps);
+  }
   if (cancel) {  // drop everything not yet turned into steps
-    planner::PlannedMove drop;
-    while (queue_.try_pop(drop)) popped_.fetch_add(1, std::memory_order_release);
-    if (telemetry_.anchored.load()) steps_.flush();
-    telemetry_.anchored.store(false);
+    drop_queued_moves();
     return;
   }
   const double horizon_s = now_s + options_.lead_s;
-  bool anchored = telemetry_.anchored.load(std::memory_order_relaxed);
   while (const planner::PlannedMove* front = queue_.front()) {
     if (!anchored) {  // motion starts from rest: its print time runs lead_s from now
+      if (resync_) {  // after a fault the steps sent were not all executed: restart from the plan
+        const planner::Joints q = kin_->inverse({front->start_mm[0], front->start_mm[1], front->start_mm[2]});
+        for (int j = 0; j < 3; ++j) steps_.set_position_mm(j, q[static_cast<size_t>(j)]);
+        steps_.set_position_mm(3, front->start_mm[3]);
+        resync_ = false;
+      }
       offset_s_ = horizon_s - front->start_time_s;
       steps_.set_time_offset_s(offset_s_);
       anchored = true;

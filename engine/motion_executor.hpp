@@ -23,6 +23,7 @@
 #include "core/spsc_queue.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/machine.hpp"
+#include "engine/servo_backend.hpp"
 #include "engine/step_pipeline.hpp"
 #include "planner/interpreter.hpp"
 #include "planner/joint_output.hpp"
@@ -61,6 +62,11 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   bool motion_pending() const override;
   void motion_status(MachineStatus& s) const override;
 
+  // The MCUs behind the batch sink (engine/mcu_bridge.hpp); set before the servo thread starts.
+  // Each servo cycle then services it first, takes its clock estimates for step timing, waits
+  // for ready() before motion starts from rest, and stops motion on fault().
+  void set_backend(ServoBackend* backend) { backend_ = backend; }
+
   const MotionTelemetry& telemetry() const { return telemetry_; }
   const StepPipeline& steps() const { return steps_; }  // servo thread owns it
   uint64_t moves() const { return interp_->moves(); }
@@ -94,6 +100,9 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   std::atomic<size_t> planner_queued_{0};  // mirror of planner_.queued() for the other threads
 
   // servo thread
+  ServoBackend* backend_ = nullptr;
+  bool resync_ = false;  // after a fault: joint positions restart from the next move's start
+  void drop_queued_moves();
   planner::PlannedMove current_;  // the move most recently handed to step generation
   double offset_s_ = 0.0;
   double executed_end_s_ = 0.0;

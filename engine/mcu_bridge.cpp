@@ -1,0 +1,438 @@
+// The machine's MCUs behind the step pipeline: see mcu_bridge.hpp.
+#include "engine/mcu_bridge.hpp"
+
+#include <algorithm>  // std::min
+#include <cmath>      // std::fabs, NAN
+#include <cstdio>     // snprintf
+#include <numbers>    // pi
+
+#include "drivers/stepgen/run_codec.hpp"
+#include "drivers/transport/serial_transport.hpp"
+#include "drivers/transport/usb_transport.hpp"
+#include "sim/gantry_params.hpp"
+
+namespace feedloop::engine {
+namespace {
+
+// The extruder (and any joint without a plant model): executes every step exactly.
+struct IdealMotor final : device::MotorPort {
+  int64_t steps = 0;
+  void step(double, int d) override { steps += d; }
+  void set_enabled(double, bool) override {}
+  int64_t read_encoder_counts(double) override { return steps; }
+};
+
+// The config's simulator effects on one gantry axis (config/machine_config.hpp -> sim/).
+void apply_effects(const config::SimEffectsConfig& e, const std::string& axis, sim::GantryEffects& g) {
+  if (e.coulomb_friction && config::applies_to(*e.coulomb_friction, axis))
+    g.coulomb_friction = {true, e.coulomb_friction->force_n};
+  if (e.backlash && config::applies_to(*e.backlash, axis)) g.backlash = {true, e.backlash->width_um};
+  if (e.periodic_position && config::applies_to(*e.periodic_position, axis)) {
+    g.periodic_position.enabled = true;
+    g.periodic_position.period_mm = e.periodic_position->period_mm;
+    g.periodic_position.amplitude_um = e.periodic_position->amplitude_um;
+  }
+  if (e.extra_resonance && config::applies_to(*e.extra_resonance, axis)) {
+    g.extra_resonance.enabled = true;
+    g.extra_resonance.freq_hz = e.extra_resonance->freq_hz;
+    g.extra_resonance.damping = e.extra_resonance->damping;
+  }
+  if (e.time_delay && config::applies_to(*e.time_delay, axis)) g.time_delay = {true, e.time_delay->delay_ms};
+  if (e.scale_error && config::applies_to(*e.scale_error, axis)) g.scale_error = {true, e.scale_error->scale};
+}
+
+}  // namespace
+
+struct McuBridge::Mcu {
+  std::string name;
+  std::unique_ptr<device::VirtualMcu> vmcu;
+  std::unique_ptr<drivers::Transport> transport;
+  drivers::MockTransport* mock = nullptr;
+  std::unique_ptr<drivers::McuSession> session;
+  std::vector<IdealMotor> ideal;  // motors without a plant model (sized before ports point at it)
+  bool estop_sent = false;
+};
+
+// Between a virtual MCU and its plant: checks each executed step against what was sent.
+struct McuBridge::JointPort final : device::MotorPort {
+  device::MotorPort* plant = nullptr;
+  std::vector<double> intended_s;  // ring of intended host times of steps sent, not yet executed
+  size_t head = 0, count = 0;
+  JointTiming timing;
+  void push(double t_s) {
+    if (count == intended_s.size()) return;  // more in flight than tracked: timing not checked
+    intended_s[(head + count) % intended_s.size()] = t_s;
+    ++count;
+  }
+  void step(double t_s, int direction) override {
+    ++timing.steps_executed;
+    if (count > 0) {
+      timing.max_time_err_us = std::max(timing.max_time_err_us, std::fabs(t_s - intended_s[head]) * 1e6);
+      head = (head + 1) % intended_s.size();
+      --count;
+    } else {
+      ++timing.unexpected_steps;
+    }
+    plant->step(t_s, direction);
+  }
+  void set_enabled(double t_s, bool on) override { plant->set_enabled(t_s, on); }
+  int64_t read_encoder_counts(double t_s) override { return plant->read_encoder_counts(t_s); }
+};
+
+McuBridge::McuBridge(const config::MachineConfig&, const McuBridgeOptions& options) : options_(options) {
+  for (auto& e : encoder_mm_) e.store(NAN);
+}
+
+McuBridge::~McuBridge() = default;
+
+Result<std::unique_ptr<McuBridge>> McuBridge::create(const config::MachineConfig& cfg,
+                                                     const McuBridgeOptions& options) {
+  std::unique_ptr<McuBridge> b(new McuBridge(cfg, options));
+  if (Status s = b->build(cfg); !s) return s.error();
+  return b;
+}
+
+Status McuBridge::build(const config::MachineConfig& cfg) {
+  const auto names = joint_names(cfg);
+  const auto spm = steps_per_mm(cfg);
+  const bool delta = cfg.kinematics == config::Kinematics::delta;
+  gantries_.resize(kJoints);
+
+  // Plants first (the ports point into them).
+  std::array<device::MotorPort*, kJoints> plant_port{};
+  if (delta) {
+    sim::DeltaPlantParams dp;
+    dp.mm_per_step = 1.0 / spm[0];
+    dp.seed = cfg.simulator.seed;
+    dp.encoder.noise_um = cfg.simulator.encoder_noise_um;
+    dp.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
+    auto d = sim::DeltaPlant::create(dp);
+    if (!d.ok()) return Error{"simulated delta: " + d.error().message};
+    delta_ = std::move(d.value());
+    for (int j = 0; j < 3; ++j) {
+      plant_port[static_cast<size_t>(j)] = &delta_->carriage_port(j);
+      encoder_mm_per_count_[static_cast<size_t>(j)] = dp.encoder.resolution_um * 1e-3;
+    }
+  } else {
+    for (int j = 0; j < 3; ++j) {
+      const size_t js = static_cast<size_t>(j);
+      sim::GantryAxisParams p = j == 1 ? sim::thesis_y_axis() : sim::thesis_x_axis();
+      if (!(spm[js] > 0)) return Error{"axis " + names[js] + ": steps_per_mm must be > 0"};
+      // The pulley that gives the configured steps/mm (x, y: the thesis's 5.40 mm).
+      p.pulley_radius_mm = p.full_steps_per_rev * p.microsteps / (2.0 * std::numbers::pi * spm[js]);
+      p.encoder.noise_um = cfg.simulator.encoder_noise_um;
+      p.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
+      if (const config::AxisConfig* a = cfg.axis(names[js]); a && a->encoder)
+        p.encoder.resolution_um = a->encoder->resolution_um;
+      p.seed = cfg.simulator.seed + 1000 * js;
+      apply_effects(cfg.simulator.effects, names[js], p.effects);
+      auto g = sim::GantryAxis::create(p);
+      if (!g.ok()) return Error{"simulated axis " + names[js] + ": " + g.error().message};
+      gantries_[js] = std::make_unique<sim::GantryAxis>(std::move(g.value()));
+      plant_port[js] = gantries_[js].get();
+      encoder_mm_per_count_[js] = gantries_[js]->encoder_mm_per_count();
+    }
+  }
+
+  int index = 0;
+  for (const config::McuConfig& mc : cfg.mcus) {
+    auto m = std::make_unique<Mcu>();
+    m->name = mc.name;
+    std::vector<int> joints;
+    for (const std::string& a : mc.axes) {
+      int j = -1;
+      for (int k = 0; k < kJoints; ++k)
+        if (names[static_cast<size_t>(k)] == a) j = k;
+      if (j < 0) return Error{"MCU '" + mc.name + "': axis '" + a + "' is not a joint of this machine"};
+      if (joint_mcu_[static_cast<size_t>(j)] >= 0) return Error{"axis '" + a + "' is driven by two MCUs"};
+      if (joints.size() >= static_cast<size_t>(device::VirtualMcu::kMaxAxes))
+        return Error{"MCU '" + mc.name + "': more than 4 axes"};
+      joint_mcu_[static_cast<size_t>(j)] = index;
+      joint_motor_[static_cast<size_t>(j)] = static_cast<int>(joints.size());
+      joints.push_back(j);
+    }
+    if (mc.transport == config::TransportType::mock) {
+      m->ideal.resize(joints.size());
+      std::array<device::MotorPort*, device::VirtualMcu::kMaxAxes> ports{};
+      for (size_t k = 0; k < joints.size(); ++k) {
+        const auto js = static_cast<size_t>(joints[k]);
+        auto port = std::make_unique<JointPort>();
+        port->plant = plant_port[js] != nullptr ? plant_port[js] : &m->ideal[k];
+        port->intended_s.assign(options_.step_ring, 0.0);
+        ports[k] = port.get();
+        ports_[js] = std::move(port);
+      }
+      device::VirtualMcuParams vp;
+      vp.clock_hz = static_cast<double>(mc.clock_hz);
+      vp.drift_ppm = (index % 2 == 0 ? 1.0 : -1.0) * options_.drift_ppm;
+      vp.offset_s = (index + 1) * options_.clock_offset_s;
+      vp.axis = static_cast<uint8_t>(joints.empty() ? 0 : joints[0]);
+      std::snprintf(vp.name, sizeof vp.name, "%s", mc.name.c_str());
+      m->vmcu = joints.size() > 1 ? std::make_unique<device::VirtualMcu>(vp, ports.data(), static_cast<int>(joints.size()))
+                                  : std::make_unique<device::VirtualMcu>(vp, ports[0]);
+      drivers::MockFaults f = options_.faults;
+      f.seed += static_cast<uint64_t>(index) * 7919;
+      auto t = std::make_unique<drivers::MockTransport>(*m->vmcu, f, mc.name);
+      m->mock = t.get();
+      simulated_ = true;
+      m->transport = std::move(t);
+    } else if (mc.transport == config::TransportType::serial) {
+      m->transport = std::make_unique<drivers::SerialTransport>(mc.serial.device, static_cast<unsigned>(mc.serial.baud));
+    } else {
+      drivers::UsbParams up;
+      up.vendor_id = static_cast<uint16_t>(mc.usb.vid);
+      up.product_id = static_cast<uint16_t>(mc.usb.pid);
+      up.serial = mc.usb.serial;
+      m->transport = std::make_unique<drivers::UsbTransport>(up);
+    }
+    drivers::McuSessionParams sp;
+    sp.name = mc.name;
+    sp.watchdog_s = options_.watchdog_s;
+    bool has_encoder = false;
+    for (int j : joints) {
+      const config::AxisConfig* a = cfg.axis(names[static_cast<size_t>(j)]);
+      if (a && a->encoder) {
+        has_encoder = true;
+        if (mc.transport != config::TransportType::mock)
+          encoder_mm_per_count_[static_cast<size_t>(j)] = a->encoder->resolution_um * 1e-3;
+      }
+      if (delta && j < 3) has_encoder = true;  // the simulated delta has carriage encoders
+    }
+    sp.encoder_period_s = has_encoder ? 1e-3 : 0.0;
+    m->session = std::make_unique<drivers::McuSession>(sp, *m->transport);
+    mcus_.push_back(std::move(m));
+    ++index;
+  }
+  for (int j = 0; j < kJoints; ++j)
+    if (joint_mcu_[static_cast<size_t>(j)] < 0 && spm[static_cast<size_t>(j)] > 0 && j < 3)
+      return Error{"axis '" + names[static_cast<size_t>(j)] + "' is driven by no MCU (mcus: ... axes)"};
+  return Status::Ok();
+}
+
+Status McuBridge::start(double now_s) {
+  started_ = true;
+  last_service_s_ = now_s;
+  phase_ = Phase::kStarting;
+  ready_since_s_ = -1.0;
+  for (auto& m : mcus_) {
+    m->estop_sent = false;
+    if (Status s = m->session->start(now_s); !s) {
+      latch_fault(s.error().message);
+      next_restart_s_ = now_s + options_.restart_period_s;
+      return s;
+    }
+  }
+  return Status::Ok();
+}
+
+void McuBridge::log(std::string message) {
+  std::lock_guard lock(events_mutex_);
+  if (events_.size() < 1000) events_.push_back(std::move(message));
+}
+
+std::vector<std::string> McuBridge::events() const {
+  std::lock_guard lock(events_mutex_);
+  return events_;
+}
+
+void McuBridge::latch_fault(const std::string& message) {
+  ready_.store(false, std::memory_order_release);
+  if (phase_ == Phase::kFaulted) return;
+  FaultText t;
+  std::snprintf(t.text, sizeof t.text, "%s", message.c_str());
+  fault_text_.store(t);
+  fault_.store(true, std::memory_order_release);
+  phase_ = Phase::kFaulted;
+  ++faults_total_;
+  log("fault: " + message);
+  // Everything else stops now; the MCU that is gone stops on its own watchdog.
+  for (auto& m : mcus_)
+    if (m->session->ready()) {
+      m->session->emergency_stop();
+      m->estop_sent = true;
+    }
+  next_restart_s_ = last_service_s_ + options_.restart_period_s;
+}
+
+void McuBridge::fault_message(char* out, size_t cap) const {
+  if (cap == 0) return;
+  const FaultText t = fault_text_.load();
+  std::snprintf(out, cap, "%s", fault_.load() ? t.text : "");
+}
+
+void McuBridge::poll_all(double now_s) {
+  for (auto& m : mcus_) m->session->poll(now_s);
+}
+
+stepgen::TickMap McuBridge::tick_map(int joint) const {
+  const int i = joint_mcu_[static_cast<size_t>(joint)];
+  if (i < 0) return {0.0, 1.0};
+  return mcus_[static_cast<size_t>(i)]->session->tick_map();
+}
+
+double McuBridge::encoder_mm(int joint) const {
+  return encoder_mm_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
+}
+
+void McuBridge::collect(double) {
+  for (auto& m : mcus_) {
+    drivers::McuSession& s = *m->session;
+    std::vector<drivers::EncoderSample> samples = s.take_encoder_samples();
+    if (!samples.empty()) {
+      for (size_t j = 0; j < kJoints; ++j) {
+        if (joint_mcu_[j] < 0 || mcus_[static_cast<size_t>(joint_mcu_[j])].get() != m.get()) continue;
+        for (auto it = samples.rbegin(); it != samples.rend(); ++it)
+          if (it->axis == joint_motor_[j]) {
+            encoder_mm_[j].store(static_cast<double>(it->counts) * encoder_mm_per_count_[j], std::memory_order_relaxed);
+            break;
+          }
+      }
+      encoder_samples_.fetch_add(samples.size(), std::memory_order_relaxed);
+    }
+    for (std::string& e : s.take_events()) log(std::move(e));
+  }
+}
+
+void McuBridge::service(double now_s) {
+  if (!started_) {
+    (void)start(now_s);  // a failure latches fault(); retried like any other fault
+    return;
+  }
+  // Virtual MCUs: the host reads their replies at slice boundaries, not once per servo period.
+  // A clock reply read up to a period late would bias the clock estimate by half a period
+  // (the midpoint of the round trip, drivers/clock_sync.hpp); slices also keep a delta plant's
+  // three ports called in time order across its MCUs.
+  if (simulated_ && options_.io_slice_s > 0) {
+    for (double t = last_service_s_ + options_.io_slice_s; t < now_s; t += options_.io_slice_s) poll_all(t);
+  }
+  poll_all(now_s);
+  last_service_s_ = now_s;
+  for (auto& g : gantries_)
+    if (g) g->advance_to(now_s);
+  if (delta_) delta_->advance_to(now_s);
+  collect(now_s);
+
+  auto describe_down = [&]() -> std::string {
+    for (auto& m : mcus_) {
+      const drivers::McuSession& s = *m->session;
+      if (s.state() == drivers::McuState::kFailed)
+        return s.error() ? s.error()->message : "MCU '" + m->name + "' failed";
+      if (s.state() == drivers::McuState::kDisconnected)
+        return "MCU '" + m->name + "' (" + m->transport->describe() + ") disconnected";
+    }
+    return {};
+  };
+  switch (phase_) {
+    case Phase::kStarting: {
+      bool all_ready = true;
+      for (auto& m : mcus_) all_ready = all_ready && m->session->ready();
+      if (!all_ready) {
+        ready_since_s_ = -1.0;
+        if (std::string why = describe_down(); !why.empty()) latch_fault(why);
+        return;
+      }
+      if (ready_since_s_ < 0) {
+        ready_since_s_ = now_s;
+        for (auto& m : mcus_) m->session->set_enabled(true);
+      }
+      if (now_s - ready_since_s_ >= options_.sync_settle_s) {
+        phase_ = Phase::kRunning;
+        if (fault_.load()) {
+          ++recoveries_;
+          log("recovered: every MCU re-identified and its clock re-synchronised; position was lost, home before printing");
+        }
+        fault_.store(false, std::memory_order_release);
+        ready_.store(true, std::memory_order_release);
+      }
+      return;
+    }
+    case Phase::kRunning:
+      if (std::string why = describe_down(); !why.empty()) latch_fault(why + "; motion stopped");
+      return;
+    case Phase::kFaulted: {
+      // Recover once every link is back and every MCU has stopped (queues flushed).
+      bool all_stopped = true;
+      for (auto& m : mcus_) {
+        drivers::McuSession& s = *m->session;
+        if (s.state() == drivers::McuState::kDisconnected || !m->transport->connected()) {
+          all_stopped = false;
+        } else if (s.state() == drivers::McuState::kReady) {
+          if (!m->estop_sent) {
+            s.emergency_stop();
+            m->estop_sent = true;
+          }
+          all_stopped = false;
+        } else if (s.state() != drivers::McuState::kFailed) {
+          all_stopped = false;
+        }
+      }
+      if (!all_stopped || now_s < next_restart_s_) return;
+      next_restart_s_ = now_s + options_.restart_period_s;
+      phase_ = Phase::kStarting;
+      ready_since_s_ = -1.0;
+      for (auto& p : ports_)  // the steps in flight were flushed by the stops
+        if (p) p->head = p->count = 0;
+      for (auto& m : mcus_) {
+        m->estop_sent = false;
+        if (Status s = m->session->start(now_s); !s) {
+          phase_ = Phase::kFaulted;
+          log(s.error().message);
+          return;
+        }
+      }
+      return;
+    }
+  }
+}
+
+void McuBridge::on_batch(const stepgen::StepBatch& b) {
+  const size_t joint = b.axis;
+  if (joint >= kJoints || joint_mcu_[joint] < 0 || phase_ != Phase::kRunning) {
+    ++batches_dropped_;
+    return;
+  }
+  Mcu& m = *mcus_[static_cast<size_t>(joint_mcu_[joint])];
+  // What the MCU must execute: counted and hashed (device::step_hash_update) for the checks, and
+  // each step's intended host time through the clock estimate in use.
+  JointTiming* t = ports_[joint] ? &ports_[joint]->timing : nullptr;
+  stepgen::RunDecoder d;
+  if (t != nullptr && d.begin(b.body, b.body_bytes)) {
+    const drivers::ClockSync& clock = m.session->clock();
+    int64_t p = d.first_clock();
+    stepgen::StepRun r;
+    while (!d.done() && d.next(r)) {
+      for (uint32_t k = 1; k <= r.count; ++k) {
+        const int64_t c = stepgen::run_step_clock(p, r, k);
+        t->hash_sent = device::step_hash_update(t->hash_sent, c, r.direction);
+        ++t->steps_sent;
+        ports_[joint]->push(clock.host_time_at(static_cast<double>(c)));
+      }
+      p = stepgen::run_end_clock(p, r);
+    }
+  }
+  stepgen::StepBatch out = b;
+  out.axis = static_cast<uint8_t>(joint_motor_[joint]);
+  m.session->queue_steps(out);
+}
+
+const std::string& McuBridge::mcu_name(int i) const { return mcus_[static_cast<size_t>(i)]->name; }
+drivers::McuSession& McuBridge::session(int i) { return *mcus_[static_cast<size_t>(i)]->session; }
+drivers::MockTransport* McuBridge::mock(int i) { return mcus_[static_cast<size_t>(i)]->mock; }
+const device::VirtualMcu* McuBridge::virtual_mcu(int i) const { return mcus_[static_cast<size_t>(i)]->vmcu.get(); }
+sim::GantryAxis* McuBridge::gantry(int joint) {
+  return joint < 0 || joint >= kJoints ? nullptr : gantries_[static_cast<size_t>(joint)].get();
+}
+
+const JointTiming& McuBridge::timing(int joint) const {
+  static const JointTiming kNone{};
+  const auto& p = ports_[static_cast<size_t>(joint)];
+  return p ? p->timing : kNone;
+}
+
+Result<std::shared_ptr<McuBridge>> make_mcu_bridge(const config::MachineConfig& cfg, const McuBridgeOptions& options) {
+  auto b = McuBridge::create(cfg, options);
+  if (!b.ok()) return b.error();
+  return std::shared_ptr<McuBridge>(std::move(b.value()));
+}
+
+}  // namespace feedloop::engine

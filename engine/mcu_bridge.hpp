@@ -1,0 +1,150 @@
+// The machine's MCUs behind the step pipeline (DESIGN.md "The microcontroller side"): for each
+// McuConfig one host McuSession on its transport; for `mock` transports also the VirtualMcu (with
+// a drifting clock) and the plant simulator it drives (sim::GantryAxis per Cartesian axis, one
+// sim::DeltaPlant for a delta's carriages, an ideal motor for the extruder).
+//
+//   StepPipeline --StepBatch--> McuBridge::on_batch --> McuSession --> Transport (mock: faults)
+//        --> VirtualMcu --MotorPort--> plant;   encoder reports, clock sync, errors flow back.
+//
+// Servo thread: service(now) once per period (from MotionExecutor::servo_cycle): transport I/O,
+// virtual MCUs and plants advanced to now, clock sync, encoder samples, faults. tick_map(joint)
+// gives the clock sync's host-time -> MCU-tick map used for every step time.
+// Faults: an MCU that disconnects or stops latches fault() with a message naming it; every other
+// MCU gets an emergency stop. When every link is back, all MCUs are re-identified, the clocks
+// re-synchronised, and the fault clears (the executor then restarts from the planned position;
+// the real machine has lost its position and should be homed).
+// Real time: the bridge itself allocates nothing after create(); McuSession and MockTransport
+// (drivers/) allocate per message today (see the report in tests/engine_sim).
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "config/machine_config.hpp"
+#include "core/result.hpp"
+#include "drivers/device/virtual_mcu.hpp"
+#include "drivers/host/mcu_session.hpp"
+#include "drivers/transport/mock_transport.hpp"
+#include "engine/config_mapping.hpp"
+#include "engine/seqlock.hpp"
+#include "engine/servo_backend.hpp"
+#include "sim/delta_plant.hpp"
+#include "sim/gantry_axis.hpp"
+
+namespace feedloop::engine {
+
+struct McuBridgeOptions {
+  double drift_ppm = 50.0;        // virtual MCU i runs fast (even i) or slow (odd i) by this much
+  double clock_offset_s = 3.7;    // virtual MCU i's clock reads (t + (i + 1) clock_offset_s) rate
+  drivers::MockFaults faults;     // every mock link
+  double sync_settle_s = 1.0;     // clock queries after identify before motion may start
+  double watchdog_s = 0.5;        // MCU watchdog (no host message -> stop)
+  double restart_period_s = 0.5;  // after a fault: how often to retry re-identifying
+  double io_slice_s = 50e-6;      // virtual MCUs: links serviced at this granularity within a period
+  size_t step_ring = 1 << 16;     // per joint: steps in flight tracked for the timing figures
+};
+
+// Step timing on the plant side, per joint (simulation only): each executed step against the
+// host time the pipeline intended for it (the compressed tick mapped back through the clock
+// estimate in use when its batch was sent).
+struct JointTiming {
+  uint64_t steps_sent = 0;         // steps in batches handed to the MCU
+  uint64_t hash_sent = device::kStepHashSeed;  // step_hash over what was sent
+  uint64_t steps_executed = 0;     // steps the plant received
+  uint64_t unexpected_steps = 0;   // executed steps that were never sent (must stay 0)
+  double max_time_err_us = 0.0;    // max |true step time - intended host time|
+};
+
+class McuBridge final : public stepgen::BatchSink, public ServoBackend {
+ public:
+  static Result<std::unique_ptr<McuBridge>> create(const config::MachineConfig& cfg,
+                                                   const McuBridgeOptions& options = {});
+  ~McuBridge() override;
+  McuBridge(const McuBridge&) = delete;
+  McuBridge& operator=(const McuBridge&) = delete;
+
+  // Opens every link and identifies every MCU (host time now_s). The first service() does it
+  // when nobody called it.
+  Status start(double now_s);
+
+  // ServoBackend (servo thread, except where noted there).
+  void service(double now_s) override;
+  bool ready() const override { return ready_.load(std::memory_order_acquire); }
+  stepgen::TickMap tick_map(int joint) const override;
+  bool fault() const override { return fault_.load(std::memory_order_acquire); }
+  void fault_message(char* out, size_t cap) const override;
+  double encoder_mm(int joint) const override;
+  unsigned long long encoder_samples() const override { return encoder_samples_.load(std::memory_order_relaxed); }
+
+  // stepgen::BatchSink (servo thread): StepBatch::axis is the joint index.
+  void on_batch(const stepgen::StepBatch& batch) override;
+
+  // Inspection (tests, benchmarks; the servo thread's data: read when it is not running).
+  int mcu_count() const { return static_cast<int>(mcus_.size()); }
+  const std::string& mcu_name(int i) const;
+  drivers::McuSession& session(int i);
+  drivers::MockTransport* mock(int i);          // nullptr for a real transport
+  const device::VirtualMcu* virtual_mcu(int i) const;  // nullptr for a real transport
+  int mcu_of_joint(int joint) const { return joint_mcu_[static_cast<size_t>(joint)]; }
+  int motor_of_joint(int joint) const { return joint_motor_[static_cast<size_t>(joint)]; }
+  sim::GantryAxis* gantry(int joint);           // Cartesian joints 0-2 in simulation
+  sim::DeltaPlant* delta() { return delta_.get(); }
+  const JointTiming& timing(int joint) const;
+  uint64_t batches_dropped() const { return batches_dropped_; }  // arrived while faulted
+  uint64_t faults() const { return faults_total_; }
+  uint64_t recoveries() const { return recoveries_; }
+  // Every event so far (disconnects, MCU errors, recoveries), oldest first. Any thread.
+  std::vector<std::string> events() const;
+
+ private:
+  struct Mcu;
+  struct JointPort;
+  McuBridge(const config::MachineConfig& cfg, const McuBridgeOptions& options);
+  Status build(const config::MachineConfig& cfg);
+  void poll_all(double now_s);
+  void collect(double now_s);
+  void latch_fault(const std::string& message);
+  void log(std::string message);
+
+  McuBridgeOptions options_;
+  std::vector<std::unique_ptr<Mcu>> mcus_;
+  std::array<int, kJoints> joint_mcu_{{-1, -1, -1, -1}};
+  std::array<int, kJoints> joint_motor_{{0, 0, 0, 0}};
+  std::array<double, kJoints> encoder_mm_per_count_{};
+  std::array<std::unique_ptr<JointPort>, kJoints> ports_;
+  std::vector<std::unique_ptr<sim::GantryAxis>> gantries_;  // by joint (nullptr: none)
+  std::unique_ptr<sim::DeltaPlant> delta_;
+  bool simulated_ = false;  // some MCU is a virtual one (mock transport)
+
+  // Servo thread state.
+  enum class Phase { kStarting, kRunning, kFaulted };
+  Phase phase_ = Phase::kStarting;
+  bool started_ = false;
+  double last_service_s_ = 0.0;
+  double ready_since_s_ = -1.0;
+  double next_restart_s_ = 0.0;
+  uint64_t batches_dropped_ = 0, faults_total_ = 0, recoveries_ = 0;
+
+  std::atomic<bool> ready_{false};
+  std::atomic<bool> fault_{false};
+  struct FaultText {
+    char text[192] = {};
+  };
+  Seqlock<FaultText> fault_text_;
+  std::array<std::atomic<double>, kJoints> encoder_mm_{};
+  std::atomic<unsigned long long> encoder_samples_{0};
+
+  mutable std::mutex events_mutex_;  // taken only when an event happens (rare, not steady state)
+  std::vector<std::string> events_;
+};
+
+// The bridge as the executor's batch sink and servo backend, from a machine config.
+Result<std::shared_ptr<McuBridge>> make_mcu_bridge(const config::MachineConfig& cfg,
+                                                   const McuBridgeOptions& options = {});
+
+}  // namespace feedloop::engine
