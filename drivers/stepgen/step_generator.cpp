@@ -103,7 +103,8 @@ void StepGenerator::cubic_piece(double t0_s, double a, double b, double c, doubl
   const int8_t d = s_end > s_a ? 1 : -1;
   double lo = tau_a;  // s(lo) is before the threshold
   double x = static_cast<double>(n_) + 0.5 * d;
-  constexpr double kTolS = 1e-9;  // 1 ns: far below a tick (14 ns at 72 MHz)
+  // 1e-12 s: the compressor treats these times as exact, so their error adds to its bound.
+  constexpr double kTolS = 1e-12;
   while ((d > 0) ? (x <= s_end) : (x >= s_end)) {
     double hi = tau_b;
     // Newton start: the root of the second-order Taylor expansion at lo (the same stable

@@ -1,0 +1,101 @@
+// Batch mode: two threads give bit-identical output to one; the delta's step streams start at
+// the first move (regression: they started at 0 mm and the first segment jumped ~280 mm); the
+// step-time error bound on generated programs (the corpus version is step_error_corpus_test).
+#include <gtest/gtest.h>
+
+#include "tests/engine/batch_support.hpp"
+
+namespace feedloop::engine::testing {
+namespace {
+
+void expect_identical(const std::string& path, const config::MachineConfig& cfg) {
+  BatchHasher h1, h2;
+  BatchOptions o1, o2;
+  o1.threads = 1;
+  o1.batch_tap = &h1;
+  o2.threads = 2;
+  o2.batch_tap = &h2;
+  auto a = run_batch(path, cfg, o1);
+  auto b = run_batch(path, cfg, o2);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_GT(a->total_steps, 10000u);
+  EXPECT_EQ(a->moves, b->moves);
+  EXPECT_EQ(a->wire_bytes, b->wire_bytes);
+  for (int j = 0; j < kJoints; ++j) {
+    const JointStepStats &x = a->joints[static_cast<size_t>(j)], &y = b->joints[static_cast<size_t>(j)];
+    EXPECT_EQ(x.steps, y.steps) << "joint " << j;
+    EXPECT_EQ(x.runs, y.runs) << "joint " << j;
+    EXPECT_EQ(x.batches, y.batches) << "joint " << j;
+    EXPECT_EQ(x.body_bytes, y.body_bytes) << "joint " << j;
+    EXPECT_EQ(x.max_step_rate_hz, y.max_step_rate_hz) << "joint " << j;
+    EXPECT_EQ(h1.hash(j), h2.hash(j)) << "joint " << j << ": the batch streams differ";
+  }
+}
+
+TEST(BatchThreads, TwoThreadsGiveTheSameRunsAsOne) {
+  const std::string path = write_temp("spiral_cart.gcode", spiral_gcode(100, 100, 30, 1000));
+  expect_identical(path, config::default_config());
+}
+
+TEST(BatchThreads, TwoThreadsGiveTheSameRunsAsOneOnTheCorpusCube) {
+  const std::string path = std::string(FEEDLOOP_SHARED_DIR) + "/gcode/cube20_cartesian.gcode";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "corpus absent: " << path;
+  expect_identical(path, config::default_config());
+}
+
+TEST(BatchDelta, StepStreamsStartAtTheFirstMove) {
+  const config::MachineConfig cfg = delta_config();
+  ASSERT_EQ(cfg.kinematics, config::Kinematics::delta);
+  const std::string path = write_temp("spiral_delta.gcode", spiral_gcode(0, 0, 70, 600));
+  auto r = run_checked(path, cfg);
+  ASSERT_TRUE(r.ok()) << r.error().to_string();
+  const BatchSummary& s = r->summary;
+  EXPECT_EQ(s.rejected, 0);
+  EXPECT_EQ(s.check_failures, 0u);
+  for (int j = 0; j < 3; ++j) {
+    const JointStepStats& js = s.joints[static_cast<size_t>(j)];
+    // Carriages move at most a few times the effector's 150 mm/s: 80 steps/mm * 450 mm/s = 36 kHz.
+    // The bug made thousands of steps within a microsecond (~1 GHz).
+    EXPECT_LT(js.max_step_rate_hz, 40e3) << "carriage " << j;
+    EXPECT_GT(js.steps, 1000u);
+  }
+  EXPECT_EQ(r->not_found, 0u);
+  EXPECT_LE(r->max_error_us, cfg.stepgen.max_step_error_us);
+  EXPECT_GT(r->max_error_us, 0.0);
+  std::printf("delta spiral: %llu steps, max step-time error %.3f us, %.3f B/step\n",
+              static_cast<unsigned long long>(s.total_steps), r->max_error_us, s.wire_bytes_per_step);
+}
+
+TEST(BatchStepError, GeneratedCartesianProgramWithinTheBound) {
+  const config::MachineConfig cfg = config::default_config();
+  const std::string path = write_temp("spiral_cart_err.gcode", spiral_gcode(100, 100, 30, 1000));
+  for (int threads : {1, 2}) {
+    auto r = run_checked(path, cfg, threads);
+    ASSERT_TRUE(r.ok()) << r.error().to_string();
+    EXPECT_EQ(r->summary.check_failures, 0u);
+    EXPECT_EQ(r->not_found, 0u);
+    uint64_t decoded = 0;
+    for (int j = 0; j < kJoints; ++j) {
+      EXPECT_EQ(r->joints[static_cast<size_t>(j)].steps, r->summary.joints[static_cast<size_t>(j)].steps);
+      decoded += r->joints[static_cast<size_t>(j)].steps;
+    }
+    EXPECT_EQ(decoded, r->summary.total_steps);
+    EXPECT_LE(r->max_error_us, cfg.stepgen.max_step_error_us);
+    // The compressor uses the error budget (a bound that is never approached tests nothing).
+    EXPECT_GT(r->max_error_us, 0.5 * cfg.stepgen.max_step_error_us);
+  }
+}
+
+TEST(BatchStepError, ATighterBoundIsHonouredToo) {
+  config::MachineConfig cfg = config::default_config();
+  cfg.stepgen.max_step_error_us = 1.0;
+  const std::string path = write_temp("spiral_cart_tight.gcode", spiral_gcode(100, 100, 30, 500));
+  auto r = run_checked(path, cfg);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->not_found, 0u);
+  EXPECT_LE(r->max_error_us, 1.0);
+  EXPECT_GT(r->max_error_us, 0.5);
+}
+
+}  // namespace
+}  // namespace feedloop::engine::testing

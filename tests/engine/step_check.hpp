@@ -1,0 +1,151 @@
+// Test support: rebuilds every step time of a batch-mode run from the compressed QUEUE_STEPS
+// bodies (RunDecoder + the MCU step law) and compares it with the exact step time computed
+// independently from the closed-form joint motion (the JointSegments the planner emitted), by
+// bisection on the segment polynomials — no code of the step generator is used.
+//
+// Step convention (docs/protocol.md): a step in direction d crosses the threshold n + d/2 of
+// s(t) = steps_per_mm * pos_mm(t). For the decoded step at time t the exact time is the nearest
+// crossing of that threshold in direction d; its distance to t is the step-time error.
+//
+// Thread use: BatchOptions calls the taps from the thread that steps the joint concerned; all
+// state here is per joint, so the two batch threads never share any of it.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <deque>
+
+#include "core/joint_segment.hpp"
+#include "drivers/stepgen/run_codec.hpp"
+#include "drivers/stepgen/step_batcher.hpp"
+#include "engine/step_pipeline.hpp"
+#include "planner/joint_output.hpp"
+
+namespace feedloop::engine::testing {
+
+struct JointCheckResult {
+  uint64_t steps = 0;
+  double max_error_us = 0.0;
+  uint64_t not_found = 0;  // decoded steps with no crossing of their threshold nearby
+  int64_t final_steps = 0;  // position after the last decoded step
+};
+
+class StepChecker final : public planner::JointSink, public stepgen::BatchSink {
+ public:
+  StepChecker(const std::array<double, kJoints>& steps_per_mm, double mcu_clock_hz, double max_error_us)
+      : spm_(steps_per_mm), clock_hz_(mcu_clock_hz), window_s_(4.0 * max_error_us * 1e-6) {}
+
+  void on_joint_segment(int joint, const JointSegment& seg) override {
+    Joint& j = joints_[static_cast<size_t>(joint)];
+    if (!j.started) {
+      j.started = true;
+      j.n = std::llround(seg.c0_mm * spm_[static_cast<size_t>(joint)]);
+    }
+    if (seg.duration_s > 0.0) j.segs.push_back(seg);
+  }
+
+  void on_batch(const stepgen::StepBatch& b) override {
+    Joint& j = joints_[b.axis];
+    stepgen::RunDecoder dec;
+    if (!dec.begin(b.body, b.body_bytes)) {
+      ++j.result.not_found;
+      return;
+    }
+    int64_t clock = dec.first_clock();
+    stepgen::StepRun r;
+    while (!dec.done()) {
+      if (!dec.next(r)) {
+        ++j.result.not_found;
+        return;
+      }
+      int64_t interval = r.interval_ticks;
+      for (uint32_t k = 0; k < r.count; ++k) {  // next = last + interval; interval += add
+        clock += interval;
+        interval += r.add_ticks;
+        check_step(j, b.axis, static_cast<double>(clock) / clock_hz_, r.direction);
+      }
+    }
+  }
+
+  JointCheckResult result(int joint) const {
+    JointCheckResult r = joints_[static_cast<size_t>(joint)].result;
+    r.final_steps = joints_[static_cast<size_t>(joint)].n;
+    return r;
+  }
+
+ private:
+  struct Joint {
+    bool started = false;
+    int64_t n = 0;
+    std::deque<JointSegment> segs;
+    JointCheckResult result;
+  };
+
+  // s(t) in steps: the segment that holds t (segments are contiguous and time-ordered).
+  double steps_at(const Joint& j, size_t joint, double t) const {
+    auto it = std::lower_bound(j.segs.begin(), j.segs.end(), t,
+                               [](const JointSegment& s, double tt) { return s.end_s() < tt; });
+    const JointSegment* seg = it == j.segs.end() ? &j.segs.back() : &*it;
+    const double tc = std::clamp(t, seg->t0_s, seg->end_s());
+    return seg->position_mm(tc) * spm_[joint];
+  }
+
+  void check_step(Joint& j, size_t joint, double t, int8_t d) {
+    const double x = static_cast<double>(j.n) + 0.5 * d;
+    j.n += d;
+    ++j.result.steps;
+    // Drop segments that end well before this step (steps come in time order).
+    while (j.segs.size() > 1 && j.segs.front().end_s() < t - 2.0 * window_s_) j.segs.pop_front();
+    if (j.segs.empty()) {
+      ++j.result.not_found;
+      return;
+    }
+    // f < 0 before the crossing, > 0 after it. Usually the crossing is bracketed by t +- E
+    // (window / 4); otherwise find the sign change of f (from <= 0 to > 0) nearest to t in
+    // [t - window, t + window] on a fine grid. Then bisect the bracket.
+    auto f = [&](double tt) { return d * (steps_at(j, joint, tt) - x); };
+    const double e = 0.25 * window_s_;
+    if (f(t - e) <= 0.0 && f(t + e) > 0.0) {
+      bisect(j, f, t - e, t + e, t);
+      return;
+    }
+    constexpr int kGrid = 64;
+    const double w = window_s_, h = 2.0 * w / kGrid;
+    double best_lo = 0, best_hi = 0, best_dist = 1e300;
+    double f_prev = f(t - w);
+    for (int i = 1; i <= kGrid; ++i) {
+      const double tb = t - w + h * i;
+      const double fb = f(tb);
+      if (f_prev <= 0.0 && fb > 0.0) {
+        const double ta = tb - h;
+        const double dist = (t < ta) ? ta - t : (t > tb ? t - tb : 0.0);
+        if (dist < best_dist) best_dist = dist, best_lo = ta, best_hi = tb;
+      }
+      f_prev = fb;
+    }
+    if (best_dist > 1e299) {
+      ++j.result.not_found;
+      return;
+    }
+    bisect(j, f, best_lo, best_hi, t);
+  }
+
+  template <class F>
+  static void bisect(Joint& j, const F& f, double lo, double hi, double t) {
+    for (int it = 0; it < 32; ++it) {  // 40 us / 2^32: far below a nanosecond
+      const double mid = 0.5 * (lo + hi);
+      (f(mid) > 0.0 ? hi : lo) = mid;
+    }
+    const double err_us = std::fabs(0.5 * (lo + hi) - t) * 1e6;
+    j.result.max_error_us = std::max(j.result.max_error_us, err_us);
+  }
+
+  std::array<double, kJoints> spm_;
+  double clock_hz_;
+  double window_s_;
+  std::array<Joint, kJoints> joints_;
+};
+
+}  // namespace feedloop::engine::testing
