@@ -81,6 +81,11 @@ Result<SimResult> simulate(const PiecewiseLinearPath& path, const SpeedAssignmen
   const double theta_end = path.theta_end();
   const size_t max_steps = static_cast<size_t>(opt.max_time_s / opt.dt_s) + 1;
   if (opt.record_every > 0) r.samples.reserve(max_steps / opt.record_every / 8 + 16);
+  r.segment_entry_s.assign(path.segments() + 1, -1.0);
+  r.segment_entry_s[1] = 0.0;
+  auto enter = [&](size_t m, double at_s) {
+    if (r.segment_entry_s[m] < 0.0) r.segment_entry_s[m] = at_s;
+  };
 
   auto record = [&](double h, bool keep) {
     const ManeuverOutput o = controller.evaluate(path, speed, s.x, s.c, n);
@@ -108,11 +113,13 @@ Result<SimResult> simulate(const PiecewiseLinearPath& path, const SpeedAssignmen
         next.c.theta = path.theta(n);  // land exactly on the waypoint
         s = next;
         ++n;
+        enter(n, t + h);
       } else {
         s = next;
         const size_t m = path.segment_at(s.c.theta);
         if (!opt.split_at_waypoints && m > n + 1) r.skipped_segments += m - n - 1;
         n = opt.split_at_waypoints ? (s.c.theta < path.theta(n - 1) ? m : n) : m;
+        enter(n, t + h);
       }
       remaining -= h;
       t += h;

@@ -54,7 +54,9 @@ struct SimResult {
   double max_along_m = 0.0;
   size_t steps = 0;             // integration steps taken (split steps count once per piece)
   size_t skipped_segments = 0;  // segments theta jumped over between two consecutive steps
-  std::vector<double> layer_times_s;  // unused by simulate(); filled by callers that split layers
+  // segment_entry_s[n]: time the controller's segment became n (first time), -1 if never
+  // (skipped); index 0 unused. Allocated before the loop.
+  std::vector<double> segment_entry_s;
 };
 
 Result<SimResult> simulate(const PiecewiseLinearPath& path, const SpeedAssignment& speed,
