@@ -1,6 +1,7 @@
 // Simulation of the identification's axis model (see axis_model.hpp).
 #include "ident/axis_model.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/Dense>
@@ -103,15 +104,23 @@ Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double
     A(4, 4) = -1.0;  // unused states decay (keeps the exponential well conditioned)
     A(5, 5) = -1.0;
   }
-  const double h = period_s / kSubsteps;
-  Eigen::Matrix<double, 9, 9> M = Eigen::Matrix<double, 9, 9>::Zero();
-  M.topLeftCorner<6, 6>() = A * h;
-  M.topRightCorner<6, 3>() = B * h;
-  const Eigen::Matrix<double, 9, 9> E = M.exp();
-  const Mat6 Ad = E.topLeftCorner<6, 6>();
-  const Mat63 Bd = E.topRightCorner<6, 3>();
-  if (!Ad.allFinite() || !Bd.allFinite()) return Error{"axis model discretisation failed", {}};
-
+  // Discretisation: u ramps linearly over each (sub)step (first-order hold, exact for the linear
+  // part), the effect forces are held (zero-order hold). Augmented exponential
+  //   exp([[A h, B h, 0], [0, 0, e_u], [0, 0, 0]]) = [[Ad, G0, G1], ...]
+  // gives x+ = Ad x + G0 [u_a, F1, F2] + G1 (u_b - u_a).
+  struct Disc {
+    Mat6 Ad;
+    Mat63 G0;
+    Vec6 G1;
+  };
+  auto discretise = [&](double h) {
+    Eigen::Matrix<double, 10, 10> M = Eigen::Matrix<double, 10, 10>::Zero();
+    M.topLeftCorner<6, 6>() = A * h;
+    M.block<6, 3>(0, 6) = B * h;
+    M(6, 9) = 1.0;
+    const Eigen::Matrix<double, 10, 10> E = M.exp();
+    return Disc{E.topLeftCorner<6, 6>(), E.block<6, 3>(0, 6), E.block<6, 1>(0, 9)};
+  };
   const bool periodic = m.has(Effect::kPeriodicPosition);
   const bool backlash = m.has(Effect::kBacklash);
   const bool direction = m.has(Effect::kDirectionStiffness);
@@ -127,6 +136,11 @@ Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double
 
   // Work in metres relative to the first command: the runout phase is then relative to the
   // trace's start, which the fitted sin/cos pair absorbs.
+  const int substeps = nonlinear ? kSubsteps : 1;
+  const double h = period_s / substeps;
+  const Disc D = discretise(h);
+  if (!D.Ad.allFinite() || !D.G0.allFinite() || !D.G1.allFinite())
+    return Error{"axis model discretisation failed", {}};
   const double u0 = u_mm[0];
   Vec6 q = Vec6::Zero();
   double z = 0.0;  // friction bristle
@@ -135,9 +149,9 @@ Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double
   for (size_t k = 0; k < n; ++k) {
     const double u_k = scale * (u_mm[k] - u0) * 1e-3;
     if (k > 0) {
-      for (int j = 0; j < kSubsteps; ++j) {
-        const double u = u_prev + (u_k - u_prev) * (static_cast<double>(j) + 0.5) / kSubsteps;
-        Eigen::Vector3d in(u, 0.0, 0.0);
+      const double du = (u_k - u_prev) / substeps;
+      for (int j = 0; j < substeps; ++j) {
+        Eigen::Vector3d in(u_prev + du * j, 0.0, 0.0);
         if (nonlinear) {
           const double x1 = q[0], xc = q[2], vc = q[3];
           double s = x1 - xc;
@@ -158,23 +172,25 @@ Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double
           in[1] = -df;
           in[2] = df + f_fric;
         }
-        q = Ad * q + Bd * in;
+        q = D.Ad * q + D.G0 * in + D.G1 * du;
       }
     }
     u_prev = u_k;
     x2[k] = q[2] * 1e3 + u0;
   }
-  // time_delay: y(t) = x2(t - d), linear interpolation, held at the first sample before the start.
+  // time_delay: y(t) = x2(t - d), Catmull-Rom cubic interpolation (continuous slope in d, so the
+  // fit does not stall at whole samples), held at the first sample before the start.
   if (m.has(Effect::kTimeDelay) && m.delay_ms > 0.0) {
     const double d = m.delay_ms * 1e-3 / period_s;
     const auto whole = static_cast<long>(std::floor(d));
-    const double frac = d - static_cast<double>(whole);
+    const double f = d - static_cast<double>(whole);
+    const auto at = [&](long i) { return x2[static_cast<size_t>(std::clamp(i, 0L, static_cast<long>(n) - 1))]; };
+    // Going back in time by f between p1 = x2[k - whole] and p2 = x2[k - whole - 1].
+    const double w0 = 0.5 * (-f + 2.0 * f * f - f * f * f), w1 = 0.5 * (2.0 - 5.0 * f * f + 3.0 * f * f * f),
+                 w2 = 0.5 * (f + 4.0 * f * f - 3.0 * f * f * f), w3 = 0.5 * (-f * f + f * f * f);
     for (size_t k = 0; k < n; ++k) {
-      const long i0 = static_cast<long>(k) - whole;
-      const long i1 = i0 - 1;
-      const double a = i0 >= 0 ? x2[static_cast<size_t>(i0)] : x2[0];
-      const double b = i1 >= 0 ? x2[static_cast<size_t>(i1)] : x2[0];
-      (*y_mm)[k] = (1.0 - frac) * a + frac * b;
+      const long i = static_cast<long>(k) - whole;
+      (*y_mm)[k] = w0 * at(i + 1) + w1 * at(i) + w2 * at(i - 1) + w3 * at(i - 2);
     }
   } else {
     *y_mm = std::move(x2);

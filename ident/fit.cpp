@@ -72,6 +72,7 @@ std::vector<Param> free_params(const AxisModel& m) {
 }
 
 struct Problem {
+  const AxisModel* preset;  // the axis's Table 3-4 baseline, an alternative starting point
   const std::vector<double>* u;
   const std::vector<double>* y;
   double period_s;
@@ -185,9 +186,12 @@ AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb, const
   switch (e) {
     case Effect::kPeriodicPosition: {
       // Residual against commanded position: sin/cos regression over a log grid of periods.
+      // A period is only claimed when the trace covers at least two of them.
+      const auto [lo, hi] = std::minmax_element(u.begin(), u.begin() + static_cast<long>(n));
+      const double max_period = std::max(2.5, std::min(120.0, 0.5 * (*hi - *lo)));
       double best = -1.0;
       for (int i = 0; i <= 160; ++i) {
-        const double period = 2.0 * std::pow(60.0, i / 160.0);  // 2 .. 120 mm
+        const double period = 2.0 * std::pow(max_period / 2.0, i / 160.0);  // 2 mm .. max_period
         Eigen::Matrix2d N = Eigen::Matrix2d::Zero();
         Eigen::Vector2d b = Eigen::Vector2d::Zero();
         for (size_t k = 0; k < n; ++k) {
@@ -253,6 +257,30 @@ AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb, const
       break;
     }
   }
+  // The baseline may have bent to absorb the effect (a scale error, a delay): start from whichever
+  // of the current fit and the axis preset fits better with the effect's initial guess.
+  AxisModel alt = m;
+  alt.k1_n_m = pb.preset->k1_n_m;
+  alt.k2_n_m = pb.preset->k2_n_m;
+  alt.c1_n_s_m = pb.preset->c1_n_s_m;
+  alt.c2_n_s_m = pb.preset->c2_n_s_m;
+  if (e == Effect::kScaleError) {
+    // Re-estimate the scale against the preset's output.
+    std::vector<double> y_alt;
+    AxisModel plain = alt;
+    plain.set(Effect::kScaleError, false);
+    if (run(plain, pb, &y_alt)) {
+      double num = 0.0, den = 0.0;
+      for (size_t k = 0; k < n; ++k) {
+        const double g = (y_alt[k] - u[0]) * 1e3;
+        num += g * (y[k] - y_alt[k]) * 1e3;
+        den += g * g;
+      }
+      alt.scale = 1.0 + (den > 0.0 ? num / den : 0.0);
+    }
+  }
+  std::vector<double> y_m, y_alt;
+  if (run(alt, pb, &y_alt) && (!run(m, pb, &y_m) || sse_train(y_alt, pb) < sse_train(y_m, pb))) return alt;
   return m;
 }
 
@@ -274,10 +302,11 @@ Result<AxisModel> fit_baseline(const AxisModel& start, const std::vector<double>
                                const std::vector<double>& meas_mm, double period_s, const FitOptions& o) {
   if (cmd_mm.size() != meas_mm.size()) return Error{"cmd and meas have different lengths", {}};
   if (cmd_mm.size() < 100) return Error{"trace too short to fit (fewer than 100 samples)", {}};
-  Problem pb{&cmd_mm, &meas_mm, period_s,
-             static_cast<size_t>(static_cast<double>(cmd_mm.size()) * std::clamp(o.train_fraction, 0.1, 1.0))};
   AxisModel m = start;
   for (int i = 0; i < kEffectCount; ++i) m.enabled[i] = false;
+  const AxisModel preset = m;
+  Problem pb{&preset, &cmd_mm, &meas_mm, period_s,
+             static_cast<size_t>(static_cast<double>(cmd_mm.size()) * std::clamp(o.train_fraction, 0.1, 1.0))};
   return levenberg_marquardt(m, free_params(m), pb, o.max_iterations);
 }
 
@@ -289,10 +318,11 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   IdentResult out;
   out.axis = axis_name;
   report(0.0, "baseline fit");
-  auto base = fit_baseline(preset_axis_model(axis_name), cmd_mm, meas_mm, period_s, o);
+  const AxisModel preset = preset_axis_model(axis_name);
+  auto base = fit_baseline(preset, cmd_mm, meas_mm, period_s, o);
   if (!base) return base.error();
   const size_t n = cmd_mm.size();
-  Problem pb{&cmd_mm, &meas_mm, period_s,
+  Problem pb{&preset, &cmd_mm, &meas_mm, period_s,
              static_cast<size_t>(static_cast<double>(n) * std::clamp(o.train_fraction, 0.1, 1.0))};
   out.baseline = base.value();
   std::vector<double> y_cur;
@@ -306,6 +336,21 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   double cur_val = out.baseline_validation_rms_um;
   const int rounds = std::max(o.max_effects, 0);
   for (int round = 1; round <= rounds; ++round) {
+    // The null candidate: the current model refitted a little longer, so a candidate is compared
+    // with a converged model and not credited for the iterations it was given.
+    {
+      report(static_cast<double>(round - 1) / rounds, "polish current model");
+      AxisModel polished = levenberg_marquardt(cur, free_params(cur), pb, o.screen_iterations);
+      std::vector<double> ys;
+      if (run(polished, pb, &ys)) {
+        const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);
+        if (val < cur_val) {
+          cur = polished;
+          cur_val = val;
+          y_cur = std::move(ys);
+        }
+      }
+    }
     int best = -1;
     AxisModel best_model;
     double best_val = cur_val;
@@ -318,7 +363,9 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
              std::string("round ") + std::to_string(round) + ": " + effect_name(e));
       ++tried;
       AxisModel guess = initial_guess(cur, e, pb, y_cur);
-      AxisModel fitted = levenberg_marquardt(guess, free_params(guess), pb, o.max_iterations);
+      // Screening: a few iterations with everything free (a baseline refit can absorb part of an
+      // effect, e.g. a delay into the damping); the winner of the round is refitted longer below.
+      AxisModel fitted = levenberg_marquardt(guess, free_params(guess), pb, o.screen_iterations);
       std::vector<double> ys;
       if (!run(fitted, pb, &ys)) continue;
       const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);
@@ -330,7 +377,24 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
         best_y = std::move(ys);
       }
     }
-    if (best < 0 || best_val > (1.0 - o.min_improvement) * cur_val) break;
+    if (best < 0) break;
+    {
+      report((static_cast<double>(round) - 0.1) / rounds, std::string("refit with ") + effect_name(static_cast<Effect>(best)));
+      AxisModel refit = levenberg_marquardt(best_model, free_params(best_model), pb, o.max_iterations);
+      std::vector<double> ys;
+      if (run(refit, pb, &ys)) {
+        const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);
+        if (val < best_val) {
+          best_val = val;
+          best_model = refit;
+          best_y = std::move(ys);
+        }
+      }
+    }
+    // Significant: a relative drop of the held-out RMS, and an explained part (the RMS that the
+    // effect removes, in quadrature) above the encoder's resolution.
+    const double explained_um = std::sqrt(std::max(cur_val * cur_val - best_val * best_val, 0.0));
+    if (best_val > (1.0 - o.min_improvement) * cur_val || explained_um < o.min_explained_um) break;
     for (auto& c : out.candidates)
       if (c.round == round && static_cast<int>(c.effect) == best) c.kept = true;
     cur = best_model;

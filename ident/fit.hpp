@@ -25,8 +25,10 @@ namespace feedloop::ident {
 struct FitOptions {
   double train_fraction = 0.7;
   double min_improvement = 0.15;   // keep an effect only if held-out RMS falls by more than this
+  double min_explained_um = 0.6;   // ... and only if it explains at least this much RMS (in quadrature)
   int max_effects = 3;
-  int max_iterations = 12;         // Levenberg-Marquardt iterations per fit
+  int max_iterations = 20;         // Levenberg-Marquardt iterations per full fit
+  int screen_iterations = 6;       // ... per candidate while screening
   // Progress: fraction in [0, 1] and what is being done.
   std::function<void(double, const std::string&)> progress;
 };

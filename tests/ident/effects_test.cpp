@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <string>
 
@@ -31,6 +32,7 @@ sim::GantryAxisParams plant_for(const Case& c) {
   }
   p.effects = c.effects;
   p.seed = 7;
+  if (std::getenv("NOROLL")) p.pullout_corner_speed_mm_s = 0.0;
   return p;
 }
 
@@ -106,6 +108,18 @@ TEST_P(EffectCase, FindsExactlyTheEffectsThatArePresent) {
   for (const auto& cand : res.candidates)
     std::printf("    round %d %-30s val %.3f%s\n", cand.round, effect_name(cand.effect), cand.validation_rms_um,
                 cand.kept ? "  kept" : "");
+  for (Effect e : res.effects) {
+    std::printf("    found %s:", effect_name(e));
+    for (const char* pn : {"period_mm", "amplitude_um", "force_n", "width_um", "ratio", "freq_hz", "damping",
+                           "delay_ms", "scale"}) {
+      const double v = param_of(res.augmented, effect_name(e), pn);
+      (void)v;
+    }
+    std::printf(" per %.3f/%.3f fc %.3f bl %.3f r %.3f f %.2f z %.3f d %.3f s %.6f\n", res.augmented.period_mm,
+                res.augmented.periodic_amplitude_um(), res.augmented.friction_force_n, res.augmented.backlash_width_um,
+                res.augmented.stiffness_ratio, res.augmented.extra_freq_hz, res.augmented.extra_damping,
+                res.augmented.delay_ms, res.augmented.scale);
+  }
   ASSERT_EQ(res.effects.size(), c.expect.size()) << found;
   for (Effect e : res.effects) {
     const auto it = c.expect.find(effect_name(e));

@@ -1,0 +1,265 @@
+// `feedloop ident fit|excite` (see ident_command.hpp).
+#include "cli/ident_command.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "cli/progress.hpp"
+#include "ident/excitation.hpp"
+#include "ident/fit.hpp"
+#include "ident/report.hpp"
+#include "ident/trace.hpp"
+
+namespace feedloop::cli {
+namespace {
+
+void usage(std::FILE* out) {
+  std::fputs(
+      "usage: feedloop ident fit --trace FILE.csv --out DIR [--axis NAME]\n"
+      "       feedloop ident excite --axis x|y --out FILE.csv [--effect NAME[:key=value,...]]...\n"
+      "                             [--duration S] [--travel MM] [--seed N] [--sweep]\n"
+      "effects: periodic_position:period_mm=,amplitude_um=  coulomb_friction:force_n=  backlash:width_um=\n"
+      "         extra_resonance:freq_hz=,damping=,mass_kg=  time_delay:delay_ms=  scale_error:scale=\n"
+      "         direction_dependent_stiffness:x0_mm= (belt anchor offset; ratio (350+x0)/(350-x0))\n",
+      out);
+}
+
+bool parse_number(const std::string& s, double* v) {
+  char* end = nullptr;
+  *v = std::strtod(s.c_str(), &end);
+  return !s.empty() && end == s.c_str() + s.size();
+}
+
+// Applies "name[:k=v,...]" to the simulator parameters; returns an error message or "".
+std::string apply_effect(const std::string& spec, sim::GantryAxisParams* p) {
+  const size_t colon = spec.find(':');
+  const std::string name = spec.substr(0, colon);
+  std::vector<std::pair<std::string, double>> kv;
+  if (colon != std::string::npos) {
+    std::string rest = spec.substr(colon + 1);
+    size_t start = 0;
+    while (start <= rest.size()) {
+      const size_t comma = rest.find(',', start);
+      const std::string item = rest.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+      const size_t eq = item.find('=');
+      double v = 0.0;
+      if (eq == std::string::npos || !parse_number(item.substr(eq + 1), &v))
+        return "bad effect parameter '" + item + "' (want key=number)";
+      kv.emplace_back(item.substr(0, eq), v);
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+  }
+  sim::GantryEffects& fx = p->effects;
+  auto set = [&](const std::string& key, double* slot) -> bool {
+    for (const auto& [k, v] : kv)
+      if (k == key) *slot = v;
+    return true;
+  };
+  std::vector<std::string> known;
+  if (name == "periodic_position") {
+    fx.periodic_position.enabled = true;
+    fx.periodic_position.amplitude_um = 15.0;
+    set("period_mm", &fx.periodic_position.period_mm);
+    set("amplitude_um", &fx.periodic_position.amplitude_um);
+    known = {"period_mm", "amplitude_um"};
+  } else if (name == "coulomb_friction") {
+    fx.coulomb_friction = {true, 2.0};
+    set("force_n", &fx.coulomb_friction.force_n);
+    known = {"force_n"};
+  } else if (name == "backlash") {
+    fx.backlash = {true, 30.0};
+    set("width_um", &fx.backlash.width_um);
+    known = {"width_um"};
+  } else if (name == "extra_resonance") {
+    fx.extra_resonance.enabled = true;
+    fx.extra_resonance.freq_hz = 40.0;
+    set("freq_hz", &fx.extra_resonance.freq_hz);
+    set("damping", &fx.extra_resonance.damping);
+    set("mass_kg", &fx.extra_resonance.mass_kg);
+    known = {"freq_hz", "damping", "mass_kg"};
+  } else if (name == "time_delay") {
+    fx.time_delay = {true, 3.0};
+    set("delay_ms", &fx.time_delay.delay_ms);
+    known = {"delay_ms"};
+  } else if (name == "scale_error") {
+    fx.scale_error = {true, 1.003};
+    set("scale", &fx.scale_error.scale);
+    known = {"scale"};
+  } else if (name == "direction_dependent_stiffness") {
+    p->belt_span_mm = 350.0;
+    p->belt_x0_mm = 100.0;
+    set("x0_mm", &p->belt_x0_mm);
+    known = {"x0_mm"};
+  } else {
+    return "unknown effect '" + name + "'";
+  }
+  for (const auto& [k, v] : kv) {
+    bool ok = false;
+    for (const auto& n : known) ok = ok || n == k;
+    if (!ok) return "effect '" + name + "' has no parameter '" + k + "'";
+  }
+  return "";
+}
+
+int excite(const std::vector<std::string>& args) {
+  std::string axis = "x", out;
+  ident::RandomMovesOptions ro;
+  bool sweep = false;
+  bool direction = false;
+  std::vector<std::string> effects;
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    const bool has_value = i + 1 < args.size();
+    double v = 0.0;
+    if (a == "--axis" && has_value) {
+      axis = args[++i];
+    } else if (a == "--out" && has_value) {
+      out = args[++i];
+    } else if (a == "--effect" && has_value) {
+      effects.push_back(args[++i]);
+      direction = direction || effects.back().rfind("direction_dependent_stiffness", 0) == 0;
+    } else if (a == "--duration" && has_value && parse_number(args[i + 1], &v) && v > 0.0) {
+      ro.duration_s = v;
+      ++i;
+    } else if (a == "--travel" && has_value && parse_number(args[i + 1], &v) && v >= 0.0) {
+      ro.travel_mm = v;
+      ++i;
+    } else if (a == "--seed" && has_value && parse_number(args[i + 1], &v)) {
+      ro.seed = static_cast<uint64_t>(v);
+      ++i;
+    } else if (a == "--sweep") {
+      sweep = true;
+    } else if (a == "--help" || a == "-h") {
+      usage(stdout);
+      return 0;
+    } else {
+      std::fprintf(stderr, "feedloop ident excite: bad argument '%s'\n", a.c_str());
+      usage(stderr);
+      return 2;
+    }
+  }
+  if (out.empty() || (axis != "x" && axis != "y")) {
+    usage(stderr);
+    return 2;
+  }
+  sim::GantryAxisParams p = axis == "x" ? sim::thesis_x_axis() : sim::thesis_y_axis();
+  p.belt_span_mm = 1e6;  // a belt the linear model explains everywhere, unless asked otherwise
+  for (const auto& e : effects) {
+    const std::string err = apply_effect(e, &p);
+    if (!err.empty()) {
+      std::fprintf(stderr, "feedloop ident excite: %s\n", err.c_str());
+      return 2;
+    }
+  }
+  if (direction) ro.travel_mm = 0.0;  // a constant stiffness ratio needs a fixed position
+  std::vector<double> cmd;
+  if (sweep) {
+    ident::SineSweepOptions so;
+    so.duration_s = ro.duration_s;
+    cmd = ident::sine_sweep(so);
+  } else {
+    cmd = ident::random_moves(ro);
+  }
+  auto trace = ident::record_gantry_trace(p, cmd, ro.sample_rate_hz, axis);
+  if (!trace) {
+    std::fprintf(stderr, "feedloop ident excite: %s\n", trace.error().to_string().c_str());
+    return 1;
+  }
+  if (auto s = ident::write_trace_csv(out, trace.value()); !s) {
+    std::fprintf(stderr, "feedloop ident excite: %s\n", s.error().to_string().c_str());
+    return 1;
+  }
+  std::printf("wrote %s: %zu samples, axis %s\n", out.c_str(), trace.value().samples(), axis.c_str());
+  return 0;
+}
+
+int fit(const std::vector<std::string>& args) {
+  std::string trace_path, out_dir, axis_name;
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    const bool has_value = i + 1 < args.size();
+    if (a == "--trace" && has_value) {
+      trace_path = args[++i];
+    } else if (a == "--out" && has_value) {
+      out_dir = args[++i];
+    } else if (a == "--axis" && has_value) {
+      axis_name = args[++i];
+    } else if (a == "--help" || a == "-h") {
+      usage(stdout);
+      return 0;
+    } else {
+      std::fprintf(stderr, "feedloop ident fit: bad argument '%s'\n", a.c_str());
+      usage(stderr);
+      return 2;
+    }
+  }
+  if (trace_path.empty() || out_dir.empty()) {
+    usage(stderr);
+    return 2;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  auto trace = ident::read_trace_csv(trace_path);
+  if (!trace) {
+    std::fprintf(stderr, "feedloop ident fit: %s\n", trace.error().to_string().c_str());
+    return 1;
+  }
+  const ident::Trace& tr = trace.value();
+  const ident::AxisTrace* axis = axis_name.empty() ? &tr.axes.front() : tr.axis(axis_name);
+  if (axis == nullptr) {
+    std::fprintf(stderr, "feedloop ident fit: %s: no axis '%s' in the trace\n", trace_path.c_str(), axis_name.c_str());
+    return 1;
+  }
+  Progress progress("ident fit " + axis->name);
+  ident::FitOptions o;
+  o.progress = [&](double f, const std::string& what) { progress.update(f, what); };
+  auto r = ident::identify_axis(axis->name, axis->cmd_mm, axis->meas_mm, tr.period_s(), o);
+  progress.finish();
+  if (!r) {
+    std::fprintf(stderr, "feedloop ident fit: %s\n", r.error().to_string().c_str());
+    return 1;
+  }
+  if (auto s = ident::write_report(out_dir, r.value(), tr.time_s, trace_path); !s) {
+    std::fprintf(stderr, "feedloop ident fit: %s\n", s.error().to_string().c_str());
+    return 1;
+  }
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto& res = r.value();
+  std::printf("axis %s: baseline %.3f um RMS -> augmented %.3f um RMS; effects:", res.axis.c_str(),
+              res.baseline_rms_um, res.augmented_rms_um);
+  if (res.effects.empty()) std::printf(" none");
+  for (auto e : res.effects) {
+    std::printf(" %s(", ident::effect_name(e));
+    bool first = true;
+    for (const auto& [k, v] : ident::effect_params_report(res.augmented, e)) {
+      std::printf("%s%s=%.5g", first ? "" : ", ", k.c_str(), v);
+      first = false;
+    }
+    std::printf(")");
+  }
+  std::printf("\nwrote %s/report.json, report.md, residual.csv (%.1f s)\n", out_dir.c_str(), secs);
+  return 0;
+}
+
+}  // namespace
+
+int ident_command(const std::vector<std::string>& args) {
+  if (args.empty()) {
+    usage(stderr);
+    return 2;
+  }
+  const std::vector<std::string> rest(args.begin() + 1, args.end());
+  if (args[0] == "fit") return fit(rest);
+  if (args[0] == "excite") return excite(rest);
+  if (args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
+    usage(stdout);
+    return 0;
+  }
+  std::fprintf(stderr, "feedloop ident: unknown subcommand '%s'\n", args[0].c_str());
+  usage(stderr);
+  return 2;
+}
+
+}  // namespace feedloop::cli
