@@ -12,6 +12,10 @@
 // of the step continues on the next segment. Every segment is entered in order, and the RK4
 // stages never straddle the kink of dy_d/dtheta at a waypoint.
 //
+// Sampled servo (control_period_s > 0): a ManeuverServo (servo.hpp) is updated once per period
+// with the plant state, its voltages are held (zero-order hold) while the plant is integrated in
+// RK4 substeps of at most dt_s; errors and V are taken at the samples, as a servo would log them.
+//
 // Along/cross-track errors follow Eq. 70 with phi the XY heading of the current segment (for a
 // segment without XY extent, a layer change, cross-track is the XY norm of z_1).
 #pragma once
@@ -21,12 +25,14 @@
 
 #include "core/result.hpp"
 #include "maneuver/controller.hpp"
+#include "maneuver/servo.hpp"
 
 namespace feedloop::maneuver {
 
 struct SimOptions {
   double dt_s = 1.0e-4;             // fixed step
   bool split_at_waypoints = false;  // see above
+  double control_period_s = 0.0;    // > 0: sampled servo at this period (see above)
   double max_time_s = 600.0;        // give up (finished = false) after this
   size_t record_every = 10;         // keep every k-th step in samples (0: none)
   PlantState initial{};             // initial plant state; default: at rest at p_0

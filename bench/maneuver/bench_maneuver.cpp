@@ -4,6 +4,7 @@
 //
 //   bench_maneuver [--json FILE] [--csv-dir DIR] [--part fin|star]
 //                  [--gcode FILE [--feature NAME] [--stride K]] [--dt S] [--speed M_S]
+//                  [--servo-period S]
 //
 // The path is the external perimeter of a maneuver/test_part.hpp part (fin: the paper-like
 // default; star: long straight edges into sharp corners) written as G-code and read back through
@@ -13,8 +14,10 @@
 // scaled by the mean segment length squared: z^T P b grows with dy_d/dtheta, so with arc-length
 // theta the paper's mu = 1000 would be about 1/||Delta||^2 times stronger than with unit theta
 // (and makes theta chatter back and forth across a corner); mu ||Delta||^2 keeps it equivalent.
-// --csv-dir writes one CSV per scenario: time_s,x_m,y_m,z_m,theta,segment,along_m,cross_m,
-// lyapunov,speed_m_s,assigned_m_s.
+// Three tables: the continuous controller (the paper's setting), the sampled servo (zero-order
+// hold) at --servo-period (default 0.2 ms) and at 1 ms, where Table II's gains diverge.
+// --csv-dir writes one CSV per scenario of the continuous table:
+// time_s,x_m,y_m,z_m,theta,segment,along_m,cross_m, lyapunov,speed_m_s,assigned_m_s.
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -45,10 +48,12 @@ void write_csv(const std::string& file, const SimResult& r) {
     std::fprintf(stderr, "cannot write %s\n", file.c_str());
     return;
   }
-  std::fprintf(f, "time_s,x_m,y_m,z_m,theta,segment,along_m,cross_m,lyapunov,speed_m_s,assigned_m_s\n");
+  std::fprintf(
+      f, "time_s,x_m,y_m,z_m,theta,segment,along_m,cross_m,lyapunov,speed_m_s,assigned_m_s\n");
   for (const SimSample& s : r.samples)
-    std::fprintf(f, "%.5f,%.7f,%.7f,%.7f,%.6f,%zu,%.4e,%.4e,%.4e,%.5f,%.5f\n", s.t_s, s.pos_m.x(), s.pos_m.y(),
-                 s.pos_m.z(), s.theta, s.segment, s.along_m, s.cross_m, s.lyapunov, s.speed_m_s, s.assigned_m_s);
+    std::fprintf(f, "%.5f,%.7f,%.7f,%.7f,%.6f,%zu,%.4e,%.4e,%.4e,%.5f,%.5f\n", s.t_s, s.pos_m.x(),
+                 s.pos_m.y(), s.pos_m.z(), s.theta, s.segment, s.along_m, s.cross_m, s.lyapunov,
+                 s.speed_m_s, s.assigned_m_s);
   std::fclose(f);
 }
 
@@ -57,23 +62,34 @@ void write_csv(const std::string& file, const SimResult& r) {
 int main(int argc, char** argv) {
   std::string json_file, csv_dir, gcode_file, feature = "External perimeter", part = "fin";
   size_t stride = 1;
-  double dt_s = 1.0e-4, m_s = 0.1;
+  double dt_s = 1.0e-4, m_s = 0.1, servo_period_s = 2.0e-4;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const bool has_next = i + 1 < argc;
-    if (a == "--json" && has_next) json_file = argv[++i];
-    else if (a == "--csv-dir" && has_next) csv_dir = argv[++i];
-    else if (a == "--gcode" && has_next) gcode_file = argv[++i];
-    else if (a == "--part" && has_next && (std::strcmp(argv[i + 1], "fin") == 0 || std::strcmp(argv[i + 1], "star") == 0))
+    if (a == "--json" && has_next)
+      json_file = argv[++i];
+    else if (a == "--csv-dir" && has_next)
+      csv_dir = argv[++i];
+    else if (a == "--gcode" && has_next)
+      gcode_file = argv[++i];
+    else if (a == "--part" && has_next &&
+             (std::strcmp(argv[i + 1], "fin") == 0 || std::strcmp(argv[i + 1], "star") == 0))
       part = argv[++i];
-    else if (a == "--feature" && has_next) feature = argv[++i];
-    else if (a == "--stride" && has_next) stride = std::strtoul(argv[++i], nullptr, 10);
-    else if (a == "--dt" && has_next) dt_s = std::atof(argv[++i]);
-    else if (a == "--speed" && has_next) m_s = std::atof(argv[++i]);
+    else if (a == "--feature" && has_next)
+      feature = argv[++i];
+    else if (a == "--stride" && has_next)
+      stride = std::strtoul(argv[++i], nullptr, 10);
+    else if (a == "--dt" && has_next)
+      dt_s = std::atof(argv[++i]);
+    else if (a == "--speed" && has_next)
+      m_s = std::atof(argv[++i]);
+    else if (a == "--servo-period" && has_next)
+      servo_period_s = std::atof(argv[++i]);
     else {
       std::fprintf(stderr,
-                   "usage: bench_maneuver [--json FILE] [--csv-dir DIR] [--part fin|star] [--gcode FILE [--feature NAME] "
-                   "[--stride K]] [--dt S] [--speed M_S]\n");
+                   "usage: bench_maneuver [--json FILE] [--csv-dir DIR] [--part fin|star] [--gcode "
+                   "FILE [--feature NAME] "
+                   "[--stride K]] [--dt S] [--speed M_S] [--servo-period S]\n");
       return 2;
     }
   }
@@ -84,8 +100,9 @@ int main(int argc, char** argv) {
   gopt.feature = feature;
   TestPartOptions topt;
   topt.part = part == "star" ? TestPart::star : TestPart::fin;
-  auto wp_mm = gcode_file.empty() ? extrusion_path_from_gcode(test_part_gcode(topt), "test_part", gopt)
-                                  : extrusion_path_from_gcode_file(gcode_file, gopt);
+  auto wp_mm = gcode_file.empty()
+                   ? extrusion_path_from_gcode(test_part_gcode(topt), "test_part", gopt)
+                   : extrusion_path_from_gcode_file(gcode_file, gopt);
   if (!wp_mm) {
     std::fprintf(stderr, "%s\n", wp_mm.error().to_string().c_str());
     return 1;
@@ -95,9 +112,12 @@ int main(int argc, char** argv) {
 
   const Scenario scenarios[] = {
       {"constant", SpeedProfile::constant, Parameterization::unit, false, 1.92e-2, 1.82e-3, 2.42},
-      {"every_transition", SpeedProfile::every_transition, Parameterization::unit, false, 5.80e-4, 5.76e-5, 6.11},
-      {"sharp_corner", SpeedProfile::sharp_corner, Parameterization::unit, false, 9.54e-3, 1.26e-3, 2.57},
-      {"sharp_corner_arc", SpeedProfile::sharp_corner_arc, Parameterization::arc_length, true, 0, 0, 0},
+      {"every_transition", SpeedProfile::every_transition, Parameterization::unit, false, 5.80e-4,
+       5.76e-5, 6.11},
+      {"sharp_corner", SpeedProfile::sharp_corner, Parameterization::unit, false, 9.54e-3, 1.26e-3,
+       2.57},
+      {"sharp_corner_arc", SpeedProfile::sharp_corner_arc, Parameterization::arc_length, true, 0, 0,
+       0},
   };
   const CartesianDcPlant plant;
   const ManeuverController ctl_paper(plant, ManeuverGains{});
@@ -113,58 +133,82 @@ int main(int argc, char** argv) {
   ManeuverGains arc_gains;
   arc_gains.mu = ManeuverGains{}.mu * mean_seg_m * mean_seg_m;
   const ManeuverController ctl_arc(plant, arc_gains);
-  const std::string path_name = gcode_file.empty() ? "maneuver/test_part " + part + " (generated G-code)" : gcode_file;
-  std::printf("path: %s, 10 layers, %zu segments, %.1f mm (mean segment %.2f mm); m_s %.3f m/s, dt %.0e s\n",
-              path_name.c_str(), probe->segments(), probe->length_m() * 1e3, mean_seg_m * 1e3, m_s, dt_s);
-  std::printf("gains: Table II (arc-length row: mu = %.3g); arc sigmoid a1 %.3f mm, a2 %.4f mm\n", arc_gains.mu,
-              sp.a1_m * 1e3, sp.a2_m * 1e3);
-  std::printf("%-18s %12s %12s %10s %10s %8s | %10s %10s %8s\n", "scenario", "max|e| m", "IAE m*s", "time s",
-              "s/layer", "skipped", "paper max", "paper IAE", "paper s");
-  std::string json = "{\"bench\": \"maneuver\", \"path\": \"" + path_name + "\", \"m_s_m_s\": " + std::to_string(m_s) +
-                     ", \"dt_s\": " + std::to_string(dt_s) + ", \"scenarios\": [";
-  bool first = true;
-  for (const Scenario& sc : scenarios) {
-    auto path = PiecewiseLinearPath::create(wp_m, sc.param);
-    if (!path) {
-      std::fprintf(stderr, "%s\n", path.error().to_string().c_str());
-      return 1;
+  const std::string path_name =
+      gcode_file.empty() ? "maneuver/test_part " + part + " (generated G-code)" : gcode_file;
+  std::printf(
+      "path: %s, 10 layers, %zu segments, %.1f mm (mean segment %.2f mm); m_s %.3f m/s, dt %.0e "
+      "s\n",
+      path_name.c_str(), probe->segments(), probe->length_m() * 1e3, mean_seg_m * 1e3, m_s, dt_s);
+  std::printf("gains: Table II (arc-length row: mu = %.3g); arc sigmoid a1 %.3f mm, a2 %.4f mm\n",
+              arc_gains.mu, sp.a1_m * 1e3, sp.a2_m * 1e3);
+  std::string json = "{\"bench\": \"maneuver\", \"path\": \"" + path_name +
+                     "\", \"m_s_m_s\": " + std::to_string(m_s) +
+                     ", \"dt_s\": " + std::to_string(dt_s) + ", \"tables\": [";
+  auto run_table = [&](double period_s) -> int {
+    if (period_s > 0.0)
+      std::printf("\nsampled servo at %.0f Hz (zero-order hold; errors at the samples):\n",
+                  1.0 / period_s);
+    else
+      std::printf("\ncontinuous controller (evaluated at every RK4 stage):\n");
+    std::printf("%-18s %12s %12s %10s %10s %8s | %10s %10s %8s\n", "scenario", "max|e| m",
+                "IAE m*s", "time s", "s/layer", "skipped", "paper max", "paper IAE", "paper s");
+    json += std::string(period_s > 0.0 ? ", " : "") +
+            "{\"control_period_s\": " + std::to_string(period_s) + ", \"scenarios\": [";
+    bool first = true;
+    for (const Scenario& sc : scenarios) {
+      auto path = PiecewiseLinearPath::create(wp_m, sc.param);
+      if (!path) {
+        std::fprintf(stderr, "%s\n", path.error().to_string().c_str());
+        return 1;
+      }
+      auto speed = SpeedAssignment::create(*path, sc.profile, sp);
+      if (!speed) {
+        std::fprintf(stderr, "%s\n", speed.error().to_string().c_str());
+        return 1;
+      }
+      SimOptions so;
+      so.dt_s = dt_s;
+      so.split_at_waypoints = sc.split;
+      so.record_every = csv_dir.empty() || period_s > 0.0 ? 0 : 10;
+      so.control_period_s = period_s;
+      auto r = simulate(*path, *speed, sc.param == Parameterization::unit ? ctl_paper : ctl_arc,
+                        plant, so);
+      if (!r) {
+        std::printf("%-18s %s\n", sc.name, r.error().to_string().c_str());
+        continue;
+      }
+      char line[400];
+      std::snprintf(line, sizeof line, "%-18s %12.3e %12.3e %10.3f %10.3f %8zu | ", sc.name,
+                    r->max_cross_m, r->iae_cross_m_s, r->total_time_s, r->total_time_s / 10.0,
+                    r->skipped_segments);
+      std::string out = line;
+      if (sc.paper_time > 0) {
+        std::snprintf(line, sizeof line, "%10.2e %10.2e %8.2f", sc.paper_max, sc.paper_iae,
+                      sc.paper_time);
+        out += line;
+      } else {
+        out += "      (ours: not in the paper)";
+      }
+      std::printf("%s%s\n", out.c_str(), r->finished ? "" : "  NOT FINISHED");
+      std::snprintf(line, sizeof line,
+                    "%s{\"name\": \"%s\", \"max_cross_m\": %.6e, \"iae_cross_m_s\": %.6e, "
+                    "\"total_time_s\": %.6f, "
+                    "\"time_per_layer_s\": %.6f, \"max_along_m\": %.6e, \"skipped_segments\": %zu, "
+                    "\"finished\": %s, "
+                    "\"paper_max_cross_m\": %.3e, \"paper_iae_m_s\": %.3e, \"paper_time_s\": %.3f}",
+                    first ? "" : ", ", sc.name, r->max_cross_m, r->iae_cross_m_s, r->total_time_s,
+                    r->total_time_s / 10.0, r->max_along_m, r->skipped_segments,
+                    r->finished ? "true" : "false", sc.paper_max, sc.paper_iae, sc.paper_time);
+      json += line;
+      first = false;
+      if (!csv_dir.empty() && period_s == 0.0)
+        write_csv(csv_dir + "/maneuver_" + sc.name + ".csv", *r);
     }
-    auto speed = SpeedAssignment::create(*path, sc.profile, sp);
-    if (!speed) {
-      std::fprintf(stderr, "%s\n", speed.error().to_string().c_str());
-      return 1;
-    }
-    SimOptions so;
-    so.dt_s = dt_s;
-    so.split_at_waypoints = sc.split;
-    so.record_every = csv_dir.empty() ? 0 : 10;
-    auto r = simulate(*path, *speed, sc.param == Parameterization::unit ? ctl_paper : ctl_arc, plant, so);
-    if (!r) {
-      std::fprintf(stderr, "%s\n", r.error().to_string().c_str());
-      return 1;
-    }
-    char line[400];
-    std::snprintf(line, sizeof line, "%-18s %12.3e %12.3e %10.3f %10.3f %8zu | ", sc.name, r->max_cross_m,
-                  r->iae_cross_m_s, r->total_time_s, r->total_time_s / 10.0, r->skipped_segments);
-    std::string out = line;
-    if (sc.paper_time > 0) {
-      std::snprintf(line, sizeof line, "%10.2e %10.2e %8.2f", sc.paper_max, sc.paper_iae, sc.paper_time);
-      out += line;
-    } else {
-      out += "      (ours: not in the paper)";
-    }
-    std::printf("%s%s\n", out.c_str(), r->finished ? "" : "  NOT FINISHED");
-    std::snprintf(line, sizeof line,
-                  "%s{\"name\": \"%s\", \"max_cross_m\": %.6e, \"iae_cross_m_s\": %.6e, \"total_time_s\": %.6f, "
-                  "\"time_per_layer_s\": %.6f, \"max_along_m\": %.6e, \"skipped_segments\": %zu, \"finished\": %s, "
-                  "\"paper_max_cross_m\": %.3e, \"paper_iae_m_s\": %.3e, \"paper_time_s\": %.3f}",
-                  first ? "" : ", ", sc.name, r->max_cross_m, r->iae_cross_m_s, r->total_time_s,
-                  r->total_time_s / 10.0, r->max_along_m, r->skipped_segments, r->finished ? "true" : "false",
-                  sc.paper_max, sc.paper_iae, sc.paper_time);
-    json += line;
-    first = false;
-    if (!csv_dir.empty()) write_csv(csv_dir + "/maneuver_" + sc.name + ".csv", *r);
-  }
+    json += "]}";
+    return 0;
+  };
+  for (double period_s : {0.0, servo_period_s, 1e-3})
+    if (run_table(period_s) != 0) return 1;
   json += "]}\n";
   if (!json_file.empty()) {
     FILE* f = std::fopen(json_file.c_str(), "w");
