@@ -64,11 +64,11 @@ std::vector<Case> cases() {
     out.push_back(bl);
     Case ds{a + "_direction", axis, {}, true, {{"direction_dependent_stiffness", {{"ratio", 1.8}}}}};
     out.push_back(ds);
-    Case er{a + "_resonance", axis, {}, false, {{"extra_resonance", {{"freq_hz", 80.0}, {"damping", 0.05}}}}};
-    er.effects.extra_resonance = {true, 80.0, 0.05, 0.15};
+    Case er{a + "_resonance", axis, {}, false, {{"extra_resonance", {{"freq_hz", 35.0}, {"damping", 0.05}}}}};
+    er.effects.extra_resonance = {true, 35.0, 0.05, 0.15};
     out.push_back(er);
-    Case td{a + "_delay", axis, {}, false, {{"time_delay", {{"delay_ms", 3.0}}}}};
-    td.effects.time_delay = {true, 3.0};
+    Case td{a + "_delay", axis, {}, false, {{"time_delay", {{"delay_ms", 5.0}}}}};
+    td.effects.time_delay = {true, 5.0};
     out.push_back(td);
     Case sc{a + "_scale", axis, {}, false, {{"scale_error", {{"scale", 1.003}}}}};
     sc.effects.scale_error = {true, 1.003};
@@ -78,8 +78,8 @@ std::vector<Case> cases() {
     two.effects.periodic_position = {true, 33.93, 15.0};
     two.effects.backlash = {true, 30.0};
     out.push_back(two);
-    Case two2{a + "_delay_scale", axis, {}, false, {{"time_delay", {{"delay_ms", 3.0}}}, {"scale_error", {{"scale", 1.003}}}}};
-    two2.effects.time_delay = {true, 3.0};
+    Case two2{a + "_delay_scale", axis, {}, false, {{"time_delay", {{"delay_ms", 5.0}}}, {"scale_error", {{"scale", 1.003}}}}};
+    two2.effects.time_delay = {true, 5.0};
     two2.effects.scale_error = {true, 1.003};
     out.push_back(two2);
   }

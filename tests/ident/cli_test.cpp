@@ -1,0 +1,107 @@
+// `feedloop ident excite|fit` and `feedloop model frf` end to end: files written, report.json and
+// the FRF CSV accepted by the contract checker (when ../shared/tools is present), errors reported.
+#include <gtest/gtest.h>
+#include <unistd.h>  // getpid
+
+#include <algorithm>
+#include <cmath>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "cli/ident_command.hpp"
+#include "cli/model_command.hpp"
+#include "ident/trace.hpp"
+#include "model/frf_csv.hpp"
+
+namespace feedloop::cli {
+namespace {
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+std::filesystem::path temp_dir(const std::string& name) {
+  auto d = std::filesystem::temp_directory_path() / ("feedloop_ident_" + name + "_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(d);
+  return d;
+}
+
+// Runs the contract checker if it exists; returns -1 when it does not (the test then skips that part).
+int check_contract(const std::string& kind, const std::filesystem::path& file) {
+  const std::string tool = std::string(FEEDLOOP_SHARED_DIR) + "/tools/check_contracts.py";
+  if (!std::filesystem::exists(tool) || std::system("python3 --version > /dev/null 2>&1") != 0) return -1;
+  const std::string cmd = "python3 " + tool + " " + kind + " " + file.string() + " > /dev/null";
+  return std::system(cmd.c_str());
+}
+
+TEST(IdentCli, ExciteThenFitFindsThePeriodicEffectAndWritesTheContract) {
+  const auto dir = temp_dir("fit");
+  const auto trace = dir / "trace.csv";
+  ASSERT_EQ(ident_command({"excite", "--axis", "y", "--effect", "periodic_position:period_mm=20,amplitude_um=10",
+                           "--duration", "20", "--out", trace.string()}),
+            0);
+  auto t = ident::read_trace_csv(trace.string());
+  ASSERT_TRUE(t.ok()) << t.error().to_string();
+  EXPECT_EQ(t.value().samples(), 20000u);
+  EXPECT_EQ(check_contract("trace", trace) > 0, false);
+  ASSERT_EQ(ident_command({"fit", "--trace", trace.string(), "--out", (dir / "out").string()}), 0);
+  const std::string json = slurp(dir / "out" / "report.json");
+  EXPECT_NE(json.find("\"axis\": \"y\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"name\": \"periodic_position\""), std::string::npos) << json;
+  EXPECT_EQ(json.find("backlash"), std::string::npos) << json;
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "report.md"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "residual.csv"));
+  const int rc = check_contract("report", dir / "out" / "report.json");
+  if (rc >= 0) {
+    EXPECT_EQ(rc, 0) << json;
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(IdentCli, UserErrorsAreReportedNotCrashes) {
+  const auto dir = temp_dir("err");
+  EXPECT_EQ(ident_command({"fit", "--trace", (dir / "missing.csv").string(), "--out", dir.string()}), 1);
+  std::ofstream(dir / "bad.csv") << "time_s,x_cmd_mm,x_meas_mm\n0,0,0\n0.001,zz,0\n";
+  EXPECT_EQ(ident_command({"fit", "--trace", (dir / "bad.csv").string(), "--out", dir.string()}), 1);
+  EXPECT_EQ(ident_command({"excite", "--axis", "x", "--effect", "wobble", "--out", (dir / "t.csv").string()}), 2);
+  EXPECT_EQ(ident_command({"excite", "--axis", "x", "--effect", "backlash:depth=3", "--out", (dir / "t.csv").string()}), 2);
+  EXPECT_EQ(ident_command({"frobnicate"}), 2);
+  EXPECT_EQ(model_command({"frf", "--pos", "1,2", "--out", (dir / "f.csv").string()}), 2);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(ModelCli, FrfWritesThePredictedFrfContractAndTheFormSwitchMatters) {
+  const auto dir = temp_dir("frf");
+  const auto paper = dir / "paper.csv", vw = dir / "vw.csv";
+  ASSERT_EQ(model_command({"frf", "--pos", "-80,0,30", "--out", paper.string()}), 0);
+  ASSERT_EQ(model_command({"frf", "--pos", "-80,0,30", "--out", vw.string(), "--virtual-work"}), 0);
+  auto a = model::read_frf_csv(paper.string());
+  auto b = model::read_frf_csv(vw.string());
+  ASSERT_TRUE(a.ok()) << a.error().to_string();
+  ASSERT_TRUE(b.ok());
+  ASSERT_EQ(a.value().freq_hz.size(), 247u);  // 2 .. 125 Hz in 0.5 Hz steps
+  EXPECT_NEAR(a.value().freq_hz.front(), 2.0, 1e-12);
+  EXPECT_NEAR(a.value().freq_hz.back(), 125.0, 1e-12);
+  // Low frequency: position to position, G -> I.
+  EXPECT_NEAR(std::abs(a.value().h.front()(0, 0)), 1.0, 0.05);
+  // The two force transformations differ (m_e/9 vs m_e/3 per carriage): somewhere by > 10 %.
+  double max_rel = 0.0;
+  for (size_t k = 0; k < a.value().h.size(); ++k)
+    max_rel = std::max(max_rel, std::abs(a.value().h[k](0, 0) - b.value().h[k](0, 0)) / std::abs(b.value().h[k](0, 0)));
+  EXPECT_GT(max_rel, 0.1);
+  const int rc = check_contract("frf", paper);
+  if (rc >= 0) {
+    EXPECT_EQ(rc, 0);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace feedloop::cli
