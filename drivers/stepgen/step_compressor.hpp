@@ -81,8 +81,16 @@ class StepCompressor final : public StepSink {
     }
     push_slow(target_ticks, lo, direction);
   }
+  // The same as push() for each step; the common case runs with the state in registers.
   void on_steps(const double* ticks, const int8_t* directions, size_t n) override {
-    for (size_t i = 0; i < n; ++i) push(ticks[i], directions[i]);
+    size_t i = 0;
+    while (i < n) {
+      i = extend_run(ticks, directions, i, n);
+      if (i < n) {
+        push(ticks[i], directions[i]);
+        ++i;
+      }
+    }
   }
   // Emits the pending run (end of a batch or of the stream).
   void flush();
@@ -119,6 +127,42 @@ class StepCompressor final : public StepSink {
     hi_i_[k] = detail::floor_i(target + params_.max_error_ticks - p);
   }
   void push_slow(double target, double lo, int8_t direction);
+  // Accepts steps i.. while the candidate run takes them (push()'s fast path, state kept in
+  // locals); returns the index of the first step it does not take.
+  size_t extend_run(const double* ticks, const int8_t* dirs, size_t i, size_t n) {
+    uint32_t nn = n_;
+    if (nn == 0) return i;
+    const double E = params_.max_error_ticks, p = static_cast<double>(P_);
+    const uint32_t max_count = params_.max_run_count;
+    const int8_t dir = dir_;
+    const int64_t A = A_, P = P_;
+    double prev = prev_target_;
+    int64_t pos = pos_, iv = iv_;
+    double* T = T_.data();
+    int64_t* lo_i = lo_i_.data();
+    int64_t* hi_i = hi_i_.data();
+    for (; i < n; ++i) {
+      const double t = ticks[i];
+      if (dirs[i] != dir || nn >= max_count || iv < 1) break;
+      const uint32_t k = nn + 1;
+      const int64_t lo = detail::ceil_i(t - std::min(E, 0.5 * (t - prev)) - p);
+      const int64_t hi = detail::floor_i(t + E - p);
+      const int64_t rel = pos + iv - P;
+      if (rel < lo || rel > hi) break;
+      T[k] = t;
+      lo_i[k] = lo;
+      hi_i[k] = hi;
+      prev = t;
+      pos += iv;
+      iv += A;
+      nn = k;
+    }
+    n_ = nn;
+    prev_target_ = prev;
+    pos_ = pos;
+    iv_ = iv;
+    return i;
+  }
 
   StepCompressorParams params_;
   RunSink* sink_ = nullptr;

@@ -126,8 +126,28 @@ class StepChecker final : public planner::JointSink, public stepgen::BatchSink {
       f_prev = fb;
     }
     if (best_dist > 1e299) {
-      ++j.result.not_found;
-      return;
+      // A reversal right at the threshold: over it and back within one grid cell. Find the
+      // extremum of f near t (golden section; f is unimodal there): f rises above 0 before a
+      // maximum (bisect [left end, argmax]) or leaves a minimum <= 0 (bisect [argmin, right end]).
+      const double left = t - 2.0 * h, right = t + 2.0 * h;
+      auto extremum = [&](double sign) {
+        double a = left, b = right;
+        const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+        for (int it = 0; it < 60; ++it) {
+          const double c1 = b - g * (b - a), c2 = a + g * (b - a);
+          if (sign * f(c1) < sign * f(c2)) a = c1; else b = c2;
+        }
+        return 0.5 * (a + b);
+      };
+      const double tmax = extremum(1.0), tmin = extremum(-1.0);
+      if (f(left) <= 0.0 && f(tmax) > 0.0) {
+        best_lo = left, best_hi = tmax;
+      } else if (f(tmin) <= 0.0 && f(right) > 0.0) {
+        best_lo = tmin, best_hi = right;
+      } else {
+        ++j.result.not_found;
+        return;
+      }
     }
     bisect(j, f, best_lo, best_hi, t);
   }

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <vector>
 
 #include "tests/engine/batch_support.hpp"
@@ -20,6 +21,9 @@ TEST(StepErrorCorpus, EveryStepOfEveryFileWithinTheBound) {
   std::vector<fs::path> files;
   for (const auto& e : fs::directory_iterator(dir))
     if (e.path().extension() == ".gcode") files.push_back(e.path());
+  // FEEDLOOP_CORPUS_FILTER=substring runs only the matching files (debugging).
+  if (const char* only = std::getenv("FEEDLOOP_CORPUS_FILTER"))
+    std::erase_if(files, [only](const fs::path& p) { return p.filename().string().find(only) == std::string::npos; });
   std::sort(files.begin(), files.end());
   ASSERT_FALSE(files.empty());
   const config::MachineConfig delta = delta_config();
@@ -30,14 +34,16 @@ TEST(StepErrorCorpus, EveryStepOfEveryFileWithinTheBound) {
     auto r = run_checked(f.string(), cfg);
     ASSERT_TRUE(r.ok()) << f << ": " << r.error().to_string();
     const BatchSummary& s = r->summary;
-    std::printf("%-40s %10llu steps  max error %.3f us (bound %.1f)  %.3f B/step  check failures %llu\n",
+    std::printf("%-40s %10llu steps  max error %.6f us (bound %.1f)  %.3f B/step  check failures %llu\n",
                 f.filename().string().c_str(), static_cast<unsigned long long>(s.total_steps), r->max_error_us,
                 cfg.stepgen.max_step_error_us, s.wire_bytes_per_step,
                 static_cast<unsigned long long>(s.check_failures));
     EXPECT_GT(s.total_steps, 100000u) << f;
     EXPECT_EQ(s.check_failures, 0u) << f;
     EXPECT_EQ(r->not_found, 0u) << f;
-    EXPECT_LE(r->max_error_us, cfg.stepgen.max_step_error_us) << f;
+    // + 1e-5 us: the resolution of absolute print times in double (0.45 ps ulp at 3600 s; an
+    // error is the difference of two such times, measured 5.0000008 us at most on the corpus).
+    EXPECT_LE(r->max_error_us, cfg.stepgen.max_step_error_us + 1e-5) << f;
     EXPECT_LE(s.wire_bytes_per_step, 1.0) << f;  // the target at the 5 us bound
     for (int j = 0; j < kJoints; ++j)
       EXPECT_EQ(r->joints[static_cast<size_t>(j)].steps, s.joints[static_cast<size_t>(j)].steps) << f << " joint " << j;
