@@ -13,6 +13,7 @@ Result<PiecewiseLinearPath> PiecewiseLinearPath::create(const std::vector<Vec3>&
                                                         Parameterization param, double min_segment_m) {
   PiecewiseLinearPath p;
   p.param_ = param;
+  if (!(min_segment_m > 0.0)) min_segment_m = 1e-12;  // a zero-length segment has no direction
   for (size_t i = 0; i < waypoints_m.size(); ++i) {
     const Vec3& w = waypoints_m[i];
     if (!w.allFinite())

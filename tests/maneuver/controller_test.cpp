@@ -24,7 +24,7 @@ double v_dot_numeric(const ManeuverController& ctl, const CartesianDcPlant& plan
   return (shifted(h) - shifted(-h)) / (2 * h);
 }
 
-TEST(Controller, LyapunovDerivativeIsEq55) {
+TEST(ManeuverController, LyapunovDerivativeIsEq55) {
   const CartesianDcPlant plant;
   const ManeuverController ctl(plant, ManeuverGains{});
   EXPECT_NEAR(ctl.p1(), 1e-3, 1e-15);         // Q_1 / (2 K_p)
@@ -95,13 +95,13 @@ void expect_v_decreasing(Parameterization param, SpeedProfile prof, bool split) 
   EXPECT_GT(s[0].lyapunov, 1e3 * s[1000].lyapunov);
 }
 
-TEST(Controller, LyapunovDecreasesAlongARunUnitConstant) {
+TEST(ManeuverController, LyapunovDecreasesAlongARunUnitConstant) {
   expect_v_decreasing(Parameterization::unit, SpeedProfile::constant, false);
 }
-TEST(Controller, LyapunovDecreasesAlongARunUnitSharpCorner) {
+TEST(ManeuverController, LyapunovDecreasesAlongARunUnitSharpCorner) {
   expect_v_decreasing(Parameterization::unit, SpeedProfile::sharp_corner, false);
 }
-TEST(Controller, LyapunovDecreasesAlongARunArcLengthVariant) {
+TEST(ManeuverController, LyapunovDecreasesAlongARunArcLengthVariant) {
   expect_v_decreasing(Parameterization::arc_length, SpeedProfile::sharp_corner_arc, true);
 }
 

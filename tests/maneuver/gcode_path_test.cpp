@@ -10,7 +10,7 @@
 namespace feedloop::maneuver {
 namespace {
 
-TEST(GcodePath, TestPartLayersAndJoins) {
+TEST(ManeuverGcodePath, TestPartLayersAndJoins) {
   GcodePathOptions gp;
   gp.layers = 3;
   gp.feature = "External perimeter";
@@ -26,7 +26,7 @@ TEST(GcodePath, TestPartLayersAndJoins) {
   EXPECT_NE(too_many.error().message.find("found 10 of the 11 layers"), std::string::npos);
 }
 
-TEST(GcodePath, RelativeModesStrideAndBadLines) {
+TEST(ManeuverGcodePath, RelativeModesStrideAndBadLines) {
   const std::string g =
       "G90\nM83\nG1 Z0.2\nG1 X0 Y0\nG1 X10 E1\nG1 Y10 E1\nG1 X20 Y20\n"   // layer 0 (then travel)
       "G1 Z0.4\nG91\nG1 X-20 Y-20\nG1 X5 E1\n"                          // layer 1 (relative)
@@ -46,7 +46,7 @@ TEST(GcodePath, RelativeModesStrideAndBadLines) {
   EXPECT_EQ(bad.error().where.line, 2);
 }
 
-TEST(GcodePath, CorpusStarPrismTenLayers) {
+TEST(ManeuverGcodePath, CorpusStarPrismTenLayers) {
   const std::string file = std::string(FEEDLOOP_SHARED_DIR) + "/gcode/star_prism_cartesian.gcode";
   if (!std::filesystem::exists(file)) GTEST_SKIP() << "corpus not found: " << file;
   GcodePathOptions gp;

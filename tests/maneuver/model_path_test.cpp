@@ -9,7 +9,7 @@
 namespace feedloop::maneuver {
 namespace {
 
-TEST(PrinterModel, TableIMatrices) {
+TEST(ManeuverPrinterModel, TableIMatrices) {
   const PrinterMatrices m = printer_matrices(CartesianDcParams{});
   // J_m / r^2 = 5e-6 / 1e-4 = 0.05 kg on every axis (Eq. 16).
   EXPECT_NEAR(m.m_kg.x(), 0.45, 1e-12);
@@ -19,7 +19,7 @@ TEST(PrinterModel, TableIMatrices) {
   EXPECT_NEAR(m.k1_n_v, 10.0, 1e-12);      // K_m / (r R_a) (Eq. 18)
 }
 
-TEST(PrinterModel, Rk4MatchesTheFirstOrderVelocityResponse) {
+TEST(ManeuverPrinterModel, Rk4MatchesTheFirstOrderVelocityResponse) {
   const CartesianDcPlant plant;
   PlantState s;
   const CartesianDcParams p;
@@ -42,7 +42,7 @@ TEST(PrinterModel, Rk4MatchesTheFirstOrderVelocityResponse) {
   (void)p;
 }
 
-TEST(Path, UnitAndArcLengthParameterisations) {
+TEST(ManeuverPath, UnitAndArcLengthParameterisations) {
   const std::vector<Vec3> wp{{0, 0, 0}, {0.03, 0, 0}, {0.03, 0.04, 0}};
   auto unit = PiecewiseLinearPath::create(wp, Parameterization::unit);
   auto arc = PiecewiseLinearPath::create(wp, Parameterization::arc_length);
@@ -65,7 +65,7 @@ TEST(Path, UnitAndArcLengthParameterisations) {
   EXPECT_NEAR(unit->corner_angle_deg(1), 90.0, 1e-9);  // Eq. 64
 }
 
-TEST(Path, RejectsDegenerateInputAndMergesDuplicates) {
+TEST(ManeuverPath, RejectsDegenerateInputAndMergesDuplicates) {
   auto dup = PiecewiseLinearPath::create({{0, 0, 0}, {0, 0, 0}, {0.01, 0, 0}}, Parameterization::unit);
   ASSERT_TRUE(dup.ok());
   EXPECT_EQ(dup->segments(), 1u);

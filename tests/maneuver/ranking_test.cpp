@@ -31,7 +31,7 @@ Figures run(const std::vector<Vec3>& wp_m, SpeedProfile prof, Parameterization p
   return {r->max_cross_m, r->iae_cross_m_s, r->total_time_s};
 }
 
-TEST(Ranking, TableIIIOrderOnOneLayer) {
+TEST(ManeuverRanking, TableIIIOrderOnOneLayer) {
   TestPartOptions tp;
   tp.layers = 1;
   GcodePathOptions gp;

@@ -38,7 +38,7 @@ Result<SimResult> run(double period_s, SpeedProfile prof, Parameterization param
   return simulate(*path, *speed, ctl, plant, so);
 }
 
-TEST(Servo, TableIIGainsDivergeAt1kHzAndHoldAt0p9ms) {
+TEST(ManeuverServo, TableIIGainsDivergeAt1kHzAndHoldAt0p9ms) {
   auto at_1ms = run(1e-3, SpeedProfile::constant, Parameterization::unit);
   ASSERT_FALSE(at_1ms.ok());
   EXPECT_NE(at_1ms.error().message.find("diverged"), std::string::npos);
@@ -48,7 +48,7 @@ TEST(Servo, TableIIGainsDivergeAt1kHzAndHoldAt0p9ms) {
   EXPECT_LT(at_09ms->max_cross_m, 2e-4);
 }
 
-TEST(Servo, At5kHzFollowsLikeTheContinuousController) {
+TEST(ManeuverServo, At5kHzFollowsLikeTheContinuousController) {
   for (auto [prof, param] : {std::pair{SpeedProfile::sharp_corner, Parameterization::unit},
                              std::pair{SpeedProfile::sharp_corner_arc, Parameterization::arc_length}}) {
     auto cont = run(0.0, prof, param);
@@ -62,7 +62,7 @@ TEST(Servo, At5kHzFollowsLikeTheContinuousController) {
   }
 }
 
-TEST(Servo, SplitUpdateEntersEveryWaypointOfAShortNotch) {
+TEST(ManeuverServo, SplitUpdateEntersEveryWaypointOfAShortNotch) {
   // A 1 ms period over 0.02 mm segments: the split servo still enters each one in order.
   const std::vector<Vec3> wp{{0, 0, 0},       {0.01, 0, 0},    {0.01, 0.02e-3, 0}, {0.01003, 0.02e-3, 0},
                              {0.01003, 0, 0}, {0.02003, 0, 0}, {0.02003, 0.01, 0}};

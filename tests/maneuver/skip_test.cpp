@@ -39,7 +39,7 @@ SkipRun run(Parameterization param, SpeedProfile prof, bool split, double dt_s) 
   return out;
 }
 
-TEST(Skip, UnitParameterisationJumpsOverTheNotch) {
+TEST(ManeuverSkip, UnitParameterisationJumpsOverTheNotch) {
   // At m_s = 0.1 m/s on a 0.02 mm segment theta' = 5000 /s: a 1 ms step moves theta by 5.
   const SkipRun unit = run(Parameterization::unit, SpeedProfile::constant, false, 1e-3);
   ASSERT_TRUE(unit.r.finished);
@@ -50,7 +50,7 @@ TEST(Skip, UnitParameterisationJumpsOverTheNotch) {
   EXPECT_EQ(never, unit.r.skipped_segments);
 }
 
-TEST(Skip, ArcLengthWithSplitStepsVisitsEverySegmentInOrder) {
+TEST(ManeuverSkip, ArcLengthWithSplitStepsVisitsEverySegmentInOrder) {
   for (auto prof : {SpeedProfile::constant, SpeedProfile::sharp_corner_arc}) {
     const SkipRun arc = run(Parameterization::arc_length, prof, true, 1e-3);
     ASSERT_TRUE(arc.r.finished) << to_string(prof);

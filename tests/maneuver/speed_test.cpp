@@ -19,7 +19,7 @@ std::vector<Vec3> corners_path() {
   return p;
 }
 
-TEST(Speed, ConstantIsEq63) {
+TEST(ManeuverSpeed, ConstantIsEq63) {
   auto path = PiecewiseLinearPath::create(corners_path(), Parameterization::unit);
   SpeedParams sp;
   auto v = SpeedAssignment::create(*path, SpeedProfile::constant, sp);
@@ -31,7 +31,7 @@ TEST(Speed, ConstantIsEq63) {
   }
 }
 
-TEST(Speed, SharpCornerWeightsAndCornerSpeedMatchThePlanner) {
+TEST(ManeuverSpeed, SharpCornerWeightsAndCornerSpeedMatchThePlanner) {
   auto path = PiecewiseLinearPath::create(corners_path(), Parameterization::unit);
   SpeedParams sp;
   auto v = SpeedAssignment::create(*path, SpeedProfile::sharp_corner, sp);
@@ -52,7 +52,7 @@ TEST(Speed, SharpCornerWeightsAndCornerSpeedMatchThePlanner) {
   EXPECT_NEAR(every->at(*path, path->theta(2) - 1e-12, 2).factor, planner::sharp_corner_h(0.0, sp.sharp), 1e-9);
 }
 
-TEST(Speed, DerivativesMatchFiniteDifferences) {
+TEST(ManeuverSpeed, DerivativesMatchFiniteDifferences) {
   for (auto param : {Parameterization::unit, Parameterization::arc_length}) {
     auto path = PiecewiseLinearPath::create(corners_path(), param);
     for (auto prof : {SpeedProfile::every_transition, SpeedProfile::sharp_corner, SpeedProfile::sharp_corner_arc}) {
@@ -76,7 +76,7 @@ TEST(Speed, DerivativesMatchFiniteDifferences) {
   }
 }
 
-TEST(Speed, ArcVariantSeesASharpCornerPastAShortSegmentAndIsContinuous) {
+TEST(ManeuverSpeed, ArcVariantSeesASharpCornerPastAShortSegmentAndIsContinuous) {
   // 20 mm, then a 0.05 mm segment (2 deg turn: non-sharp), then a 90-degree corner.
   const double d2 = 2.0 * M_PI / 180.0;
   std::vector<Vec3> p{{0, 0, 0}, {0.02, 0, 0}};
@@ -105,7 +105,7 @@ TEST(Speed, ArcVariantSeesASharpCornerPastAShortSegmentAndIsContinuous) {
   }
 }
 
-TEST(Speed, RejectsBadParameters) {
+TEST(ManeuverSpeed, RejectsBadParameters) {
   auto path = PiecewiseLinearPath::create(corners_path(), Parameterization::unit);
   SpeedParams sp;
   sp.m_s_m_s = 0.0;
