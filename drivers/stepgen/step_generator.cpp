@@ -119,8 +119,13 @@ void StepGenerator::cubic_piece(double t0_s, double a, double b, double c, doubl
       if (f < 0.0) blo = t; else hi = t;
       const double fp = ds(t) * d;
       double tn = (fp > 0.0) ? t - f / fp : 0.5 * (blo + hi);
-      if (!(tn > blo && tn < hi)) tn = 0.5 * (blo + hi);
-      const bool done = std::fabs(tn - t) < kTolS || hi - blo < kTolS;
+      const bool newton = fp > 0.0 && tn > blo && tn < hi;
+      if (!newton) tn = 0.5 * (blo + hi);
+      // A Newton step of size delta leaves an error of about delta^2 |s''| / (2 s'): accept
+      // its result once that is below kTolS (usually after one step from the Taylor start).
+      const double step = std::fabs(tn - t);
+      const bool converged = newton && step * step * std::fabs(2.0 * c + 6.0 * e * t) < 2.0 * kTolS * fp;
+      const bool done = converged || step < kTolS || hi - blo < kTolS;
       t = tn;
       if (done) break;
     }
