@@ -26,6 +26,7 @@ struct FitOptions {
   double train_fraction = 0.7;
   double min_improvement = 0.15;   // keep an effect only if held-out RMS falls by more than this
   double min_explained_um = 0.6;   // ... and only if it explains at least this much RMS (in quadrature)
+  double min_effect_um = 1.0;       // ... and only if the effect's own size is resolvable (2 counts)
   int max_effects = 3;
   int max_iterations = 20;         // Levenberg-Marquardt iterations per full fit
   int screen_iterations = 6;       // ... per candidate while screening

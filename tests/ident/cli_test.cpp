@@ -45,11 +45,11 @@ TEST(IdentCli, ExciteThenFitFindsThePeriodicEffectAndWritesTheContract) {
   const auto dir = temp_dir("fit");
   const auto trace = dir / "trace.csv";
   ASSERT_EQ(ident_command({"excite", "--axis", "y", "--effect", "periodic_position:period_mm=20,amplitude_um=10",
-                           "--duration", "20", "--out", trace.string()}),
+                           "--duration", "12", "--out", trace.string()}),
             0);
   auto t = ident::read_trace_csv(trace.string());
   ASSERT_TRUE(t.ok()) << t.error().to_string();
-  EXPECT_EQ(t.value().samples(), 20000u);
+  EXPECT_EQ(t.value().samples(), 12000u);
   EXPECT_EQ(check_contract("trace", trace) > 0, false);
   ASSERT_EQ(ident_command({"fit", "--trace", trace.string(), "--out", (dir / "out").string()}), 0);
   const std::string json = slurp(dir / "out" / "report.json");
