@@ -103,6 +103,7 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
   if (delta) {
     sim::DeltaPlantParams dp;
     dp.mm_per_step = 1.0 / spm[0];
+    dp.initial_nozzle_mm = Eigen::Vector3d::Zero();  // where the planner starts
     dp.seed = cfg.simulator.seed;
     dp.encoder.noise_um = cfg.simulator.encoder_noise_um;
     dp.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
@@ -209,7 +210,18 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
   return Status::Ok();
 }
 
-Status McuBridge::start(double now_s) {
+// Host time -> the simulation's time line, which starts at the first start(): the virtual MCUs
+// and plants begin at t = 0 (they would otherwise integrate from the host clock's epoch).
+double McuBridge::sim_time(double host_s) {
+  if (!have_epoch_) {
+    epoch_s_ = host_s;
+    have_epoch_ = true;
+  }
+  return host_s - epoch_s_;
+}
+
+Status McuBridge::start(double host_s) {
+  const double now_s = sim_time(host_s);
   started_ = true;
   last_service_s_ = now_s;
   phase_ = Phase::kStarting;
@@ -267,7 +279,8 @@ void McuBridge::poll_all(double now_s) {
 stepgen::TickMap McuBridge::tick_map(int joint) const {
   const int i = joint_mcu_[static_cast<size_t>(joint)];
   if (i < 0) return {0.0, 1.0};
-  return mcus_[static_cast<size_t>(i)]->session->tick_map();
+  const stepgen::TickMap m = mcus_[static_cast<size_t>(i)]->session->tick_map();  // simulation time
+  return {m.offset_ticks - m.ticks_per_s * epoch_s_, m.ticks_per_s};
 }
 
 double McuBridge::encoder_mm(int joint) const {
@@ -293,11 +306,12 @@ void McuBridge::collect(double) {
   }
 }
 
-void McuBridge::service(double now_s) {
+void McuBridge::service(double host_s) {
   if (!started_) {
-    (void)start(now_s);  // a failure latches fault(); retried like any other fault
+    (void)start(host_s);  // a failure latches fault(); retried like any other fault
     return;
   }
+  const double now_s = sim_time(host_s);
   // Virtual MCUs: the host reads their replies at slice boundaries, not once per servo period.
   // A clock reply read up to a period late would bias the clock estimate by half a period
   // (the midpoint of the round trip, drivers/clock_sync.hpp); slices also keep a delta plant's

@@ -106,6 +106,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   struct JointPort;
   McuBridge(const config::MachineConfig& cfg, const McuBridgeOptions& options);
   Status build(const config::MachineConfig& cfg);
+  double sim_time(double host_s);
   void poll_all(double now_s);
   void collect(double now_s);
   void latch_fault(const std::string& message);
@@ -125,6 +126,8 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   enum class Phase { kStarting, kRunning, kFaulted };
   Phase phase_ = Phase::kStarting;
   bool started_ = false;
+  double epoch_s_ = 0.0;  // host time of simulation time 0 (the sessions run on simulation time)
+  bool have_epoch_ = false;
   double last_service_s_ = 0.0;
   double ready_since_s_ = -1.0;
   double next_restart_s_ = 0.0;

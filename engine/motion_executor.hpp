@@ -101,7 +101,9 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
 
   // servo thread
   ServoBackend* backend_ = nullptr;
-  bool resync_ = false;  // after a fault: joint positions restart from the next move's start
+  // Joint positions restart from the next move's start: at power-on (a delta's carriages are not
+  // at 0) and after a fault (the steps queued then were not all executed).
+  bool resync_ = true;
   void drop_queued_moves();
   planner::PlannedMove current_;  // the move most recently handed to step generation
   double offset_s_ = 0.0;
