@@ -13,6 +13,7 @@ StepPipeline::StepPipeline(const StepPipelineParams& params, stepgen::BatchSink*
     jt->batcher.configure(static_cast<uint8_t>(j), params.max_batch_bytes, sink);
     stepgen::StepCompressorParams cp;
     cp.max_error_ticks = params.max_step_error_us * 1e-6 * params.mcu_clock_hz;
+    if (!owns(j)) cp.max_run_count = 1;  // never fed: no point buffer (1.5 MB per joint)
     jt->compressor.configure(cp, &jt->batcher);
     jt->compressor.reset(0, 0.0);
     jt->tap.next = &jt->compressor;

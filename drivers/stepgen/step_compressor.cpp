@@ -20,9 +20,12 @@ void StepCompressor::configure(const StepCompressorParams& params, RunSink* sink
   params_ = params;
   if (params_.max_run_count < 1) params_.max_run_count = 1;
   sink_ = sink;
-  T_.assign(params_.max_run_count + 2, 0.0);
-  lo_i_.assign(params_.max_run_count + 2, 0);
-  hi_i_.assign(params_.max_run_count + 2, 0);
+  // Default-initialised (not zeroed): points are written before they are read, and pages a run
+  // never reaches are never touched, so resident memory follows the longest run, not the limit.
+  const size_t cap = static_cast<size_t>(params_.max_run_count) + 2;
+  T_.reset(new double[cap]);
+  lo_i_.reset(new int64_t[cap]);
+  hi_i_.reset(new int64_t[cap]);
   stats_ = {};
   reset(0, 0.0);
 }
@@ -100,8 +103,8 @@ void StepCompressor::clip(double ni, double na, double c) {
 uint32_t StepCompressor::first_violation(int64_t I, int64_t A, uint32_t n) const {
   // Newest steps first: a candidate that fails usually fails there (the run drifts away from
   // the targets as it grows), so failures are found in a few steps; a pass scans all n.
-  const int64_t* lo = lo_i_.data();
-  const int64_t* hi = hi_i_.data();
+  const int64_t* lo = lo_i_.get();
+  const int64_t* hi = hi_i_.get();
   if (I + static_cast<int64_t>(n - 1) * A < 1 || I < 1) return n;  // intervals are linear in k
   for (uint32_t k = n; k >= 1; --k) {
     const int64_t kk = k;

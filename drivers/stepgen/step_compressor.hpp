@@ -22,7 +22,7 @@
 #include <algorithm>  // std::min
 #include <cstddef>
 #include <cstdint>
-#include <vector>
+#include <memory>
 
 #include "drivers/stepgen/step_generator.hpp"
 #include "drivers/stepgen/step_run.hpp"
@@ -138,9 +138,9 @@ class StepCompressor final : public StepSink {
     const int64_t A = A_, P = P_;
     double prev = prev_target_;
     int64_t pos = pos_, iv = iv_;
-    double* T = T_.data();
-    int64_t* lo_i = lo_i_.data();
-    int64_t* hi_i = hi_i_.data();
+    double* T = T_.get();
+    int64_t* lo_i = lo_i_.get();
+    int64_t* hi_i = hi_i_.get();
     for (; i < n; ++i) {
       const double t = ticks[i];
       if (dirs[i] != dir || nn >= max_count || iv < 1) break;
@@ -169,8 +169,8 @@ class StepCompressor final : public StepSink {
   StepCompressorStats stats_;
   // Points of the current run, 1-based (index 0 unused): exact targets T (absolute ticks) and
   // the integer window [lo_i, hi_i] relative to P.
-  std::vector<double> T_;
-  std::vector<int64_t> lo_i_, hi_i_;
+  std::unique_ptr<double[]> T_;
+  std::unique_ptr<int64_t[]> lo_i_, hi_i_;
   double prev_target_ = 0.0;   // exact time of the step before the newest point
   int64_t P_ = 0;              // clock of the last emitted step (run reference)
   uint32_t n_ = 0;             // accepted steps in the current run
