@@ -115,7 +115,14 @@ double prior_cost(const AxisModel& m, const Problem& pb) {
 
 // Levenberg-Marquardt on the training part; residuals in um. Jacobian columns are computed in two
 // threads (the machine has two cores).
-AxisModel levenberg_marquardt(AxisModel m, const std::vector<Param>& ps, const Problem& pb, int iterations) {
+// Only the first fit_end samples (at most the training part) are simulated and fitted.
+AxisModel levenberg_marquardt(AxisModel m, const std::vector<Param>& ps, const Problem& full, int iterations,
+                              size_t fit_end = 0) {
+  if (fit_end == 0 || fit_end > full.train_end) fit_end = full.train_end;
+  const std::vector<double> u_fit(full.u->begin(), full.u->begin() + static_cast<long>(fit_end));
+  Problem pb = full;
+  pb.u = &u_fit;
+  pb.train_end = fit_end;
   const size_t n = pb.train_end;
   const auto np = static_cast<Eigen::Index>(ps.size());
   std::vector<double> ys;
@@ -370,7 +377,8 @@ Result<AxisModel> fit_baseline(const AxisModel& start, const std::vector<double>
   const AxisModel preset = m;
   Problem pb{&preset, &cmd_mm, &meas_mm, period_s,
              static_cast<size_t>(static_cast<double>(cmd_mm.size()) * std::clamp(o.train_fraction, 0.1, 1.0))};
-  return levenberg_marquardt(m, free_params(m), pb, o.max_iterations);
+  return levenberg_marquardt(m, free_params(m), pb, o.max_iterations,
+                             static_cast<size_t>(std::max(o.fit_window_s, 1.0) / period_s));
 }
 
 Result<IdentResult> identify_axis(const std::string& axis_name, const std::vector<double>& cmd_mm,
@@ -395,6 +403,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   out.baseline_residual_mm.resize(n);
   for (size_t k = 0; k < n; ++k) out.baseline_residual_mm[k] = meas_mm[k] - y_cur[k];
 
+  const auto fit_end = static_cast<size_t>(std::max(o.fit_window_s, 1.0) / period_s);
   AxisModel cur = out.baseline;
   double cur_val = out.baseline_validation_rms_um;
   const int rounds = std::max(o.max_effects, 0);
@@ -403,7 +412,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
     // with a converged model and not credited for the iterations it was given.
     {
       report(static_cast<double>(round - 1) / rounds, "polish current model");
-      AxisModel polished = levenberg_marquardt(cur, free_params(cur), pb, o.screen_iterations);
+      AxisModel polished = levenberg_marquardt(cur, free_params(cur), pb, o.screen_iterations, fit_end);
       std::vector<double> ys;
       if (run(polished, pb, &ys)) {
         const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);
@@ -428,7 +437,8 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
       AxisModel guess = initial_guess(cur, e, pb, y_cur);
       // Screening: a few iterations with everything free (a baseline refit can absorb part of an
       // effect, e.g. a delay into the damping); the winner of the round is refitted longer below.
-      AxisModel fitted = levenberg_marquardt(guess, free_params(guess), pb, o.screen_iterations);
+      AxisModel fitted = levenberg_marquardt(guess, free_params(guess), pb, o.screen_iterations,
+                                             static_cast<size_t>(std::max(o.screen_window_s, 1.0) / period_s));
       std::vector<double> ys;
       if (!run(fitted, pb, &ys)) continue;
       const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);
@@ -443,7 +453,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
     if (best < 0) break;
     {
       report((static_cast<double>(round) - 0.1) / rounds, std::string("refit with ") + effect_name(static_cast<Effect>(best)));
-      AxisModel refit = levenberg_marquardt(best_model, free_params(best_model), pb, o.max_iterations);
+      AxisModel refit = levenberg_marquardt(best_model, free_params(best_model), pb, o.max_iterations, fit_end);
       std::vector<double> ys;
       if (run(refit, pb, &ys)) {
         const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);

@@ -30,6 +30,8 @@ struct FitOptions {
   int max_effects = 3;
   int max_iterations = 20;         // Levenberg-Marquardt iterations per full fit
   int screen_iterations = 6;       // ... per candidate while screening
+  double screen_window_s = 20.0;   // screening fits use at most this much of the training part
+  double fit_window_s = 40.0;      // ... and the other fits this much (the held-out part is always the last 30 %)
   // Progress: fraction in [0, 1] and what is being done.
   std::function<void(double, const std::string&)> progress;
 };

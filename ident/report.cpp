@@ -114,7 +114,7 @@ std::string report_markdown(const IdentResult& r, const std::string& trace_name)
        "part of the trace; the best is kept, refitted with all parameters free, if it lowers the "
        "held-out RMS significantly.\n\n| round | candidate | held-out RMS (um) | kept |\n|---|---|---|---|\n";
   for (const auto& c : r.candidates)
-    s += std::to_string(c.round) + " | " + effect_name(c.effect) + " | " + num(c.validation_rms_um, "%.3f") + " | " +
+    s += "| " + std::to_string(c.round) + " | " + effect_name(c.effect) + " | " + num(c.validation_rms_um, "%.3f") + " | " +
          (c.kept ? "yes" : "") + " |\n";
   s += "\n`residual.csv` holds the residual (measured - model) before and after, per sample.\n";
   return s;
