@@ -64,9 +64,7 @@ std::vector<Case> cases() {
     out.push_back(ds);
     Case er{a + "_resonance", axis, {}, false, {{"extra_resonance", {{"freq_hz", 35.0}, {"damping", 0.05}}}}};
     er.effects.extra_resonance = {true, 35.0, 0.05, 0.15};
-    // KNOWN MISS (docs/ident.md): on the Y axis the identification's third-mass model leaves
-    // 2.7 um RMS even at the simulator's true parameters, so the effect is not found there.
-    if (axis == 'x') out.push_back(er);
+    out.push_back(er);
     Case td{a + "_delay", axis, {}, false, {{"time_delay", {{"delay_ms", 5.0}}}}};
     td.effects.time_delay = {true, 5.0};
     out.push_back(td);
