@@ -302,18 +302,18 @@ AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb, const
     case Effect::kExtraResonance: {
       // A resonance near the belt mode is partly absorbed by the fitted baseline, and the extra
       // mass needs a different baseline to show its gain: at every grid frequency the baseline is
-      // refitted briefly (2 iterations on a 10 s window) before comparing.
+      // refitted briefly (2 iterations on a 6 s window) before comparing.
       const std::vector<Param> base = {Param::kK1, Param::kK2, Param::kC1, Param::kC2};
-      const auto window = std::min(n, static_cast<size_t>(10.0 / pb.period_s));
+      const auto window = std::min(n, static_cast<size_t>(6.0 / pb.period_s));
       const std::vector<double> u_window(u.begin(), u.begin() + static_cast<long>(window));
       Problem wp = pb;
       wp.u = &u_window;
       wp.train_end = window;
       double best = 1e300;
       AxisModel best_m = m;
-      for (int i = 0; i <= 24; ++i) {
+      for (int i = 0; i <= 16; ++i) {
         AxisModel t = m;
-        t.extra_freq_hz = 15.0 * std::pow(200.0 / 15.0, i / 24.0);
+        t.extra_freq_hz = 15.0 * std::pow(200.0 / 15.0, i / 16.0);
         t = levenberg_marquardt(t, base, wp, 2);
         std::vector<double> ys;
         if (!run(t, wp, &ys)) continue;
