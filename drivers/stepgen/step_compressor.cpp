@@ -3,6 +3,7 @@
 
 #include <algorithm>  // std::min, std::max, std::clamp
 #include <cmath>      // ceil, floor, llround
+#include <cstdlib>    // malloc
 
 namespace feedloop::stepgen {
 
@@ -23,9 +24,9 @@ void StepCompressor::configure(const StepCompressorParams& params, RunSink* sink
   // Default-initialised (not zeroed): points are written before they are read, and pages a run
   // never reaches are never touched, so resident memory follows the longest run, not the limit.
   const size_t cap = static_cast<size_t>(params_.max_run_count) + 2;
-  T_.reset(new double[cap]);
-  lo_i_.reset(new int64_t[cap]);
-  hi_i_.reset(new int64_t[cap]);
+  T_.reset(static_cast<double*>(std::malloc(cap * sizeof(double))));
+  lo_i_.reset(static_cast<int64_t*>(std::malloc(cap * sizeof(int64_t))));
+  hi_i_.reset(static_cast<int64_t*>(std::malloc(cap * sizeof(int64_t))));
   stats_ = {};
   reset(0, 0.0);
 }

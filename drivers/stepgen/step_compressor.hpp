@@ -22,6 +22,7 @@
 #include <algorithm>  // std::min
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>  // std::free
 #include <memory>
 
 #include "drivers/stepgen/step_generator.hpp"
@@ -169,8 +170,11 @@ class StepCompressor final : public StepSink {
   StepCompressorStats stats_;
   // Points of the current run, 1-based (index 0 unused): exact targets T (absolute ticks) and
   // the integer window [lo_i, hi_i] relative to P.
-  std::unique_ptr<double[]> T_;
-  std::unique_ptr<int64_t[]> lo_i_, hi_i_;
+  struct FreeDeleter {
+    void operator()(void* p) const { std::free(p); }
+  };
+  std::unique_ptr<double[], FreeDeleter> T_;
+  std::unique_ptr<int64_t[], FreeDeleter> lo_i_, hi_i_;
   double prev_target_ = 0.0;   // exact time of the step before the newest point
   int64_t P_ = 0;              // clock of the last emitted step (run reference)
   uint32_t n_ = 0;             // accepted steps in the current run
