@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "cli/batch_command.hpp"
+#include "cli/ident_command.hpp"
+#include "cli/model_command.hpp"
 #include "cli/log_command.hpp"
 #include "cli/print_command.hpp"
 
@@ -22,6 +24,9 @@ void usage(std::FILE* out) {
       "  batch FILE [--config CFG] [--json OUT]    whole pipeline in virtual time, no hardware\n"
       "  log info LOG...                           summarise flight-recorder logs\n"
       "  log export LOG... --csv FILE [--rate-hz N]  recorder logs -> trace CSV v1\n"
+      "  ident fit --trace F.csv --out DIR         identify an axis: baseline, effects, report\n"
+      "  ident excite --axis x|y --out F.csv       simulated excitation trace (tests, demos)\n"
+      "  model frf [--config F] --pos X,Y,Z --out F.csv [--virtual-work]   delta FRFs (Eq. 29)\n"
       "run 'feedloop COMMAND --help' for a command's options\n",
       out);
 }
@@ -38,6 +43,8 @@ int main(int argc, char** argv) {
   if (cmd == "print") return feedloop::cli::print_command(args);
   if (cmd == "batch") return feedloop::cli::batch_command(args);
   if (cmd == "log") return feedloop::cli::log_command(args);
+  if (cmd == "ident") return feedloop::cli::ident_command(args);
+  if (cmd == "model") return feedloop::cli::model_command(args);
   if (cmd == "help" || cmd == "--help" || cmd == "-h") {
     usage(stdout);
     return 0;

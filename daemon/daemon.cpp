@@ -52,6 +52,10 @@ Daemon::~Daemon() {
 }
 
 Status Daemon::start() {
+  if (options_.virtual_time && !cfg_.uses_simulator())
+    return Error{"--virtual-time needs a simulated printer (mcus with transport: mock)"};
+  if (options_.virtual_time) machine_clock_ = std::make_unique<VirtualClock>();
+  else machine_clock_ = std::make_unique<MonotonicClock>();
   auto executor = engine::make_executor(cfg_);
   if (!executor) return executor.error();
   std::string warnings;
@@ -109,7 +113,7 @@ void Daemon::close_channels() {
 
 Status Daemon::start_machine(std::unique_ptr<engine::CommandExecutor> executor,
                              std::string* warnings) {
-  machine_ = std::make_unique<engine::Machine>(engine::machine_options(cfg_), clock_,
+  machine_ = std::make_unique<engine::Machine>(engine::machine_options(cfg_), *machine_clock_,
                                                std::move(executor));
   machine_->set_done_callback([this](engine::CommandDone d) {
     asio::post(io_, [this, d = std::move(d)]() mutable { on_command_done(std::move(d)); });
@@ -415,6 +419,7 @@ json Daemon::info() const {
           {"api_version", 1},
           {"kinematics", kin},
           {"simulated", cfg_.uses_simulator()},
+          {"virtual_time", options_.virtual_time},
           {"servo_rate_hz", cfg_.servo.rate_hz},
           {"config", options_.config_path.empty() ? "(embedded default)" : options_.config_path}};
 }
@@ -442,6 +447,7 @@ json Daemon::status() const {
             {"print_time_s", s.print_time_s},
             {"planned_until_s", s.planned_until_s},
             {"moves_planned", s.moves_planned},
+            {"motion_starts", s.motion_starts},
             {"segments_queued", s.segments_queued}}},
           {"clients", clients_.size()},
           {"owner", o ? json(o->session->name()) : json(nullptr)},

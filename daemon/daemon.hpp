@@ -32,6 +32,9 @@ namespace feedloop::daemon {
 struct DaemonOptions {
   std::string config_path;  // empty: the embedded default config
   double ownership_idle_s = 5.0;
+  // Simulated printers only: the machine runs in virtual time, as fast as the CPU allows (the
+  // same pipeline; for tests and demos). Channels and timers stay in real time.
+  bool virtual_time = false;
 };
 
 class Daemon final : public JsonApiBackend {
@@ -111,7 +114,8 @@ class Daemon final : public JsonApiBackend {
   boost::asio::io_context io_;
   boost::asio::signal_set signals_;
   boost::asio::steady_timer timer_;
-  MonotonicClock clock_;
+  MonotonicClock clock_;                 // I/O side: timers, ownership, keepalives
+  std::unique_ptr<Clock> machine_clock_;  // the machine's time line (virtual or monotonic)
   std::unique_ptr<engine::Machine> machine_;
   SystemdNotifier notifier_;
 

@@ -19,10 +19,12 @@ namespace {
 
 void usage(std::FILE* out) {
   std::fputs(
-      "usage: feedloopd [--config FILE] [--check-config] [--log-level LEVEL] [--version]\n"
+      "usage: feedloopd [--config FILE] [--check-config] [--log-level LEVEL] [--virtual-time]\n"
       "  --config FILE      printer config (YAML); default: the embedded simulated printer\n"
       "  --check-config     validate the config, print every problem, and exit\n"
       "  --log-level LEVEL  trace|debug|info|warn|error (overrides logging.level)\n"
+      "  --virtual-time     simulated printers: run the machine in virtual time, as fast as\n"
+      "                     the CPU allows (tests, demos)\n"
       "Channels: a Unix socket speaking the Marlin host protocol, a pty that looks like a\n"
       "Marlin serial port, and a JSON-RPC 2.0 (NDJSON) API socket; see the README.\n",
       out);
@@ -32,8 +34,10 @@ void setup_logging(const feedloop::config::LoggingConfig& cfg, const std::string
   std::vector<spdlog::sink_ptr> sinks;
   sinks.push_back(std::make_shared<spdlog::sinks::stderr_color_sink_mt>());
   if (!cfg.file.empty()) {
+    const auto path = feedloop::config::expand_path(cfg.file, feedloop::config::path_vars_from_environment());
     try {
-      sinks.push_back(std::make_shared<spdlog::sinks::basic_file_sink_mt>(cfg.file));
+      if (!path) throw spdlog::spdlog_ex(path.error().message);
+      sinks.push_back(std::make_shared<spdlog::sinks::basic_file_sink_mt>(*path));
     } catch (const spdlog::spdlog_ex& e) {
       std::fprintf(stderr, "feedloopd: cannot open log file %s: %s\n", cfg.file.c_str(), e.what());
     }
@@ -54,12 +58,15 @@ void setup_logging(const feedloop::config::LoggingConfig& cfg, const std::string
 int main(int argc, char** argv) {
   std::string config_path, log_level;
   bool check_only = false;
+  bool virtual_time = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--config" && i + 1 < argc) {
       config_path = argv[++i];
     } else if (a == "--log-level" && i + 1 < argc) {
       log_level = argv[++i];
+    } else if (a == "--virtual-time") {
+      virtual_time = true;
     } else if (a == "--check-config") {
       check_only = true;
     } else if (a == "--version") {
@@ -87,7 +94,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   setup_logging(cfg->logging, log_level);
-  feedloop::daemon::Daemon daemon(std::move(*cfg), {config_path});
+  feedloop::daemon::Daemon daemon(std::move(*cfg), {config_path, 5.0, virtual_time});
   if (feedloop::Status s = daemon.start(); !s) {
     spdlog::critical("cannot start: {}", s.error().to_string());
     return 1;

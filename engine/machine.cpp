@@ -201,7 +201,9 @@ void Machine::servo_main() {
   ServoStatus st;
   int64_t deadline = clock_.now_ns() + period_ns;
   while (!stopping_.load(std::memory_order_relaxed)) {
-    if (clock_.is_virtual() && !executor_->motion_pending()) {
+    if (clock_.is_virtual() &&
+        (!executor_->motion_pending() ||
+         !executor_->may_advance_virtual(executing_.load() || !queue_.empty()))) {
       // Virtual time moves only while there is motion to simulate; otherwise wait for work.
       std::this_thread::sleep_for(std::chrono::microseconds(200));
       servo_last_cycle_ns_.store(clock_.now_ns(), std::memory_order_release);

@@ -46,7 +46,7 @@ struct MachineStatus {
   double planned_until_s = 0.0;     // end of the last planned segment
   uint64_t moves_planned = 0;
   uint64_t segments_queued = 0;     // joint segments waiting for the servo thread
-  uint64_t steps_sent = 0;
+  uint64_t motion_starts = 0;       // times motion started from rest
   double encoder_mm[4] = {0, 0, 0, 0};  // latest encoder reading per joint from the MCUs (NaN: none)
   uint64_t encoder_samples = 0;         // encoder samples received from the MCUs
   char last_error[192] = {};
@@ -79,6 +79,10 @@ class CommandExecutor {
   virtual void servo_cycle(int64_t /*now_ns*/, bool /*cancel*/) {}
   // True while moves are queued anywhere or being executed. Any thread.
   virtual bool motion_pending() const { return false; }
+  // Virtual time only: may the servo thread advance time now? It must not run past the motion
+  // the planner is still producing (that would cut the motion into pieces), but must advance
+  // when the planner has nothing more to give. `planner_busy`: a command is queued or executing.
+  virtual bool may_advance_virtual(bool planner_busy) const { return !planner_busy || motion_pending(); }
   // Fills the motion fields of a status snapshot. Any thread.
   virtual void motion_status(MachineStatus& /*s*/) const {}
 };

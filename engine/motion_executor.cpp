@@ -43,8 +43,12 @@ void MotionExecutor::position(double out_mm[4]) const {
 void MotionExecutor::idle_tick(const std::atomic<bool>& cancel) {
   cancel_ = &cancel;
   if (planner_.queued() == 0) return;
+  // Release the lookahead's tail when the input pauses, or before the machine runs dry (the
+  // held moves contain the deceleration the released ones rely on).
   const auto quiet = std::chrono::steady_clock::now() - last_command_;
-  if (quiet > std::chrono::duration<double>(options_.input_pause_flush_s)) planner_.flush();
+  const bool running_dry =
+      telemetry_.anchored.load() && planned_end_s_.load() - executing_print_time_s() < 2.0 * options_.lead_s;
+  if (running_dry || quiet > std::chrono::duration<double>(options_.input_pause_flush_s)) planner_.flush();
   planner_queued_.store(planner_.queued());
 }
 
@@ -59,7 +63,7 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
   s.planned_until_s = planned_end_s_.load(std::memory_order_relaxed);
   s.moves_planned = moves_emitted_.load(std::memory_order_relaxed);
   s.segments_queued = pushed_.load() - popped_.load();
-  s.steps_sent = telemetry_.batches.load(std::memory_order_relaxed);
+  s.motion_starts = telemetry_.anchors.load(std::memory_order_relaxed);
   if (backend_ != nullptr) {  // the MCUs: encoder positions, and a fault naming the MCU
     for (int j = 0; j < 4; ++j) s.encoder_mm[j] = backend_->encoder_mm(j);
     s.encoder_samples = backend_->encoder_samples();
@@ -84,19 +88,42 @@ void MotionExecutor::on_event(const planner::PlannerEvent& e) {
   if (e.kind == planner::EventKind::moves_done) wait_until_s_ = e.time_s;
 }
 
+double MotionExecutor::executing_print_time_s() const {
+  return telemetry_.anchored.load(std::memory_order_relaxed)
+             ? telemetry_.print_time_s.load(std::memory_order_relaxed)
+             : idle_base_s_.load(std::memory_order_relaxed);
+}
+
+// Virtual time may run on while enough planned motion lies ahead, or when the planner holds
+// nothing back; never into moves the lookahead has not released yet.
+bool MotionExecutor::may_advance_virtual(bool planner_busy) const {
+  if (waiting_.load()) return true;  // M400 flushed everything and waits for the machine
+  if (planned_end_s_.load() - executing_print_time_s() > options_.lead_s + 0.01) return true;
+  return !planner_busy && planner_queued_.load() == 0;
+}
+
 void MotionExecutor::wait_for_room(const std::atomic<bool>& cancel) {
+  struct Waiting {
+    std::atomic<bool>& w;
+    explicit Waiting(std::atomic<bool>& f) : w(f) { w = true; }
+    ~Waiting() { w = false; }
+  } waiting(waiting_);
   while (!cancel.load()) {
-    const double executing_s = telemetry_.anchored.load(std::memory_order_relaxed)
-                                   ? telemetry_.print_time_s.load(std::memory_order_relaxed)
-                                   : idle_base_s_.load(std::memory_order_relaxed);
     if (pushed_.load() == popped_.load() && !telemetry_.anchored.load()) return;
-    if (planned_end_s_.load(std::memory_order_relaxed) - executing_s <= options_.max_buffered_s) return;
+    if (planned_end_s_.load(std::memory_order_relaxed) - executing_print_time_s() <=
+        options_.max_buffered_s)
+      return;
     std::this_thread::sleep_for(std::chrono::microseconds(500));
   }
 }
 
 void MotionExecutor::wait_print_time(double t_s, const std::atomic<bool>& cancel) {
   planner_.flush();
+  struct Waiting {
+    std::atomic<bool>& w;
+    explicit Waiting(std::atomic<bool>& f) : w(f) { w = true; }
+    ~Waiting() { w = false; }
+  } waiting(waiting_);
   planner_queued_.store(planner_.queued());
   while (!cancel.load()) {
     if (!motion_pending()) return;

@@ -61,6 +61,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void servo_cycle(int64_t now_ns, bool cancel) override;
   bool motion_pending() const override;
   void motion_status(MachineStatus& s) const override;
+  bool may_advance_virtual(bool planner_busy) const override;
 
   // The MCUs behind the batch sink (engine/mcu_bridge.hpp); set before the servo thread starts.
   // Each servo cycle then services it first, takes its clock estimates for step timing, waits
@@ -76,6 +77,8 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void on_event(const planner::PlannerEvent& e) override;
   // Planner thread: blocks until the servo thread has executed print time `t_s`.
   void wait_print_time(double t_s, const std::atomic<bool>& cancel);
+  // Print time the machine is executing now (or where it will restart from rest).
+  double executing_print_time_s() const;
   // Planner thread: blocks while more than max_buffered_s of motion is queued.
   void wait_for_room(const std::atomic<bool>& cancel);
 
@@ -97,6 +100,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   std::atomic<double> planned_end_s_{0.0};  // end of the last segment handed to the servo
   std::atomic<uint64_t> pushed_{0};
   std::atomic<uint64_t> moves_emitted_{0};
+  std::atomic<bool> waiting_{false};  // the planner thread waits for the machine (M400, room)
   std::atomic<size_t> planner_queued_{0};  // mirror of planner_.queued() for the other threads
 
   // servo thread
