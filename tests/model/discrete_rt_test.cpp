@@ -9,18 +9,7 @@
 #include "model/discrete.hpp"
 #include "model/gantry_axis.hpp"
 
-#if !defined(FEEDLOOP_SANITIZED) && defined(__GLIBC__)
-#define FEEDLOOP_COUNT_MALLOC 1
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_mallocs{0};
-}  // namespace
-extern "C" void* __libc_malloc(std::size_t);
-extern "C" void* malloc(std::size_t n) {  // NOLINT: interposes glibc's malloc for this test binary
-  if (g_counting.load(std::memory_order_relaxed)) g_mallocs.fetch_add(1, std::memory_order_relaxed);
-  return __libc_malloc(n);
-}
-#endif
+#include "tests/common/malloc_counter.hpp"
 
 namespace fm = feedloop::model;
 
