@@ -157,6 +157,9 @@ TEST_F(Process, SystemdUnitVerifies) {
 // Printrun's pronsole (Debian package printrun) connects to the pty, sends a real sliced file
 // line by line with its own host protocol and gets an ok for every line.
 TEST_F(Process, PronsolePrintsARealFileOverThePty) {
+#ifdef FEEDLOOP_SANITIZED
+  GTEST_SKIP() << "13 minutes of simulated motion: runs in the optimized build only";
+#endif
   const std::string gcode = std::string(FEEDLOOP_SHARED_DIR) + "/gcode/cube20_cartesian.gcode";
   if (!fs::exists(gcode)) GTEST_SKIP() << "corpus " << gcode << " absent: pronsole test skipped";
   if (std::system("command -v pronsole >/dev/null 2>&1") != 0)
