@@ -1,0 +1,49 @@
+// The feedforward path F of the servo loop (closed-loop-gantry-thesis Sect. 4.6, Fig. 6): it maps
+// the planned joint trajectory r (desired carriage positions) to the motor commands u_ff whose
+// predicted carriage motion follows r. F = 1 is the thesis's open loop; the input shapers
+// (control/input_shaper.hpp) and the model inverses (control/feedforward/) are the others.
+//
+// Contract (servo thread, once per period T): step() at cycle k receives the reference at
+// t_{k+P}, P = preview_samples(), and returns the motor command for t_k. A filter that needs no
+// preview has P = 0. The servo samples the plan P periods ahead, so a stable approximate inverse
+// of a non-minimum-phase model (delta paper Eq. 34, d1 < 0) can look into the future.
+// step() and reset() are RT-safe: no allocation, no locks, bounded time.
+#pragma once
+
+#include <array>
+#include <memory>
+
+#include "planner/joint_output.hpp"
+
+namespace feedloop::control {
+
+inline constexpr int kJoints = planner::kJoints;  // 3 motors + extruder
+using JointArray = std::array<double, kJoints>;
+
+struct FeedforwardInput {
+  JointArray r_mm{};             // desired joint (carriage) positions at t_{k+P}
+  std::array<double, 3> nozzle_mm{};  // planned nozzle position at t_{k+P} (LPV scheduling)
+};
+
+class Feedforward {
+ public:
+  virtual ~Feedforward() = default;
+  virtual const char* name() const = 0;
+  // Periods of preview the filter needs (>= 0).
+  virtual int preview_samples() const = 0;
+  // RT-safe. At rest at `at`: every internal state as if `at` had been held forever.
+  virtual void reset(const FeedforwardInput& at) = 0;
+  // RT-safe. One period: the reference at t_{k+P} in, the motor command for t_k out.
+  virtual void step(const FeedforwardInput& in, JointArray& u_mm) = 0;
+};
+
+// F = 1: the motor command is the desired position (no preview).
+class IdentityFeedforward final : public Feedforward {
+ public:
+  const char* name() const override { return "none"; }
+  int preview_samples() const override { return 0; }
+  void reset(const FeedforwardInput&) override {}
+  void step(const FeedforwardInput& in, JointArray& u_mm) override { u_mm = in.r_mm; }
+};
+
+}  // namespace feedloop::control
