@@ -1,0 +1,47 @@
+// Runs G-code through the daemon's own pipeline (Machine, MotionExecutor, McuBridge with the mock
+// MCUs driving the plant simulator) in virtual time and records every servo period: what the
+// control benchmarks (bench/control), the closed-loop tests and `feedloop batch --export-trace`
+// measure. Nothing here is a copy of the pipeline: it is the daemon's, on a VirtualClock.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "config/machine_config.hpp"
+#include "core/result.hpp"
+#include "engine/telemetry_tap.hpp"
+
+namespace feedloop::engine {
+
+struct SimRunOptions {
+  double settle_s = 0.05;        // keep sampling this long after the motion's planned end
+  double timeout_s = 600.0;      // of virtual time
+  bool keep_samples = true;      // false: only the summary figures
+};
+
+// One servo period of the run: what the pipeline commanded and what the simulated machine did.
+struct SimRunSample {
+  ServoSample servo;                     // desired / command / encoder / steps, per joint
+  std::array<double, 4> actual_mm{};     // ground truth: carriage (joint) positions of the plant
+  std::array<double, 3> actual_nozzle_mm{};  // ground truth nozzle (Cartesian: the carriages)
+};
+
+struct SimRunResult {
+  std::vector<SimRunSample> samples;     // every servo period while motion was anchored
+  std::vector<ServoEvent> events;        // lost steps detected, encoder faults, ...
+  std::array<int64_t, 4> lost_full_steps{};  // ground truth from the plant (0 for an ideal joint)
+  uint64_t commands = 0;                 // G-code lines executed
+  uint64_t rejected = 0;                 // lines rejected (with the first error in `error`)
+  double motion_time_s = 0.0;            // planned print time from first move start to last end
+  uint64_t deadline_misses = 0;
+  std::string error;                     // first rejected line or fault (empty: none)
+};
+
+// The config's machine must use mock MCUs (the simulator). Errors: a config that cannot be built.
+Result<SimRunResult> run_simulated(const config::MachineConfig& cfg,
+                                   const std::vector<std::string>& gcode_lines,
+                                   const SimRunOptions& options = {});
+
+}  // namespace feedloop::engine
