@@ -17,6 +17,12 @@ struct IdealPlant final : stepgen::BatchSink {
 }  // namespace
 
 Result<std::unique_ptr<CommandExecutor>> make_executor(const config::MachineConfig& cfg) {
+  auto stack = make_motion_stack(cfg);
+  if (!stack.ok()) return stack.error();
+  return std::unique_ptr<CommandExecutor>(std::move(stack.value().executor));
+}
+
+Result<MotionStack> make_motion_stack(const config::MachineConfig& cfg) {
   const planner::PlannerConfig pcfg = planner_config(cfg);
   if (Status s = pcfg.validate(); !s) return s.error();
   StepPipelineParams sp;
@@ -26,8 +32,7 @@ Result<std::unique_ptr<CommandExecutor>> make_executor(const config::MachineConf
   MotionOptions mo;
   mo.lead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
   if (cfg.mcus.empty())
-    return std::unique_ptr<CommandExecutor>(
-        std::make_unique<MotionExecutor>(pcfg, sp, std::make_shared<IdealPlant>(), mo));
+    return MotionStack{std::make_unique<MotionExecutor>(pcfg, sp, std::make_shared<IdealPlant>(), mo), nullptr};
   // The MCUs of the config (mock: virtual MCUs driving the plant simulator; serial/usb: sessions
   // on the real links) behind the step pipeline, serviced by the servo thread.
   auto bridge = make_mcu_bridge(cfg);
@@ -35,7 +40,7 @@ Result<std::unique_ptr<CommandExecutor>> make_executor(const config::MachineConf
   std::shared_ptr<McuBridge> b = std::move(bridge.value());
   auto ex = std::make_unique<MotionExecutor>(pcfg, sp, b, mo);
   ex->set_backend(b.get());
-  return std::unique_ptr<CommandExecutor>(std::move(ex));
+  return MotionStack{std::move(ex), std::move(b)};
 }
 
 MachineOptions machine_options(const config::MachineConfig& cfg) {

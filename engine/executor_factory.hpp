@@ -12,6 +12,16 @@ namespace feedloop::engine {
 
 Result<std::unique_ptr<CommandExecutor>> make_executor(const config::MachineConfig& cfg);
 
+class MotionExecutor;
+class McuBridge;
+// The motion executor and, when the config has MCUs, the bridge behind it (kept for inspection:
+// the simulated plants, the step timing; engine/sim_run.cpp). make_executor() is this, unwrapped.
+struct MotionStack {
+  std::unique_ptr<MotionExecutor> executor;
+  std::shared_ptr<McuBridge> bridge;  // nullptr: no MCUs (an ideal plant)
+};
+Result<MotionStack> make_motion_stack(const config::MachineConfig& cfg);
+
 MachineOptions machine_options(const config::MachineConfig& cfg);
 
 }  // namespace feedloop::engine
