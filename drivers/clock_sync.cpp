@@ -10,6 +10,7 @@ void ClockSync::configure(const ClockSyncParams& p) {
   p_ = p;
   if (p_.window < 2) p_.window = 2;
   ring_.assign(static_cast<size_t>(p_.window), Sample{});
+  scratch_.reserve(static_cast<size_t>(p_.window));  // fit() then never allocates
   head_ = count_ = 0;
   freq_hz_ = p_.nominal_hz;
 }

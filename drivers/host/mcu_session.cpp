@@ -1,7 +1,10 @@
 // Host session with one MCU: see mcu_session.hpp.
 #include "drivers/host/mcu_session.hpp"
 
+#include "drivers/device/virtual_mcu.hpp"  // kMaxAxes
+
 #include <cmath>
+#include <cstring>  // memcpy
 
 namespace feedloop::drivers {
 
@@ -17,6 +20,36 @@ McuSession::McuSession(const McuSessionParams& params, Transport& transport)
   lp.initial_epoch = static_cast<int>(reinterpret_cast<uintptr_t>(this) >> 4) & 0x0F;
   link_.configure(lp, this, this);
   clock_.configure({});
+  samples_.reserve(kSampleCapacity);
+  status_scratch_.axes.reserve(device::VirtualMcu::kMaxAxes);
+}
+
+uint8_t* McuSession::outbox_slot(size_t n, bool front) {
+  if (n > protocol::kMaxPayload) {
+    fail("MCU '" + p_.name + "' (" + transport_.describe() + "): a message of " + std::to_string(n) +
+         " bytes does not fit a frame (at most " + std::to_string(protocol::kMaxPayload) +
+         "); configure smaller step batches; motion stopped");
+    return nullptr;
+  }
+  if (out_count_ == kOutboxMessages) {
+    fail("MCU '" + p_.name + "' (" + transport_.describe() + "): " + std::to_string(kOutboxMessages) +
+         " messages wait for the link (it is too slow or stalled); motion stopped");
+    return nullptr;
+  }
+  int idx;
+  if (front) {
+    out_head_ = (out_head_ + kOutboxMessages - 1) % kOutboxMessages;
+    idx = out_head_;
+  } else {
+    idx = (out_head_ + out_count_) % kOutboxMessages;
+  }
+  ++out_count_;
+  outbox_[static_cast<size_t>(idx)].n = n;
+  return outbox_[static_cast<size_t>(idx)].bytes;
+}
+
+void McuSession::enqueue(const uint8_t* msg, size_t n, bool front) {
+  if (uint8_t* d = outbox_slot(n, front)) std::memcpy(d, msg, n);
 }
 
 Status McuSession::start(double now_s) {
@@ -27,14 +60,13 @@ Status McuSession::start(double now_s) {
     return *error_;
   }
   link_.reset();
-  outbox_.clear();
-  std::vector<uint8_t> m(3);
-  m[0] = static_cast<uint8_t>(MsgType::kIdentify);
-  m[1] = p_.protocol_version & 0xFF;
-  m[2] = p_.protocol_version >> 8;
-  enqueue(std::move(m));
+  out_head_ = out_count_ = 0;
+  query_head_ = query_count_ = 0;
   state_ = McuState::kIdentifying;
   error_.reset();
+  const uint8_t m[3] = {static_cast<uint8_t>(MsgType::kIdentify), static_cast<uint8_t>(p_.protocol_version & 0xFF),
+                        static_cast<uint8_t>(p_.protocol_version >> 8)};
+  enqueue(m, sizeof m);
   return {};
 }
 
@@ -65,25 +97,29 @@ void McuSession::write_frame(const uint8_t* frame, size_t n) {
 }
 
 void McuSession::queue_steps(const stepgen::StepBatch& b) {
-  std::vector<uint8_t> m;
-  m.reserve(2 + b.body_bytes);
-  m.push_back(static_cast<uint8_t>(MsgType::kQueueSteps));
-  m.push_back(b.axis);
-  m.insert(m.end(), b.body, b.body + b.body_bytes);
-  enqueue(std::move(m));
+  uint8_t* m = outbox_slot(2 + b.body_bytes);
+  if (m == nullptr) return;
+  m[0] = static_cast<uint8_t>(MsgType::kQueueSteps);
+  m[1] = b.axis;
+  std::memcpy(m + 2, b.body, b.body_bytes);
 }
 
 void McuSession::set_enabled(bool on) {
-  enqueue({static_cast<uint8_t>(MsgType::kEnable), static_cast<uint8_t>(on ? 1 : 0)});
+  const uint8_t m[2] = {static_cast<uint8_t>(MsgType::kEnable), static_cast<uint8_t>(on ? 1 : 0)};
+  enqueue(m, sizeof m);
 }
 
 void McuSession::emergency_stop() {
   // Jumps the queue: nothing queued behind it may move the motor.
-  outbox_.clear();
-  enqueue({static_cast<uint8_t>(MsgType::kEmergencyStop)});
+  out_head_ = out_count_ = 0;
+  const uint8_t m = static_cast<uint8_t>(MsgType::kEmergencyStop);
+  enqueue(&m, 1);
 }
 
-void McuSession::request_status() { enqueue({static_cast<uint8_t>(MsgType::kStatusQuery)}); }
+void McuSession::request_status() {
+  const uint8_t m = static_cast<uint8_t>(MsgType::kStatusQuery);
+  enqueue(&m, 1);
+}
 
 void McuSession::send_clock_query() {
   uint8_t buf[16];
@@ -92,14 +128,25 @@ void McuSession::send_clock_query() {
   w.u8(static_cast<uint8_t>(MsgType::kClockQuery)).var(token);
   // Sent directly (not behind step batches) so the round trip is short.
   if (!link_.send(buf, w.size(), ns(now_s_))) return;
-  queries_.emplace_back(token, now_s_);
-  if (queries_.size() > 64) queries_.pop_front();
+  if (query_count_ == kMaxQueries) {  // the oldest never got its reply: forget it
+    query_head_ = (query_head_ + 1) % kMaxQueries;
+    --query_count_;
+  }
+  queries_[static_cast<size_t>((query_head_ + query_count_) % kMaxQueries)] = {token, now_s_};
+  ++query_count_;
 }
 
 std::vector<EncoderSample> McuSession::take_encoder_samples() {
-  std::vector<EncoderSample> out;
-  out.swap(samples_);
+  std::vector<EncoderSample> out(samples_.begin(), samples_.end());
+  samples_.clear();
   return out;
+}
+
+size_t McuSession::take_encoder_samples(std::vector<EncoderSample>& out) {
+  out.clear();
+  if (out.capacity() < kSampleCapacity) out.reserve(kSampleCapacity);  // once per caller buffer
+  out.swap(samples_);
+  return out.size();
 }
 
 std::vector<std::string> McuSession::take_events() {
@@ -138,14 +185,24 @@ void McuSession::poll(double now_s) {
     if (state_ == McuState::kFailed) return;
   }
   link_.poll(ns(now_s));
+  if (p_.link_stall_s > 0 && link_.in_flight() > 0 && ns(now_s) - link_.last_progress_ns() > ns(p_.link_stall_s)) {
+    fail("MCU '" + p_.name + "' (" + transport_.describe() + ") acknowledged nothing for " +
+         std::to_string(static_cast<int>(p_.link_stall_s * 1000.0)) + " ms with " +
+         std::to_string(link_.in_flight()) +
+         " frame(s) in flight: it restarted (and lost its step queue) or hangs; motion stopped, "
+         "start the session again to re-identify it");
+    return;
+  }
   if (state_ == McuState::kReady && now_s >= next_query_s_ && link_.can_send()) {
     send_clock_query();
     next_query_s_ = now_s + (burst_left_ > 0 ? 0.01 : p_.clock_query_period_s);
     if (burst_left_ > 0) --burst_left_;
   }
-  while (!outbox_.empty() && link_.can_send()) {
-    link_.send(outbox_.front().data(), outbox_.front().size(), ns(now_s));
-    outbox_.pop_front();
+  while (out_count_ > 0 && link_.can_send()) {
+    const OutMsg& m = outbox_[static_cast<size_t>(out_head_)];
+    link_.send(m.bytes, m.n, ns(now_s));
+    out_head_ = (out_head_ + 1) % kOutboxMessages;
+    --out_count_;
   }
   if (state_ == McuState::kReady && now_s - last_send_s_ >= p_.heartbeat_period_s && link_.can_send()) {
     const uint8_t hb = static_cast<uint8_t>(MsgType::kHeartbeat);
@@ -185,7 +242,7 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
           .var(static_cast<uint64_t>(std::llround(p_.encoder_period_s * static_cast<double>(hz))))
           .var(static_cast<uint64_t>(p_.samples_per_report))
           .var(static_cast<uint64_t>(std::llround(p_.watchdog_s * static_cast<double>(hz))));
-      outbox_.emplace_front(buf, buf + w.size());
+      enqueue(buf, w.size(), /*front=*/true);
       state_ = McuState::kReady;
       burst_left_ = p_.clock_query_burst;
       next_query_s_ = now_s_;
@@ -195,16 +252,20 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       const uint64_t token = r.var();
       const int64_t clock = static_cast<int64_t>(r.var());
       if (!r.ok()) return;
-      for (auto it = queries_.begin(); it != queries_.end(); ++it)
-        if (it->first == token) {
-          clock_.add_sample(it->second, now_s_, clock);
-          queries_.erase(it);
-          break;
-        }
+      for (int i = 0; i < query_count_; ++i) {
+        Query& q = queries_[static_cast<size_t>((query_head_ + i) % kMaxQueries)];
+        if (q.token != token) continue;
+        clock_.add_sample(q.sent_s, now_s_, clock);
+        // Forget it and every older query (their replies are lost or will never match).
+        query_head_ = (query_head_ + i + 1) % kMaxQueries;
+        query_count_ -= i + 1;
+        break;
+      }
       return;
     }
     case MsgType::kStatus: {
-      DeviceStatus s;
+      DeviceStatus& s = status_scratch_;  // reused: no allocation per status reply
+      s.axes.clear();
       s.clock = static_cast<int64_t>(r.var());
       const uint8_t flags = r.u8();
       const int motors = r.u8();
@@ -223,7 +284,7 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       s.position_steps = s.axes[0].position_steps;
       s.queued_runs = s.axes[0].queued_runs;
       s.step_hash = s.axes[0].step_hash;
-      status_ = s;
+      if (status_) *status_ = s; else status_ = s;
       return;
     }
     case MsgType::kEncoderReport: {
@@ -234,7 +295,12 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       int64_t counts = r.zz();
       for (uint64_t i = 0; i < count && r.ok(); ++i) {
         if (i > 0) counts += r.zz();
-        if (r.ok()) samples_.push_back({axis, first + static_cast<int64_t>(i) * period, counts});
+        if (!r.ok()) break;
+        if (samples_.size() >= kSampleCapacity) {
+          ++samples_dropped_;
+          continue;
+        }
+        samples_.push_back({axis, first + static_cast<int64_t>(i) * period, counts});
       }
       return;
     }

@@ -1,12 +1,17 @@
 // Host side of the link to one MCU: identify (protocol version check), configure, clock
 // synchronisation by periodic clock queries, step batches queued and sent as the window allows,
 // heartbeats, encoder samples and device status/errors coming back, and disconnect/reconnect
-// through the Transport. Not real-time (it may allocate); the step path hands it finished
-// batches. Owner: the I/O thread (or the batch-mode pipeline thread).
+// through the Transport. A device that acknowledges nothing for link_stall_s while frames are in
+// flight (it rebooted and lost the link state, or hangs) fails the session with a message naming
+// the MCU; start() again re-identifies it.
+// Real time: in steady streaming (queue_steps, poll, acks, clock queries, encoder reports,
+// take_encoder_samples(out)) it allocates nothing: fixed rings for outgoing messages and clock
+// queries, sample buffers reserved up front. Events, errors, start() and status replies may
+// allocate. Owner: the I/O thread, the servo thread (McuBridge) or the batch-mode pipeline thread.
 #pragma once
 
+#include <array>
 #include <cstdint>
-#include <deque>
 #include <optional>
 #include <string>
 #include <vector>
@@ -30,6 +35,7 @@ struct McuSessionParams {
   int samples_per_report = 10;
   double watchdog_s = 0.5;            // 0 = no watchdog
   double reconnect_period_s = 0.25;
+  double link_stall_s = 1.0;          // no acknowledgement progress this long -> kFailed (0 = never)
 };
 
 enum class McuState { kIdle, kIdentifying, kReady, kDisconnected, kFailed };
@@ -61,6 +67,10 @@ struct DeviceStatus {
 
 class McuSession final : private protocol::FrameOutput, private protocol::PayloadHandler {
  public:
+  static constexpr int kOutboxMessages = 256;  // messages waiting for the link window
+  static constexpr int kMaxQueries = 64;       // clock queries awaiting their reply
+  static constexpr size_t kSampleCapacity = 4096;  // encoder samples kept until taken
+
   McuSession(const McuSessionParams& params, Transport& transport);
 
   // Opens the transport, resets the link and sends IDENTIFY.
@@ -73,16 +83,24 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   // Set when state() is kFailed: says which MCU and why.
   const std::optional<Error>& error() const { return error_; }
 
+  // Queues a batch for the MCU. A batch that does not fit a frame (body > kMaxPayload - 2 bytes)
+  // or finds the outbox full fails the session (no step is dropped silently).
   void queue_steps(const stepgen::StepBatch& batch);
   void set_enabled(bool on);
   void emergency_stop();
   void request_status();
   // Nothing waiting to be sent and nothing unacknowledged.
-  bool idle() const { return outbox_.empty() && link_.in_flight() == 0; }
+  bool idle() const { return out_count_ == 0 && link_.in_flight() == 0; }
 
   const ClockSync& clock() const { return clock_; }
   stepgen::TickMap tick_map() const { return clock_.tick_map(); }
+  // Encoder samples since the last call, oldest first. This form allocates a new vector each call.
   std::vector<EncoderSample> take_encoder_samples();
+  // Real-time form: out is cleared and swapped with the session's buffer (both keep at least
+  // kSampleCapacity of capacity, so steady use allocates nothing). Returns out.size().
+  size_t take_encoder_samples(std::vector<EncoderSample>& out);
+  // Samples dropped because nobody took them (more than kSampleCapacity waiting).
+  uint64_t encoder_samples_dropped() const { return samples_dropped_; }
   // Human-readable events (errors reported by the MCU, disconnects, reconnects), oldest first.
   std::vector<std::string> take_events();
   const std::optional<DeviceStatus>& last_status() const { return status_; }
@@ -95,7 +113,10 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
  private:
   void write_frame(const uint8_t* frame, size_t n) override;
   void on_payload(const uint8_t* p, size_t n) override;
-  void enqueue(std::vector<uint8_t> msg) { outbox_.push_back(std::move(msg)); }
+  // Room for one more message at the back (or the front) of the outbox; nullptr (and the session
+  // failed) when it is full.
+  uint8_t* outbox_slot(size_t n, bool front = false);
+  void enqueue(const uint8_t* msg, size_t n, bool front = false);
   void send_clock_query();
   void fail(std::string message);
   void mark_disconnected(const std::string& why);
@@ -108,17 +129,30 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   McuState state_ = McuState::kIdle;
   McuState state_before_disconnect_ = McuState::kIdle;
   std::optional<Error> error_;
-  std::deque<std::vector<uint8_t>> outbox_;
+  // Outgoing messages waiting for window space (a ring; emergency stop and configure jump it).
+  struct OutMsg {
+    size_t n = 0;
+    uint8_t bytes[protocol::kMaxPayload] = {};
+  };
+  std::array<OutMsg, kOutboxMessages> outbox_{};
+  int out_head_ = 0, out_count_ = 0;
   double now_s_ = 0.0;
   double next_query_s_ = 0.0, last_send_s_ = 0.0, next_reconnect_s_ = 0.0;
   int burst_left_ = 0;
   uint64_t next_token_ = 1;
-  std::deque<std::pair<uint64_t, double>> queries_;  // token, send time
+  struct Query {
+    uint64_t token = 0;
+    double sent_s = 0.0;
+  };
+  std::array<Query, kMaxQueries> queries_{};  // ring, oldest at query_head_
+  int query_head_ = 0, query_count_ = 0;
   uint32_t mcu_clock_hz_ = 0;
   int mcu_axes_ = 1;
   std::vector<EncoderSample> samples_;
+  uint64_t samples_dropped_ = 0;
   std::vector<std::string> events_;
   std::optional<DeviceStatus> status_;
+  DeviceStatus status_scratch_;
   uint64_t bytes_written_ = 0, frames_written_ = 0;
 };
 

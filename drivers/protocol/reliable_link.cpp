@@ -43,7 +43,7 @@ bool ReliableLink::send(const uint8_t* payload, size_t n, int64_t now_ns) {
   }
   s.len = n;
   for (size_t i = 0; i < n; ++i) s.payload[i] = payload[i];
-  if (count_ == 0) timer_start_ns_ = now_ns;
+  if (count_ == 0) timer_start_ns_ = progress_ns_ = now_ns;
   ++count_;
   transmit(idx, false, now_ns);
   return true;
@@ -103,7 +103,7 @@ void ReliableLink::on_frame(const FrameView& f, int64_t now_ns) {
     }
     head_ = (head_ + static_cast<int>(acked)) % kMaxWindow;
     count_ -= static_cast<int>(acked);
-    timer_start_ns_ = now_ns;
+    timer_start_ns_ = progress_ns_ = now_ns;
     rto_ns_ = base_rto_ns();
   }
   if ((f.flags & kFlagNak) && count_ > 0 && now_ns - last_fast_ns_ >= params_.fast_retransmit_gap_ns) {
@@ -152,7 +152,7 @@ namespace feedloop::protocol {
 void ReliableLink::retransmit_now(int64_t now_ns) {
   rto_ns_ = base_rto_ns();
   for (int i = 0; i < count_; ++i) transmit((head_ + i) % kMaxWindow, true, now_ns);
-  timer_start_ns_ = now_ns;
+  timer_start_ns_ = progress_ns_ = now_ns;
 }
 
 }  // namespace feedloop::protocol

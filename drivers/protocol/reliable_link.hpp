@@ -65,6 +65,11 @@ class ReliableLink {
   // Retransmits everything in flight now with the initial timeout (after a reconnect).
   void retransmit_now(int64_t now_ns);
 
+  // Host time (ns) of the last acknowledgement progress, or of the first frame put in flight
+  // when none was in flight, or of retransmit_now(): a peer that acknowledges nothing for long
+  // while frames are in flight has restarted (lost the link state) or hangs.
+  int64_t last_progress_ns() const { return progress_ns_; }
+
   const LinkStats& stats() const { return stats_; }
   const FrameDecoderStats& decoder_stats() const { return decoder_.stats(); }
 
@@ -95,6 +100,7 @@ class ReliableLink {
   int peer_epoch_ = -1;        // epoch of the peer's last honoured reset
   bool ack_pending_ = false;
   int64_t timer_start_ns_ = 0;
+  int64_t progress_ns_ = 0;
   int64_t rto_ns_ = 0;
   bool nak_pending_ = false;   // the next pure ack carries kFlagNak
   double srtt_ns_ = 0.0, rttvar_ns_ = 0.0;  // smoothed round trip and its variation
