@@ -14,7 +14,10 @@ StepPipeline::StepPipeline(const StepPipelineParams& params, stepgen::BatchSink*
     stepgen::StepCompressorParams cp;
     cp.max_error_ticks = params.max_step_error_us * 1e-6 * params.mcu_clock_hz;
     if (!owns(j)) cp.max_run_count = 1;  // never fed: no point buffer (1.5 MB per joint)
-    jt->compressor.configure(cp, &jt->batcher);
+    jt->run_tap.next = &jt->batcher;
+    jt->run_tap.observer = owns(j) ? params.observer : nullptr;
+    jt->run_tap.joint = j;
+    jt->compressor.configure(cp, &jt->run_tap);
     jt->compressor.reset(0, 0.0);
     jt->tap.next = &jt->compressor;
     jt->gen.configure(params.steps_per_mm[static_cast<size_t>(j)], map, &jt->tap);
@@ -23,7 +26,16 @@ StepPipeline::StepPipeline(const StepPipelineParams& params, stepgen::BatchSink*
 }
 
 void StepPipeline::on_joint_segment(int joint, const JointSegment& segment) {
-  if (owns(joint)) joints_[static_cast<size_t>(joint)]->gen.add_segment(segment);
+  if (!owns(joint)) return;
+  if (params_.observer != nullptr) params_.observer->on_segment(joint, segment);
+  joints_[static_cast<size_t>(joint)]->gen.add_segment(segment);
+}
+
+void StepPipeline::set_position_mm(int joint, double pos_mm) {
+  Joint& j = *joints_[static_cast<size_t>(joint)];
+  j.gen.set_position_mm(pos_mm);
+  if (params_.observer != nullptr && owns(joint))
+    params_.observer->on_origin(joint, j.compressor.last_emitted_clock(), j.gen.position_steps());
 }
 
 stepgen::TickMap StepPipeline::print_map(int joint) const {
@@ -38,11 +50,13 @@ void StepPipeline::apply_maps() {
 void StepPipeline::set_time_offset_s(double offset_s) {
   offset_s_ = offset_s;
   apply_maps();
+  if (params_.observer != nullptr) params_.observer->on_time_offset(offset_s);
 }
 
 void StepPipeline::set_clock_maps(const std::array<stepgen::TickMap, kJoints>& host_to_ticks) {
   host_maps_ = host_to_ticks;
   apply_maps();
+  if (params_.observer != nullptr) params_.observer->on_clock_maps(host_to_ticks);
 }
 
 void StepPipeline::flush_due(double deadline_s) {

@@ -1,6 +1,10 @@
 // Joint motion -> exact step times -> compressed runs -> batches, for every joint:
 //
-//   JointSegment --StepGenerator--> step ticks --StepTap--> StepCompressor --> StepBatcher --> BatchSink
+//   JointSegment --StepGenerator--> step ticks --StepTap--> StepCompressor --RunTap--> StepBatcher --> BatchSink
+//
+// An optional StepObserver (the flight recorder, recorder/engine_recording.hpp) sees every
+// compressed run exactly as it goes to the batcher, every position reset and every change of the
+// time base, so that the commanded step stream can be recorded bit for bit.
 //
 // The same object serves batch mode (BatchSink counts bytes; an ideal plant) and the daemon's
 // servo thread (BatchSink = the MCU sessions). RT-safe after construction: no allocation.
@@ -18,6 +22,25 @@
 
 namespace feedloop::engine {
 
+// Observes what the pipeline commands. Called on the thread that drives the pipeline (the servo
+// thread in the daemon): implementations must be RT-safe (no allocation, no lock, no I/O).
+class StepObserver {
+ public:
+  virtual ~StepObserver() = default;
+  // Every compressed run of an owned joint, as handed to the batcher (start_clock: the run's
+  // reference P, the clock of the step before its first).
+  virtual void on_step_run(int joint, int64_t start_clock, const stepgen::StepRun& run) = 0;
+  // The joint's step counter was set to `position_steps` without steps; the joint's last step
+  // so far is at `clock` (0: none yet).
+  virtual void on_origin(int joint, int64_t clock, int64_t position_steps) = 0;
+  // Print time re-anchored: host time = print time + offset_s.
+  virtual void on_time_offset(double /*offset_s*/) {}
+  // The host time -> MCU tick maps in use from now on (every servo cycle with a backend).
+  virtual void on_clock_maps(const std::array<stepgen::TickMap, kJoints>& /*host_to_ticks*/) {}
+  // A joint segment of an owned joint, before step generation.
+  virtual void on_segment(int /*joint*/, const JointSegment& /*segment*/) {}
+};
+
 struct StepPipelineParams {
   std::array<double, kJoints> steps_per_mm{};
   double mcu_clock_hz = 72e6;
@@ -26,6 +49,7 @@ struct StepPipelineParams {
   // Joints this pipeline steps (bit j = joint j); segments of the others are ignored, so two
   // pipelines on two threads can share one joint-segment stream (batch mode).
   unsigned joint_mask = 0xFu;
+  StepObserver* observer = nullptr;  // optional; must outlive the pipeline
 };
 
 struct JointStepStats {
@@ -45,7 +69,7 @@ class StepPipeline final : public planner::JointSink {
   void on_joint_segment(int joint, const JointSegment& segment) override;
   bool owns(int joint) const { return (params_.joint_mask >> joint) & 1u; }
   // Sets a joint's position without steps (start of a stream).
-  void set_position_mm(int joint, double pos_mm) { joints_[static_cast<size_t>(joint)]->gen.set_position_mm(pos_mm); }
+  void set_position_mm(int joint, double pos_mm);
   // Host time = print time + offset: re-anchors the print-time line on the host clock (the daemon
   // does this when motion starts from rest). Call only when no steps are pending.
   void set_time_offset_s(double offset_s);
@@ -82,10 +106,21 @@ class StepPipeline final : public planner::JointSink {
       next->on_steps(ticks, dirs, n);
     }
   };
+  // Compressor -> observer -> batcher.
+  struct RunTap final : stepgen::RunSink {
+    stepgen::RunSink* next = nullptr;
+    StepObserver* observer = nullptr;
+    int joint = 0;
+    void on_run(int64_t start_clock, const stepgen::StepRun& run) override {
+      if (observer != nullptr) observer->on_step_run(joint, start_clock, run);
+      next->on_run(start_clock, run);
+    }
+  };
   struct Joint {
     stepgen::StepGenerator gen;
     StepTap tap;
     stepgen::StepCompressor compressor;
+    RunTap run_tap;
     stepgen::StepBatcher batcher;
   };
 
