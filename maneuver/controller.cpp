@@ -12,11 +12,15 @@ ManeuverController::ManeuverController(const CartesianDcPlant& plant, const Mane
 
 ManeuverOutput ManeuverController::evaluate(const PiecewiseLinearPath& path, const SpeedAssignment& speed,
                                             const PlantState& x, const ManeuverState& c, size_t n) const {
+  return evaluate_at(path.yd(c.theta, n), path.dyd(n), speed.at(path, c.theta, n), x, c);  // Eq. 21-22
+}
+
+ManeuverOutput ManeuverController::evaluate_at(const Vec3& yd, const Vec3& dyd, const SpeedValue& speed,
+                                               const PlantState& x, const ManeuverState& c) const {
   ManeuverOutput o;
-  o.speed = speed.at(path, c.theta, n);
+  o.speed = speed;
   const double v_s = o.speed.v_s;
-  const Vec3& dyd = path.dyd(n);                                   // Eq. 22
-  o.z1_m = x.x1_m - path.yd(c.theta, n);                            // Eq. 26
+  o.z1_m = x.x1_m - yd;                                             // Eq. 26
   const Vec3 alpha1 = -g_.k_p * o.z1_m + dyd * v_s;                 // Eq. 33/61
   o.z2_m_s = x.x2_m_s - alpha1;                                     // Eq. 27
   const Vec3 dalpha1 = g_.k_p * dyd + dyd * o.speed.dv_s_dtheta;    // Eq. 62

@@ -64,6 +64,11 @@ class ManeuverController {
   // The control law at plant state x and controller state c, with theta on segment n.
   ManeuverOutput evaluate(const PiecewiseLinearPath& path, const SpeedAssignment& speed,
                           const PlantState& x, const ManeuverState& c, size_t n) const;
+  // The same law from the local path data: y_d(theta), dy_d/dtheta of the segment, and v_s,
+  // dv_s/dtheta at theta (what a streaming path window supplies). With v_s = 0 and dy_d/dtheta = 0
+  // it holds the plant at y_d. Allocation-free.
+  ManeuverOutput evaluate_at(const Vec3& yd, const Vec3& dyd, const SpeedValue& speed, const PlantState& x,
+                             const ManeuverState& c) const;
 
  private:
   PrinterMatrices mat_;

@@ -18,6 +18,23 @@ double sigmoid_slope(double x, double a1, double a2) {
 }
 }  // namespace
 
+double paper_speed_factor(double u, double k_prev, double k_next, const planner::SharpCornerParams& p,
+                          double& df_du) {
+  const double h_half = planner::sharp_corner_h(0.5, p);
+  if (u < 0.5) {  // Eq. 67, first half: the corner behind
+    df_du = k_prev * sigmoid_slope(u, p.a1, p.a2);
+    return k_prev * planner::sharp_corner_h(u, p) + (1.0 - k_prev) * h_half;
+  }
+  df_du = -k_next * sigmoid_slope(1.0 - u, p.a1, p.a2);  // Eq. 67, second half: the corner ahead
+  return k_next * planner::sharp_corner_h(1.0 - u, p) + (1.0 - k_next) * h_half;
+}
+
+double arc_corner_factor(double d_m, double k, const planner::SharpCornerParams& sigmoid_m, double h_reach,
+                         double& dg_dd) {
+  dg_dd = k * sigmoid_slope(d_m, sigmoid_m.a1, sigmoid_m.a2) / h_reach;
+  return k * planner::sharp_corner_h(d_m, sigmoid_m) / h_reach + 1.0 - k;
+}
+
 const char* to_string(SpeedProfile p) {
   switch (p) {
     case SpeedProfile::constant: return "constant";
@@ -56,14 +73,7 @@ Result<SpeedAssignment> SpeedAssignment::create(const PiecewiseLinearPath& path,
 }
 
 double SpeedAssignment::factor_paper(double u, size_t n, double& df_du) const {
-  const planner::SharpCornerParams& p = params_.sharp;
-  const double h_half = planner::sharp_corner_h(0.5, p);
-  if (u < 0.5) {  // Eq. 67, first half: the corner behind
-    df_du = k_[n - 1] * sigmoid_slope(u, p.a1, p.a2);
-    return k_[n - 1] * planner::sharp_corner_h(u, p) + (1.0 - k_[n - 1]) * h_half;
-  }
-  df_du = -k_[n] * sigmoid_slope(1.0 - u, p.a1, p.a2);  // Eq. 67, second half: the corner ahead
-  return k_[n] * planner::sharp_corner_h(1.0 - u, p) + (1.0 - k_[n]) * h_half;
+  return paper_speed_factor(u, k_[n - 1], k_[n], params_.sharp, df_du);
 }
 
 double SpeedAssignment::factor_arc(const PiecewiseLinearPath& path, double s, size_t n,
@@ -74,12 +84,12 @@ double SpeedAssignment::factor_arc(const PiecewiseLinearPath& path, double s, si
   auto consider = [&](size_t j) {  // corner j at p_j
     const double d = std::abs(s - path.arc_length_at(j));
     if (d >= reach || k_[j] == 0.0) return;
-    const double hc = planner::sharp_corner_h(d, arc_sigmoid_) / h_reach_;
-    const double g = k_[j] * hc + 1.0 - k_[j];
+    double dg_dd = 0.0;
+    const double g = arc_corner_factor(d, k_[j], arc_sigmoid_, h_reach_, dg_dd);
     if (g < f) {
       f = g;
       const double sign = s >= path.arc_length_at(j) ? 1.0 : -1.0;
-      df_ds = sign * k_[j] * sigmoid_slope(d, arc_sigmoid_.a1, arc_sigmoid_.a2) / h_reach_;
+      df_ds = sign * dg_dd;
     }
   };
   // Corners behind (p_{n-1}, p_{n-2}, ...) and ahead (p_n, p_{n+1}, ...) while within reach.

@@ -47,6 +47,16 @@ struct SpeedParams {
   double reach_m = 2.0e-3;
 };
 
+// Eq. 67 on a segment with corner weights k_prev (at its start) and k_next (at its end), u the
+// fraction of the segment travelled; df_du its derivative. Shared by SpeedAssignment and the
+// streaming path window (stream.hpp).
+double paper_speed_factor(double u, double k_prev, double k_next, const planner::SharpCornerParams& p,
+                          double& df_du);
+// One corner's term of the arc-length variant: k hc(d) + 1 - k at distance d (m) from the corner,
+// hc(d) = h_L(d) / h_reach; dg_dd its derivative in d.
+double arc_corner_factor(double d_m, double k, const planner::SharpCornerParams& sigmoid_m, double h_reach,
+                         double& dg_dd);
+
 struct SpeedValue {
   double v_s = 0.0;          // v_s(theta), path-variable units per second
   double dv_s_dtheta = 0.0;  // dv_s/dtheta
