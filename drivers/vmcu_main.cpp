@@ -3,14 +3,20 @@
 //
 //   feedloop-vmcu --pty [--link PATH] [--name NAME] [--axis N] [--clock-hz HZ] [--drift-ppm PPM]
 //                 [--offset-s S] [--steps-per-mm X] [--protocol-version N]
-//                 [--drop P] [--corrupt P] [--duplicate P] [--seed N]
+//                 [--drop P] [--corrupt P] [--duplicate P] [--delay P] [--reorder P]
+//                 [--delay-ms MS] [--reorder-ms MS] [--seed N]
 //
-// The fault options exercise the pty path: each frame the device sends, and each chunk of bytes
-// it reads, is dropped / has one byte corrupted / is sent twice with the given probability.
+// The fault options exercise the pty path, per frame in both directions (the bytes read from the
+// pty are split into frames first; protocol::FaultyFrameLine): each frame is dropped / has one
+// byte corrupted / is sent twice / is delayed by --delay-ms (default 80, beyond the host's
+// retransmit timeout) / is held --reorder-ms (default 2) so that later frames overtake it, with
+// the given probabilities.
 //
 // Prints "PTY <slave path>" on stdout once ready (and makes PATH a symlink to it with --link),
-// then runs in real time until SIGTERM/SIGINT. The ideal motor's encoder reads the commanded
-// position with AS5311 resolution (0.49 um counts).
+// then runs in real time until SIGTERM/SIGINT, and prints what it executed and the faults it
+// injected on stderr. The ideal motor's encoder reads the commanded position with AS5311
+// resolution (0.49 um counts). Killing it (SIGKILL) is a device that loses power: the host sees
+// the pty hang up; a new feedloop-vmcu on the same --link is the device coming back, rebooted.
 #include <fcntl.h>   // posix_openpt, O_RDWR
 #include <poll.h>    // ppoll
 #include <signal.h>  // sigaction
@@ -23,11 +29,13 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
-#include <random>
+#include <algorithm>
 #include <string>
 
 #include "core/clock.hpp"
 #include "drivers/device/virtual_mcu.hpp"
+#include "drivers/protocol/frame.hpp"
+#include "drivers/protocol/frame_faults.hpp"
 
 namespace {
 
@@ -48,7 +56,8 @@ int usage(const char* argv0) {
   std::fprintf(stderr,
                "usage: %s --pty [--link PATH] [--name NAME] [--axis N] [--clock-hz HZ] [--drift-ppm PPM]\n"
                "          [--offset-s S] [--steps-per-mm X] [--protocol-version N]\n"
-               "          [--drop P] [--corrupt P] [--duplicate P] [--seed N]\n",
+               "          [--drop P] [--corrupt P] [--duplicate P] [--delay P] [--reorder P]\n"
+               "          [--delay-ms MS] [--reorder-ms MS] [--seed N]\n",
                argv0);
   return 2;
 }
@@ -62,7 +71,7 @@ int main(int argc, char** argv) {
   IdealMotor motor;
   bool pty = false;
   std::string link;
-  double p_drop = 0.0, p_corrupt = 0.0, p_dup = 0.0;
+  feedloop::protocol::FrameFaults faults;  // no added latency: the pty and scheduler are the link
   unsigned long long seed = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -77,9 +86,13 @@ int main(int argc, char** argv) {
     else if (a == "--offset-s" && (v = next())) params.offset_s = std::atof(v);
     else if (a == "--steps-per-mm" && (v = next())) motor.steps_per_mm = std::atof(v);
     else if (a == "--protocol-version" && (v = next())) params.protocol_version = static_cast<uint16_t>(std::atoi(v));
-    else if (a == "--drop" && (v = next())) p_drop = std::atof(v);
-    else if (a == "--corrupt" && (v = next())) p_corrupt = std::atof(v);
-    else if (a == "--duplicate" && (v = next())) p_dup = std::atof(v);
+    else if (a == "--drop" && (v = next())) faults.drop = std::atof(v);
+    else if (a == "--corrupt" && (v = next())) faults.corrupt = std::atof(v);
+    else if (a == "--duplicate" && (v = next())) faults.duplicate = std::atof(v);
+    else if (a == "--delay" && (v = next())) faults.delay = std::atof(v);
+    else if (a == "--reorder" && (v = next())) faults.reorder = std::atof(v);
+    else if (a == "--delay-ms" && (v = next())) faults.delay_extra_s = std::atof(v) * 1e-3;
+    else if (a == "--reorder-ms" && (v = next())) faults.reorder_extra_s = std::atof(v) * 1e-3;
     else if (a == "--seed" && (v = next())) seed = std::strtoull(v, nullptr, 10);
     else return usage(argv[0]);
   }
@@ -122,8 +135,12 @@ int main(int argc, char** argv) {
   std::printf("PTY %s\n", slave_path.c_str());
   std::fflush(stdout);
 
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
+  // Per-frame faults, both directions (static: ~130 kB of frame pools).
+  using Line = feedloop::protocol::FaultyFrameLine<256>;
+  static Line to_device, to_host;
+  to_device.configure(faults, seed);
+  to_host.configure(faults, seed * 0x9E3779B97F4A7C15ull + 1);
+  feedloop::protocol::FrameDecoder host_frames;
   auto write_all = [&](const uint8_t* d, size_t n) {
     size_t off = 0;
     while (off < n) {
@@ -135,7 +152,8 @@ int main(int argc, char** argv) {
   uint8_t buf[4096];
   uint8_t frame[feedloop::protocol::kMaxFrame];
   while (!g_stop) {
-    const double wait_s = std::min(1e-3, std::max(0.0, mcu->next_event_time() - now_s()));
+    const double next = std::min({mcu->next_event_time(), to_device.next_due(), to_host.next_due()});
+    const double wait_s = std::min(1e-3, std::max(0.0, next - now_s()));
     pollfd p{master, POLLIN, 0};
     const auto wait_ns = static_cast<long>(wait_s * 1e9);
     timespec ts{0, wait_ns};
@@ -143,19 +161,21 @@ int main(int argc, char** argv) {
     const double t = now_s();
     if (r > 0 && (p.revents & POLLIN)) {
       const ssize_t n = ::read(master, buf, sizeof buf);
-      if (n > 0 && !(u(rng) < p_drop)) {
-        if (u(rng) < p_corrupt) buf[rng() % static_cast<size_t>(n)] ^= 0x5A;
-        mcu->receive(buf, static_cast<size_t>(n), t);
+      // Split into frames (garbage between frames is lost here as it would be at the device).
+      for (size_t off = 0; n > 0 && off < static_cast<size_t>(n);) {
+        off += host_frames.feed(buf + off, static_cast<size_t>(n) - off);
+        feedloop::protocol::FrameView f;
+        while (host_frames.next(f)) {
+          const size_t len = feedloop::protocol::encode_frame(frame, f.flags, f.seq, f.ack, f.payload, f.len);
+          to_device.send(frame, len, t);
+        }
       }
     }
-    mcu->run_until(t);
     size_t n = 0;
-    while (mcu->pop_frame(frame, n)) {
-      if (u(rng) < p_drop) continue;
-      if (u(rng) < p_corrupt) frame[rng() % n] ^= 0x5A;
-      write_all(frame, n);
-      if (u(rng) < p_dup) write_all(frame, n);
-    }
+    while (to_device.pop_due(t, frame, n)) mcu->receive(frame, n, t);
+    mcu->run_until(t);
+    while (mcu->pop_frame(frame, n)) to_host.send(frame, n, t);
+    while (to_host.pop_due(t, frame, n)) write_all(frame, n);
   }
   if (!link.empty()) ::unlink(link.c_str());
   const auto& st = mcu->status();
@@ -167,6 +187,16 @@ int main(int argc, char** argv) {
                static_cast<long long>(st.position_steps), static_cast<unsigned long long>(st.errors),
                static_cast<unsigned long long>(ls.sent), static_cast<unsigned long long>(ls.retransmitted),
                static_cast<unsigned long long>(ls.delivered), static_cast<unsigned long long>(ls.duplicates_dropped));
+  for (const auto* line : {&to_device, &to_host}) {
+    const auto& fs = line->stats();
+    std::fprintf(stderr,
+                 "feedloop-vmcu %s: faults %s: %llu frames, %llu dropped, %llu corrupted, %llu duplicated, "
+                 "%llu delayed, %llu reordered\n",
+                 params.name, line == &to_device ? "host->device" : "device->host",
+                 static_cast<unsigned long long>(fs.frames), static_cast<unsigned long long>(fs.dropped),
+                 static_cast<unsigned long long>(fs.corrupted), static_cast<unsigned long long>(fs.duplicated),
+                 static_cast<unsigned long long>(fs.delayed), static_cast<unsigned long long>(fs.reordered));
+  }
   if (slave >= 0) ::close(slave);
   ::close(master);
   return 0;

@@ -25,6 +25,12 @@ void ReliableLink::configure(const LinkParams& params, FrameOutput* out, Payload
 void ReliableLink::reset() {
   head_ = count_ = 0;
   next_seq_ = 0;
+  // The receive side restarts too: a peer that rebooted numbers from 0 without a reset of its
+  // own (it had nothing to forget), and a peer that did not resets on our kFlagReset, whatever
+  // its epoch (each new session honours the peer's reset once).
+  expected_ = 0;
+  peer_epoch_ = -1;
+  nak_pending_ = false;
   reset_pending_ = true;
   epoch_ = (epoch_ + 1) & 0x0F;
   rto_ns_ = params_.rto_ns;

@@ -1,9 +1,15 @@
 // The real serial path end to end: McuSession over SerialTransport (Boost.Asio) to
 // feedloop-vmcu running as its own process on a pseudo-terminal, in real time. Every step must be
-// executed exactly once, in order (the device's step hash equals the hash of what was sent).
+// executed exactly once, in order (the device's step hash equals the hash of what was sent),
+// cleanly and under each fault kind injected on the pty (drop, corrupt, duplicate, delay,
+// reorder), and across a device restart (the process killed and started again).
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <random>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -40,82 +46,239 @@ struct Collect final : stepgen::BatchSink {
   }
 };
 
-class SerialPtyMotion : public ::testing::TestWithParam<std::vector<std::string>> {};
+using Clock = MonotonicClock;
 
-TEST_P(SerialPtyMotion, EveryStepExactlyOnce) {
-  testing::VmcuProcess vmcu;
-  std::vector<std::string> args{"--name", "pty-x", "--drift-ppm", "50"};
-  args.insert(args.end(), GetParam().begin(), GetParam().end());
-  ASSERT_TRUE(vmcu.start(kVmcu, args)) << vmcu.error();
-  SerialTransport transport(vmcu.pty());
-  McuSessionParams sp;
-  sp.name = "pty-x";
-  McuSession session(sp, transport);
-  MonotonicClock clock;
-  const int64_t t0 = clock.now_ns();
-  auto now = [&] { return seconds_from_ns(clock.now_ns() - t0); };
-  auto pump = [&](double until_s) {
+// Real-time driver of one session over a SerialTransport.
+struct PtyHost {
+  SerialTransport& transport;
+  McuSession& session;
+  Clock clock;
+  int64_t t0 = clock.now_ns();
+  double now() { return seconds_from_ns(clock.now_ns() - t0); }
+  void pump(double until_s) {
     while (now() < until_s) {
       session.poll(now());
       transport.poll(now(), 0.5e-3);
     }
-  };
-  ASSERT_TRUE(session.start(now()).ok()) << session.error()->message;
-  pump(2.0);
-  ASSERT_TRUE(session.ready()) << (session.error() ? session.error()->message : "not ready");
+  }
+  // Until pred() or timeout_s; returns pred().
+  template <class Pred>
+  bool pump_until(Pred pred, double timeout_s) {
+    const double end = now() + timeout_s;
+    while (now() < end && !pred()) pump(now() + 1e-3);
+    return pred();
+  }
+};
 
-  // ~2 s of moves starting 0.3 s from now, fed 0.5 s ahead, runs closed 0.25 s before due.
-  std::mt19937_64 rng(5);
-  auto segs = testing::trapezoid_stream(rng, 20);
-  const double start = now() + 0.3;
+struct Streamed {
+  uint64_t steps = 0, hash = device::kStepHashSeed;
+};
+
+// Streams `moves` trapezoid moves starting 0.3 s from now, fed 0.5 s ahead, runs closed 0.25 s
+// before due, through stepgen -> session. Stops early (without flushing) at now() >= stop_at_s.
+Streamed stream(PtyHost& h, int moves, uint64_t seed, double stop_at_s = 1e300) {
+  std::mt19937_64 rng(seed);
+  auto segs = testing::trapezoid_stream(rng, moves);
+  const double start = h.now() + 0.3;
   for (auto& s : segs) s.t0_s += start;
   Collect col;
-  col.session = &session;
+  col.session = &h.session;
   stepgen::StepBatcher batcher;
   batcher.configure(0, 200, &col);
   stepgen::StepCompressor comp;
   comp.configure({100.0, 65535}, &batcher);
   stepgen::StepGenerator gen;
-  const stepgen::TickMap map = session.tick_map();
+  const stepgen::TickMap map = h.session.tick_map();
   gen.configure(80.0, map, &comp);
-  comp.reset(static_cast<int64_t>(map.ticks(now())), map.ticks(now()));
-  session.set_enabled(true);
+  comp.reset(static_cast<int64_t>(map.ticks(h.now())), map.ticks(h.now()));
+  h.session.set_enabled(true);
   size_t next = 0;
   const double end = segs.back().end_s();
-  while (now() < end + 0.2) {
-    while (next < segs.size() && segs[next].t0_s < now() + 0.5) gen.add_segment(segs[next++]);
+  while (h.now() < end + 0.2 && h.now() < stop_at_s) {
+    while (next < segs.size() && segs[next].t0_s < h.now() + 0.5) gen.add_segment(segs[next++]);
     gen.flush();
-    const auto deadline = static_cast<int64_t>(map.ticks(now() + 0.25));
+    const auto deadline = static_cast<int64_t>(map.ticks(h.now() + 0.25));
     comp.flush_if_due(deadline);
     batcher.flush_if_due(deadline);
     if (next == segs.size()) {
       comp.flush();
       batcher.flush();
     }
-    pump(now() + 1e-3);
+    h.pump(h.now() + 1e-3);
   }
-  session.request_status();
-  pump(now() + 0.3);
-  for (const auto& e : session.take_events()) std::printf("event: %s\n", e.c_str());
-  ASSERT_TRUE(session.last_status().has_value());
-  const DeviceStatus st = *session.last_status();
-  std::printf("pty: %llu steps sent, %llu executed, %llu frames, %llu bytes written, %llu retransmitted\n",
-              (unsigned long long)col.steps, (unsigned long long)st.steps_executed,
-              (unsigned long long)session.frames_written(), (unsigned long long)session.bytes_written(),
-              (unsigned long long)session.link_stats().retransmitted);
-  EXPECT_GT(col.steps, 5000u);
-  EXPECT_EQ(st.steps_executed, col.steps);
-  EXPECT_EQ(st.step_hash, col.hash);
-  EXPECT_FALSE(st.stopped);
-  EXPECT_EQ(session.state(), McuState::kReady);
+  return {col.steps, col.hash};
 }
 
-// Clean, and with faults injected by feedloop-vmcu on the pty in both directions.
-INSTANTIATE_TEST_SUITE_P(Pty, SerialPtyMotion,
-                         ::testing::Values(std::vector<std::string>{},
-                                           std::vector<std::string>{"--drop", "0.05", "--corrupt", "0.05",
-                                                                    "--duplicate", "0.05", "--seed", "3"}),
-                         [](const auto& tp) { return tp.param.empty() ? std::string("clean") : std::string("faults"); });
+// "feedloop-vmcu NAME: faults host->device: F frames, D dropped, C corrupted, U duplicated, L
+// delayed, R reordered" (its summary on stderr at exit), both directions summed.
+struct InjectedFaults {
+  uint64_t frames = 0, dropped = 0, corrupted = 0, duplicated = 0, delayed = 0, reordered = 0;
+};
+InjectedFaults read_injected(const std::string& path) {
+  InjectedFaults f;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    const size_t at = line.find("faults ");
+    if (at == std::string::npos) continue;
+    const size_t colon = line.find(": ", at);
+    unsigned long long a = 0, b = 0, c = 0, d = 0, e = 0, g = 0;
+    if (colon != std::string::npos &&
+        std::sscanf(line.c_str() + colon + 2,
+                    "%llu frames, %llu dropped, %llu corrupted, %llu duplicated, %llu delayed, %llu reordered", &a, &b,
+                    &c, &d, &e, &g) == 6) {
+      f.frames += a;
+      f.dropped += b;
+      f.corrupted += c;
+      f.duplicated += d;
+      f.delayed += e;
+      f.reordered += g;
+    }
+  }
+  return f;
+}
+
+std::string temp_path(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / (name + "-" + std::to_string(::getpid()))).string();
+}
+
+struct PtyCase {
+  const char* name;
+  std::vector<std::string> args;
+  uint64_t InjectedFaults::*injected;  // nullptr: clean
+};
+
+class SerialPtyMotion : public ::testing::TestWithParam<PtyCase> {};
+
+TEST_P(SerialPtyMotion, EveryStepExactlyOnce) {
+  testing::VmcuProcess vmcu;
+  std::vector<std::string> args{"--name", "pty-x", "--drift-ppm", "50"};
+  args.insert(args.end(), GetParam().args.begin(), GetParam().args.end());
+  const std::string log = temp_path(std::string("feedloop-vmcu-") + GetParam().name + ".log");
+  ASSERT_TRUE(vmcu.start(kVmcu, args, log)) << vmcu.error();
+  SerialTransport transport(vmcu.pty());
+  McuSessionParams sp;
+  sp.name = "pty-x";
+  McuSession session(sp, transport);
+  PtyHost h{transport, session};
+  ASSERT_TRUE(session.start(h.now()).ok()) << session.error()->message;
+  ASSERT_TRUE(h.pump_until([&] { return session.ready() || session.state() == McuState::kFailed; }, 2.0));
+  ASSERT_TRUE(session.ready()) << (session.error() ? session.error()->message : "not ready");
+  h.pump(h.now() + 0.6);  // clock queries: the burst and a few more
+
+  // ~1.5 s of moves.
+  const Streamed sent = stream(h, 12, 5);
+  session.request_status();
+  h.pump_until([&] { return session.last_status().has_value(); }, 1.0);
+  for (const auto& e : session.take_events()) std::printf("event: %s\n", e.c_str());
+  vmcu.stop();
+  const InjectedFaults inj = read_injected(log);
+  std::remove(log.c_str());
+  ASSERT_TRUE(session.last_status().has_value());
+  const DeviceStatus st = *session.last_status();
+  std::printf("pty %s: %llu steps sent, %llu executed; host: %llu frames, %llu bytes written, %llu retransmitted; "
+              "injected by feedloop-vmcu: %llu frames, %llu dropped, %llu corrupted, %llu duplicated, %llu delayed, "
+              "%llu reordered\n",
+              GetParam().name, (unsigned long long)sent.steps, (unsigned long long)st.steps_executed,
+              (unsigned long long)session.frames_written(), (unsigned long long)session.bytes_written(),
+              (unsigned long long)session.link_stats().retransmitted, (unsigned long long)inj.frames,
+              (unsigned long long)inj.dropped, (unsigned long long)inj.corrupted, (unsigned long long)inj.duplicated,
+              (unsigned long long)inj.delayed, (unsigned long long)inj.reordered);
+  EXPECT_GT(sent.steps, 3000u);
+  EXPECT_EQ(st.steps_executed, sent.steps);
+  EXPECT_EQ(st.step_hash, sent.hash);
+  EXPECT_FALSE(st.stopped);
+  EXPECT_EQ(session.state(), McuState::kReady);
+  EXPECT_GT(inj.frames, 200u);  // the summary was read
+  if (GetParam().injected != nullptr) {
+    EXPECT_GE(inj.*(GetParam().injected), 5u) << "the fault was exercised";
+  }
+}
+
+// Clean, each fault kind alone and all together, injected by feedloop-vmcu on the pty in both
+// directions.
+INSTANTIATE_TEST_SUITE_P(
+    Pty, SerialPtyMotion,
+    ::testing::Values(PtyCase{"clean", {}, nullptr},
+                      PtyCase{"drop", {"--drop", "0.05", "--seed", "3"}, &InjectedFaults::dropped},
+                      PtyCase{"corrupt", {"--corrupt", "0.05", "--seed", "4"}, &InjectedFaults::corrupted},
+                      PtyCase{"duplicate", {"--duplicate", "0.1", "--seed", "5"}, &InjectedFaults::duplicated},
+                      PtyCase{"delay", {"--delay", "0.03", "--seed", "6"}, &InjectedFaults::delayed},
+                      PtyCase{"reorder", {"--reorder", "0.1", "--seed", "7"}, &InjectedFaults::reordered},
+                      PtyCase{"all",
+                              {"--drop", "0.03", "--corrupt", "0.03", "--duplicate", "0.03", "--delay", "0.02",
+                               "--reorder", "0.03", "--seed", "8"},
+                              &InjectedFaults::frames}),
+    [](const auto& tp) { return std::string(tp.param.name); });
+
+// A disconnect over the pty: feedloop-vmcu is killed mid-stream (a device losing power) and a new
+// one started on the same link path (the device back, rebooted, its queue lost). The session
+// reports which MCU disconnected, reopens the port, finds that the device acknowledges nothing
+// of the old link (it restarted) and fails naming it; start() re-identifies it and a new stream
+// is executed exactly once.
+TEST(SerialPty, DeviceRestartIsReportedAndRecovered) {
+  const std::string link = temp_path("feedloop-vmcu-link");
+  testing::VmcuProcess first;
+  ASSERT_TRUE(first.start(kVmcu, {"--name", "pty-x", "--link", link})) << first.error();
+  SerialTransport transport(link);
+  McuSessionParams sp;
+  sp.name = "pty-x";
+  McuSession session(sp, transport);
+  PtyHost h{transport, session};
+  ASSERT_TRUE(session.start(h.now()).ok()) << session.error()->message;
+  ASSERT_TRUE(h.pump_until([&] { return session.ready(); }, 2.0));
+  h.pump(h.now() + 0.5);
+  // Stream, and pull the plug 1 s in.
+  const double kill_at = h.now() + 1.0;
+  const Streamed part1 = stream(h, 40, 5, kill_at);
+  first.stop(SIGKILL);
+  const double killed_at = h.now();
+  ASSERT_TRUE(h.pump_until([&] { return session.state() == McuState::kDisconnected; }, 1.0));
+  const double detected_s = h.now() - killed_at;
+  std::vector<std::string> events = session.take_events();
+  ASSERT_FALSE(events.empty());
+  std::printf("after %llu steps sent, killed; %.1f ms later: %s\n", (unsigned long long)part1.steps, detected_s * 1e3,
+              events[0].c_str());
+  EXPECT_NE(events[0].find("MCU 'pty-x' (serial " + link + ") disconnected"), std::string::npos) << events[0];
+  EXPECT_GT(part1.steps, 500u);
+  EXPECT_LT(detected_s, 0.1);
+  // Stays disconnected (retrying) while nothing is there.
+  h.pump(h.now() + 0.6);
+  EXPECT_EQ(session.state(), McuState::kDisconnected);
+
+  // The device comes back, rebooted.
+  testing::VmcuProcess second;
+  ASSERT_TRUE(second.start(kVmcu, {"--name", "pty-x", "--link", link})) << second.error();
+  const double back_at = h.now();
+  ASSERT_TRUE(h.pump_until([&] { return session.state() == McuState::kFailed; }, 3.0));
+  const double failed_s = h.now() - back_at;
+  events = session.take_events();
+  for (const auto& e : events) std::printf("event: %s\n", e.c_str());
+  bool reconnected = false;
+  for (const auto& e : events) reconnected |= e.find("MCU 'pty-x' (serial " + link + ") reconnected") != std::string::npos;
+  EXPECT_TRUE(reconnected);
+  const std::string msg = session.error()->message;
+  std::printf("%.0f ms after the device came back: %s\n", failed_s * 1e3, msg.c_str());
+  EXPECT_NE(msg.find("MCU 'pty-x'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("restarted"), std::string::npos) << msg;
+  EXPECT_LT(failed_s, 2.0);  // reopen every 250 ms + 1 s of silence on the old link
+
+  // Recovery: identify again, resynchronise, stream; every new step exactly once.
+  ASSERT_TRUE(session.start(h.now()).ok());
+  ASSERT_TRUE(h.pump_until([&] { return session.ready(); }, 2.0)) << (session.error() ? session.error()->message : "");
+  h.pump(h.now() + 0.5);
+  const Streamed part2 = stream(h, 8, 10);
+  session.request_status();
+  h.pump_until([&] { return session.last_status().has_value() && session.last_status()->steps_executed == part2.steps; }, 1.0);
+  ASSERT_TRUE(session.last_status().has_value());
+  std::printf("after recovery: %llu steps sent, %llu executed\n", (unsigned long long)part2.steps,
+              (unsigned long long)session.last_status()->steps_executed);
+  EXPECT_GT(part2.steps, 2000u);
+  EXPECT_EQ(session.last_status()->steps_executed, part2.steps);
+  EXPECT_EQ(session.last_status()->step_hash, part2.hash);
+  EXPECT_EQ(session.state(), McuState::kReady);
+  second.stop();
+}
 
 TEST(SerialPty, VersionMismatchRefused) {
   testing::VmcuProcess vmcu;

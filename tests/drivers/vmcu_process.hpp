@@ -2,6 +2,7 @@
 // pid) when destroyed. Shared by the serial end-to-end test and bench/protocol.
 #pragma once
 
+#include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -17,14 +18,18 @@ namespace feedloop::testing {
 
 class VmcuProcess {
  public:
-  // Returns false (with a message in error()) when the program cannot be started.
-  bool start(const std::string& program, const std::vector<std::string>& extra_args) {
+  // Returns false (with a message in error()) when the program cannot be started. With
+  // stderr_path, the program's stderr (its summary at exit) goes to that file.
+  bool start(const std::string& program, const std::vector<std::string>& extra_args,
+             const std::string& stderr_path = {}) {
     int fds[2];
     if (::pipe(fds) != 0) return fail("pipe failed");
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);
     posix_spawn_file_actions_adddup2(&fa, fds[1], 1);
     posix_spawn_file_actions_addclose(&fa, fds[0]);
+    if (!stderr_path.empty())
+      posix_spawn_file_actions_addopen(&fa, 2, stderr_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     std::vector<std::string> args{program, "--pty"};
     args.insert(args.end(), extra_args.begin(), extra_args.end());
     std::vector<char*> argv;
@@ -48,9 +53,10 @@ class VmcuProcess {
     pty_ = s.substr(4);
     return true;
   }
-  void stop() {
+  // SIGTERM: the program prints its summary and exits. SIGKILL: a device losing power.
+  void stop(int sig = SIGTERM) {
     if (pid_ > 0) {
-      ::kill(pid_, SIGTERM);
+      ::kill(pid_, sig);
       int status = 0;
       ::waitpid(pid_, &status, 0);
       pid_ = -1;
