@@ -1,18 +1,19 @@
-// USB bulk transport with libusb-1.0: finds the MCU by VID/PID (and serial number when given),
-// detaches a kernel driver if needed, claims the interface and moves frames over a pair of bulk
-// endpoints. An unplug shows up as LIBUSB_ERROR_NO_DEVICE: connected() turns false and open()
-// finds the device again after a replug. Errors say what is wrong and what to do (no device,
-// permissions, interface busy). Owner: the I/O thread.
+// USB bulk transport: finds the MCU by VID/PID (and serial number when given), detaches a kernel
+// driver if needed, claims the interface and moves frames over a pair of bulk endpoints. An
+// unplug shows up as LIBUSB_ERROR_NO_DEVICE: connected() turns false and read()/write() report
+// the disconnect; open() finds the device again after a replug (McuSession retries it). Errors
+// say what is wrong and what to do (no device, permissions -> udev rule, interface busy).
+// Device access goes through a UsbBackend (usb_backend.hpp): libusb-1.0 by default, a fake in
+// tests. Owner: the I/O thread.
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "drivers/transport.hpp"
-
-struct libusb_context;
-struct libusb_device_handle;
+#include "drivers/transport/usb_backend.hpp"
 
 namespace feedloop::drivers {
 
@@ -24,6 +25,7 @@ struct UsbParams {
   uint8_t endpoint_out = 0x01;
   uint8_t endpoint_in = 0x81;
   unsigned write_timeout_ms = 100;
+  unsigned read_timeout_ms = 1;  // a read waits this long for a packet (libusb: 0 would be forever)
 };
 
 struct UsbDeviceInfo {
@@ -34,7 +36,7 @@ struct UsbDeviceInfo {
 
 class UsbTransport final : public Transport {
  public:
-  explicit UsbTransport(UsbParams params);
+  explicit UsbTransport(UsbParams params, std::unique_ptr<UsbBackend> backend = make_libusb_backend());
   ~UsbTransport() override;
   UsbTransport(const UsbTransport&) = delete;
   UsbTransport& operator=(const UsbTransport&) = delete;
@@ -47,14 +49,15 @@ class UsbTransport final : public Transport {
   void poll(double now_s, double max_wait_s) override;
   std::string describe() const override;
 
-  // Every USB device libusb can see (for `feedloop` diagnostics); an error if libusb fails.
-  static Result<std::vector<UsbDeviceInfo>> list_devices();
+  // Every USB device the backend (libusb by default) can see, for `feedloop` diagnostics.
+  static Result<std::vector<UsbDeviceInfo>> list_devices(UsbBackend* backend = nullptr);
 
  private:
-  Status init_context();
+  Status init_backend();
   UsbParams p_;
-  libusb_context* ctx_ = nullptr;
-  libusb_device_handle* handle_ = nullptr;
+  std::unique_ptr<UsbBackend> usb_;
+  bool initialised_ = false;
+  UsbHandle handle_ = nullptr;
 };
 
 }  // namespace feedloop::drivers
