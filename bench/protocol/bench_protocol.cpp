@@ -1,14 +1,17 @@
 // Protocol throughput through the real serial path: host session -> SerialTransport -> pty ->
 // feedloop-vmcu (its own process, real time). Usage:
-//   bench_protocol [--json FILE] [--seconds S] [--steps-per-mm X] [--vmcu PATH]
+//   bench_protocol [--json FILE] [--seconds S] [--steps-per-mm X] [--faults P] [--vmcu PATH]
 // Phase "stream": printing-like moves at a high microstep count are generated, compressed and
 // streamed 0.5 s ahead; reports executed steps/s, frames/s and bytes/s on the wire, and whether
 // the device's step hash matches what was sent. Phase "ping": STATUS queries one at a time:
-// round trips/s and the mean round-trip time.
+// round trips/s and the mean round-trip time. --faults P: feedloop-vmcu drops, corrupts,
+// duplicates and reorders each frame with probability P and delays it (80 ms) with P/4, in both
+// directions, so the figures show the cost of retransmission.
 #include <cstdio>
 #include <cstring>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "core/clock.hpp"
 #include "drivers/device/virtual_mcu.hpp"
@@ -48,19 +51,27 @@ struct Collect final : stepgen::BatchSink {
 
 int main(int argc, char** argv) {
   std::string json, vmcu_path = FEEDLOOP_VMCU_PATH;
-  double seconds = 3.0, spm = 1600.0;
+  double seconds = 3.0, spm = 1600.0, faults = 0.0;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--json") && i + 1 < argc) json = argv[++i];
     else if (!std::strcmp(argv[i], "--seconds") && i + 1 < argc) seconds = std::atof(argv[++i]);
     else if (!std::strcmp(argv[i], "--steps-per-mm") && i + 1 < argc) spm = std::atof(argv[++i]);
     else if (!std::strcmp(argv[i], "--vmcu") && i + 1 < argc) vmcu_path = argv[++i];
+    else if (!std::strcmp(argv[i], "--faults") && i + 1 < argc) faults = std::atof(argv[++i]);
     else {
-      std::fprintf(stderr, "usage: %s [--json FILE] [--seconds S] [--steps-per-mm X] [--vmcu PATH]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--json FILE] [--seconds S] [--steps-per-mm X] [--faults P] [--vmcu PATH]\n",
+                   argv[0]);
       return 2;
     }
   }
   testing::VmcuProcess vmcu;
-  if (!vmcu.start(vmcu_path, {"--name", "bench"})) {
+  std::vector<std::string> vargs{"--name", "bench"};
+  if (faults > 0) {
+    const std::string p = std::to_string(faults), q = std::to_string(faults / 4);
+    for (const char* k : {"--drop", "--corrupt", "--duplicate", "--reorder"}) vargs.insert(vargs.end(), {k, p});
+    vargs.insert(vargs.end(), {"--delay", q});
+  }
+  if (!vmcu.start(vmcu_path, vargs)) {
     std::fprintf(stderr, "bench_protocol: %s\n", vmcu.error().c_str());
     return 1;
   }
@@ -143,7 +154,7 @@ int main(int argc, char** argv) {
     ++pings;
   }
   for (const auto& e : session.take_events()) std::fprintf(stderr, "event: %s\n", e.c_str());
-  std::fprintf(stderr, "link: %llu sent, %llu retransmitted, %llu acks sent, %llu dup dropped\n",
+  std::fprintf(stderr, "host link: %llu sent, %llu retransmitted, %llu acks sent, %llu dup dropped\n",
                (unsigned long long)session.link_stats().sent, (unsigned long long)session.link_stats().retransmitted,
                (unsigned long long)session.link_stats().acks_sent,
                (unsigned long long)session.link_stats().duplicates_dropped);
@@ -159,10 +170,10 @@ int main(int argc, char** argv) {
     FILE* f = std::fopen(json.c_str(), "w");
     if (!f) return 1;
     std::fprintf(f,
-                 "{\"benchmark\": \"protocol\", \"transport\": \"pty\", \"steps\": %llu, \"steps_per_s\": %.1f, "
+                 "{\"benchmark\": \"protocol\", \"transport\": \"pty\", \"faults\": %g, \"steps\": %llu, \"steps_per_s\": %.1f, "
                  "\"frames_per_s\": %.1f, \"bytes_per_s\": %.1f, \"wire_bytes_per_step\": %.4f, \"all_steps_ok\": %s, "
                  "\"ping_round_trips_per_s\": %d, \"ping_mean_rtt_us\": %.1f}\n",
-                 (unsigned long long)col.steps, col.steps / stream_s, frames / stream_s, bytes / stream_s,
+                 faults, (unsigned long long)col.steps, col.steps / stream_s, frames / stream_s, bytes / stream_s,
                  bytes / std::max<double>(1, col.steps), ok ? "true" : "false", pings, rtt_sum / pings * 1e6);
     std::fclose(f);
   }
