@@ -186,11 +186,15 @@ void McuSession::poll(double now_s) {
   }
   link_.poll(ns(now_s));
   if (p_.link_stall_s > 0 && link_.in_flight() > 0 && ns(now_s) - link_.last_progress_ns() > ns(p_.link_stall_s)) {
-    fail("MCU '" + p_.name + "' (" + transport_.describe() + ") acknowledged nothing for " +
-         std::to_string(static_cast<int>(p_.link_stall_s * 1000.0)) + " ms with " +
-         std::to_string(link_.in_flight()) +
-         " frame(s) in flight: it restarted (and lost its step queue) or hangs; motion stopped, "
-         "start the session again to re-identify it");
+    const std::string silent = std::to_string(static_cast<int>(p_.link_stall_s * 1000.0)) + " ms with " +
+                               std::to_string(link_.in_flight()) + " frame(s) in flight";
+    if (state_ == McuState::kIdentifying)
+      fail("MCU '" + p_.name + "' (" + transport_.describe() + ") does not answer (nothing acknowledged for " +
+           silent + "): is feedloop firmware running there, at this port/device?");
+    else
+      fail("MCU '" + p_.name + "' (" + transport_.describe() + ") acknowledged nothing for " + silent +
+           ": it restarted (and lost its step queue) or hangs; motion stopped, start the session again to "
+           "re-identify it");
     return;
   }
   if (state_ == McuState::kReady && now_s >= next_query_s_ && link_.can_send()) {

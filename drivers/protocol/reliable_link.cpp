@@ -124,11 +124,12 @@ void ReliableLink::on_frame(const FrameView& f, int64_t now_ns) {
     // Honour a reset once per epoch (retransmissions of the same reset are duplicates).
     const int epoch = f.flags >> 4;
     if (epoch != peer_epoch_) {
+      // The peer restarted: what we still had in flight was for its previous incarnation.
+      // Restart our own numbering too (our next frame carries kFlagReset). First: reset() also
+      // clears the receive side, which this frame now sets.
+      if (!reset_pending_ && (next_seq_ != 0 || count_ != 0)) reset();
       peer_epoch_ = epoch;
       expected_ = f.seq;
-      // The peer restarted: what we still had in flight was for its previous incarnation.
-      // Restart our own numbering too (our next frame carries kFlagReset).
-      if (!reset_pending_ && (next_seq_ != 0 || count_ != 0)) reset();
     }
   }
   ack_pending_ = true;

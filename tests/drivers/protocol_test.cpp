@@ -153,6 +153,73 @@ TEST(ReliableLink, ExactlyOnceInOrderUnderLossDuplicationAndReordering) {
   EXPECT_GT(b.stats().duplicates_dropped + b.stats().out_of_order_dropped, 0u);
 }
 
+// A host that starts a new session (reset) while the device has link state: the RESET frame
+// arrives twice (a retransmission) and is delivered once; both sides renumber; then the device
+// reboots (a fresh link numbering from 0, no reset of its own) and the host's next session
+// reaches it too.
+TEST(ReliableLink, SessionRestartsAgainstALiveAndARebootedPeer) {
+  Wire wh, wd;
+  Sink sh, sd;
+  ReliableLink host, dev;
+  host.configure({}, &wh, &sh);
+  dev.configure({}, &wd, &sd);
+  int64_t now = 0;
+  auto pass = [&](Wire& from, ReliableLink& to, bool twice) {
+    auto frames = std::move(from.frames);
+    from.frames.clear();
+    for (auto& f : frames) {
+      to.on_bytes(f.data(), f.size(), now);
+      if (twice) to.on_bytes(f.data(), f.size(), now);
+    }
+  };
+  auto exchange = [&](bool twice) {
+    for (int i = 0; i < 4; ++i) {
+      now += 1'000'000;
+      pass(wh, dev, twice);
+      pass(wd, host, twice);
+    }
+  };
+  const uint8_t m1[2] = {1, 1}, m2[2] = {2, 2}, m3[2] = {3, 3};
+  // Session 1: some traffic both ways.
+  host.reset();
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(host.send(m1, 2, now));
+  exchange(false);
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(dev.send(m1, 2, now));
+  exchange(false);
+  ASSERT_EQ(sd.got.size(), 5u);
+  ASSERT_EQ(sh.got.size(), 3u);
+  // Session 2 against the same device: every frame duplicated on the way.
+  host.reset();
+  ASSERT_TRUE(host.send(m2, 2, now));
+  ASSERT_TRUE(host.send(m2, 2, now));
+  exchange(true);
+  ASSERT_TRUE(dev.send(m2, 2, now));
+  exchange(true);
+  EXPECT_EQ(sd.got.size(), 7u);  // the two session-2 messages, once each
+  EXPECT_EQ(sh.got.size(), 4u);
+  EXPECT_EQ(host.in_flight(), 0);
+  EXPECT_EQ(dev.in_flight(), 0);
+  // The device reboots: a fresh link. Session 3 reaches it and hears its answer.
+  ReliableLink rebooted;
+  rebooted.configure({}, &wd, &sd);
+  host.reset();
+  ASSERT_TRUE(host.send(m3, 2, now));
+  now += 1'000'000;
+  pass(wh, rebooted, false);
+  ASSERT_TRUE(rebooted.send(m3, 2, now));
+  for (int i = 0; i < 4; ++i) {
+    now += 1'000'000;
+    pass(wh, rebooted, false);
+    pass(wd, host, false);
+  }
+  EXPECT_EQ(sd.got.size(), 8u);
+  EXPECT_EQ(sd.got.back()[0], 3);
+  ASSERT_EQ(sh.got.size(), 5u);
+  EXPECT_EQ(sh.got.back()[0], 3);
+  EXPECT_EQ(host.in_flight(), 0);
+  EXPECT_EQ(rebooted.in_flight(), 0);
+}
+
 TEST(Messages, WriterRefusesOverflow) {
   uint8_t buf[4];
   MsgWriter w(buf, sizeof buf);

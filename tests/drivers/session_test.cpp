@@ -309,6 +309,20 @@ TEST(McuSession, LongDisconnectStopsMotorAndReportsWhichMcu) {
   EXPECT_FALSE(rig.mcu->status().stopped);
 }
 
+TEST(McuSession, SilentDeviceIsAClearError) {
+  MockFaults f;
+  f.drop = 1.0;  // nothing gets through: a port with no feedloop firmware behind it
+  Rig rig(f);
+  ASSERT_TRUE(rig.session->start(rig.now).ok());
+  rig.advance(rig.now + 0.9);
+  EXPECT_EQ(rig.session->state(), McuState::kIdentifying);
+  rig.advance(rig.now + 0.2);
+  ASSERT_EQ(rig.session->state(), McuState::kFailed);
+  const std::string msg = rig.session->error()->message;
+  std::printf("error: %s\n", msg.c_str());
+  EXPECT_NE(msg.find("MCU 'x' (mock x) does not answer (nothing acknowledged for 1000 ms"), std::string::npos) << msg;
+}
+
 TEST(McuSession, VersionMismatchIsRefusedByBoth) {
   auto mp = mcu_params();
   mp.protocol_version = protocol::kProtocolVersion + 1;
