@@ -13,7 +13,8 @@
 #include <fcntl.h>      // open
 #include <signal.h>     // kill
 #include <spawn.h>      // posix_spawnp
-#include <sys/utsname.h>
+#include <sys/mman.h>   // munlockall
+#include <sys/utsname.h>  // uname
 #include <sys/wait.h>   // waitpid
 #include <unistd.h>     // sleep
 
@@ -26,6 +27,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -69,18 +71,35 @@ Figures run_feedloop(double seconds, double period_us, int priority, Condition& 
   opt.servo_rate_hz = 1e6 / period_us;
   opt.realtime_priority = priority;
   opt.lock_memory = true;
-  feedloop::engine::Machine machine(opt, clock, std::make_unique<feedloop::engine::PositionExecutor>());
+  auto machine = std::make_unique<feedloop::engine::Machine>(opt, clock,
+                                                              std::make_unique<feedloop::engine::PositionExecutor>());
   std::string warnings;
-  if (auto s = machine.start(&warnings); !s) {
-    f.error = s.error().message;
-    return f;
+  try {
+    if (auto s = machine->start(&warnings); !s) {
+      f.error = s.error().message;
+      return f;
+    }
+  } catch (const std::system_error& e) {
+    // Seen as an unprivileged user: mlockall(MCL_FUTURE) succeeds within RLIMIT_MEMLOCK (8 MB)
+    // and the next thread's stack can then not be mapped. Report it and measure without locking.
+    c.warnings += std::string("Machine::start threw (") + e.what() +
+                  ") after mlockall: thread stacks exceed RLIMIT_MEMLOCK; measured without memory locking\n";
+    machine.reset();
+    munlockall();
+    opt.lock_memory = false;
+    machine = std::make_unique<feedloop::engine::Machine>(opt, clock,
+                                                         std::make_unique<feedloop::engine::PositionExecutor>());
+    if (auto s = machine->start(&warnings); !s) {
+      f.error = s.error().message;
+      return f;
+    }
   }
   c.warnings += warnings;
   c.sched_fifo = warnings.find("SCHED_FIFO") == std::string::npos;
-  c.mlocked = warnings.find("lock memory") == std::string::npos;
+  c.mlocked = opt.lock_memory && warnings.find("lock memory") == std::string::npos;
   std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
-  const feedloop::engine::ServoStatus st = machine.servo_status();
-  machine.stop();
+  const feedloop::engine::ServoStatus st = machine->servo_status();
+  machine->stop();
   const LatencyHistogram& h = st.latency;
   f.ok = h.samples > 0;
   if (!f.ok) f.error = "no servo cycles";
