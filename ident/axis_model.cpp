@@ -56,22 +56,16 @@ void eq17_coefficients(const AxisModel& m, double psi[4]) {
   psi[3] = m.k1_n_m * m.k2_n_m / a4;
 }
 
-Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double period_s, std::vector<double>* y_mm) {
-  const double vals[] = {m.m1_kg, m.m2_kg, m.k1_n_m, m.k2_n_m, m.c1_n_s_m, m.c2_n_s_m, m.scale, m.delay_ms,
-                         m.period_mm, m.extra_freq_hz, m.extra_damping, m.extra_mass_kg, m.stiffness_ratio,
-                         m.friction_force_n, m.backlash_width_um, m.periodic_sin_um, m.periodic_cos_um};
-  for (double v : vals)
-    if (!std::isfinite(v)) return Error{"axis model has a non-finite parameter", {}};
-  if (!(period_s > 0.0)) return Error{"sample period must be > 0", {}};
-  if (!(m.m1_kg > 0.0 && m.m2_kg > 0.0)) return Error{"masses must be > 0", {}};
-  const size_t n = u_mm.size();
-  y_mm->assign(n, 0.0);
-  if (n == 0) return Status::Ok();
+namespace {
 
-  // Continuous linear part: q = [x1, v1, x2, v2, x3, v3], inputs [u, F_rotor, F_carriage] (Eq. 13).
-  const bool extra = m.has(Effect::kExtraResonance);
-  Mat6 A = Mat6::Zero();
-  Mat63 B = Mat63::Zero();
+// Continuous linear part: q = [x1, v1, x2, v2, x3, v3], inputs [u, F_rotor, F_carriage] (Eq. 13),
+// the nominal belt k2 (x1 - x2) included; x3, v3 the extra resonance's mass (decaying dummies
+// when it is off).
+void linear_part(const AxisModel& m, Mat6* A_out, Mat63* B_out) {
+  Mat6& A = *A_out;
+  Mat63& B = *B_out;
+  A.setZero();
+  B.setZero();
   const double k2 = m.k2_n_m;
   A(0, 1) = 1.0;
   A(1, 0) = -(m.k1_n_m) / m.m1_kg;
@@ -82,12 +76,11 @@ Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double
   B(1, 0) = m.k1_n_m / m.m1_kg;
   B(1, 1) = 1.0 / m.m1_kg;
   B(3, 2) = 1.0 / m.m2_kg;
-  // Nominal belt k2 (x1 - x2) in the linear part; the effects add a correction force.
   A(1, 0) -= k2 / m.m1_kg;
   A(1, 2) += k2 / m.m1_kg;
   A(3, 0) += k2 / m.m2_kg;
   A(3, 2) -= k2 / m.m2_kg;
-  if (extra) {
+  if (m.has(Effect::kExtraResonance)) {
     const double w = 2.0 * kPi * std::max(m.extra_freq_hz, 1e-3);
     const double m3 = std::max(m.extra_mass_kg, 1e-6);
     const double k3 = m3 * w * w, c3 = 2.0 * std::max(m.extra_damping, 0.0) * m3 * w;
@@ -101,32 +94,42 @@ Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double
     A(5, 2) = k3 / m3;
     A(5, 3) = c3 / m3;
   } else {
-    A(4, 4) = -1.0;  // unused states decay (keeps the exponential well conditioned)
+    A(4, 4) = -1.0;
     A(5, 5) = -1.0;
   }
-  // Discretisation: u ramps linearly over each (sub)step (first-order hold, exact for the linear
-  // part), the effect forces are held (zero-order hold). Augmented exponential
-  //   exp([[A h, B h, 0], [0, 0, e_u], [0, 0, 0]]) = [[Ad, G0, G1], ...]
-  // gives x+ = Ad x + G0 [u_a, F1, F2] + G1 (u_b - u_a).
-  struct Disc {
-    Mat6 Ad;
-    Mat63 G0;
-    Vec6 G1;
-  };
-  auto discretise = [&](double h) {
-    Eigen::Matrix<double, 10, 10> M = Eigen::Matrix<double, 10, 10>::Zero();
-    M.topLeftCorner<6, 6>() = A * h;
-    M.block<6, 3>(0, 6) = B * h;
-    M(6, 9) = 1.0;
-    const Eigen::Matrix<double, 10, 10> E = M.exp();
-    return Disc{E.topLeftCorner<6, 6>(), E.block<6, 3>(0, 6), E.block<6, 1>(0, 9)};
-  };
+}
+
+// sin and cos of phi0 + d from sin/cos of phi0: Taylor series of sin d, cos d (error below
+// 1e-13 for |d| <= 0.05 rad), the exact sincos otherwise. The runout phase moves by far less than
+// that within a sample, so the exact sincos is needed once per sample instead of once per substep.
+inline void sincos_near(double s0, double c0, double d, double* s, double* c) {
+  if (std::abs(d) > 0.05) {
+    const double phi = std::atan2(s0, c0) + d;
+    *s = std::sin(phi);
+    *c = std::cos(phi);
+    return;
+  }
+  const double d2 = d * d;
+  const double sd = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0)));
+  const double cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0));
+  *s = s0 * cd + c0 * sd;
+  *c = c0 * cd - s0 * sd;
+}
+
+// The time loop on N states (4 without the extra resonance, 6 with it): x2 (mm) per sample.
+template <int N>
+void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::vector<double>& u_mm, double period_s,
+                std::vector<double>* x2_out, bool* finite) {
+  using MatN = Eigen::Matrix<double, N, N>;
+  using MatN3 = Eigen::Matrix<double, N, 3>;
+  using VecN = Eigen::Matrix<double, N, 1>;
   const bool periodic = m.has(Effect::kPeriodicPosition);
   const bool backlash = m.has(Effect::kBacklash);
   const bool direction = m.has(Effect::kDirectionStiffness);
   const bool friction = m.has(Effect::kCoulombFriction);
   const bool nonlinear = periodic || backlash || direction || friction;
   const double scale = m.has(Effect::kScaleError) ? m.scale : 1.0;
+  const double k2 = m.k2_n_m;
   const double period_m = std::max(m.period_mm, 1e-3) * 1e-3;
   const double ps = m.periodic_sin_um * 1e-6, pc = m.periodic_cos_um * 1e-6;
   const double half_w = 0.5 * std::max(m.backlash_width_um, 0.0) * 1e-6;
@@ -134,28 +137,60 @@ Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double
   const double k_pos = k2 * 2.0 * r / (1.0 + r), k_neg = k2 * 2.0 / (1.0 + r);
   const double fc = std::max(m.friction_force_n, 0.0);
 
-  // Work in metres relative to the first command: the runout phase is then relative to the
-  // trace's start, which the fitted sin/cos pair absorbs.
+  // Discretisation: u ramps linearly over each (sub)step (first-order hold, exact for the linear
+  // part), the effect forces are held (zero-order hold). Augmented exponential
+  //   exp([[A h, B h, 0], [0, 0, e_u], [0, 0, 0]]) = [[Ad, G0, G1], ...]
+  // gives x+ = Ad x + G0 [u_a, F1, F2] + G1 (u_b - u_a).
   const int substeps = nonlinear ? kSubsteps : 1;
   const double h = period_s / substeps;
-  const Disc D = discretise(h);
-  if (!D.Ad.allFinite() || !D.G0.allFinite() || !D.G1.allFinite())
-    return Error{"axis model discretisation failed", {}};
+  Eigen::Matrix<double, N + 4, N + 4> M = Eigen::Matrix<double, N + 4, N + 4>::Zero();
+  M.template topLeftCorner<N, N>() = A.template topLeftCorner<N, N>() * h;
+  M.template block<N, 3>(0, N) = B.template topRows<N>() * h;
+  M(N, N + 3) = 1.0;
+  const Eigen::Matrix<double, N + 4, N + 4> E = M.exp();
+  const MatN Ad = E.template topLeftCorner<N, N>();
+  const MatN3 G0 = E.template block<N, 3>(0, N);
+  const VecN G1 = E.template block<N, 1>(0, N + 3);
+  const size_t n = u_mm.size();
+  std::vector<double>& x2 = *x2_out;
+  x2.assign(n, 0.0);
+  if (!Ad.allFinite() || !G0.allFinite() || !G1.allFinite()) {
+    *finite = false;
+    return;
+  }
+  // The linear-only case: the input enters through column 0 of G0 only.
+  const VecN g0u = G0.col(0);
+  const VecN g1 = G1;
+
+  // Work in metres relative to the first command: the runout phase is then relative to the
+  // trace's start, which the fitted sin/cos pair absorbs.
   const double u0 = u_mm[0];
-  Vec6 q = Vec6::Zero();
+  VecN q = VecN::Zero();
   double z = 0.0;  // friction bristle
-  std::vector<double> x2(n, 0.0);
   double u_prev = 0.0;
+  const double two_pi_over_p = 2.0 * kPi / period_m;
   for (size_t k = 0; k < n; ++k) {
     const double u_k = scale * (u_mm[k] - u0) * 1e-3;
     if (k > 0) {
       const double du = (u_k - u_prev) / substeps;
-      for (int j = 0; j < substeps; ++j) {
-        Eigen::Vector3d in(u_prev + du * j, 0.0, 0.0);
-        if (nonlinear) {
+      if (!nonlinear) {
+        q = Ad * q + g0u * u_prev + g1 * du;
+      } else {
+        // Runout: exact sin/cos at the sample's first substep, then near that phase.
+        double s_ref = 0.0, c_ref = 1.0, x1_ref = 0.0;
+        if (periodic) {
+          x1_ref = q[0];
+          s_ref = std::sin(two_pi_over_p * x1_ref);
+          c_ref = std::cos(two_pi_over_p * x1_ref);
+        }
+        for (int j = 0; j < substeps; ++j) {
           const double x1 = q[0], xc = q[2], vc = q[3];
           double s = x1 - xc;
-          if (periodic) s += ps * std::sin(2.0 * kPi * x1 / period_m) + pc * std::cos(2.0 * kPi * x1 / period_m);
+          if (periodic) {
+            double sn = s_ref, cs = c_ref;
+            if (j > 0) sincos_near(s_ref, c_ref, two_pi_over_p * (x1 - x1_ref), &sn, &cs);
+            s += ps * sn + pc * cs;
+          }
           if (backlash) s = s > half_w ? s - half_w : (s < -half_w ? s + half_w : 0.0);
           const double kb = direction ? (s > 0.0 ? k_pos : k_neg) : k2;
           const double df = kb * s - k2 * (x1 - xc);  // correction to the linear belt force
@@ -169,15 +204,52 @@ Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double
               z = zss + (z - zss) * std::exp(-av * h / kBristle_m);
             }
           }
-          in[1] = -df;
-          in[2] = df + f_fric;
+          q = Ad * q + g0u * (u_prev + du * j) + G0.col(1) * (-df) + G0.col(2) * (df + f_fric) + g1 * du;
         }
-        q = D.Ad * q + D.G0 * in + D.G1 * du;
       }
     }
     u_prev = u_k;
     x2[k] = q[2] * 1e3 + u0;
   }
+}
+
+}  // namespace
+
+model::StateSpace axis_state_space(const AxisModel& m) {
+  Mat6 A;
+  Mat63 B;
+  linear_part(m, &A, &B);
+  const int n = m.has(Effect::kExtraResonance) ? 6 : 4;
+  model::StateSpace sys;
+  sys.A = A.topLeftCorner(n, n);
+  sys.B = B.block(0, 0, n, 1);
+  sys.C = Eigen::MatrixXd::Zero(1, n);
+  sys.C(0, 2) = 1.0;
+  sys.D = Eigen::MatrixXd::Zero(1, 1);
+  return sys;
+}
+
+Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double period_s, std::vector<double>* y_mm) {
+  const double vals[] = {m.m1_kg, m.m2_kg, m.k1_n_m, m.k2_n_m, m.c1_n_s_m, m.c2_n_s_m, m.scale, m.delay_ms,
+                         m.period_mm, m.extra_freq_hz, m.extra_damping, m.extra_mass_kg, m.stiffness_ratio,
+                         m.friction_force_n, m.backlash_width_um, m.periodic_sin_um, m.periodic_cos_um};
+  for (double v : vals)
+    if (!std::isfinite(v)) return Error{"axis model has a non-finite parameter", {}};
+  if (!(period_s > 0.0)) return Error{"sample period must be > 0", {}};
+  if (!(m.m1_kg > 0.0 && m.m2_kg > 0.0)) return Error{"masses must be > 0", {}};
+  const size_t n = u_mm.size();
+  y_mm->assign(n, 0.0);
+  if (n == 0) return Status::Ok();
+  Mat6 A;
+  Mat63 B;
+  linear_part(m, &A, &B);
+  std::vector<double> x2;
+  bool finite = true;
+  if (m.has(Effect::kExtraResonance))
+    run_states<6>(m, A, B, u_mm, period_s, &x2, &finite);
+  else
+    run_states<4>(m, A, B, u_mm, period_s, &x2, &finite);
+  if (!finite) return Error{"axis model discretisation failed", {}};
   // time_delay: y(t) = x2(t - d), Catmull-Rom cubic interpolation (continuous slope in d, so the
   // fit does not stall at whole samples), held at the first sample before the start.
   if (m.has(Effect::kTimeDelay) && m.delay_ms > 0.0) {

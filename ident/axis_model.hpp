@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "core/result.hpp"
+#include "model/lti.hpp"
 
 namespace feedloop::ident {
 
@@ -54,6 +55,11 @@ AxisModel preset_axis_model(const std::string& axis_name);
 
 // Monic 4th-order denominator of Eq. 16/17 from the physical parameters (psi3, psi2, psi1, psi0).
 void eq17_coefficients(const AxisModel& m, double psi[4]);
+
+// The linear part (baseline, and the extra resonance when enabled) as a state space from the
+// commanded position u (m) to the carriage position x2 (m): 4 states, 6 with the extra resonance.
+// The nonlinear effects, the delay and the scale are not in it.
+model::StateSpace axis_state_space(const AxisModel& m);
 
 // Simulated carriage position (mm) for commanded positions u_mm sampled at period_s; starts at rest
 // at u_mm[0]. y has u_mm's length. Errors: non-positive period, non-finite parameters.
