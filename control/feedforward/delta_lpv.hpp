@@ -1,0 +1,58 @@
+// Model-based LPV feedforward for a delta printer: the preview inverse (preview_design.hpp) of the
+// full 3x3 model of the delta paper, Eq. 29, G(s) = [I - G_Fq T W(s) Jbar]^-1 G_qd(s), from
+// commanded to actual carriage positions (model/delta_lpv.hpp, its 18-state realisation). The
+// inverse is MIMO on the coupled model (no term-by-term inversion); the non-minimum-phase
+// carriage zero (Eq. 34, d1 < 0: +674 rad/s) is handled by the preview.
+// LPV: designs on a grid of nozzle positions (x, y over the print disc, z over the height),
+// trilinearly interpolated at the planned nozzle position at t_k every period.
+// freeze_at_centre: the model at (0, 0, z) only (the "fixed centre model" of the benchmarks;
+// still scheduled on z). The extruder joint passes through, delayed by P periods.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <vector>
+
+#include "control/feedforward.hpp"
+#include "control/feedforward/lpv_options.hpp"
+#include "control/feedforward/scheduled_inverse.hpp"
+#include "core/result.hpp"
+#include "model/delta_lpv.hpp"
+
+namespace feedloop::control {
+
+struct DeltaLpvGrid {
+  double xy_radius_mm = 100.0;  // grid covers [-r, r]^2; points beyond the disc of radius r use
+                                // the model at their projection onto it
+  double xy_step_mm = 25.0;
+  double z_min_mm = 0.0;
+  double z_max_mm = 250.0;
+  double z_step_mm = 50.0;
+  bool freeze_at_centre = false;  // model at (0, 0, z) only
+};
+
+class DeltaLpvFeedforward final : public Feedforward {
+ public:
+  static Result<std::unique_ptr<DeltaLpvFeedforward>> create(const model::DeltaParams& params,
+                                                             model::ForceTransform form, const DeltaLpvGrid& grid,
+                                                             const LpvDesignOptions& opt);
+
+  const char* name() const override { return frozen_ ? "lpv-centre" : "lpv"; }
+  int preview_samples() const override { return P_; }
+  void reset(const FeedforwardInput& at) override;
+  void step(const FeedforwardInput& in, JointArray& u_mm) override;
+
+  int grid_points() const { return inv_.points(); }
+
+ private:
+  DeltaLpvFeedforward() = default;
+  void schedule_(const std::array<double, 3>& nozzle_mm);
+  int P_ = 0;
+  bool frozen_ = false;
+  ScheduledPreviewInverse inv_;
+  UniformGrid gx_, gy_, gz_;
+  std::vector<FeedforwardInput> delay_;  // ring of the last P+1 inputs (extruder, nozzle at t_k)
+  int head_ = 0;
+};
+
+}  // namespace feedloop::control

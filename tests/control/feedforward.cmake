@@ -1,0 +1,6 @@
+# Model-based LPV feedforward (control/feedforward/): the preview inverse on the linear gantry and
+# delta models, the factory, and (separate binary, it replaces malloc) the RT checks.
+feedloop_add_test(feedforward_model_test
+  SOURCES ${CMAKE_CURRENT_LIST_DIR}/feedforward_gantry_test.cpp
+  LIBS feedloop_control
+  TIMEOUT 120)
