@@ -1,0 +1,13 @@
+# Tests of the servo loop's control primitives: PI, input shapers, lost-step detector, encoder
+# guard. The allocation test is its own binary because it interposes malloc.
+feedloop_add_test(control_primitives_test
+  SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/pi_controller_test.cpp
+          ${CMAKE_CURRENT_SOURCE_DIR}/input_shaper_test.cpp
+          ${CMAKE_CURRENT_SOURCE_DIR}/lost_step_detector_test.cpp
+          ${CMAKE_CURRENT_SOURCE_DIR}/encoder_guard_test.cpp
+  LIBS feedloop_control
+  TIMEOUT 60)
+feedloop_add_test(control_primitives_rt_test
+  SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/primitives_rt_test.cpp
+  LIBS feedloop_control
+  TIMEOUT 60)
