@@ -308,7 +308,7 @@ Result<EffectorFit> identify_effector(const DeltaMeasurements& meas) {
 }
 
 Result<CouplingFit> identify_coupling(const DeltaMeasurements& meas, const model::DeltaParams& base,
-                                      model::ForceTransform form) {
+                                      model::ForceTransform form, bool free_mass_scale) {
   const std::vector<double> f = meas.plan.centre_grid.points_hz();
   if (meas.centre_task.size() != f.size()) return Error{"coupling fit: measurements do not match the centre grid", {}};
   const auto n = static_cast<int>(f.size());
@@ -321,9 +321,13 @@ Result<CouplingFit> identify_coupling(const DeltaMeasurements& meas, const model
   std::vector<double> scale(f.size());
   for (size_t k = 0; k < f.size(); ++k) scale[k] = std::max(meas.centre_task[k].norm(), 1e-300);
 
-  // x = [ln b_x, ln b_y, ln b_z, ln k_x, ln k_y, ln k_z].
+  // x = [ln b_x, ln b_y, ln b_z, ln k_x, ln k_y, ln k_z (, ln mass scale)].
   auto params_of = [&](const Eigen::VectorXd& x) {
     model::DeltaParams p = base;
+    if (x.size() > 6) {
+      p.m1_kg *= std::exp(x[6]);
+      p.m2_kg *= std::exp(x[6]);
+    }
     p.b_x_n_s_m = std::exp(x[0]);
     p.b_y_n_s_m = std::exp(x[1]);
     p.b_z_n_s_m = std::exp(x[2]);
@@ -386,12 +390,17 @@ Result<CouplingFit> identify_coupling(const DeltaMeasurements& meas, const model
   ResidualFn res = [&](const Eigen::VectorXd& xx, Eigen::VectorXd& r) {
     if (!residual(xx, r, -1)) r.setConstant(1e10);
   };
+  if (free_mass_scale) {
+    x.conservativeResize(7);
+    x[6] = 0.0;
+  }
   auto sol = levenberg_marquardt(res, 18 * n, x);
   if (!sol.ok()) return Error{"coupling fit: " + sol.error().message, {}};
   CouplingFit out;
   const model::DeltaParams p = params_of(sol->x);
   out.b_n_s_m = {p.b_x_n_s_m, p.b_y_n_s_m, p.b_z_n_s_m};
   out.k_n_m = {p.k_x_n_m, p.k_y_n_m, p.k_z_n_m};
+  out.mass_scale = free_mass_scale ? std::exp(sol->x[6]) : 1.0;
   // RMS over frequencies of ||H_pred - H_meas|| / ||H_meas|| (18 residuals per frequency).
   out.rms_rel = sol->rms * std::sqrt(18.0);
   out.evaluations = sol->evaluations;
@@ -424,7 +433,7 @@ Result<DeltaIdentification> identify(const DeltaMeasurements& meas, model::Force
     // b_j, k_j are still the defaults here; only the identified fields can be at fault.
     return Error{"identified sub-model parameters are invalid: " + s.error().message, {}};
   }
-  auto coupling = identify_coupling(meas, p, form);
+  auto coupling = identify_coupling(meas, p, form, false);
   if (!coupling.ok()) return coupling.error();
   id.coupling = *coupling;
   p.b_x_n_s_m = coupling->b_n_s_m.x();

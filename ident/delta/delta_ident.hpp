@@ -108,6 +108,9 @@ struct CouplingFit {
   // q_i / X_j): how well Eq. 29 with this force transformation explains the centre measurements.
   double rms_rel = 0.0;
   int evaluations = 0;
+  // With free_mass_scale: the factor on the weighed m1, m2 that the centre data ask for (1 when
+  // the force transformation distributes the effector's inertia as the machine does).
+  double mass_scale = 1.0;
 };
 
 struct DeltaIdentification {
@@ -120,9 +123,10 @@ struct DeltaIdentification {
 
 Result<CarriageFit> identify_carriage(const DeltaMeasurements& meas);
 Result<EffectorFit> identify_effector(const DeltaMeasurements& meas);
-// b_j, k_j with every other parameter taken from `base`.
+// b_j, k_j with every other parameter taken from `base`. free_mass_scale: also fit one factor on
+// m1 and m2 (a diagnostic of the force transformation, not part of the procedure).
 Result<CouplingFit> identify_coupling(const DeltaMeasurements& meas, const model::DeltaParams& base,
-                                      model::ForceTransform form);
+                                      model::ForceTransform form, bool free_mass_scale = false);
 // Steps 1-3.
 Result<DeltaIdentification> identify(const DeltaMeasurements& meas, model::ForceTransform form);
 
