@@ -1,6 +1,7 @@
 #include "engine/executor_factory.hpp"
 
 #include "engine/config_mapping.hpp"
+#include "engine/maneuver_executor.hpp"
 #include "engine/mcu_bridge.hpp"
 #include "engine/motion_executor.hpp"
 
@@ -17,22 +18,40 @@ struct IdealPlant final : stepgen::BatchSink {
 }  // namespace
 
 Result<std::unique_ptr<CommandExecutor>> make_executor(const config::MachineConfig& cfg) {
+  // Voltage-driven DC motors: output maneuvering on the simulated plant, no steps, no MCUs.
+  if (cfg.drive == config::Drive::dc_servo) return make_maneuver_executor(cfg);
   auto stack = make_motion_stack(cfg);
   if (!stack.ok()) return stack.error();
   return std::unique_ptr<CommandExecutor>(std::move(stack.value().executor));
 }
 
+MotionOptions motion_options(const config::MachineConfig& cfg) {
+  MotionOptions mo;
+  mo.lead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
+  return mo;
+}
+
 Result<MotionStack> make_motion_stack(const config::MachineConfig& cfg) {
+  return make_motion_stack(cfg, motion_options(cfg));
+}
+
+Result<MotionStack> make_motion_stack(const config::MachineConfig& cfg, const MotionOptions& mo,
+                                      StepObserver* observer) {
   const planner::PlannerConfig pcfg = planner_config(cfg);
   if (Status s = pcfg.validate(); !s) return s.error();
   StepPipelineParams sp;
   sp.steps_per_mm = steps_per_mm(cfg);
   sp.mcu_clock_hz = static_cast<double>(cfg.stepgen.mcu_clock_hz);
   sp.max_step_error_us = cfg.stepgen.max_step_error_us;
-  MotionOptions mo;
-  mo.lead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
-  if (cfg.mcus.empty())
-    return MotionStack{std::make_unique<MotionExecutor>(pcfg, sp, std::make_shared<IdealPlant>(), mo), nullptr};
+  sp.observer = observer;
+  // The control law (sampled path) when the config asks for closed loop or a feedforward filter.
+  auto control = make_servo_control(cfg);
+  if (!control.ok()) return control.error();
+  if (cfg.mcus.empty()) {
+    auto ex = std::make_unique<MotionExecutor>(pcfg, sp, std::make_shared<IdealPlant>(), mo);
+    if (control.value()) ex->set_control(std::move(control.value()));
+    return MotionStack{std::move(ex), nullptr};
+  }
   // The MCUs of the config (mock: virtual MCUs driving the plant simulator; serial/usb: sessions
   // on the real links) behind the step pipeline, serviced by the servo thread.
   auto bridge = make_mcu_bridge(cfg);
@@ -40,6 +59,7 @@ Result<MotionStack> make_motion_stack(const config::MachineConfig& cfg) {
   std::shared_ptr<McuBridge> b = std::move(bridge.value());
   auto ex = std::make_unique<MotionExecutor>(pcfg, sp, b, mo);
   ex->set_backend(b.get());
+  if (control.value()) ex->set_control(std::move(control.value()));
   return MotionStack{std::move(ex), std::move(b)};
 }
 

@@ -93,6 +93,7 @@ Result<std::unique_ptr<McuBridge>> McuBridge::create(const config::MachineConfig
 }
 
 Status McuBridge::build(const config::MachineConfig& cfg) {
+  sample_buffer_.reserve(drivers::McuSession::kSampleCapacity);
   const auto names = joint_names(cfg);
   const auto spm = steps_per_mm(cfg);
   const bool delta = cfg.kinematics == config::Kinematics::delta;
@@ -199,7 +200,10 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
       }
       if (delta && j < 3) has_encoder = true;  // the simulated delta has carriage encoders
     }
-    sp.encoder_period_s = has_encoder ? 1e-3 : 0.0;
+    // One sample per servo period; closed loop needs each one at once (the PI's loop delay),
+    // open loop batches ten per report (telemetry only).
+    sp.encoder_period_s = has_encoder ? 1.0 / cfg.servo.rate_hz : 0.0;
+    sp.samples_per_report = cfg.control.mode == config::ControlMode::pi ? 1 : 10;
     m->session = std::make_unique<drivers::McuSession>(sp, *m->transport);
     mcus_.push_back(std::move(m));
     ++index;
@@ -283,6 +287,10 @@ stepgen::TickMap McuBridge::tick_map(int joint) const {
   return {m.offset_ticks - m.ticks_per_s * epoch_s_, m.ticks_per_s};
 }
 
+unsigned long long McuBridge::encoder_reports(int joint) const {
+  return encoder_reports_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
+}
+
 double McuBridge::encoder_mm(int joint) const {
   return encoder_mm_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
 }
@@ -290,13 +298,15 @@ double McuBridge::encoder_mm(int joint) const {
 void McuBridge::collect(double) {
   for (auto& m : mcus_) {
     drivers::McuSession& s = *m->session;
-    std::vector<drivers::EncoderSample> samples = s.take_encoder_samples();
+    std::vector<drivers::EncoderSample>& samples = sample_buffer_;
+    s.take_encoder_samples(samples);  // swaps buffers: no allocation in steady state
     if (!samples.empty()) {
       for (size_t j = 0; j < kJoints; ++j) {
         if (joint_mcu_[j] < 0 || mcus_[static_cast<size_t>(joint_mcu_[j])].get() != m.get()) continue;
         for (auto it = samples.rbegin(); it != samples.rend(); ++it)
           if (it->axis == joint_motor_[j]) {
             encoder_mm_[j].store(static_cast<double>(it->counts) * encoder_mm_per_count_[j], std::memory_order_relaxed);
+            encoder_reports_[j].fetch_add(1, std::memory_order_relaxed);
             break;
           }
       }

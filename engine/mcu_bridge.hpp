@@ -13,8 +13,8 @@
 // MCU gets an emergency stop. When every link is back, all MCUs are re-identified, the clocks
 // re-synchronised, and the fault clears (the executor then restarts from the planned position;
 // the real machine has lost its position and should be homed).
-// Real time: the bridge itself allocates nothing after create(); McuSession and MockTransport
-// (drivers/) allocate per message today (see the report in tests/engine_sim).
+// Real time: nothing on the steady-state path allocates (the sessions' rings, the mock transport's
+// frame pools, the encoder sample buffers swapped with the sessions'; tests/engine_sim).
 #pragma once
 
 #include <array>
@@ -80,6 +80,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   void fault_message(char* out, size_t cap) const override;
   double encoder_mm(int joint) const override;
   unsigned long long encoder_samples() const override { return encoder_samples_.load(std::memory_order_relaxed); }
+  unsigned long long encoder_reports(int joint) const override;
 
   // stepgen::BatchSink (servo thread): StepBatch::axis is the joint index.
   void on_batch(const stepgen::StepBatch& batch) override;
@@ -141,6 +142,8 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   Seqlock<FaultText> fault_text_;
   std::array<std::atomic<double>, kJoints> encoder_mm_{};
   std::atomic<unsigned long long> encoder_samples_{0};
+  std::array<std::atomic<unsigned long long>, kJoints> encoder_reports_{};
+  std::vector<drivers::EncoderSample> sample_buffer_;  // servo thread (swapped with the sessions')
 
   mutable std::mutex events_mutex_;  // taken only when an event happens (rare, not steady state)
   std::vector<std::string> events_;

@@ -1,6 +1,8 @@
 #include "engine/motion_executor.hpp"
 
 #include <algorithm>  // std::max
+#include <cmath>      // std::floor, NAN
+#include <cstdio>     // snprintf
 #include <thread>     // sleep_for
 
 namespace feedloop::engine {
@@ -16,6 +18,14 @@ MotionExecutor::MotionExecutor(const planner::PlannerConfig& pcfg, const StepPip
       batches_(std::move(batches)),
       steps_(sp, batches_.get()) {
   interp_ = std::make_unique<planner::Interpreter>(pcfg_, *kin_, planner_);
+  timeline_ = std::make_unique<planner::MoveTimeline>(options_.timeline_capacity);
+}
+
+void MotionExecutor::set_control(std::unique_ptr<ServoControl> control) {
+  control_ = std::move(control);
+  // Samples between the feedback instant (now) and the newest command (control_lead_s ahead).
+  const double period_s = pcfg_.servo_period_s;
+  history_.assign(static_cast<size_t>(options_.control_lead_s / period_s) + 16, Sample{});
 }
 
 Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) {
@@ -28,6 +38,7 @@ Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool
     backend_->fault_message(msg, sizeof msg);
     return Error{std::string("motion stopped: ") + msg};
   }
+  if (motion && control_fault_.load()) return Error{std::string("motion stopped: ") + control_fault_text_};
   if (motion) wait_for_room(cancel);
   Status st = interp_->execute(cmd);
   planner_queued_.store(planner_.queued());
@@ -69,9 +80,11 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
     s.encoder_samples = backend_->encoder_samples();
     if (backend_->fault()) backend_->fault_message(s.last_error, sizeof s.last_error);
   }
+  if (control_fault_.load()) std::snprintf(s.last_error, sizeof s.last_error, "%s", control_fault_text_);
 }
 
 void MotionExecutor::on_move(const planner::PlannedMove& m) {
+  if (tap_ != nullptr) tap_->on_planned_move(m);
   if (pushed_.load() == popped_.load() && !telemetry_.anchored.load())
     idle_base_s_.store(m.start_time_s);  // the servo side is at rest: motion restarts here
   while (!queue_.try_push(m)) {
@@ -154,19 +167,18 @@ void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
     for (int j = 0; j < kJoints; ++j) maps[static_cast<size_t>(j)] = backend_->tick_map(j);
     steps_.set_clock_maps(maps);
   }
-  if (cancel) {  // drop everything not yet turned into steps
+  if (cancel || control_fault_.load(std::memory_order_relaxed)) {  // drop everything not yet turned into steps
     drop_queued_moves();
+    return;
+  }
+  if (control_) {
+    sampled_cycle(now_s, 0.0);
     return;
   }
   const double horizon_s = now_s + options_.lead_s;
   while (const planner::PlannedMove* front = queue_.front()) {
     if (!anchored) {  // motion starts from rest: its print time runs lead_s from now
-      if (resync_) {  // after a fault the steps sent were not all executed: restart from the plan
-        const planner::Joints q = kin_->inverse({front->start_mm[0], front->start_mm[1], front->start_mm[2]});
-        for (int j = 0; j < 3; ++j) steps_.set_position_mm(j, q[static_cast<size_t>(j)]);
-        steps_.set_position_mm(3, front->start_mm[3]);
-        resync_ = false;
-      }
+      if (resync_) resync_to(*front);
       offset_s_ = horizon_s - front->start_time_s;
       steps_.set_time_offset_s(offset_s_);
       anchored = true;
@@ -175,6 +187,7 @@ void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
     if (front->start_time_s + offset_s_ > horizon_s) break;
     emitter_.emit(*front, steps_);  // joint segments straight into step generation
     executed_end_s_ = std::max(executed_end_s_, front->end_time_s());
+    if (tap_ != nullptr) timeline_->push(*front);
     queue_.try_pop(current_);
     popped_.fetch_add(1, std::memory_order_release);
     telemetry_.segments.fetch_add(1, std::memory_order_relaxed);
@@ -183,8 +196,194 @@ void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   const double print_now_s = now_s - offset_s_;
   steps_.flush_due(print_now_s + options_.lead_s);
   telemetry_.print_time_s.store(print_now_s, std::memory_order_relaxed);
+  if (tap_ != nullptr) {  // F = 1: the command is the plan
+    control::FeedforwardInput r;
+    reference(print_now_s, r);
+    publish_sample(now_s, print_now_s, r.r_mm, r.r_mm, r.nozzle_mm);
+  }
   // Done when nothing is queued and the last segment's time has passed on the machine.
   if (queue_.empty() && print_now_s > executed_end_s_ && planner_queued_.load() == 0) {
+    steps_.flush();
+    anchored = false;
+  }
+  telemetry_.anchored.store(anchored, std::memory_order_relaxed);
+}
+
+// After power-on or a fault: the joints restart from the plan (the steps queued before were not
+// all executed), and the encoders are re-referenced to it.
+void MotionExecutor::resync_to(const planner::PlannedMove& front) {
+  const planner::Joints q = kin_->inverse({front.start_mm[0], front.start_mm[1], front.start_mm[2]});
+  for (int j = 0; j < 3; ++j) steps_.set_position_mm(j, q[static_cast<size_t>(j)]);
+  steps_.set_position_mm(3, front.start_mm[3]);
+  for (int j = 0; j < kJoints; ++j) {
+    const double pos = j < 3 ? q[static_cast<size_t>(j)] : front.start_mm[3];
+    const double enc = backend_ != nullptr ? backend_->encoder_mm(j) : NAN;
+    encoder_offset_mm_[static_cast<size_t>(j)] = pos - (std::isfinite(enc) ? enc : 0.0);
+    last_command_mm_[static_cast<size_t>(j)] = pos;
+  }
+  resync_ = false;
+}
+
+// The plan at print time t_s: joint positions through the kinematics, and the nozzle. False when
+// no planned move covers t_s (before the first, in a gap, after the last: the nearest end).
+bool MotionExecutor::reference(double t_s, control::FeedforwardInput& out) const {
+  planner::CartesianSample c;
+  const bool covered = timeline_->sample(t_s, c);
+  if (timeline_->size() == 0) return false;
+  const planner::Joints q = kin_->inverse({c.pos_mm[0], c.pos_mm[1], c.pos_mm[2]});
+  for (int j = 0; j < 3; ++j) out.r_mm[static_cast<size_t>(j)] = q[static_cast<size_t>(j)];
+  out.r_mm[3] = c.pos_mm[3];
+  for (int i = 0; i < 3; ++i) out.nozzle_mm[static_cast<size_t>(i)] = c.pos_mm[static_cast<size_t>(i)];
+  return covered;
+}
+
+void MotionExecutor::publish_sample(double now_s, double print_time_s, const control::JointArray& desired_mm,
+                                    const control::JointArray& command_mm, const std::array<double, 3>& nozzle_mm) {
+  ServoSample s;
+  s.host_time_s = now_s;
+  s.print_time_s = print_time_s;
+  s.desired_mm = desired_mm;
+  s.command_mm = command_mm;
+  s.nozzle_mm = nozzle_mm;
+  for (int j = 0; j < kJoints; ++j) {
+    const size_t i = static_cast<size_t>(j);
+    const double enc = backend_ != nullptr ? backend_->encoder_mm(j) : NAN;
+    s.encoder_mm[i] = enc + encoder_offset_mm_[i];
+    const double spm = steps_.params().steps_per_mm[i];
+    s.steps_mm[i] = spm > 0.0 ? static_cast<double>(steps_.position_steps(j)) / spm : NAN;
+  }
+  tap_->on_servo_sample(s);
+}
+
+// Motion starts from rest on the sampled path: the first command sample is the first move's
+// start, control_lead_s from now.
+void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now_s) {
+  // The first move's start, at rest: the reference every filter starts from.
+  control::FeedforwardInput at;
+  const planner::CartesianSample c = planner::sample_move(first, first.start_time_s);
+  const planner::Joints q = kin_->inverse({c.pos_mm[0], c.pos_mm[1], c.pos_mm[2]});
+  for (int j = 0; j < 3; ++j) at.r_mm[static_cast<size_t>(j)] = q[static_cast<size_t>(j)];
+  at.r_mm[3] = c.pos_mm[3];
+  for (int i = 0; i < 3; ++i) at.nozzle_mm[static_cast<size_t>(i)] = c.pos_mm[static_cast<size_t>(i)];
+  if (resync_) {
+    resync_to(first);
+    control_->reset_all(at);
+  }
+  next_sample_s_ = first.start_time_s + plan_shift_s_;  // servo time (monotonic across stops)
+  offset_s_ = now_s + options_.control_lead_s - next_sample_s_;
+  steps_.set_time_offset_s(offset_s_);
+  control_->reset_feedforward(at);
+  // The motor is where the steps put it; the correction the PI holds is part of that.
+  sample_no_ = 0;
+  Sample& s0 = history_[0];
+  s0.t_s = next_sample_s_;
+  s0.r_mm = at.r_mm;
+  s0.nozzle_mm = at.nozzle_mm;
+  s0.u_ff_mm = at.r_mm;
+  s0.u_mm = last_command_mm_;
+}
+
+void MotionExecutor::sampled_cycle(double now_s, double /*unused*/) {
+  const double period_s = pcfg_.servo_period_s;
+  const int preview = control_->preview_samples();
+  const double lead_s = options_.control_lead_s;
+  bool anchored = telemetry_.anchored.load(std::memory_order_relaxed);
+  if (!anchored) {
+    const planner::PlannedMove* front = queue_.front();
+    if (front == nullptr) return;
+    start_sampled(*front, now_s);
+    anchored = true;
+    telemetry_.anchors.fetch_add(1, std::memory_order_relaxed);
+  }
+  const double print_now_s = now_s - offset_s_;
+  // Moves into the timeline as far as this cycle's newest sample and its preview reach.
+  const double need_s = print_now_s + lead_s + (preview + 2) * period_s;
+  while (const planner::PlannedMove* front = queue_.front()) {
+    if (front->start_time_s + plan_shift_s_ > need_s) break;
+    planner::PlannedMove m = *front;
+    // A move planned after the plan had run out while the loop was still holding the position:
+    // the plan's clock stood still meanwhile, so the rest of the plan moves later by the gap.
+    if (m.start_time_s + plan_shift_s_ < next_sample_s_ - 1e-9) plan_shift_s_ = next_sample_s_ - m.start_time_s;
+    m.start_time_s += plan_shift_s_;
+    timeline_->push(m);
+    executed_end_s_ = std::max(executed_end_s_, m.end_time_s());
+    queue_.try_pop(current_);
+    popped_.fetch_add(1, std::memory_order_release);
+    telemetry_.segments.fetch_add(1, std::memory_order_relaxed);
+  }
+  // Feedback: the encoders now against the samples commanded for now.
+  const size_t cap = history_.size();
+  uint64_t n_now = sample_no_;
+  while (n_now > 0 && history_[n_now % cap].t_s > print_now_s + 1e-9 && sample_no_ - n_now + 1 < cap) --n_now;
+  const Sample& at_now = history_[n_now % cap];
+  control::JointArray enc{};
+  std::array<bool, 4> fresh{};
+  for (int j = 0; j < kJoints; ++j) {
+    const size_t i = static_cast<size_t>(j);
+    const double e = backend_ != nullptr ? backend_->encoder_mm(j) : NAN;
+    enc[i] = e + encoder_offset_mm_[i];
+    const unsigned long long reports = backend_ != nullptr ? backend_->encoder_reports(j) : 0;
+    fresh[i] = reports != encoder_reports_seen_[i];
+    encoder_reports_seen_[i] = reports;
+  }
+  if (control_->closed_loop()) {
+    control::JointArray lead_mm{};
+    for (size_t i = 0; i < lead_mm.size(); ++i) lead_mm[i] = at_now.u_ff_mm[i] - at_now.r_mm[i];
+    ServoEvent ev;
+    bool has_event = false;
+    const bool ok = control_->update_feedback(print_now_s, at_now.r_mm, enc, at_now.u_mm, lead_mm, fresh, &ev, &has_event);
+    if (has_event && tap_ != nullptr) tap_->on_servo_event(ev);
+    if (has_event) lost_step_events_.fetch_add(1, std::memory_order_relaxed);
+    if (!ok) {
+      std::snprintf(control_fault_text_, sizeof control_fault_text_, "%s", control_->fault_text());
+      control_fault_.store(true);
+      if (tap_ != nullptr) tap_->on_servo_event(ev);
+      drop_queued_moves();
+      resync_ = true;
+      return;
+    }
+  }
+  // Command samples up to control_lead_s ahead: u = F(r) + C(e), one linear segment per period;
+  // after the plan's end (and the feedforward's preview), the loop holds the position for
+  // control_settle_s more (the PI removes what is left of the error), then stops.
+  const bool plan_empty = queue_.empty() && planner_queued_.load() == 0;
+  const double hold_s = control_->closed_loop() ? options_.control_settle_s : 0.0;
+  const double stop_s = executed_end_s_ + preview * period_s + hold_s;
+  while (next_sample_s_ + period_s <= print_now_s + lead_s + 1e-9 && !(plan_empty && next_sample_s_ >= stop_s)) {
+    const double t_s = next_sample_s_ + period_s;
+    control::FeedforwardInput ahead;
+    reference(t_s + preview * period_s, ahead);
+    control::JointArray u_ff{}, u{};
+    control_->command(ahead, u_ff, u);
+    const Sample& prev = history_[sample_no_ % cap];
+    for (int j = 0; j < kJoints; ++j) {
+      const size_t i = static_cast<size_t>(j);
+      if (steps_.params().steps_per_mm[i] <= 0.0) continue;
+      JointSegment seg;
+      seg.t0_s = t_s - period_s;
+      seg.duration_s = period_s;
+      seg.c0_mm = prev.u_mm[i];
+      seg.c1_mm_s = (u[i] - prev.u_mm[i]) / period_s;
+      steps_.on_joint_segment(j, seg);
+    }
+    ++sample_no_;
+    Sample& s = history_[sample_no_ % cap];
+    control::FeedforwardInput now_ref;
+    reference(t_s, now_ref);
+    s.t_s = t_s;
+    s.r_mm = now_ref.r_mm;
+    s.nozzle_mm = now_ref.nozzle_mm;
+    s.u_ff_mm = u_ff;
+    s.u_mm = u;
+    last_command_mm_ = u;
+    next_sample_s_ = t_s;
+  }
+  steps_.flush_due(print_now_s + lead_s);
+  telemetry_.print_time_s.store(print_now_s - plan_shift_s_, std::memory_order_relaxed);
+  if (tap_ != nullptr) publish_sample(now_s, print_now_s - plan_shift_s_, at_now.r_mm, at_now.u_mm, at_now.nozzle_mm);
+  // Done when everything planned has been commanded (with the feedforward's preview drained and
+  // the hold over) and executed.
+  if (plan_empty && next_sample_s_ >= stop_s && print_now_s >= next_sample_s_) {
     steps_.flush();
     anchored = false;
   }

@@ -3,7 +3,16 @@
 //
 //   planner thread: Interpreter -> Planner (lookahead) -> SpscQueue<PlannedMove>
 //   servo thread:   SpscQueue -> JointEmitter -> StepPipeline (exact steps, compression,
-//                   batches) -> BatchSink
+//                   batches) -> BatchSink                                    (exact path)
+//                   SpscQueue -> MoveTimeline -> sampled every period -> ServoControl
+//                   (feedforward + PI on the encoders) -> StepPipeline       (sampled path)
+//
+// The exact path turns each planned move into its exact joint polynomials lead_s ahead (open
+// loop, F = 1). The sampled path (DESIGN.md "Data flow": control between planner and stepgen)
+// runs when the config asks for closed-loop control or a feedforward filter: every period it
+// samples the plan P periods ahead (the feedforward's preview), computes the motor command
+// u = F(r) + C(r - x_e) for `control_lead_s` ahead (a few periods, so the PI sees its own effect
+// within a few periods) and emits the linear joint segment from the previous command to it.
 //
 // The planner stays at most `max_buffered_s` of motion ahead of the machine: a motion command
 // waits for room before it is executed (never in the middle of a lookahead flush), so a host's
@@ -19,16 +28,20 @@
 #include <atomic>
 #include <chrono>
 #include <memory>
+#include <vector>
 
 #include "core/spsc_queue.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/machine.hpp"
+#include "engine/servo_control.hpp"
+#include "engine/telemetry_tap.hpp"
 #include "engine/servo_backend.hpp"
 #include "engine/step_pipeline.hpp"
 #include "planner/interpreter.hpp"
 #include "planner/joint_output.hpp"
 #include "planner/kinematics.hpp"
 #include "planner/lookahead.hpp"
+#include "planner/sampler.hpp"
 
 namespace feedloop::engine {
 
@@ -38,6 +51,10 @@ struct MotionOptions {
   double input_pause_flush_s = 0.05;  // flush the lookahead after this long without commands
   double max_buffered_s = 1.0;        // the planner runs at most this far ahead of the machine, so
                                       // a host's oks follow the motion (Marlin's buffer ~ 16 moves)
+  double control_lead_s = 0.004;      // sampled path: commands are computed this far ahead
+  double control_settle_s = 0.4;      // closed loop: the loop holds the position this long after
+                                      // the plan's end (thesis Sect. 5.1: the integrator needs ~400 ms)
+  size_t timeline_capacity = 8192;    // sampled path: planned moves kept for sampling
 };
 
 // Figures the servo side publishes (relaxed atomics; for status and tests).
@@ -67,6 +84,10 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   // Each servo cycle then services it first, takes its clock estimates for step timing, waits
   // for ready() before motion starts from rest, and stops motion on fault().
   void set_backend(ServoBackend* backend) { backend_ = backend; }
+  // The control law: with one set, the servo cycle takes the sampled path. Before start.
+  void set_control(std::unique_ptr<ServoControl> control);
+  // An observer of planned moves, servo samples and events (the recorder; benchmarks). Before start.
+  void set_telemetry(TelemetryTap* tap) { tap_ = tap; }
 
   const MotionTelemetry& telemetry() const { return telemetry_; }
   const StepPipeline& steps() const { return steps_; }  // servo thread owns it
@@ -110,6 +131,32 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   bool resync_ = true;
   void drop_queued_moves();
   planner::PlannedMove current_;  // the move most recently handed to step generation
+  // Sampled path (servo thread).
+  void sampled_cycle(double now_s, double unused);
+  void start_sampled(const planner::PlannedMove& first, double now_s);
+  void resync_to(const planner::PlannedMove& front);
+  bool reference(double t_s, control::FeedforwardInput& out) const;
+  void publish_sample(double now_s, double print_time_s, const control::JointArray& desired_mm,
+                      const control::JointArray& command_mm, const std::array<double, 3>& nozzle_mm);
+  std::atomic<uint64_t> lost_step_events_{0};
+  std::unique_ptr<ServoControl> control_;
+  std::unique_ptr<planner::MoveTimeline> timeline_;
+  struct Sample {  // one command sample, kept for the feedback comparison
+    double t_s = 0.0;
+    control::JointArray r_mm{}, u_mm{}, u_ff_mm{};
+    std::array<double, 3> nozzle_mm{};
+  };
+  std::vector<Sample> history_;  // ring, indexed by sample number
+  uint64_t sample_no_ = 0;       // samples emitted since the anchor
+  double next_sample_s_ = 0.0;   // servo time of the last command sample (segment end)
+  double plan_shift_s_ = 0.0;    // servo time - plan (print) time: grows when a move arrives
+                                 // while the loop holds the position after the plan's end
+  control::JointArray encoder_offset_mm_{};
+  control::JointArray last_command_mm_{};
+  std::array<unsigned long long, 4> encoder_reports_seen_{};    // the motor command the steps follow (sampled path)  // joint position - encoder reading, set at resync
+  TelemetryTap* tap_ = nullptr;
+  std::atomic<bool> control_fault_{false};
+  char control_fault_text_[160] = {};
   double offset_s_ = 0.0;
   double executed_end_s_ = 0.0;
   std::atomic<uint64_t> popped_{0};

@@ -28,6 +28,8 @@ class ServoBackend {
   // no report arrived yet) and the number of encoder samples received. Any thread.
   virtual double encoder_mm(int joint) const = 0;
   virtual unsigned long long encoder_samples() const = 0;
+  // Encoder reports that updated `joint` so far (a new value arrived when it changes). Any thread.
+  virtual unsigned long long encoder_reports(int /*joint*/) const { return encoder_samples(); }
 };
 
 }  // namespace feedloop::engine

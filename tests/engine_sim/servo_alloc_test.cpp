@@ -1,7 +1,8 @@
 // Heap allocations in the servo cycle in steady motion, counted by interposing malloc (skipped
-// under sanitizers, which own malloc): the executor and step pipeline allocate nothing; with
-// the MCU bridge the count per cycle is measured and reported (the drivers' McuSession and
-// MockTransport allocate per message and per frame today; see the report printed here).
+// under sanitizers, which own malloc): the executor and step pipeline allocate nothing, nor does
+// the cycle with the MCU bridge (sessions, mock links, virtual MCUs, plants), on the exact
+// open-loop path and on the sampled closed-loop path (feedforward + PI + lost-step detector +
+// encoder guards).
 #include <atomic>
 #include <cstddef>
 #include <cstdio>
@@ -66,7 +67,36 @@ TEST(ServoAlloc, ExecutorAndPipelineAllocateNothingBridgeIsMeasured) {
               "bridge (4 MCUs) %.2f per cycle\n",
               ideal_mallocs, per_cycle);
   EXPECT_GT(rig.bridge->timing(0).steps_executed, steps0 + 1000);  // it moved
-  EXPECT_LT(per_cycle, 10.0);  // measured ~2; regression guard; the drivers' session/mock allocate per message
+  EXPECT_EQ(g_mallocs.load(), 0);
+#endif
+}
+
+TEST(ServoAlloc, ClosedLoopCycleAllocatesNothing) {
+#ifndef FEEDLOOP_COUNT_MALLOC
+  GTEST_SKIP() << "malloc counting needs glibc and no sanitizer";
+#else
+  for (auto ff : {config::FeedforwardType::none, config::FeedforwardType::shaper, config::FeedforwardType::lpv}) {
+    config::MachineConfig cfg = config::default_config();
+    cfg.control.mode = config::ControlMode::pi;
+    cfg.feedforward.type = ff;
+    testing::SimRig rig(cfg);
+    auto control = make_servo_control(cfg);
+    ASSERT_TRUE(control.ok()) << control.error().message;
+    ASSERT_TRUE(control.value());
+    rig.ex->set_control(std::move(control.value()));
+    ASSERT_TRUE(rig.wait_ready());
+    ASSERT_EQ(rig.execute(kLongMove), "");
+    rig.run_for(0.3);
+    const uint64_t steps0 = rig.bridge->timing(0).steps_executed;
+    g_mallocs = 0;
+    g_counting = true;
+    rig.run_for(0.5);
+    g_counting = false;
+    std::printf("closed loop, feedforward %d: %ld allocations in 500 servo cycles\n", static_cast<int>(ff),
+                g_mallocs.load());
+    EXPECT_GT(rig.bridge->timing(0).steps_executed, steps0 + 1000);  // it moved
+    EXPECT_EQ(g_mallocs.load(), 0);
+  }
 #endif
 }
 

@@ -1,0 +1,164 @@
+// The servo thread's control law (see servo_control.hpp).
+#include "engine/servo_control.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+
+#include "control/feedforward/model_feedforward.hpp"
+#include "control/input_shaper.hpp"
+#include "engine/config_mapping.hpp"
+#include "model/gantry_axis.hpp"
+#include "planner/kinematics.hpp"
+
+namespace feedloop::engine {
+
+Result<std::unique_ptr<ServoControl>> ServoControl::create(const ServoControlParams& p,
+                                                           std::unique_ptr<control::Feedforward> feedforward) {
+  if (!feedforward) feedforward = std::make_unique<control::IdentityFeedforward>();
+  std::unique_ptr<ServoControl> c(new ServoControl(p, std::move(feedforward)));
+  const char* names[4] = {"j0", "j1", "j2", "j3"};
+  for (size_t j = 0; j < 4; ++j) {
+    if (Status s = c->pi_[j].configure(control::pi_params_from_config(p.control, p.period_s)); !s)
+      return Error{std::string("control: ") + s.error().message};
+    if (Status s = c->lost_[j].configure(control::lost_step_params_from_config(p.control, p.mm_per_full_step[j])); !s)
+      return Error{std::string("control: ") + s.error().message};
+    const std::string axis = p.joint_names[j].empty() ? names[j] : p.joint_names[j];
+    if (Status s = c->guard_[j].configure(control::encoder_guard_params_from_config(p.control, axis)); !s)
+      return Error{std::string("control: ") + s.error().message};
+    if (p.carriage_model[j]) {
+      auto d = model::discretize_zoh(*p.carriage_model[j], p.period_s);
+      if (!d.ok()) return Error{"control: carriage model of " + axis + ": " + d.error().message};
+      if (Status s = c->carriage_[j].configure(d.value()); !s)
+        return Error{"control: carriage model of " + axis + ": " + s.error().message};
+      c->has_model_[j] = true;
+    }
+  }
+  return c;
+}
+
+ServoControl::ServoControl(const ServoControlParams& p, std::unique_ptr<control::Feedforward> ff)
+    : p_(p), closed_loop_(p.control.mode == config::ControlMode::pi), ff_(std::move(ff)) {}
+
+void ServoControl::reset_feedforward(const control::FeedforwardInput& at) { ff_->reset(at); }
+
+void ServoControl::reset_all(const control::FeedforwardInput& at) {
+  ff_->reset(at);
+  for (size_t j = 0; j < 4; ++j) {
+    pi_[j].reset();
+    lost_[j].reset();
+    guard_[j].reset();
+  }
+  correction_mm_.fill(0.0);
+  model_primed_.fill(false);
+  residual_base_mm_.fill(0.0);
+  fault_text_[0] = '\0';
+}
+
+bool ServoControl::update_feedback(double print_time_s, const control::JointArray& desired_mm,
+                                   const control::JointArray& encoder_mm, const control::JointArray& motor_mm,
+                                   const control::JointArray& expected_lead_mm, const std::array<bool, 4>& fresh,
+                                   ServoEvent* event, bool* has_event) {
+  *has_event = false;
+  for (size_t j = 0; j < 4; ++j) {
+    if (!p_.has_encoder[j]) continue;
+    control::EncoderGuardInput in;
+    in.fresh = fresh[j];
+    in.encoder_mm = encoder_mm[j];
+    in.reference_mm = desired_mm[j];
+    if (guard_[j].update(in) != control::EncoderFault::none) {
+      std::snprintf(fault_text_, sizeof fault_text_, "%s", guard_[j].message());
+      event->kind = guard_[j].fault() == control::EncoderFault::following_error ? ServoEventKind::kFollowingError
+                                                                                : ServoEventKind::kEncoderFault;
+      event->print_time_s = print_time_s;
+      event->joint = static_cast<int>(j);
+      event->size_mm = desired_mm[j] - encoder_mm[j];
+      return false;
+    }
+    if (!std::isfinite(encoder_mm[j])) continue;  // no report yet
+    // Lost steps: where the model puts the carriage for the motor commands sent (y_hat) against
+    // the encoder. Slow drifts of this residual (a steps/mm error the PI is correcting, thermal
+    // growth) are tracked by a baseline and are not slips; a slip is a sudden jump of a whole
+    // torque cycle of the stepper (4 full steps). Recovery: the motor command is shifted by the
+    // slip, so the field moves back onto the rotor; the model sees the same shift, so the
+    // residual returns to where it was once the carriage is back.
+    double y_hat_mm = motor_mm[j] - expected_lead_mm[j];
+    if (has_model_[j]) {
+      const double u_m = motor_mm[j] * 1e-3;
+      if (!model_primed_[j]) {
+        carriage_[j].reset_to_steady_state(&u_m);
+        model_primed_[j] = true;
+        residual_base_mm_[j] = motor_mm[j] - encoder_mm[j];
+      }
+      double y_m = 0.0;
+      carriage_[j].step(&u_m, &y_m);
+      y_hat_mm = y_m * 1e3;
+    }
+    const double residual_mm = y_hat_mm - encoder_mm[j];
+    if (!lost_[j].pending())
+      residual_base_mm_[j] += (residual_mm - residual_base_mm_[j]) * (p_.period_s / p_.residual_baseline_s);
+    // The detector keeps the sum S of the slips it reported and subtracts it; the residual has
+    // already recovered from them (see above), so S is added back.
+    if (auto slip = lost_[j].update(residual_mm - residual_base_mm_[j] + lost_[j].total_mm(), 0.0, 0.0)) {
+      pi_[j].shift(slip->size_mm);
+      event->kind = ServoEventKind::kLostSteps;
+      event->print_time_s = print_time_s;
+      event->joint = static_cast<int>(j);
+      event->size_mm = slip->size_mm;
+      *has_event = true;
+    }
+    correction_mm_[j] = pi_[j].update(desired_mm[j] - encoder_mm[j]);
+  }
+  return true;
+}
+
+void ServoControl::command(const control::FeedforwardInput& ahead, control::JointArray& u_ff_mm,
+                           control::JointArray& u_mm) {
+  ff_->step(ahead, u_ff_mm);
+  for (size_t j = 0; j < 4; ++j) u_mm[j] = u_ff_mm[j] + (closed_loop_ ? correction_mm_[j] : 0.0);
+}
+
+// ---- from the config -----------------------------------------------------------------------------
+
+Result<std::unique_ptr<ServoControl>> make_servo_control(const config::MachineConfig& cfg) {
+  const bool closed = cfg.control.mode == config::ControlMode::pi;
+  if (!closed && cfg.feedforward.type == config::FeedforwardType::none) return std::unique_ptr<ServoControl>();
+  const double period_s = 1.0 / cfg.servo.rate_hz;
+  ServoControlParams p;
+  p.control = cfg.control;
+  p.period_s = period_s;
+  const auto names = joint_names(cfg);
+  for (size_t j = 0; j < 4; ++j) {
+    p.joint_names[j] = names[j];
+    const config::AxisConfig* a = cfg.axis(names[j]);
+    p.has_encoder[j] = closed && a != nullptr && a->encoder.has_value();
+    // A stepper's torque law repeats every 4 full steps: 2 pi r / n_r per cycle (thesis Eq. 2).
+    if (const config::GantryModelConfig* g = cfg.model.gantry_for(names[j]);
+        g != nullptr && cfg.kinematics != config::Kinematics::delta) {
+      p.mm_per_full_step[j] = 2.0 * std::numbers::pi * g->stepper.pulley_radius_mm / (4.0 * g->stepper.rotor_teeth);
+      p.carriage_model[j] = model::gantry_state_space(control::gantry_params_from_config(*g));
+    }
+  }
+  std::unique_ptr<control::Feedforward> ff;
+  switch (cfg.feedforward.type) {
+    case config::FeedforwardType::none: break;
+    case config::FeedforwardType::shaper: {
+      const auto kin = planner::make_kinematics(planner_config(cfg));
+      auto setup = control::input_shaper_setup(cfg.feedforward.shaper, *kin, period_s);
+      if (!setup.ok()) return Error{"feedforward.shaper: " + setup.error().message};
+      auto shaper = std::make_unique<control::InputShaper>();
+      if (Status s = shaper->configure(setup.value()); !s) return Error{"feedforward.shaper: " + s.error().message};
+      ff = std::move(shaper);
+      break;
+    }
+    case config::FeedforwardType::lpv: {
+      auto m = control::make_model_feedforward(cfg, period_s, cfg.feedforward.lpv.freeze_at_centre);
+      if (!m.ok()) return Error{"feedforward.lpv: " + m.error().message};
+      ff = std::move(m.value());
+      break;
+    }
+  }
+  return ServoControl::create(p, std::move(ff));
+}
+
+}  // namespace feedloop::engine

@@ -1,0 +1,122 @@
+// run_simulated (see sim_run.hpp): the motion executor with the MCU bridge (sessions, mock
+// transports, virtual MCUs, plants) built by the daemon's own factory, driven in virtual time
+// from one thread: commands are executed on the planner side, and servo_cycle() runs every
+// period in between, exactly as Machine's two threads interleave them in virtual time, but
+// deterministically (the same input gives the same samples, bit for bit).
+#include "engine/sim_run.hpp"
+
+#include <cmath>
+#include <sstream>
+
+#include "engine/executor_factory.hpp"
+#include "engine/mcu_bridge.hpp"
+#include "engine/motion_executor.hpp"
+#include "gcode/parser.hpp"
+
+namespace feedloop::engine {
+namespace {
+
+// Servo thread: each sample with the plant's ground truth at the same instant (the bridge has
+// advanced the plants to the cycle's time before the executor publishes).
+class Recorder final : public TelemetryTap {
+ public:
+  Recorder(SimRunResult& out, McuBridge& bridge, bool keep, bool delta)
+      : out_(out), bridge_(bridge), keep_(keep), delta_(delta) {}
+  void on_servo_sample(const ServoSample& s) override {
+    if (!keep_) return;
+    SimRunSample r;
+    r.servo = s;
+    r.actual_mm.fill(NAN);
+    r.actual_nozzle_mm.fill(NAN);
+    if (delta_) {
+      if (sim::DeltaPlant* d = bridge_.delta()) {
+        for (int i = 0; i < 3; ++i) r.actual_mm[static_cast<size_t>(i)] = d->carriage_mm(i);
+        const Eigen::Vector3d n = d->nozzle_mm();
+        for (int i = 0; i < 3; ++i) r.actual_nozzle_mm[static_cast<size_t>(i)] = n[i];
+      }
+    } else {
+      for (int j = 0; j < 3; ++j)
+        if (sim::GantryAxis* g = bridge_.gantry(j)) {
+          r.actual_mm[static_cast<size_t>(j)] = g->carriage_mm();
+          r.actual_nozzle_mm[static_cast<size_t>(j)] = g->carriage_mm();
+        }
+    }
+    out_.samples.push_back(r);
+  }
+  void on_servo_event(const ServoEvent& e) override { out_.events.push_back(e); }
+
+ private:
+  SimRunResult& out_;
+  McuBridge& bridge_;
+  bool keep_, delta_;
+};
+
+}  // namespace
+
+Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::vector<std::string>& gcode_lines,
+                                   const SimRunOptions& options) {
+  MotionOptions mo = motion_options(cfg);
+  mo.max_buffered_s = 1e6;       // execute() never waits for the servo: this thread runs both
+  mo.input_pause_flush_s = 0.0;  // idle_tick() releases the lookahead at once
+  auto stack = make_motion_stack(cfg, mo);
+  if (!stack.ok()) return stack.error();
+  if (!stack.value().bridge) return Error{"run_simulated: the config has no MCUs (use the mock transport)"};
+  MotionExecutor& ex = *stack.value().executor;
+  McuBridge& bridge = *stack.value().bridge;
+
+  SimRunResult out;
+  if (options.keep_samples) out.samples.reserve(1 << 16);
+  Recorder rec(out, bridge, options.keep_samples, cfg.kinematics == config::Kinematics::delta);
+  ex.set_telemetry(&rec);
+
+  const double period_s = 1.0 / cfg.servo.rate_hz;
+  const int64_t period_ns = static_cast<int64_t>(std::llround(period_s * 1e9));
+  int64_t now_ns = 1'000'000'000;
+  const int64_t end_ns = now_ns + static_cast<int64_t>(options.timeout_s * 1e9);
+  std::atomic<bool> cancel{false};
+  auto cycle = [&] {
+    now_ns += period_ns;
+    ex.servo_cycle(now_ns, false);
+  };
+  while (!bridge.ready() && now_ns < end_ns) cycle();
+  if (!bridge.ready()) return Error{"run_simulated: the simulated MCUs did not become ready"};
+
+  int line_no = 0;
+  for (const std::string& line : gcode_lines) {
+    ++line_no;
+    auto cmd = gcode::parse_line(line, SourceLocation{"sim_run", line_no, 0});
+    if (!cmd.ok()) {
+      ++out.rejected;
+      if (out.error.empty()) out.error = cmd.error().message;
+      continue;
+    }
+    if (Status st = ex.execute(cmd.value(), cancel); !st) {
+      ++out.rejected;
+      if (out.error.empty()) out.error = "line " + std::to_string(line_no) + ": " + st.error().message;
+      continue;
+    }
+    ++out.commands;
+    // Keep the move queue from filling: let the machine run while much is queued.
+    MachineStatus s;
+    ex.motion_status(s);
+    while (s.segments_queued > 1024 && now_ns < end_ns) {
+      cycle();
+      ex.motion_status(s);
+    }
+  }
+  ex.idle_tick(cancel);  // releases the lookahead's tail
+  while (ex.motion_pending() && now_ns < end_ns) cycle();
+  const int64_t settle_end = now_ns + static_cast<int64_t>(options.settle_s * 1e9);
+  while (now_ns < settle_end) cycle();
+  MachineStatus s;
+  ex.motion_status(s);
+  out.motion_time_s = s.planned_until_s;
+  if (out.error.empty() && s.last_error[0] != '\0') out.error = s.last_error;
+  if (ex.motion_pending() && out.error.empty()) out.error = "motion did not finish within the timeout";
+  for (int j = 0; j < 3; ++j)
+    if (sim::GantryAxis* g = bridge.gantry(j)) out.lost_full_steps[static_cast<size_t>(j)] = g->lost_full_steps();
+  ex.set_telemetry(nullptr);
+  return out;
+}
+
+}  // namespace feedloop::engine
