@@ -99,7 +99,7 @@ TEST(InputShaper, ResidualVibrationAtDesignPoint) {
       EXPECT_LT(fc::residual_vibration(impulses(ShaperType::zv, f, zeta), f, zeta), 1e-9);
       EXPECT_LT(fc::residual_vibration(impulses(ShaperType::mzv, f, zeta), f, zeta), 1e-9);
       const double v_ei = fc::residual_vibration(impulses(ShaperType::ei, f, zeta), f, zeta);
-      // Klipper's EI curve fit lands within 0.1 % of its V_tol = 5 % (measured 5.00-5.06 %).
+      // Klipper's EI curve fit only approximates its V_tol = 5 % (measured 4.88-5.06 % here).
       EXPECT_LE(v_ei, 0.051) << "zeta " << zeta;
       EXPECT_GT(v_ei, 0.03);  // EI is designed to V_tol = 5 % at f, not 0
     }

@@ -67,13 +67,13 @@ TEST(ControlPrimitivesRt, PerPeriodCallsDoNotAllocate) {
     if (k == 2500) pi.shift(0.8);
     const double slip = k >= 3000 ? 0.8 : 0.0;
     if (auto ev = det.update(t, t - slip)) events += static_cast<int>(ev->count);
-    guard.update({true, t + (k == 4000 ? 5.0 : 0.0), t});  // trips (jump) at k = 4000
+    guard.update({true, t + (k == 4000 ? 5.0 : 0.0), t});  // trips at k = 4000: 5 mm + 1 ms of motion
   }
   g_counting = false;
   EXPECT_EQ(g_mallocs.load(), 0);
   EXPECT_TRUE(std::isfinite(sum));
   EXPECT_EQ(events, 1);
   EXPECT_EQ(guard.fault(), fc::EncoderFault::jump);
-  EXPECT_STREQ(guard.message(), "x: encoder jump of 5.000 mm in 1 period(s) (limit 1.000 mm)");
+  EXPECT_STREQ(guard.message(), "x: encoder jump of 5.001 mm in 1 period(s) (limit 1.000 mm)");
 #endif
 }
