@@ -98,6 +98,18 @@ void check_machine(const MachineConfig& cfg, const Marks& marks, Diagnostics& di
       diag.add(marks.control, "control.mode is pi but no axis has an encoder; add axes.<name>.encoder "
                            "or use mode: open_loop");
   }
+  // drive: dc_servo is the output-maneuvering paper's Cartesian printer, and maneuver control
+  // needs its voltage-driven axes.
+  if (cfg.drive == Drive::dc_servo) {
+    if (cfg.kinematics != Kinematics::cartesian)
+      diag.add(marks.drive, "drive: dc_servo is a Cartesian printer (output-maneuvering model); kinematics is " +
+                                enum_name(kinematics_names(), cfg.kinematics));
+    if (cfg.control.mode != ControlMode::maneuver)
+      diag.add(marks.control, "drive: dc_servo needs control.mode: maneuver (voltage-driven axes are not "
+                              "stepped); mode is " + enum_name(control_mode_names(), cfg.control.mode));
+  } else if (cfg.control.mode == ControlMode::maneuver) {
+    diag.add(marks.control, "control.mode maneuver drives voltage-driven axes: it needs drive: dc_servo");
+  }
   if (cfg.feedforward.type == FeedforwardType::lpv && cfg.model.gantry.empty() &&
       !cfg.model.delta_lpv)
     diag.add(marks.feedforward, "feedforward.type lpv needs a model: model.gantry (cartesian/corexy) or "

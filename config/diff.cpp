@@ -10,6 +10,7 @@ std::vector<std::string> changed_sections(const MachineConfig& a, const MachineC
   };
   check(a.name == b.name, "name");
   check(a.kinematics == b.kinematics, "kinematics");
+  check(a.drive == b.drive, "drive");
   check(a.axes == b.axes, "axes");
   check(a.delta == b.delta, "delta");
   check(a.planner == b.planner, "planner");

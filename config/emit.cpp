@@ -110,6 +110,21 @@ void write_motion(Writer& w, const MachineConfig& c) {
   w.num("skipped_step_threshold_mm", k.skipped_step_threshold_mm);
   w.num("max_following_error_mm", k.max_following_error_mm);
   w.num("max_encoder_jump_mm", k.max_encoder_jump_mm);
+  const ManeuverControlConfig& m = k.maneuver;
+  w.begin("maneuver");
+  w.num("k_p_per_s", m.k_p_per_s);
+  w.num("k_d_per_s", m.k_d_per_s);
+  w.num("q1", m.q1);
+  w.num("q2", m.q2);
+  w.num("lambda_per_s", m.lambda_per_s);
+  w.num("mu", m.mu);
+  w.num("path_speed_mm_s", m.path_speed_mm_s);
+  w.word("speed_assignment", enum_name(maneuver_speed_names(), m.speed_assignment));
+  w.word("parameterization", enum_name(maneuver_parameterization_names(), m.parameterization));
+  w.num("arc_a1_mm", m.arc_a1_mm);
+  w.num("arc_a2_mm", m.arc_a2_mm);
+  w.num("arc_reach_mm", m.arc_reach_mm);
+  w.end();
   w.end();
 
   const FeedforwardConfig& f = c.feedforward;
@@ -133,6 +148,7 @@ void write_motion(Writer& w, const MachineConfig& c) {
   w.end();
   w.begin("lpv");
   w.num("preview_ms", f.lpv.preview_ms);
+  w.boolean("freeze_at_centre", f.lpv.freeze_at_centre);
   w.end();
   w.end();
 }
@@ -191,6 +207,19 @@ void write_model(Writer& w, const MachineConfig& c) {
     w.word("force_transform", enum_name(force_transform_names(), d.force_transform));
     w.end();
   }
+  if (c.drive == Drive::dc_servo) {
+    const CartesianDcConfig& d = c.model.cartesian_dc;
+    w.begin("cartesian_dc");
+    w.num("m_n_kg", d.m_n_kg);
+    w.num("m_x_kg", d.m_x_kg);
+    w.num("m_ps_kg", d.m_ps_kg);
+    w.num("j_m_kg_m2", d.j_m_kg_m2);
+    w.num("b_nm_s", d.b_nm_s);
+    w.num("r_a_ohm", d.r_a_ohm);
+    w.num("k_m_nm_per_a", d.k_m_nm_per_a);
+    w.num("pulley_radius_mm", d.pulley_radius_mm);
+    w.end();
+  }
   w.end();
 }
 
@@ -200,6 +229,7 @@ void write_hardware(Writer& w, const MachineConfig& c) {
   w.integer("mcu_clock_hz", c.stepgen.mcu_clock_hz);
   w.num("queue_ahead_ms", c.stepgen.queue_ahead_ms);
   w.end();
+  if (c.drive == Drive::dc_servo) return;  // no MCUs
   YAML::Emitter& out = w.raw();
   out << YAML::Key << "mcus" << YAML::Value << YAML::BeginSeq;
   for (const McuConfig& m : c.mcus) {
@@ -297,6 +327,7 @@ std::string to_yaml(const MachineConfig& c) {
   w.integer("config_version", 1);
   w.str("name", c.name);
   w.word("kinematics", enum_name(kinematics_names(), c.kinematics));
+  w.word("drive", enum_name(drive_names(), c.drive));
   write_axes(w, c);
   write_motion(w, c);
   write_model(w, c);

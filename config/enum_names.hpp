@@ -19,6 +19,22 @@ inline const EnumNames<Kinematics>& kinematics_names() {
                                           {"delta", Kinematics::delta}};
   return n;
 }
+inline const EnumNames<Drive>& drive_names() {
+  static const EnumNames<Drive> n = {{"stepper", Drive::stepper}, {"dc_servo", Drive::dc_servo}};
+  return n;
+}
+inline const EnumNames<ManeuverSpeed>& maneuver_speed_names() {
+  static const EnumNames<ManeuverSpeed> n = {{"constant", ManeuverSpeed::constant},
+                                             {"every_transition", ManeuverSpeed::every_transition},
+                                             {"sharp_corner", ManeuverSpeed::sharp_corner},
+                                             {"sharp_corner_arc", ManeuverSpeed::sharp_corner_arc}};
+  return n;
+}
+inline const EnumNames<ManeuverParameterization>& maneuver_parameterization_names() {
+  static const EnumNames<ManeuverParameterization> n = {{"unit", ManeuverParameterization::unit},
+                                                        {"arc_length", ManeuverParameterization::arc_length}};
+  return n;
+}
 inline const EnumNames<Cornering>& cornering_names() {
   static const EnumNames<Cornering> n = {{"junction_deviation", Cornering::junction_deviation},
                                          {"sharp_corner", Cornering::sharp_corner}};
@@ -31,7 +47,8 @@ inline const EnumNames<Profile>& profile_names() {
 }
 inline const EnumNames<ControlMode>& control_mode_names() {
   static const EnumNames<ControlMode> n = {{"open_loop", ControlMode::open_loop},
-                                           {"pi", ControlMode::pi}};
+                                           {"pi", ControlMode::pi},
+                                           {"maneuver", ControlMode::maneuver}};
   return n;
 }
 inline const EnumNames<FeedforwardType>& feedforward_names() {

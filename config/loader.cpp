@@ -30,6 +30,8 @@ void read_document(const YAML::Node& doc, MachineConfig& cfg, Diagnostics& diag)
   root.string("name", cfg.name);
   marks.kinematics = root.key_mark("kinematics");
   const bool kin_ok = root.choice("kinematics", cfg.kinematics, kinematics_names(), Need::required);
+  marks.drive = root.key_mark("drive");
+  root.choice("drive", cfg.drive, drive_names());
   marks.control = root.key_mark("control");
   marks.feedforward = root.key_mark("feedforward");
   marks.stepgen = root.key_mark("stepgen");

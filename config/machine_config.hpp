@@ -15,6 +15,11 @@ inline constexpr double kUnlimited = std::numeric_limits<double>::infinity();
 
 enum class Kinematics { cartesian, corexy, delta };
 
+// How the axes are driven: steppers fed with timed step batches by MCUs, or voltage-driven DC
+// motors (the output-maneuvering paper's Cartesian printer, Sect. III-A), simulated in-process:
+// no steps, no MCUs; it needs control.mode maneuver.
+enum class Drive { stepper, dc_servo };
+
 // ---- axes -------------------------------------------------------------------------------------
 
 struct EncoderConfig {
@@ -92,7 +97,29 @@ struct ServoConfig {
   bool operator==(const ServoConfig&) const = default;
 };
 
-enum class ControlMode { open_loop, pi };
+enum class ControlMode { open_loop, pi, maneuver };
+
+// Output maneuvering (output-maneuvering-cartesian Sect. III-C/D, docs/maneuver.md) for
+// drive: dc_servo. Defaults: Table II, and the arc-length variant of the speed assignment.
+enum class ManeuverSpeed { constant, every_transition, sharp_corner, sharp_corner_arc };
+enum class ManeuverParameterization { unit, arc_length };
+
+struct ManeuverControlConfig {
+  double k_p_per_s = 500.0;     // K_p = -A_1 (Table II)
+  double k_d_per_s = 1667.0;    // K_d = -A_2 (Table II); K_d / servo.rate_hz <= 1.5 (ZOH stability)
+  double q1 = 1.0;              // Q_1 = q1 I
+  double q2 = 1.0;              // Q_2 = q2 I
+  double lambda_per_s = 30.0;   // filter of the gradient update (Eq. 52), rad/s
+  double mu = 1.0e-3;           // gradient gain mu_1 in the controller's SI units (theta in m for
+                                // arc_length: Table II's 1000 x (1 mm segment)^2)
+  double path_speed_mm_s = 100.0;  // m_s (Fig. 7: 0.1 m/s)
+  ManeuverSpeed speed_assignment = ManeuverSpeed::sharp_corner_arc;
+  ManeuverParameterization parameterization = ManeuverParameterization::arc_length;
+  double arc_a1_mm = 0.06;      // sharp_corner_arc: the Eq. 68 sigmoid in mm, and its reach
+  double arc_a2_mm = 0.005;
+  double arc_reach_mm = 2.0;
+  bool operator==(const ManeuverControlConfig&) const = default;
+};
 
 struct ControlConfig {
   ControlMode mode = ControlMode::open_loop;  // pi needs encoders
@@ -102,6 +129,7 @@ struct ControlConfig {
   double skipped_step_threshold_mm = 0.3;     // following error that counts as lost steps
   double max_following_error_mm = 2.0;        // beyond this: fault, stop motion
   double max_encoder_jump_mm = 1.0;           // a sample-to-sample jump beyond this is implausible
+  ManeuverControlConfig maneuver;             // mode maneuver (drive: dc_servo)
   bool operator==(const ControlConfig&) const = default;
 };
 
@@ -134,6 +162,7 @@ struct ShaperConfig {
 
 struct LpvFeedforwardConfig {
   double preview_ms = 20.0;  // preview of the stable approximate inverse (DESIGN.md: RHP zero)
+  bool freeze_at_centre = false;  // delta: the model of the centre everywhere (the fixed-model baseline)
   bool operator==(const LpvFeedforwardConfig&) const = default;
 };
 
@@ -202,9 +231,24 @@ struct DeltaLpvConfig {
   bool operator==(const DeltaLpvConfig&) const = default;
 };
 
+// The Cartesian DC-motor printer of output-maneuvering-cartesian Sect. III-A (Table I, Eq. 3-20):
+// the plant of drive: dc_servo. Every key defaults to the paper's value.
+struct CartesianDcConfig {
+  double m_n_kg = 0.4;            // extruder system (nozzle)
+  double m_x_kg = 0.2;            // x-axis motor (carried by z)
+  double m_ps_kg = 0.8;           // print surface (y)
+  double j_m_kg_m2 = 5.0e-6;      // motor + shaft + pulley inertia
+  double b_nm_s = 1.1e-4;         // motor friction B, N m s/rad
+  double r_a_ohm = 1.0e-3;        // armature resistance
+  double k_m_nm_per_a = 1.0e-4;   // torque constant
+  double pulley_radius_mm = 10.0; // r
+  bool operator==(const CartesianDcConfig&) const = default;
+};
+
 struct ModelConfig {
   std::vector<GantryModelConfig> gantry;  // per axis, in file order
   std::optional<DeltaLpvConfig> delta_lpv;
+  CartesianDcConfig cartesian_dc;         // drive: dc_servo
 
   const GantryModelConfig* gantry_for(const std::string& axis_name) const {
     for (const GantryModelConfig& g : gantry)
@@ -330,6 +374,7 @@ struct LoggingConfig {
 struct MachineConfig {
   std::string name = "feedloop printer";
   Kinematics kinematics = Kinematics::cartesian;
+  Drive drive = Drive::stepper;
   std::vector<AxisConfig> axes;  // in file order
   std::optional<DeltaGeometryConfig> delta;  // present iff kinematics == delta
   PlannerConfig planner;
@@ -352,6 +397,7 @@ struct MachineConfig {
     return nullptr;
   }
   bool uses_simulator() const {
+    if (drive == Drive::dc_servo) return true;  // the DC-motor plant is simulated in-process
     for (const McuConfig& m : mcus)
       if (m.transport == TransportType::mock) return true;
     return false;

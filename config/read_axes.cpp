@@ -44,7 +44,9 @@ void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& d
     AxisConfig axis;
     axis.name = name;
     const bool is_e = name == "e";
-    a.number("steps_per_mm", axis.steps_per_mm, Range::positive(), Need::required);
+    // Voltage-driven DC motors take no steps (drive: dc_servo).
+    a.number("steps_per_mm", axis.steps_per_mm, Range::positive(),
+             cfg.drive == Drive::dc_servo ? Need::optional : Need::required);
     a.boolean("invert_direction", axis.invert_direction);
     if (a.has("encoder")) {
       MapReader enc = a.sub("encoder");

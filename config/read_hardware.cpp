@@ -79,6 +79,13 @@ void read_stepgen_mcus(MapReader& root, MachineConfig& cfg, Marks& marks, Diagno
   sg.finish();
 
   marks.mcus = root.key_mark("mcus");
+  if (cfg.drive == Drive::dc_servo) {  // the DC-motor plant is simulated in-process: no MCUs
+    if (root.has("mcus"))
+      diag.add(marks.mcus, "drive: dc_servo runs the simulated DC-motor printer in the servo thread; it has "
+                           "no mcus (remove the mcus list)");
+    root.get("mcus");
+    return;
+  }
   if (!root.has("mcus")) {
     root.get("mcus");
     diag.add(root.mark(), "missing required key 'mcus' (a list of microcontrollers)");

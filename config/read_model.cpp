@@ -100,10 +100,36 @@ void read_delta_lpv(MapReader& model, MachineConfig& cfg, Diagnostics& diag) {
 
 }  // namespace
 
+// Table I of output-maneuvering-cartesian: the plant of drive: dc_servo.
+void read_cartesian_dc(MapReader& model, MachineConfig& cfg, Diagnostics& diag) {
+  if (!model.has("cartesian_dc")) {
+    model.sub("cartesian_dc");  // known key
+    return;
+  }
+  MapReader d = model.sub("cartesian_dc");
+  if (cfg.drive != Drive::dc_servo) {
+    diag.add(model.key_mark("cartesian_dc"), "model.cartesian_dc is the plant of drive: dc_servo (this machine "
+                                             "has drive: stepper)");
+    d.finish();
+    return;
+  }
+  CartesianDcConfig& p = cfg.model.cartesian_dc;
+  d.number("m_n_kg", p.m_n_kg, Range::positive());
+  d.number("m_x_kg", p.m_x_kg, Range::non_negative());
+  d.number("m_ps_kg", p.m_ps_kg, Range::positive());
+  d.number("j_m_kg_m2", p.j_m_kg_m2, Range::non_negative());
+  d.number("b_nm_s", p.b_nm_s, Range::non_negative());
+  d.number("r_a_ohm", p.r_a_ohm, Range::positive());
+  d.number("k_m_nm_per_a", p.k_m_nm_per_a, Range::positive());
+  d.number("pulley_radius_mm", p.pulley_radius_mm, Range::positive());
+  d.finish();
+}
+
 void read_model(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   MapReader model = root.sub("model");
   read_gantry(model, cfg, diag);
   read_delta_lpv(model, cfg, diag);
+  read_cartesian_dc(model, cfg, diag);
   model.finish();
 }
 

@@ -1,4 +1,6 @@
 // Config sections `planner`, `servo`, `control` and `feedforward`.
+#include <cmath>  // ceil
+
 #include "config/enum_names.hpp"
 #include "config/sections.hpp"
 
@@ -32,6 +34,42 @@ void read_planner(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   p.finish();
 }
 
+namespace {
+
+// control.maneuver: Table II gains, the path speed and the speed assignment (Sect. III-C/D).
+void read_maneuver(MapReader& c, MachineConfig& cfg, Diagnostics& diag) {
+  MapReader m = c.sub("maneuver");
+  ManeuverControlConfig& mc = cfg.control.maneuver;
+  const bool kd = m.number("k_d_per_s", mc.k_d_per_s, Range::positive());
+  m.number("k_p_per_s", mc.k_p_per_s, Range::positive());
+  m.number("q1", mc.q1, Range::positive());
+  m.number("q2", mc.q2, Range::positive());
+  m.number("lambda_per_s", mc.lambda_per_s, Range::positive());
+  m.number("mu", mc.mu, Range::positive());
+  m.number("path_speed_mm_s", mc.path_speed_mm_s, Range::open_closed(0.0, 10000.0));
+  m.choice("speed_assignment", mc.speed_assignment, maneuver_speed_names());
+  m.choice("parameterization", mc.parameterization, maneuver_parameterization_names());
+  const bool a1 = m.number("arc_a1_mm", mc.arc_a1_mm, Range::non_negative());
+  const bool a2 = m.number("arc_a2_mm", mc.arc_a2_mm, Range::positive());
+  const bool reach = m.number("arc_reach_mm", mc.arc_reach_mm, Range::positive());
+  if ((a1 || a2 || reach) && !(mc.arc_reach_mm > mc.arc_a1_mm + mc.arc_a2_mm))
+    diag.add(m.key_mark(reach ? "arc_reach_mm" : (a1 ? "arc_a1_mm" : "arc_a2_mm")),
+             "control.maneuver: arc_reach_mm (" + format_number(mc.arc_reach_mm) +
+                 ") must exceed arc_a1_mm + arc_a2_mm (" + format_number(mc.arc_a1_mm + mc.arc_a2_mm) + ")");
+  // The sampled (zero-order hold) controller diverges once K_d T passes about 1.6 (Table II's
+  // K_d = 1667/s at 1 kHz: K_d T = 1.67 diverges, 0.9 ms: 1.5 holds; tests/maneuver/servo_test.cpp).
+  const double kd_t = mc.k_d_per_s / cfg.servo.rate_hz;
+  if (cfg.control.mode == ControlMode::maneuver && kd_t > 1.5)
+    diag.add(kd ? m.key_mark("k_d_per_s") : c.key_mark("mode"),
+             "control.maneuver.k_d_per_s (" + format_number(mc.k_d_per_s) + ") times the servo period (1/" +
+                 format_number(cfg.servo.rate_hz) + " s) is " + format_number(kd_t) +
+                 ": the sampled controller diverges above 1.5; raise servo.rate_hz to at least " +
+                 format_number(std::ceil(mc.k_d_per_s / 1.5)) + " or lower k_d_per_s");
+  m.finish();
+}
+
+}  // namespace
+
 void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   MapReader s = root.sub("servo");
   s.number("rate_hz", cfg.servo.rate_hz, Range::closed(100.0, 20000.0));
@@ -49,6 +87,7 @@ void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) 
   const bool t = c.number("skipped_step_threshold_mm", cc.skipped_step_threshold_mm, Range::positive());
   const bool f = c.number("max_following_error_mm", cc.max_following_error_mm, Range::positive());
   c.number("max_encoder_jump_mm", cc.max_encoder_jump_mm, Range::positive());
+  read_maneuver(c, cfg, diag);
   if ((t || f) && !(cc.skipped_step_threshold_mm < cc.max_following_error_mm))
     diag.add(c.key_mark(f ? "max_following_error_mm" : "skipped_step_threshold_mm"),
              "control: skipped_step_threshold_mm (" + format_number(cc.skipped_step_threshold_mm) +
@@ -82,6 +121,7 @@ void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) 
   sh.finish();
   MapReader lpv = ff.sub("lpv");
   lpv.number("preview_ms", fc.lpv.preview_ms, Range::closed(0.0, 1000.0));
+  lpv.boolean("freeze_at_centre", fc.lpv.freeze_at_centre);
   lpv.finish();
   ff.finish();
 }

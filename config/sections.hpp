@@ -18,6 +18,7 @@ namespace feedloop::config::detail {
 struct Marks {
   YAML::Mark root;
   YAML::Mark kinematics;
+  YAML::Mark drive;
   YAML::Mark axes;
   std::map<std::string, YAML::Mark> axis;  // by axis name
   YAML::Mark delta;

@@ -125,7 +125,8 @@ std::optional<Unit> parse_unit(std::string_view text) {
 
 std::optional<Unit> unit_for_key(std::string_view key) {
   // Suffix -> unit expression. Checked longest first.
-  static const std::array<std::pair<std::string_view, std::string_view>, 22> suffixes = {{
+  static const std::array<std::pair<std::string_view, std::string_view>, 24> suffixes = {{
+      {"_nm_per_a", "Nm/A"},  {"_nm_s", "Nm*s"},
       {"_ns_per_m", "N*s/m"}, {"_n_per_m", "N/m"},  {"_per_mm", "1/mm"},   {"_per_s2", "1/s^2"},
       {"_kg_m2", "kg*m^2"},   {"_mm_s3", "mm/s^3"}, {"_mm_s2", "mm/s^2"},  {"_per_s", "1/s"},
       {"_mm_s", "mm/s"},      {"_deg", "deg"},      {"_hz", "Hz"},         {"_mm", "mm"},
