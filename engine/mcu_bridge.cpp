@@ -59,6 +59,7 @@ struct McuBridge::JointPort final : device::MotorPort {
   std::vector<double> intended_s;  // ring of intended host times of steps sent, not yet executed
   size_t head = 0, count = 0;
   JointTiming timing;
+  int64_t swallow = 0;  // steps still to be lost (inject_lost_steps)
   void push(double t_s) {
     if (count == intended_s.size()) return;  // more in flight than tracked: timing not checked
     intended_s[(head + count) % intended_s.size()] = t_s;
@@ -72,6 +73,10 @@ struct McuBridge::JointPort final : device::MotorPort {
       --count;
     } else {
       ++timing.unexpected_steps;
+    }
+    if (swallow > 0) {  // fault injection: the driver misses these steps (a slip, seen from outside)
+      --swallow;
+      return;
     }
     plant->step(t_s, direction);
   }
@@ -285,6 +290,11 @@ stepgen::TickMap McuBridge::tick_map(int joint) const {
   if (i < 0) return {0.0, 1.0};
   const stepgen::TickMap m = mcus_[static_cast<size_t>(i)]->session->tick_map();  // simulation time
   return {m.offset_ticks - m.ticks_per_s * epoch_s_, m.ticks_per_s};
+}
+
+void McuBridge::inject_lost_steps(int joint, int64_t steps) {
+  if (joint < 0 || joint >= kJoints || !ports_[static_cast<size_t>(joint)]) return;
+  ports_[static_cast<size_t>(joint)]->swallow += steps;
 }
 
 unsigned long long McuBridge::encoder_reports(int joint) const {

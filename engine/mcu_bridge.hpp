@@ -96,6 +96,9 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   sim::GantryAxis* gantry(int joint);           // Cartesian joints 0-2 in simulation
   sim::DeltaPlant* delta() { return delta_.get(); }
   const JointTiming& timing(int joint) const;
+  // Simulation fault injection (servo thread / tests): the next `steps` steps the MCU executes on
+  // `joint` never reach the motor, as if the stepper had skipped them.
+  void inject_lost_steps(int joint, int64_t steps);
   uint64_t batches_dropped() const { return batches_dropped_; }  // arrived while faulted
   uint64_t faults() const { return faults_total_; }
   uint64_t recoveries() const { return recoveries_; }

@@ -1,6 +1,7 @@
 // The servo thread's control law (see servo_control.hpp).
 #include "engine/servo_control.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -21,7 +22,11 @@ Result<std::unique_ptr<ServoControl>> ServoControl::create(const ServoControlPar
   for (size_t j = 0; j < 4; ++j) {
     if (Status s = c->pi_[j].configure(control::pi_params_from_config(p.control, p.period_s)); !s)
       return Error{std::string("control: ") + s.error().message};
-    if (Status s = c->lost_[j].configure(control::lost_step_params_from_config(p.control, p.mm_per_full_step[j])); !s)
+    control::LostStepParams lp = control::lost_step_params_from_config(p.control, p.mm_per_full_step[j]);
+    // A slip is permanent, a transient of the model residual (a resonance the model has slightly
+    // off) is not: the residual must stay beyond the threshold for lost_step_confirm_s.
+    lp.settle_periods = std::max(lp.settle_periods, static_cast<int>(std::lround(p.lost_step_confirm_s / p.period_s)));
+    if (Status s = c->lost_[j].configure(lp); !s)
       return Error{std::string("control: ") + s.error().message};
     const std::string axis = p.joint_names[j].empty() ? names[j] : p.joint_names[j];
     if (Status s = c->guard_[j].configure(control::encoder_guard_params_from_config(p.control, axis)); !s)
@@ -52,6 +57,7 @@ void ServoControl::reset_all(const control::FeedforwardInput& at) {
   correction_mm_.fill(0.0);
   model_primed_.fill(false);
   residual_base_mm_.fill(0.0);
+  recovery_left_mm_.fill(0.0);
   fault_text_[0] = '\0';
 }
 
@@ -79,9 +85,11 @@ bool ServoControl::update_feedback(double print_time_s, const control::JointArra
     // Lost steps: where the model puts the carriage for the motor commands sent (y_hat) against
     // the encoder. Slow drifts of this residual (a steps/mm error the PI is correcting, thermal
     // growth) are tracked by a baseline and are not slips; a slip is a sudden jump of a whole
-    // torque cycle of the stepper (4 full steps). Recovery: the motor command is shifted by the
-    // slip, so the field moves back onto the rotor; the model sees the same shift, so the
-    // residual returns to where it was once the carriage is back.
+    // torque cycle of the stepper (4 full steps: the rotor sits in the next equilibrium of the
+    // field). Recovery: the motor command moves on by the slip, at the correction's clamp rate
+    // (a jump of a whole cycle would be invisible to the rotor, the torque law being periodic),
+    // so the rotor is carried the missing steps back onto the path; the detector's sum of slips
+    // S accounts for the model's y_hat running ahead of the carriage by what was lost.
     double y_hat_mm = motor_mm[j] - expected_lead_mm[j];
     if (has_model_[j]) {
       const double u_m = motor_mm[j] * 1e-3;
@@ -95,17 +103,24 @@ bool ServoControl::update_feedback(double print_time_s, const control::JointArra
       y_hat_mm = y_m * 1e3;
     }
     const double residual_mm = y_hat_mm - encoder_mm[j];
+    // The baseline follows the residual net of the slips already reported (the detector
+    // subtracts their sum S itself).
     if (!lost_[j].pending())
-      residual_base_mm_[j] += (residual_mm - residual_base_mm_[j]) * (p_.period_s / p_.residual_baseline_s);
-    // The detector keeps the sum S of the slips it reported and subtracts it; the residual has
-    // already recovered from them (see above), so S is added back.
-    if (auto slip = lost_[j].update(residual_mm - residual_base_mm_[j] + lost_[j].total_mm(), 0.0, 0.0)) {
-      pi_[j].shift(slip->size_mm);
+      residual_base_mm_[j] += (residual_mm - lost_[j].total_mm() - residual_base_mm_[j]) *
+                              (p_.period_s / p_.residual_baseline_s);
+    if (auto slip = lost_[j].update(residual_mm - residual_base_mm_[j], 0.0, 0.0)) {
+      recovery_left_mm_[j] += slip->size_mm;
       event->kind = ServoEventKind::kLostSteps;
       event->print_time_s = print_time_s;
       event->joint = static_cast<int>(j);
       event->size_mm = slip->size_mm;
       *has_event = true;
+    }
+    if (recovery_left_mm_[j] != 0.0) {  // carry the rotor back, at the clamp's rate
+      const double max_mm = p_.recovery_mm_s * p_.period_s;
+      const double step_mm = std::clamp(recovery_left_mm_[j], -max_mm, max_mm);
+      pi_[j].shift(step_mm);
+      recovery_left_mm_[j] -= step_mm;
     }
     correction_mm_[j] = pi_[j].update(desired_mm[j] - encoder_mm[j]);
   }

@@ -40,6 +40,9 @@ struct ServoControlParams {
   // expected position; none: the detector compares against the command.
   std::array<std::optional<model::StateSpace>, 4> carriage_model;
   double residual_baseline_s = 0.3;  // slow drifts of the model residual are not slips
+  double lost_step_confirm_s = 0.015;  // the residual stays beyond the threshold this long
+  double recovery_mm_s = 10.0;         // lost steps are made up at this speed (gently: the motor
+                                       // that just slipped is at its torque limit)
 };
 
 class ServoControl {
@@ -86,6 +89,7 @@ class ServoControl {
   std::array<bool, 4> has_model_{};
   std::array<bool, 4> model_primed_{};
   control::JointArray residual_base_mm_{};
+  control::JointArray recovery_left_mm_{};  // slips still to be made up
   char fault_text_[160] = {};
 };
 

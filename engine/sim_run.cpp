@@ -20,9 +20,14 @@ namespace {
 // advanced the plants to the cycle's time before the executor publishes).
 class Recorder final : public TelemetryTap {
  public:
-  Recorder(SimRunResult& out, McuBridge& bridge, bool keep, bool delta)
-      : out_(out), bridge_(bridge), keep_(keep), delta_(delta) {}
+  Recorder(SimRunResult& out, McuBridge& bridge, bool keep, bool delta, std::vector<LostStepInjection> inject)
+      : out_(out), bridge_(bridge), keep_(keep), delta_(delta), inject_(std::move(inject)) {}
   void on_servo_sample(const ServoSample& s) override {
+    for (LostStepInjection& i : inject_)
+      if (i.steps != 0 && s.print_time_s >= i.at_s) {
+        bridge_.inject_lost_steps(i.joint, i.steps);
+        i.steps = 0;
+      }
     if (!keep_) return;
     SimRunSample r;
     r.servo = s;
@@ -49,6 +54,7 @@ class Recorder final : public TelemetryTap {
   SimRunResult& out_;
   McuBridge& bridge_;
   bool keep_, delta_;
+  std::vector<LostStepInjection> inject_;
 };
 
 }  // namespace
@@ -66,7 +72,7 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
 
   SimRunResult out;
   if (options.keep_samples) out.samples.reserve(1 << 16);
-  Recorder rec(out, bridge, options.keep_samples, cfg.kinematics == config::Kinematics::delta);
+  Recorder rec(out, bridge, options.keep_samples, cfg.kinematics == config::Kinematics::delta, options.lose_steps);
   ex.set_telemetry(&rec);
 
   const double period_s = 1.0 / cfg.servo.rate_hz;

@@ -15,10 +15,19 @@
 
 namespace feedloop::engine {
 
+// Fault injection: at print time `at_s` the next `steps` steps of `joint` are lost on their way
+// to the motor (what a skipped step looks like from the encoder).
+struct LostStepInjection {
+  double at_s = 0.0;
+  int joint = 0;
+  int64_t steps = 0;
+};
+
 struct SimRunOptions {
   double settle_s = 0.05;        // keep sampling this long after the motion's planned end
   double timeout_s = 600.0;      // of virtual time
   bool keep_samples = true;      // false: only the summary figures
+  std::vector<LostStepInjection> lose_steps;
 };
 
 // One servo period of the run: what the pipeline commanded and what the simulated machine did.

@@ -76,5 +76,42 @@ TEST(ClosedLoop, PiRemovesAConstantStepsPerMmError) {
   }
 }
 
+// Thesis Sect. 5.3-5.4: a stepper that skips steps leaves the carriage behind the path for good
+// open loop; closed loop the slip is detected (an event with time, axis and size) and the
+// position recovered. Here 64 microsteps (4 full steps: one torque cycle, 0.68 mm) of Y are lost
+// in the middle of a move.
+TEST(ClosedLoop, LostStepsAreDetectedAndThePositionRecovered) {
+  const auto program = lines({"G90", "G1 X30 Y60 F6000", "G4 P300"});
+  for (auto mode : {config::ControlMode::open_loop, config::ControlMode::pi}) {
+    config::MachineConfig cfg = with_mode(mode);
+    SimRunOptions o;
+    o.settle_s = 0.5;
+    o.lose_steps.push_back({0.3, 1, 64});
+    auto r = run_simulated(cfg, program, o);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    const Errors e = errors_of(r.value(), 30.0, 60.0);
+    size_t lost_events = 0;
+    double lost_mm = 0.0;
+    for (const ServoEvent& ev : r.value().events)
+      if (ev.kind == ServoEventKind::kLostSteps) {
+        ++lost_events;
+        lost_mm += ev.size_mm;
+        std::printf("  lost steps: t %.4f s, joint %d, %.4f mm\n", ev.print_time_s, ev.joint, ev.size_mm);
+      }
+    std::printf("%s: plant slipped %lld full steps, %zu events, final error X %.4f mm, Y %.4f mm, error: %s\n",
+                mode == config::ControlMode::pi ? "PI       " : "open loop", static_cast<long long>(r.value().lost_full_steps[1]), lost_events, e.final_x_mm, e.final_y_mm,
+                r.value().error.c_str());
+    if (mode == config::ControlMode::open_loop) {
+      EXPECT_LT(e.final_y_mm, -0.3);  // the steps are missing for good
+    } else {
+      EXPECT_EQ(r.value().error, "");
+      EXPECT_EQ(lost_events, 1u);
+      EXPECT_NEAR(lost_mm, 64 / 94.314, 0.01);  // 4 full steps = one torque cycle of the stepper
+      EXPECT_LT(std::fabs(e.final_y_mm), 0.022);
+      EXPECT_LT(std::fabs(e.final_x_mm), 0.022);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace feedloop::engine
