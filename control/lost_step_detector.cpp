@@ -46,7 +46,8 @@ std::optional<LostStepEvent> LostStepDetector::update(double motor_mm, double en
     pending_ = 0;  // under the threshold (again): a transient, not a slip
     return std::nullopt;
   }
-  if (++pending_ <= p_.settle_periods) return std::nullopt;
+  if (pending_ <= p_.settle_periods) ++pending_;  // saturates: stays > settle while beyond
+  if (pending_ <= p_.settle_periods) return std::nullopt;
   // Settled: round to whole cycles of the torque law when the step length is known.
   double size_mm = d;
   std::int64_t full_steps = 0;

@@ -32,20 +32,29 @@ Status PiController::configure(const PiParams& params) {
   return Status::Ok();
 }
 
-double PiController::update(double error_mm) {
+double PiController::update(double error_mm) { return update(error_mm, p_.period_s); }
+
+double PiController::update(double error_mm, double dt_s) {
   if (!std::isfinite(error_mm)) return u_prev_mm_;  // the encoder guard reports the sensor
+  double max_step_mm = max_step_mm_;
+  if (!std::isfinite(dt_s) || dt_s <= 0.0) {
+    dt_s = p_.period_s;
+  } else if (dt_s != p_.period_s) {
+    max_step_mm = p_.max_correction_mm_s * dt_s;
+  }
+  last_error_mm_ = error_mm;
   // Thesis Sect. 4.6: I[k] = I[k-1] + K_I e[k] (t[k] - t[k-1]), bounded.
   const double integral_try_mm =
-      std::clamp(integral_mm_ + p_.ki_per_s * error_mm * p_.period_s, -p_.integral_limit_mm,
+      std::clamp(integral_mm_ + p_.ki_per_s * error_mm * dt_s, -p_.integral_limit_mm,
                  p_.integral_limit_mm);
   const double u_want_mm = offset_mm_ + p_.kp * error_mm + integral_try_mm;
   double u_mm = u_want_mm;
   saturated_ = 0;
-  if (u_want_mm - u_prev_mm_ > max_step_mm_) {
-    u_mm = u_prev_mm_ + max_step_mm_;
+  if (u_want_mm - u_prev_mm_ > max_step_mm) {
+    u_mm = u_prev_mm_ + max_step_mm;
     saturated_ = 1;
-  } else if (u_want_mm - u_prev_mm_ < -max_step_mm_) {
-    u_mm = u_prev_mm_ - max_step_mm_;
+  } else if (u_want_mm - u_prev_mm_ < -max_step_mm) {
+    u_mm = u_prev_mm_ - max_step_mm;
     saturated_ = -1;
   }
   if (saturated_ != 0) ++saturated_count_;
@@ -57,7 +66,18 @@ double PiController::update(double error_mm) {
   return u_mm;
 }
 
+bool PiController::set_gains(double kp, double ki_per_s) {
+  if (!std::isfinite(kp) || kp < 0.0 || !std::isfinite(ki_per_s) || ki_per_s < 0.0) return false;
+  // u = offset + K_P e + I: keep it for e = the last error (not clamped by the integral limit,
+  // which would bring the bump back).
+  integral_mm_ += (p_.kp - kp) * last_error_mm_;
+  p_.kp = kp;
+  p_.ki_per_s = ki_per_s;
+  return true;
+}
+
 void PiController::reset() {
+  last_error_mm_ = 0.0;
   integral_mm_ = 0.0;
   offset_mm_ = 0.0;
   u_prev_mm_ = 0.0;

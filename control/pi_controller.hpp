@@ -37,6 +37,15 @@ class PiController {
   // RT-safe. One period: the error e[k] (mm) in, the correction u[k] (mm) to add to the
   // feedforward motor command out. A non-finite error holds the previous output.
   double update(double error_mm);
+  // RT-safe. The same with the measured time since the previous update (the thesis's
+  // t[m] - t[m-1]; e.g. 2 T after a missed deadline): integral and clamp scale with dt_s.
+  // A dt_s that is not > 0 and finite is taken as the configured period.
+  double update(double error_mm, double dt_s);
+
+  // RT-safe. Bumpless gain change: the integral absorbs (K_P,old - K_P,new) e of the last error,
+  // so the next update with the same error gives the same output. Negative or non-finite gains
+  // are rejected (returns false, nothing changes).
+  bool set_gains(double kp, double ki_per_s);
 
   // RT-safe. Output, integral and recovery offset to 0 (integrators reset: a safe state).
   void reset();
@@ -56,6 +65,7 @@ class PiController {
  private:
   PiParams p_{};
   double max_step_mm_ = 0.05;  // max_correction_mm_s * T
+  double last_error_mm_ = 0.0;
   double integral_mm_ = 0.0;
   double offset_mm_ = 0.0;
   double u_prev_mm_ = 0.0;

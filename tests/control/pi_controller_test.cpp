@@ -177,3 +177,33 @@ TEST(PiController, ParamsFromConfig) {
   EXPECT_EQ(p.max_correction_mm_s, 40.0);
   EXPECT_EQ(p.period_s, 0.5e-3);
 }
+
+TEST(PiController, GainChangeIsBumpless) {
+  auto pi = make_pi(50.0, 5.0, true);
+  for (int k = 0; k < 300; ++k) pi.update(0.04);
+  const double u_before = pi.update(0.04);
+  ASSERT_TRUE(pi.set_gains(1.5, 40.0));
+  // Same error after the change: only the new integral step K_I e T = 40 * 0.04 * 1e-3 is added.
+  EXPECT_NEAR(pi.update(0.04), u_before + 40.0 * 0.04 * kPeriodS, 1e-12);
+  EXPECT_EQ(pi.params().kp, 1.5);
+  EXPECT_FALSE(pi.set_gains(-1.0, 1.0));
+  EXPECT_EQ(pi.params().kp, 1.5);
+}
+
+TEST(PiController, MeasuredPeriodScalesIntegralAndClamp) {
+  auto a = make_pi(50.0, 5.0, true);
+  auto b = make_pi(50.0, 5.0, true);
+  // One update over 2 T (a missed deadline) integrates like two updates over T with the same error.
+  a.update(0.01, 2 * kPeriodS);
+  b.update(0.01);
+  b.update(0.01);
+  EXPECT_NEAR(a.integral_mm(), b.integral_mm(), 1e-15);
+  // The clamp allows 2 x 0.05 mm over 2 T.
+  const double before_mm = a.output_mm();
+  EXPECT_NEAR(a.update(10.0, 2 * kPeriodS) - before_mm, 0.1, 1e-12);
+  EXPECT_EQ(a.saturated(), 1);
+  // A bad dt falls back to the configured period.
+  auto c = make_pi(50.0, 5.0, true);
+  c.update(0.01, -1.0);
+  EXPECT_NEAR(c.integral_mm(), 20.0 * 0.01 * kPeriodS, 1e-15);
+}
