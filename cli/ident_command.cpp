@@ -9,6 +9,7 @@
 #include "cli/progress.hpp"
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
+#include "ident/frf.hpp"
 #include "ident/report.hpp"
 #include "ident/trace.hpp"
 
@@ -17,7 +18,9 @@ namespace {
 
 void usage(std::FILE* out) {
   std::fputs(
-      "usage: feedloop ident fit --trace FILE.csv --out DIR [--axis NAME]\n"
+      "usage: feedloop ident fit --trace FILE.csv --out DIR [--axis NAME] [--no-plots]\n"
+      "       feedloop ident frf --trace FILE.csv --out FRF.csv [--axis NAME] [--segment S] [--overlap F]\n"
+      "                          [--window hann|rect]   (H1 and coherence, 2-125 Hz in 0.5 Hz steps)\n"
       "       feedloop ident excite --axis x|y --out FILE.csv [--effect NAME[:key=value,...]]...\n"
       "                             [--duration S] [--travel MM] [--seed N] [--sweep]\n"
       "effects: periodic_position:period_mm=,amplitude_um=  coulomb_friction:force_n=  backlash:width_um=\n"
@@ -178,6 +181,7 @@ int excite(const std::vector<std::string>& args) {
 
 int fit(const std::vector<std::string>& args) {
   std::string trace_path, out_dir, axis_name;
+  ident::ReportOptions report_options;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     const bool has_value = i + 1 < args.size();
@@ -187,6 +191,8 @@ int fit(const std::vector<std::string>& args) {
       out_dir = args[++i];
     } else if (a == "--axis" && has_value) {
       axis_name = args[++i];
+    } else if (a == "--no-plots") {
+      report_options.plots = false;
     } else if (a == "--help" || a == "-h") {
       usage(stdout);
       return 0;
@@ -221,7 +227,10 @@ int fit(const std::vector<std::string>& args) {
     std::fprintf(stderr, "feedloop ident fit: %s\n", r.error().to_string().c_str());
     return 1;
   }
-  if (auto s = ident::write_report(out_dir, r.value(), tr.time_s, trace_path); !s) {
+  ident::ReportExtras extras;
+  if (auto s = ident::write_report(out_dir, r.value(), tr.time_s, axis->cmd_mm, axis->meas_mm, tr.period_s(), trace_path,
+                                   report_options, &extras);
+      !s) {
     std::fprintf(stderr, "feedloop ident fit: %s\n", s.error().to_string().c_str());
     return 1;
   }
@@ -239,7 +248,72 @@ int fit(const std::vector<std::string>& args) {
     }
     std::printf(")");
   }
-  std::printf("\nwrote %s/report.json, report.md, residual.csv (%.1f s)\n", out_dir.c_str(), secs);
+  std::printf("\nwrote %s/report.json, report.md, residual.csv, frf.csv and %zu plots (%.1f s)\n", out_dir.c_str(),
+              extras.plots.size(), secs);
+  if (!extras.plot_note.empty()) std::printf("note: %s\n", extras.plot_note.c_str());
+  return 0;
+}
+
+int frf(const std::vector<std::string>& args) {
+  std::string trace_path, out_path, axis_name;
+  ident::WelchOptions wo;
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    const bool has_value = i + 1 < args.size();
+    double v = 0.0;
+    if (a == "--trace" && has_value) {
+      trace_path = args[++i];
+    } else if (a == "--out" && has_value) {
+      out_path = args[++i];
+    } else if (a == "--axis" && has_value) {
+      axis_name = args[++i];
+    } else if (a == "--segment" && has_value && parse_number(args[i + 1], &v) && v > 0.0) {
+      wo.segment_s = v;
+      ++i;
+    } else if (a == "--overlap" && has_value && parse_number(args[i + 1], &v)) {
+      wo.overlap = v;
+      ++i;
+    } else if (a == "--window" && has_value && (args[i + 1] == "hann" || args[i + 1] == "rect")) {
+      wo.window = args[++i] == "hann" ? ident::FrfWindow::kHann : ident::FrfWindow::kRectangular;
+    } else if (a == "--help" || a == "-h") {
+      usage(stdout);
+      return 0;
+    } else {
+      std::fprintf(stderr, "feedloop ident frf: bad argument '%s'\n", a.c_str());
+      usage(stderr);
+      return 2;
+    }
+  }
+  if (trace_path.empty() || out_path.empty()) {
+    usage(stderr);
+    return 2;
+  }
+  auto trace = ident::read_trace_csv(trace_path);
+  if (!trace) {
+    std::fprintf(stderr, "feedloop ident frf: %s\n", trace.error().to_string().c_str());
+    return 1;
+  }
+  const ident::Trace& tr = trace.value();
+  const ident::AxisTrace* axis = axis_name.empty() ? &tr.axes.front() : tr.axis(axis_name);
+  if (axis == nullptr) {
+    std::fprintf(stderr, "feedloop ident frf: %s: no axis '%s' in the trace\n", trace_path.c_str(), axis_name.c_str());
+    return 1;
+  }
+  const double period_s = tr.period_s();
+  auto est = ident::estimate_frf_h1(axis->cmd_mm, axis->meas_mm, period_s > 0.0 ? 1.0 / period_s : 0.0, {}, wo);
+  if (!est) {
+    std::fprintf(stderr, "feedloop ident frf: %s: %s\n", trace_path.c_str(), est.error().to_string().c_str());
+    return 1;
+  }
+  if (auto s = ident::write_frf_csv(out_path, est.value()); !s) {
+    std::fprintf(stderr, "feedloop ident frf: %s\n", s.error().to_string().c_str());
+    return 1;
+  }
+  int coherent = 0;
+  for (double c : est.value().coherence) coherent += c > 0.9 ? 1 : 0;
+  std::printf("wrote %s: axis %s, %zu points 2-125 Hz, %d segments of %.3g s, coherence > 0.9 at %d points\n",
+              out_path.c_str(), axis->name.c_str(), est.value().freq_hz.size(), est.value().segments,
+              est.value().segment_s, coherent);
   return 0;
 }
 
@@ -253,6 +327,7 @@ int ident_command(const std::vector<std::string>& args) {
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   if (args[0] == "fit") return fit(rest);
   if (args[0] == "excite") return excite(rest);
+  if (args[0] == "frf") return frf(rest);
   if (args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
     usage(stdout);
     return 0;
