@@ -80,10 +80,11 @@ Result<Impulses> make_impulses(config::ShaperType type, double freq_hz, double d
       // t2 / t_d = 0.4999 + V (0.46159 + 8.57843 V) zeta + V (4.26169 - 108.644 V) zeta^2
       //            + V (1.75601 + 336.989 V) zeta^3
       const double v = kEiVibrationTolerance;
+      constexpr double vt = kEiVibrationTolerance;
       static constexpr std::array<std::array<double, 2>, 4> kT2 = {{{0.4999, 0.0},
-                                                                      {0.0, 0.46159 + 8.57843 * kEiVibrationTolerance},
-                                                                      {0.0, 4.26169 - 108.644 * kEiVibrationTolerance},
-                                                                      {0.0, 1.75601 + 336.989 * kEiVibrationTolerance}}};
+                                                                   {0.0, 0.46159 + 8.57843 * vt},
+                                                                   {0.0, 4.26169 - 108.644 * vt},
+                                                                   {0.0, 1.75601 + 336.989 * vt}}};
       const double t2 = fit(kT2, damping, v);
       const double a1 = fit(kA1, damping, v);
       const double a3 = fit(kA3, damping, v);
