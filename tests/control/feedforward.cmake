@@ -2,5 +2,11 @@
 # delta models, the factory, and (separate binary, it replaces malloc) the RT checks.
 feedloop_add_test(feedforward_model_test
   SOURCES ${CMAKE_CURRENT_LIST_DIR}/feedforward_gantry_test.cpp
+          ${CMAKE_CURRENT_LIST_DIR}/feedforward_delta_test.cpp
+          ${CMAKE_CURRENT_LIST_DIR}/feedforward_factory_test.cpp
+  LIBS feedloop_control
+  TIMEOUT 120)
+feedloop_add_test(feedforward_rt_test
+  SOURCES ${CMAKE_CURRENT_LIST_DIR}/feedforward_rt_test.cpp
   LIBS feedloop_control
   TIMEOUT 120)

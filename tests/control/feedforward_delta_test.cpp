@@ -49,11 +49,11 @@ fftest::FineSim plant() {
 // A 20 mm move along x, then one along y, through (x0, y0, 30) at 100 mm/s, 3000 mm/s^2.
 struct DeltaPlan {
   double x0, y0;
-  fftest::Trapezoid mx{-10.0, 10.0, 100.0, 3000.0, 0.02};
-  fftest::Trapezoid my{-10.0, 10.0, 100.0, 3000.0, 0.32};
+  fftest::Trapezoid mx{-10.0, 10.0, 100.0, 3000.0, 0.05};  // at rest for > P periods first
+  fftest::Trapezoid my{-10.0, 10.0, 100.0, 3000.0, 0.35};
   FeedforwardInput operator()(int k) const {
     const double t = k * kT;
-    const Eigen::Vector3d X(x0 + mx.at(t), y0 + (t < 0.3 ? -10.0 : my.at(t)), 30.0);
+    const Eigen::Vector3d X(x0 + mx.at(t), y0 + (t < 0.33 ? -10.0 : my.at(t)), 30.0);
     const Eigen::Vector3d q = model::inverse_kinematics(kParams.geometry, X).value();
     FeedforwardInput in;
     in.r_mm = {q.x(), q.y(), q.z(), 0.0};
@@ -61,7 +61,7 @@ struct DeltaPlan {
     return in;
   }
 };
-constexpr int kSteps = 650;
+constexpr int kSteps = 700;
 
 struct Case {
   double x, y;
