@@ -70,6 +70,8 @@ std::vector<CaseDef> gantry_cases() {
   };
 }
 
+constexpr double kThesisSpeedChange_mm_s = 15.0;  // Sect. 5.4: the default speed change
+
 constexpr double kGantryCentre_mm[2] = {125.0, 125.0};  // middle of the 250 x 250 mm bed
 
 bench::Path case_path(Shape shape, double cx, double cy) {
@@ -179,6 +181,13 @@ RunOut run_case(const config::MachineConfig& cfg, const std::vector<std::string>
   return out;
 }
 
+std::string fmt(double v, const char* f = "%.3f") {
+  if (!std::isfinite(v) || v < 0) return "-";
+  char b[48];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+
 // ---- configs -------------------------------------------------------------------------------------
 
 // Unmodelled effects on every motion axis at the config schema's default sizes: Coulomb friction
@@ -230,7 +239,11 @@ config::MachineConfig make_config(const config::MachineConfig& base, const CaseD
   cfg.planner.max_velocity_mm_s = std::max(cfg.planner.max_velocity_mm_s, c.speed_mm_s);
   for (auto& a : cfg.axes)
     if (a.name == "x" || a.name == "y") a.max_accel_mm_s2 = std::max(a.max_accel_mm_s2, c.accel_mm_s2);
+  // Cornering: the large-star cases need the thesis's speed-change rule (the caller skips them
+  // when the planner lacks it); the others use it at the thesis's default of 15 mm/s when the
+  // planner has it (Sect. 5.4: "the default, 15 mm/s"), else junction deviation.
   cfg.planner.cornering = config::Cornering::junction_deviation;
+  apply_speed_change_cornering(cfg, c.speed_change_mm_s > 0 ? c.speed_change_mm_s : kThesisSpeedChange_mm_s);
   cfg.control.mode = row.mode;
   cfg.control.kp = row.kp;
   cfg.control.ki_per_s = row.ki_per_s;
@@ -258,6 +271,7 @@ struct RowResult {
 struct CaseResult {
   CaseDef c;
   std::string skip_reason;  // non-empty: not run
+  std::string cornering;    // the corner rule the runs used
   std::vector<RowResult> rows;
   const RowResult* row(const std::string& id) const {
     for (const RowResult& r : rows)
@@ -283,12 +297,6 @@ struct Criterion {
   std::string value, threshold;
 };
 
-std::string fmt(double v, const char* f = "%.3f") {
-  if (!std::isfinite(v) || v < 0) return "-";
-  char b[48];
-  std::snprintf(b, sizeof b, f, v);
-  return b;
-}
 
 // e_t change vs open loop, "-75%".
 std::string pct(double ratio) {
@@ -316,8 +324,7 @@ void print_block(const Block& b) {
   std::printf("\n== %s ==\n", b.label.c_str());
   for (const CaseResult& cr : b.cases) {
     std::printf("\n%s: %.0f mm/s, a = %.0f mm/s^2, %s\n", cr.c.id, cr.c.speed_mm_s, cr.c.accel_mm_s2,
-                cr.c.speed_change_mm_s > 0 ? ("speed change " + fmt(cr.c.speed_change_mm_s, "%.0f") + " mm/s").c_str()
-                                            : "junction deviation 0.013 mm");
+                cr.cornering.c_str());
     if (!cr.skip_reason.empty()) {
       std::printf("  (not run: %s)\n", cr.skip_reason.c_str());
       continue;
@@ -359,24 +366,30 @@ void progress(const std::string& what, const RunOut& o) {
 }
 
 struct Tuning {
+  FeedforwardType ff = FeedforwardType::none;
   std::vector<double> kp, ki;
   std::vector<std::vector<RunOut>> grid;  // [kp][ki]
   double best_kp = 0.5, best_ki = 20.0;
   bool found = false;
 };
 
-// PI gains for the "PI tuned" rows: the lowest e_t on the nominal circle without lost steps.
-Tuning tune_pi(const config::MachineConfig& base, const CaseDef& circle, bool quick) {
+// PI gains for the "PI tuned" rows: the lowest e_t on the nominal circle without lost steps, for
+// PI alone (F = 1) and for PI behind the LPV feedforward (the feedforward already removes most of
+// the error, so the PI that suits it is not the one that suits F = 1).
+Tuning tune_pi(const config::MachineConfig& base, const CaseDef& circle, bool quick, FeedforwardType ff) {
   Tuning t;
-  t.kp = quick ? std::vector<double>{0.5, 1.0, 2.0} : std::vector<double>{0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0};
+  t.ff = ff;
+  t.kp = quick ? std::vector<double>{0.5, 1.0, 2.0} : std::vector<double>{0.1, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0};
   t.ki = quick ? std::vector<double>{20, 100} : std::vector<double>{0, 10, 20, 50, 100, 200};
   double best = INFINITY;
   for (double kp : t.kp) {
     t.grid.emplace_back();
     for (double ki : t.ki) {
-      const RowDef row{"tune", "tune", ControlMode::pi, kp, ki, FeedforwardType::none};
+      const RowDef row{"tune", "tune", ControlMode::pi, kp, ki, ff};
       RunOut o = run_gantry(base, circle, row, false, {});
-      progress("tune kp " + std::to_string(kp) + " ki " + std::to_string(ki), o);
+      char what[96];
+      std::snprintf(what, sizeof what, "tune %s kp %.2f ki %.0f", ff == FeedforwardType::lpv ? "LPV+PI" : "PI", kp, ki);
+      progress(what, o);
       if (o.ok && o.lost_full_steps == 0 && o.m.e_t_mm < best) {
         best = o.m.e_t_mm;
         t.best_kp = kp;
@@ -390,7 +403,8 @@ Tuning tune_pi(const config::MachineConfig& base, const CaseDef& circle, bool qu
 }
 
 void print_tuning(const Tuning& t) {
-  std::printf("\nPI tuning sweep: e_t mm on the nominal circle (90 mm/s), rows kp, columns ki 1/s\n  %6s", "kp\\ki");
+  std::printf("\n%s tuning sweep: e_t mm on the nominal circle (90 mm/s), rows kp, columns ki 1/s\n  %6s",
+              t.ff == FeedforwardType::lpv ? "LPV feedforward + PI" : "PI (F = 1)", "kp\\ki");
   for (double ki : t.ki) std::printf(" %8.0f", ki);
   std::printf("\n");
   for (size_t i = 0; i < t.kp.size(); ++i) {
@@ -405,16 +419,17 @@ void print_tuning(const Tuning& t) {
   else std::printf("  no sweep point ran; PI tuned uses the thesis gains\n");
 }
 
-std::vector<RowDef> gantry_rows(const Tuning& t) {
-  char tuned[64];
+std::vector<RowDef> gantry_rows(const Tuning& t, const Tuning& tl) {
+  char tuned[64], tuned_lpv[64];
   std::snprintf(tuned, sizeof tuned, "PI tuned (%.2g, %.0f)", t.best_kp, t.best_ki);
+  std::snprintf(tuned_lpv, sizeof tuned_lpv, "LPV FF + PI (%.2g, %.0f)", tl.best_kp, tl.best_ki);
   return {
       {"open_loop", "open loop", ControlMode::open_loop, 0.5, 20, FeedforwardType::none},
       {"pi_thesis", "PI thesis (0.5, 20)", ControlMode::pi, 0.5, 20, FeedforwardType::none},
       {"pi_tuned", tuned, ControlMode::pi, t.best_kp, t.best_ki, FeedforwardType::none},
       {"shaper", "input shaper (MZV)", ControlMode::open_loop, 0.5, 20, FeedforwardType::shaper},
       {"lpv", "LPV feedforward", ControlMode::open_loop, 0.5, 20, FeedforwardType::lpv},
-      {"lpv_pi", "LPV feedforward + PI", ControlMode::pi, t.best_kp, t.best_ki, FeedforwardType::lpv},
+      {"lpv_pi", tuned_lpv, ControlMode::pi, tl.best_kp, tl.best_ki, FeedforwardType::lpv},
   };
 }
 
@@ -429,7 +444,12 @@ Block run_block(const config::MachineConfig& base, bool effects, const std::vect
     CaseResult cr;
     cr.c = c;
     config::MachineConfig cbase = base;
-    if (c.speed_change_mm_s > 0 && !apply_speed_change_cornering(cbase, c.speed_change_mm_s))
+    config::MachineConfig probe = base;
+    const double sc = c.speed_change_mm_s > 0 ? c.speed_change_mm_s : kThesisSpeedChange_mm_s;
+    const bool have_sc = apply_speed_change_cornering(probe, sc);
+    cr.cornering = have_sc ? "speed change " + fmt(sc, "%.0f") + " mm/s (thesis Sect. 2.2)"
+                           : "junction deviation " + fmt(base.planner.junction_deviation_mm, "%.3f") + " mm";
+    if (c.speed_change_mm_s > 0 && !have_sc)
       cr.skip_reason = "the planner has no speed-change cornering policy yet (HOOK apply_speed_change_cornering)";
     if (cr.skip_reason.empty()) {
       for (const RowDef& row : rows) {
@@ -645,7 +665,21 @@ std::string jrun(const RunOut& o) {
   return s + "}";
 }
 
-bool write_json(const char* path, const Tuning& t, const ShaperChoice& sh, const std::vector<Block>& blocks,
+std::string jtuning(const Tuning& t) {
+  std::string s = "{\"feedforward\": " + std::string(t.ff == FeedforwardType::lpv ? "\"lpv\"" : "\"none\"") +
+                  ", \"chosen_kp\": " + jnum(t.best_kp) + ", \"chosen_ki_per_s\": " + jnum(t.best_ki) +
+                  ", \"found\": " + (t.found ? "true" : "false") + ", \"points\": [";
+  bool first = true;
+  for (size_t i = 0; i < t.kp.size(); ++i)
+    for (size_t j = 0; j < t.ki.size(); ++j) {
+      s += (first ? "" : ", ") + std::string("{\"kp\": ") + jnum(t.kp[i]) + ", \"ki_per_s\": " + jnum(t.ki[j]) +
+           ", \"run\": " + jrun(t.grid[i][j]) + "}";
+      first = false;
+    }
+  return s + "]}";
+}
+
+bool write_json(const char* path, const Tuning& t, const Tuning& tl, const ShaperChoice& sh, const std::vector<Block>& blocks,
                 const std::vector<DeltaRun>& delta, const std::vector<Criterion>& crit, bool quick) {
   FILE* f = std::fopen(path, "w");
   if (!f) return false;
@@ -653,16 +687,8 @@ bool write_json(const char* path, const Tuning& t, const ShaperChoice& sh, const
   std::fprintf(f, " \"shaper\": {\"type\": \"mzv\", \"x_freq_hz\": %s, \"x_damping\": %s, \"y_freq_hz\": %s, "
                   "\"y_damping\": %s},\n",
                jnum(sh.fx_hz).c_str(), jnum(sh.zx).c_str(), jnum(sh.fy_hz).c_str(), jnum(sh.zy).c_str());
-  std::fprintf(f, " \"tuning\": {\"chosen_kp\": %s, \"chosen_ki_per_s\": %s, \"points\": [", jnum(t.best_kp).c_str(),
-               jnum(t.best_ki).c_str());
-  bool first = true;
-  for (size_t i = 0; i < t.kp.size(); ++i)
-    for (size_t j = 0; j < t.ki.size(); ++j) {
-      std::fprintf(f, "%s{\"kp\": %s, \"ki_per_s\": %s, \"run\": %s}", first ? "" : ", ", jnum(t.kp[i]).c_str(),
-                   jnum(t.ki[j]).c_str(), jrun(t.grid[i][j]).c_str());
-      first = false;
-    }
-  std::fprintf(f, "]},\n \"blocks\": [");
+  std::fprintf(f, " \"tuning\": [%s,\n  %s],\n", jtuning(t).c_str(), jtuning(tl).c_str());
+  std::fprintf(f, " \"blocks\": [");
   for (size_t bi = 0; bi < blocks.size(); ++bi) {
     const Block& b = blocks[bi];
     std::fprintf(f, "%s{\"block\": %s, \"cases\": [", bi ? ",\n  " : "\n  ", jstr(b.id).c_str());
@@ -756,7 +782,7 @@ int main(int argc, char** argv) {
   if (!only.empty()) {
     const size_t colon = only.find(':');
     for (const CaseDef& c : gantry_cases())
-      for (const RowDef& r : gantry_rows(Tuning{}))
+      for (const RowDef& r : gantry_rows(Tuning{}, Tuning{}))
         if (only.substr(0, colon) == c.id && colon != std::string::npos && only.substr(colon + 1) == r.id) {
           const RunOut o = run_gantry(base, c, r, false, sh);
           progress(only, o);
@@ -769,9 +795,11 @@ int main(int argc, char** argv) {
     return 2;
   }
   std::fprintf(stderr, "tuning PI on the nominal circle...\n");
-  const Tuning tuning = tune_pi(base, gantry_cases().front(), quick);
+  const Tuning tuning = tune_pi(base, gantry_cases().front(), quick, FeedforwardType::none);
   print_tuning(tuning);
-  const std::vector<RowDef> rows = gantry_rows(tuning);
+  const Tuning tuning_lpv = tune_pi(base, gantry_cases().front(), quick, FeedforwardType::lpv);
+  print_tuning(tuning_lpv);
+  const std::vector<RowDef> rows = gantry_rows(tuning, tuning_lpv);
 
   std::vector<Block> blocks;
   for (bool effects : {false, true}) {
@@ -792,7 +820,7 @@ int main(int argc, char** argv) {
   }
   print_criteria(crit);
   std::printf("\nCPU time %.1f s\n", cpu_seconds() - t0);
-  if (json_path && !write_json(json_path, tuning, sh, blocks, delta_runs, crit, quick)) {
+  if (json_path && !write_json(json_path, tuning, tuning_lpv, sh, blocks, delta_runs, crit, quick)) {
     std::fprintf(stderr, "cannot write %s\n", json_path);
     return 1;
   }
