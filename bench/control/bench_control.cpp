@@ -94,11 +94,11 @@ bool apply_speed_change_cornering(config::MachineConfig& cfg, double speed_chang
   return false;
 }
 
-// HOOK(lead): the delta "fixed centre model" (control::DeltaLpvGrid::freeze_at_centre) is not a
-// config key yet. When it is, set it here and return true.
+// The delta "fixed centre model": the LPV feedforward designed on the model at (0, 0, z) only
+// (feedforward.lpv.freeze_at_centre; control::DeltaLpvGrid).
 bool select_fixed_centre_model(config::MachineConfig& cfg) {
-  (void)cfg;
-  return false;
+  cfg.feedforward.lpv.freeze_at_centre = true;
+  return true;
 }
 
 // ---- rows ------------------------------------------------------------------------------------------
