@@ -107,12 +107,9 @@ void read_cartesian_dc(MapReader& model, MachineConfig& cfg, Diagnostics& diag) 
     return;
   }
   MapReader d = model.sub("cartesian_dc");
-  if (cfg.drive != Drive::dc_servo) {
+  if (cfg.drive != Drive::dc_servo)  // reported once; the keys are still checked below
     diag.add(model.key_mark("cartesian_dc"), "model.cartesian_dc is the plant of drive: dc_servo (this machine "
                                              "has drive: stepper)");
-    d.finish();
-    return;
-  }
   CartesianDcConfig& p = cfg.model.cartesian_dc;
   d.number("m_n_kg", p.m_n_kg, Range::positive());
   d.number("m_x_kg", p.m_x_kg, Range::non_negative());

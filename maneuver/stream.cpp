@@ -174,6 +174,7 @@ void StreamServo::update_position() {
 Vec3 StreamServo::update(const PlantState& x, double period_s) {
   if (window_.empty()) return Vec3::Zero();
   if (hold_ && window_.last() > n_) {  // a segment ahead: follow it from its start
+    window_.set_k(n_, 1.0);             // it stood still here: start as from a stop
     ++n_;
     hold_ = false;
     c_ = {window_.theta(n_ - 1), 0.0};

@@ -1,12 +1,14 @@
 // Output maneuvering on a path that arrives while it is being followed: what a daemon's servo
-// thread runs. The planner thread releases waypoints one by one (each with its corner weight k_n
-// of Eq. 64-66, known once the next segment's direction is); the servo thread appends them to a
+// thread runs. The planner thread releases waypoints one by one; a waypoint pushed again at the
+// same position updates the newest one's corner weight k_n (Eq. 64-66, known once the next
+// segment's direction is) and extruder position. The servo thread appends them to a
 // fixed-capacity window and follows the window with the controller of controller.hpp, exactly as
 // ManeuverServo follows a whole PiecewiseLinearPath with split steps (no segment can be skipped).
 //
 // The newest waypoint of the window is always treated as a stop (k = 1): if the planner falls
 // behind, the extruder slows down towards the end of the known path and holds there (v_s = 0,
-// the controller then regulates z_1 to 0) until more waypoints arrive. Nothing here allocates
+// the controller then regulates z_1 to 0) until more waypoints arrive; it then leaves the waypoint
+// it stopped at as from a stop (k = 1), whatever k the update brought. Nothing here allocates
 // after construction.
 #pragma once
 
@@ -49,6 +51,8 @@ class PathWindow {
   // Appends p_{last+1}. A waypoint closer than min_segment_m to the last one only updates its k,
   // e and line (a zero-length segment has no direction). False when full (nothing changes).
   bool push(const StreamWaypoint& w, double min_segment_m = 1e-9);
+  // Sets the corner weight of waypoint n (the servo marks a waypoint where it stopped as a stop).
+  void set_k(uint64_t n, double k) { pts_[n % pts_.size()].w.k = k; }
   // Forgets waypoints before n (keeps at least the newest).
   void release_before(uint64_t n);
 
