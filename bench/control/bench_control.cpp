@@ -545,10 +545,12 @@ std::vector<DeltaRun> run_delta(const config::MachineConfig& base, bool quick) {
     const char* id;
     FeedforwardType ff;
     bool fixed_centre;
+    bool virtual_work;  // the model's end-effector force by virtual work instead of Eq. 25/69
   };
-  const DeltaRow rows[] = {{"none", FeedforwardType::none, false},
-                           {"lpv_centre", FeedforwardType::lpv, true},
-                           {"lpv", FeedforwardType::lpv, false}};
+  const DeltaRow rows[] = {{"none", FeedforwardType::none, false, false},
+                           {"lpv_centre", FeedforwardType::lpv, true, false},
+                           {"lpv", FeedforwardType::lpv, false, false},
+                           {"lpv_vw", FeedforwardType::lpv, false, true}};
   for (int p = 0; p < npos; ++p) {
     const double cx = kDeltaPositions_mm[p][0], cy = kDeltaPositions_mm[p][1];
     for (const char* shape : {"circle", "small_star"}) {
@@ -557,6 +559,7 @@ std::vector<DeltaRun> run_delta(const config::MachineConfig& base, bool quick) {
       for (const DeltaRow& dr : rows) {
         DeltaRun r{shape, dr.id, cx, cy, {}, false};
         config::MachineConfig cfg = base;
+        if (dr.virtual_work && cfg.model.delta_lpv) cfg.model.delta_lpv->force_transform = config::ForceTransform::virtual_work;
         cfg.recorder.enabled = false;
         cfg.planner.max_accel_mm_s2 = 3000.0;
         cfg.planner.max_velocity_mm_s = std::max(cfg.planner.max_velocity_mm_s, kDeltaSpeed_mm_s);
@@ -590,8 +593,8 @@ const DeltaRun* find_delta(const std::vector<DeltaRun>& runs, const std::string&
 void print_delta(const std::vector<DeltaRun>& runs, std::vector<Criterion>& crit) {
   std::printf("\n== delta (config/examples/delta_sim.yaml), open loop, %.0f mm/s, a = 3000 mm/s^2, z = %.0f mm ==\n",
               kDeltaSpeed_mm_s, kDeltaZ_mm);
-  std::printf("  %-12s %-11s | %-26s | %-26s | %-26s | %s\n", "centre", "shape", "none: e_t (std) max",
-              "fixed centre: e_t (std) max", "LPV: e_t (std) max", "LPV vs centre");
+  std::printf("  %-12s %-11s | %-26s | %-26s | %-26s | %-13s | %-26s\n", "centre", "shape", "none: e_t (std) max",
+              "fixed centre: e_t (std) max", "LPV: e_t (std) max", "LPV vs centre", "LPV virtual work: e_t");
   auto cell = [](const DeltaRun* r) {
     if (!r) return std::string("-");
     if (!r->out.have_metrics) return std::string(r->skipped ? "n/a (hook)" : "(" + r->out.error.substr(0, 22) + ")");
@@ -617,8 +620,9 @@ void print_delta(const std::vector<DeltaRun>& runs, std::vector<Criterion>& crit
       k.value = c && c->skipped ? "awaits fixed centre hook" : "missing run";
     }
     crit.push_back(k);
-    std::printf("  %-12s %-11s | %-26s | %-26s | %-26s | %s\n", pos, r.shape.c_str(), cell(&r).c_str(),
-                cell(c).c_str(), cell(l).c_str(), cmp.c_str());
+    std::printf("  %-12s %-11s | %-26s | %-26s | %-26s | %-13s | %-26s\n", pos, r.shape.c_str(), cell(&r).c_str(),
+                cell(c).c_str(), cell(l).c_str(), cmp.c_str(),
+                cell(find_delta(runs, r.shape, "lpv_vw", r.x_mm, r.y_mm)).c_str());
   }
 }
 
