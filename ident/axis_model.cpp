@@ -141,7 +141,11 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
   // part), the effect forces are held (zero-order hold). Augmented exponential
   //   exp([[A h, B h, 0], [0, 0, e_u], [0, 0, 0]]) = [[Ad, G0, G1], ...]
   // gives x+ = Ad x + G0 [u_a, F1, F2] + G1 (u_b - u_a).
-  const int substeps = nonlinear ? kSubsteps : 1;
+  // Substeps resolve the force switches of backlash, direction-dependent stiffness and friction;
+  // the runout force varies smoothly with position (a few Hz at print speeds), so held over a
+  // whole sample it is as exact, and a runout alone is simulated at one step per sample.
+  const bool switching = backlash || direction || friction;
+  const int substeps = switching ? kSubsteps : 1;
   const double h = period_s / substeps;
   Eigen::Matrix<double, N + 4, N + 4> M = Eigen::Matrix<double, N + 4, N + 4>::Zero();
   M.template topLeftCorner<N, N>() = A.template topLeftCorner<N, N>() * h;

@@ -6,10 +6,10 @@
 //   m1 x1'' = k1 (u - x1) - c1 x1' - F_belt          (Eq. 13 motor side, e = 1)
 //   m2 x2'' = F_belt - c2 x2' + F_fric + F_mount     (Eq. 13 carriage side + effects)
 //   F_belt  = K2(sgn) * deadzone(x1 + A_p sin(2 pi x1 / P) - x2, w/2)
-// The linear part is stepped exactly (ZOH of its state space, Eigen's matrix exponential) at
-// kSubsteps per sample with u interpolated linearly between samples (the step pulses of a sample
-// are spread evenly over its interval); the effect forces (backlash, belt direction, runout, Dahl
-// friction) are held over each substep. scale_error scales u about its first sample; time_delay
+// The linear part is stepped exactly (Eigen's matrix exponential) with u interpolated linearly
+// between samples (the step pulses of a sample are spread evenly over its interval); the effect
+// forces (backlash, belt direction, runout, Dahl friction) are held over each step: 5 substeps
+// per sample with a switching effect (backlash, belt direction, friction), one otherwise. scale_error scales u about its first sample; time_delay
 // delays the output (linear interpolation); extra_resonance adds a third mass on a spring-damper
 // to the carriage (three states more, all linear).
 #pragma once

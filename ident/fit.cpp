@@ -118,8 +118,11 @@ double prior_cost(const AxisModel& m, const Problem& pb) {
 // Levenberg-Marquardt on the training part; residuals in um. Jacobian columns are computed in two
 // threads (the machine has two cores).
 // Only the first fit_end samples (at most the training part) are simulated and fitted.
+// *converged (when given) tells whether it stopped on a negligible gain or no possible step,
+// rather than on the iteration limit.
 AxisModel levenberg_marquardt(AxisModel m, const std::vector<Param>& ps, const Problem& full, int iterations,
-                              size_t fit_end = 0, bool two_threads = true) {
+                              size_t fit_end = 0, bool two_threads = true, bool* converged = nullptr) {
+  if (converged != nullptr) *converged = false;
   if (fit_end == 0 || fit_end > full.train_end) fit_end = full.train_end;
   const std::vector<double> u_fit(full.u->begin(), full.u->begin() + static_cast<long>(fit_end));
   Problem pb = full;
@@ -191,13 +194,19 @@ AxisModel levenberg_marquardt(AxisModel m, const std::vector<Param>& ps, const P
           cost = c;
           lambda = std::max(lambda * 0.3, 1e-7);
           improved = true;
-          if (gain < 1e-5) return m;
+          if (gain < 1e-5) {
+            if (converged != nullptr) *converged = true;
+            return m;
+          }
           break;
         }
       }
       lambda *= 10.0;
     }
-    if (!improved) break;
+    if (!improved) {
+      if (converged != nullptr) *converged = true;
+      break;
+    }
   }
   return m;
 }
@@ -420,8 +429,10 @@ double residual_rms_um(const std::vector<double>& y_model_mm, const std::vector<
   return std::sqrt(s / static_cast<double>(end - begin));
 }
 
-Result<AxisModel> fit_baseline(const AxisModel& start, const std::vector<double>& cmd_mm,
-                               const std::vector<double>& meas_mm, double period_s, const FitOptions& o) {
+namespace {
+Result<AxisModel> fit_baseline_impl(const AxisModel& start, const std::vector<double>& cmd_mm,
+                                    const std::vector<double>& meas_mm, double period_s, const FitOptions& o,
+                                    bool* converged) {
   if (cmd_mm.size() != meas_mm.size()) return Error{"cmd and meas have different lengths", {}};
   if (cmd_mm.size() < 100) return Error{"trace too short to fit (fewer than 100 samples)", {}};
   AxisModel m = start;
@@ -430,7 +441,14 @@ Result<AxisModel> fit_baseline(const AxisModel& start, const std::vector<double>
   Problem pb{&preset, &cmd_mm, &meas_mm, period_s,
              static_cast<size_t>(static_cast<double>(cmd_mm.size()) * std::clamp(o.train_fraction, 0.1, 1.0))};
   return levenberg_marquardt(m, free_params(m), pb, o.max_iterations,
-                             static_cast<size_t>(std::max(o.fit_window_s, 1.0) / period_s));
+                             static_cast<size_t>(std::max(o.fit_window_s, 1.0) / period_s), true, converged);
+}
+
+}  // namespace
+
+Result<AxisModel> fit_baseline(const AxisModel& start, const std::vector<double>& cmd_mm,
+                               const std::vector<double>& meas_mm, double period_s, const FitOptions& o) {
+  return fit_baseline_impl(start, cmd_mm, meas_mm, period_s, o, nullptr);
 }
 
 Result<IdentResult> identify_axis(const std::string& axis_name, const std::vector<double>& cmd_mm,
@@ -442,7 +460,8 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   out.axis = axis_name;
   report(0.0, "baseline fit");
   const AxisModel preset = preset_axis_model(axis_name);
-  auto base = fit_baseline(preset, cmd_mm, meas_mm, period_s, o);
+  bool cur_converged = false;  // the current model's last fit stopped on convergence
+  auto base = fit_baseline_impl(preset, cmd_mm, meas_mm, period_s, o, &cur_converged);
   if (!base) return base.error();
   const size_t n = cmd_mm.size();
   Problem pb{&preset, &cmd_mm, &meas_mm, period_s,
@@ -461,8 +480,9 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   const int rounds = std::max(o.max_effects, 0);
   for (int round = 1; round <= rounds; ++round) {
     // The null candidate: the current model refitted a little longer, so a candidate is compared
-    // with a converged model and not credited for the iterations it was given.
-    {
+    // with a converged model and not credited for the iterations it was given (not needed when
+    // its last fit converged already).
+    if (!cur_converged) {
       report(static_cast<double>(round - 1) / rounds, "polish current model");
       AxisModel polished = levenberg_marquardt(cur, free_params(cur), pb, o.screen_iterations, fit_end);
       std::vector<double> ys;
@@ -538,9 +558,15 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
       }
     }
     if (best < 0) break;
-    {
+    // The round's winner is refitted longer, unless its screening fit is far from significant
+    // (it lowered the held-out RMS by less than a third of the required margin: a longer fit of
+    // the same parameters does not triple that).
+    bool best_converged = false;
+    if (best_val <= (1.0 - o.min_improvement / 3.0) * cur_val) {
       report((static_cast<double>(round) - 0.1) / rounds, std::string("refit with ") + effect_name(static_cast<Effect>(best)));
-      AxisModel refit = levenberg_marquardt(best_model, free_params(best_model), pb, o.max_iterations, fit_end);
+      bool refit_converged = false;
+      AxisModel refit = levenberg_marquardt(best_model, free_params(best_model), pb, o.max_iterations, fit_end, true,
+                                            &refit_converged);
       std::vector<double> ys;
       if (run(refit, pb, &ys)) {
         const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);
@@ -548,6 +574,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
           best_val = val;
           best_model = refit;
           best_y = std::move(ys);
+          best_converged = refit_converged;
         }
       }
     }
@@ -559,6 +586,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
       if (c.round == round && static_cast<int>(c.effect) == best) c.kept = true;
     cur = best_model;
     cur_val = best_val;
+    cur_converged = best_converged;
     y_cur = std::move(best_y);
     out.effects.push_back(static_cast<Effect>(best));
   }
