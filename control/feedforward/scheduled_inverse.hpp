@@ -4,6 +4,8 @@
 // (linear/trilinear interpolation weights from the caller) applied to the feedforward's own copy
 // of the model:
 //   v_k = -K(p) x_k + sum_i F_i(p) r_{k+i},   x_{k+1} = A(p) x_k + B(p) v_k
+// run in deviation form (x relative to the model's rest state at r_k, see step()), so that the
+// re-scheduled linear model only ever sees reference differences, never absolute positions.
 // The blended model and gains are a convex combination of the neighbours' (same state
 // coordinates at every point, so the blend is meaningful).
 //
@@ -30,7 +32,7 @@ class ScheduledPreviewInverse {
 
   // RT-safe. Selects the blend sum_c w[c] design[idx[c]] (count <= 8, weights summing to 1).
   void schedule(const int* idx, const double* w, int count);
-  // RT-safe. At rest at reference r (m values) with the current schedule.
+  // RT-safe. At rest at reference r (m values): r held for every past and previewed sample.
   void reset(const double* r);
   // RT-safe. Appends r_{k+P} to the preview buffer; reference(0) is then r_k.
   void push(const double* r_ahead);
