@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <string>
 
@@ -404,6 +405,99 @@ Result<CouplingFit> identify_coupling(const DeltaMeasurements& meas, const model
   // RMS over frequencies of ||H_pred - H_meas|| / ||H_meas|| (18 residuals per frequency).
   out.rms_rel = sol->rms * std::sqrt(18.0);
   out.evaluations = sol->evaluations;
+  return out;
+}
+
+Result<CouplingFit> identify_coupling_eq68(const DeltaMeasurements& meas, const model::DeltaParams& base,
+                                           model::ForceTransform form, Eq68Alpha alpha_kind) {
+  const std::vector<double> f = meas.plan.centre_grid.points_hz();
+  if (meas.centre_task.size() != f.size()) return Error{"Eq. 68 fit: measurements do not match the centre grid", {}};
+  auto model0 = model::DeltaLpvModel::create(base, form);
+  if (!model0.ok()) return model0.error();
+  auto op = model0->at(meas.plan.centre_mm);
+  if (!op.ok()) return op.error();
+  const Eigen::Matrix3d jinv0 = op->jbar.inverse();  // q = Jbar^-1 X
+  // Eq. 69: alpha_ji = T(i, j), force on carriage i per unit of w_j X_j. PerCarriageMotion divides
+  // by q_i / X_j so that the force is per unit of carriage i's own motion, which is what Eq. 68's
+  // single-carriage polynomial assumes.
+  Eigen::Matrix3d alpha = op->transform;
+  if (alpha_kind == Eq68Alpha::PerCarriageMotion) alpha = alpha.cwiseQuotient(jinv0);
+  const double m = base.m_kg(), cb = base.c_n_s_m + base.b_n_s_m, k = base.k_n_m;
+  const double m1 = base.m1_effective_kg(), m2 = base.m2_kg;
+  if (!(m2 > 0.0)) return Error{"Eq. 68 fit: needs a two-mass effector (m2 > 0)", {}};
+  RationalFitSpec spec;
+  spec.num_order = 3;  // Eq. 66
+  spec.den_order = 4;
+  CouplingFit out;
+  for (int j = 0; j < 3; ++j) {
+    // Rows of the linear least squares in (b_j, k_j), each scaled to unit norm.
+    std::vector<Eigen::RowVector2d> rows;
+    std::vector<double> rhs;
+    for (int i = 0; i < 3; ++i) {
+      // Carriage i does not move (or feel a force) when the effector moves along j: skip.
+      if (std::abs(jinv0(i, j)) < 0.05 * jinv0.col(j).cwiseAbs().maxCoeff()) continue;
+      if (std::abs(op->transform(i, j)) < 0.05 * op->transform.col(j).cwiseAbs().maxCoeff()) continue;
+      const double a = alpha(i, j);
+      // Mechanical part of the measured FRF: the electrical factor G_qd,e (Eq. 34) is common to
+      // every entry of Eq. 29 and is divided out with the identified d0-d2.
+      std::vector<Complex> hm(f.size());
+      for (size_t kf = 0; kf < f.size(); ++kf) {
+        const Complex s = jw(f[kf]);
+        hm[kf] = meas.centre_task[kf](i, j) / ((base.d1_per_s * s + base.d0_per_s2) /
+                                              (s * s + base.d2_per_s * s + base.d0_per_s2));
+      }
+      auto tf = fit_rational(f, hm, spec);
+      if (!tf.ok()) return Error{"Eq. 66 fit: " + tf.error().message, {}};
+      const double lead = (m + a * m1) * m2;
+      const double a3 = tf->den[1] * lead, a2 = tf->den[2] * lead, a1 = tf->den[3] * lead, a0 = tf->den[4] * lead;
+      const double ma = m + a * (m1 + m2);
+      // Eq. 68 (as expanded: the s^2 term has (c+b) b_j, see model/delta_submodels.hpp).
+      const Eigen::RowVector2d r3(ma, 0.0), r2(cb, ma), r1(k, cb), r0(0.0, k);
+      const double y3 = a3 - m2 * cb, y2 = a2 - m2 * k, y1 = a1, y0 = a0;
+      for (const auto& [row, y] : {std::pair{r3, y3}, std::pair{r2, y2}, std::pair{r1, y1}, std::pair{r0, y0}}) {
+        const double nrm = row.norm();
+        rows.push_back(row / nrm);
+        rhs.push_back(y / nrm);
+      }
+    }
+    if (rows.empty()) return Error{"Eq. 68 fit: no carriage sees axis " + std::to_string(j), {}};
+    Eigen::MatrixXd a(static_cast<Eigen::Index>(rows.size()), 2);
+    Eigen::VectorXd y(static_cast<Eigen::Index>(rows.size()));
+    for (size_t r = 0; r < rows.size(); ++r) {
+      a.row(static_cast<Eigen::Index>(r)) = rows[r];
+      y[static_cast<Eigen::Index>(r)] = rhs[r];
+    }
+    // Columns on comparable scales (b ~ 10, k ~ 1e4) before solving.
+    const Eigen::Vector2d col = a.colwise().norm().transpose();
+    const Eigen::Vector2d sol = (a * col.cwiseInverse().asDiagonal()).colPivHouseholderQr().solve(y).cwiseQuotient(col);
+    out.b_n_s_m[j] = sol[0];
+    out.k_n_m[j] = sol[1];
+  }
+  out.physical = out.b_n_s_m.allFinite() && out.k_n_m.allFinite() && out.b_n_s_m.minCoeff() > 0.0 &&
+                 out.k_n_m.minCoeff() > 0.0;
+  if (!out.physical) {
+    out.rms_rel = std::numeric_limits<double>::infinity();
+    return out;
+  }
+  // Score it like the Eq. 29 least squares.
+  model::DeltaParams p = base;
+  p.b_x_n_s_m = out.b_n_s_m.x();
+  p.b_y_n_s_m = out.b_n_s_m.y();
+  p.b_z_n_s_m = out.b_n_s_m.z();
+  p.k_x_n_m = out.k_n_m.x();
+  p.k_y_n_m = out.k_n_m.y();
+  p.k_z_n_m = out.k_n_m.z();
+  auto model = model::DeltaLpvModel::create(p, form);
+  if (!model.ok()) return model.error();
+  auto op2 = model->at(meas.plan.centre_mm);
+  if (!op2.ok()) return op2.error();
+  const Eigen::Matrix3d jinv = op2->jbar.inverse();
+  double sum = 0.0;
+  for (size_t kf = 0; kf < f.size(); ++kf) {
+    const Eigen::Matrix3cd h = model->frf(*op2, jw(f[kf])) * jinv;
+    sum += (h - meas.centre_task[kf]).squaredNorm() / meas.centre_task[kf].squaredNorm();
+  }
+  out.rms_rel = std::sqrt(sum / static_cast<double>(f.size()));
   return out;
 }
 

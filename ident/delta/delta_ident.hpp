@@ -111,6 +111,7 @@ struct CouplingFit {
   // With free_mass_scale: the factor on the weighed m1, m2 that the centre data ask for (1 when
   // the force transformation distributes the effector's inertia as the machine does).
   double mass_scale = 1.0;
+  bool physical = true;  // b_j > 0 and k_j > 0 (only the Eq. 68 route can fail this)
 };
 
 struct DeltaIdentification {
@@ -127,6 +128,17 @@ Result<EffectorFit> identify_effector(const DeltaMeasurements& meas);
 // m1 and m2 (a diagnostic of the force transformation, not part of the procedure).
 Result<CouplingFit> identify_coupling(const DeltaMeasurements& meas, const model::DeltaParams& base,
                                       model::ForceTransform form, bool free_mass_scale = false);
+// The paper's own route for step 3, for comparison: each of the nine centre FRFs, electrical
+// part divided out, fitted by Eq. 66 (3rd/4th order); the denominators matched to Eq. 68
+// (expanded form) by linear least squares per axis j (carriages that do not move or feel no force
+// along j, below 5 % of the column's largest, are skipped). alpha:
+//   Published:          alpha_ji of Eq. 69 (force on carriage i per unit of w_j X_j);
+//   PerCarriageMotion:  alpha_ji / (Jbar^-1)_ij (per unit of carriage i's own motion, which is what
+//                       the single-carriage polynomial of Eq. 68 assumes; docs/ident_delta.md).
+// A fit with b_j <= 0 or k_j <= 0 is returned with physical = false and rms_rel = inf.
+enum class Eq68Alpha { Published, PerCarriageMotion };
+Result<CouplingFit> identify_coupling_eq68(const DeltaMeasurements& meas, const model::DeltaParams& base,
+                                           model::ForceTransform form, Eq68Alpha alpha);
 // Steps 1-3.
 Result<DeltaIdentification> identify(const DeltaMeasurements& meas, model::ForceTransform form);
 

@@ -224,6 +224,26 @@ TEST(DeltaIdent, StiffArmsGiveBackTheCouplingParameters) {
     EXPECT_LT(rel_err(id->coupling.b_n_s_m[j], b[j]), 0.10) << "b_" << "xyz"[j];
   }
   EXPECT_LT(id->coupling.rms_rel, 0.01);
+
+  // The paper's own route (Eq. 66 fits, Eq. 68 coefficient matching) on the same data: with
+  // alpha_ji as published, carriages B and C get negative alpha for x and y and the least squares
+  // returns non-physical b_j, k_j; with alpha per unit of the carriage's own motion it works,
+  // less precisely than the Eq. 29 least squares. z (all carriages move alike) is right either way.
+  auto published = identify_coupling_eq68(*meas, id->params, ForceTransform::VirtualWork, Eq68Alpha::Published);
+  auto corrected = identify_coupling_eq68(*meas, id->params, ForceTransform::VirtualWork, Eq68Alpha::PerCarriageMotion);
+  ASSERT_TRUE(published.ok() && corrected.ok());
+  std::printf("Eq. 68 published alpha: b_j %.1f %.1f %.1f k_j %.4g %.4g %.4g (physical %d); per carriage motion: b_j "
+              "%.2f %.2f %.2f k_j %.4g %.4g %.4g rms %.4f\n",
+              published->b_n_s_m.x(), published->b_n_s_m.y(), published->b_n_s_m.z(), published->k_n_m.x(),
+              published->k_n_m.y(), published->k_n_m.z(), published->physical, corrected->b_n_s_m.x(),
+              corrected->b_n_s_m.y(), corrected->b_n_s_m.z(), corrected->k_n_m.x(), corrected->k_n_m.y(),
+              corrected->k_n_m.z(), corrected->rms_rel);
+  EXPECT_FALSE(published->physical);
+  EXPECT_LT(rel_err(published->k_n_m.z(), k.z()), 0.01);
+  ASSERT_TRUE(corrected->physical);
+  EXPECT_LT(rel_err(corrected->k_n_m.z(), k.z()), 0.01);
+  for (int j = 0; j < 2; ++j) EXPECT_LT(rel_err(corrected->k_n_m[j], k[j]), 0.15) << "k_" << "xy"[j];
+  EXPECT_GT(corrected->rms_rel, id->coupling.rms_rel);
 }
 
 }  // namespace
