@@ -58,6 +58,16 @@ TEST(IdentCli, ExciteThenFitFindsThePeriodicEffectAndWritesTheContract) {
   EXPECT_EQ(json.find("backlash"), std::string::npos) << json;
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "report.md"));
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "residual.csv"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "frf.csv"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "evidence_periodic_position.csv"));
+  const std::string md = slurp(dir / "out" / "report.md");
+  EXPECT_NE(md.find("## Measured frequency response"), std::string::npos) << md;
+  EXPECT_NE(md.find("## Plots"), std::string::npos) << md;
+  if (std::system("gnuplot --version > /dev/null 2>&1") == 0) {
+    EXPECT_TRUE(std::filesystem::exists(dir / "out" / "bode.png"));
+    EXPECT_TRUE(std::filesystem::exists(dir / "out" / "evidence_periodic_position.png"));
+    EXPECT_NE(md.find("[`evidence_periodic_position.png`]"), std::string::npos) << md;
+  }
   const int rc = check_contract("report", dir / "out" / "report.json");
   if (rc >= 0) {
     EXPECT_EQ(rc, 0) << json;
