@@ -272,6 +272,7 @@ struct CaseResult {
   CaseDef c;
   std::string skip_reason;  // non-empty: not run
   std::string cornering;    // the corner rule the runs used
+  std::string positions;    // where on the bed
   std::vector<RowResult> rows;
   const RowResult* row(const std::string& id) const {
     for (const RowResult& r : rows)
@@ -323,8 +324,8 @@ std::string thesis_text(const RowResult& r, const ThesisRef& t) {
 void print_block(const Block& b) {
   std::printf("\n== %s ==\n", b.label.c_str());
   for (const CaseResult& cr : b.cases) {
-    std::printf("\n%s: %.0f mm/s, a = %.0f mm/s^2, %s\n", cr.c.id, cr.c.speed_mm_s, cr.c.accel_mm_s2,
-                cr.cornering.c_str());
+    std::printf("\n%s: %.0f mm/s, a = %.0f mm/s^2, %s, %s\n", cr.c.id, cr.c.speed_mm_s, cr.c.accel_mm_s2,
+                cr.cornering.c_str(), cr.positions.c_str());
     if (!cr.skip_reason.empty()) {
       std::printf("  (not run: %s)\n", cr.skip_reason.c_str());
       continue;
@@ -353,10 +354,57 @@ std::optional<Circle> case_circle(const CaseDef& c, double cx, double cy) {
   return std::nullopt;
 }
 
+// Table 1 of the thesis: the small star drawn in four sections of the bed (Fig. 11 a), the figures
+// the mean of the four runs. Here: the centres of the bed's four quadrants.
+constexpr double kTable1Positions_mm[4][2] = {{62.5, 62.5}, {187.5, 62.5}, {62.5, 187.5}, {187.5, 187.5}};
+
+bool table1_case(const CaseDef& c) { return c.shape == Shape::small_star && c.speed_mm_s == 150.0; }
+
+// Runs pooled as one: e_t over all samples (the runs have equal N), std pooled, max the largest,
+// time the mean, lost steps and events summed; ok when every run is.
+RunOut pool(const std::vector<RunOut>& runs) {
+  RunOut p;
+  p.ok = true;
+  p.have_metrics = true;
+  double sum_e = 0, sum_e2 = 0, n = 0, time = 0;
+  for (const RunOut& r : runs) {
+    p.ok = p.ok && r.ok;
+    p.have_metrics = p.have_metrics && r.have_metrics;
+    if (p.error.empty()) p.error = r.error;
+    p.cpu_s += r.cpu_s;
+    p.lost_full_steps += r.lost_full_steps;
+    p.lost_step_events += r.lost_step_events;
+    p.run_samples += r.run_samples;
+    p.run_span_s += r.run_span_s;
+    if (!r.have_metrics) continue;
+    const double k = static_cast<double>(r.m.samples);
+    sum_e += k * r.m.e_t_mm;
+    sum_e2 += k * (r.m.e_t_std_mm * r.m.e_t_std_mm + r.m.e_t_mm * r.m.e_t_mm);
+    n += k;
+    time += r.m.time_s;
+    p.m.e_max_mm = std::max(p.m.e_max_mm, r.m.e_max_mm);
+  }
+  if (n > 0) {
+    p.m.samples = static_cast<size_t>(n);
+    p.m.e_t_mm = sum_e / n;
+    p.m.e_t_std_mm = std::sqrt(std::max(0.0, sum_e2 / n - p.m.e_t_mm * p.m.e_t_mm));
+    p.m.time_s = time / static_cast<double>(runs.size());
+  }
+  return p;
+}
+
 RunOut run_gantry(const config::MachineConfig& base, const CaseDef& c, const RowDef& row, bool effects,
-                  const ShaperChoice& sh) {
+                  const ShaperChoice& sh, bool single_position = false) {
+  const config::MachineConfig cfg = make_config(base, c, row, effects, sh);
+  if (table1_case(c) && !single_position) {
+    std::vector<RunOut> runs;
+    for (const auto& pos : kTable1Positions_mm)
+      runs.push_back(run_case(cfg, bench::path_gcode(case_path(c.shape, pos[0], pos[1]), c.speed_mm_s, -1.0),
+                              std::nullopt));
+    return pool(runs);
+  }
   const bench::Path path = case_path(c.shape, kGantryCentre_mm[0], kGantryCentre_mm[1]);
-  return run_case(make_config(base, c, row, effects, sh), bench::path_gcode(path, c.speed_mm_s, -1.0),
+  return run_case(cfg, bench::path_gcode(path, c.speed_mm_s, -1.0),
                   case_circle(c, kGantryCentre_mm[0], kGantryCentre_mm[1]));
 }
 
@@ -434,7 +482,7 @@ std::vector<RowDef> gantry_rows(const Tuning& t, const Tuning& tl) {
 }
 
 Block run_block(const config::MachineConfig& base, bool effects, const std::vector<RowDef>& rows,
-                const ShaperChoice& sh) {
+                const ShaperChoice& sh, bool quick) {
   Block b;
   b.id = effects ? "effects" : "nominal";
   b.label = effects ? "with unmodelled effects (friction 2 N, backlash 20 um, runout 10 um / 40 mm, "
@@ -449,11 +497,13 @@ Block run_block(const config::MachineConfig& base, bool effects, const std::vect
     const bool have_sc = apply_speed_change_cornering(probe, sc);
     cr.cornering = have_sc ? "speed change " + fmt(sc, "%.0f") + " mm/s (thesis Sect. 2.2)"
                            : "junction deviation " + fmt(base.planner.junction_deviation_mm, "%.3f") + " mm";
+    cr.positions = table1_case(c) && !quick ? "4 runs pooled at the bed's quadrant centres (Table 1)"
+                                            : "centred at (125, 125)";
     if (c.speed_change_mm_s > 0 && !have_sc)
       cr.skip_reason = "the planner has no speed-change cornering policy yet (HOOK apply_speed_change_cornering)";
     if (cr.skip_reason.empty()) {
       for (const RowDef& row : rows) {
-        cr.rows.push_back({row, run_gantry(cbase, c, row, effects, sh), NAN});
+        cr.rows.push_back({row, run_gantry(cbase, c, row, effects, sh, quick), NAN});
         progress(b.id + " / " + c.id + " / " + row.id, cr.rows.back().out);
       }
       const RowResult* ol = cr.row("open_loop");
@@ -718,6 +768,7 @@ bool write_json(const char* path, const Tuning& t, const Tuning& tl, const Shape
                    th.ol_e_r > 0 ? jnum(th.ol_e_r).c_str() : "null", th.ol_time > 0 ? jnum(th.ol_time).c_str() : "null",
                    th.pi_e_t > 0 ? jnum(th.pi_e_t).c_str() : "null", th.pi_std > 0 ? jnum(th.pi_std).c_str() : "null",
                    th.pi_e_r > 0 ? jnum(th.pi_e_r).c_str() : "null", th.pi_time > 0 ? jnum(th.pi_time).c_str() : "null");
+      std::fprintf(f, ", \"cornering\": %s, \"positions\": %s", jstr(cr.cornering).c_str(), jstr(cr.positions).c_str());
       if (!cr.skip_reason.empty()) std::fprintf(f, ", \"skipped\": %s", jstr(cr.skip_reason).c_str());
       std::fprintf(f, ", \"rows\": [");
       for (size_t ri = 0; ri < cr.rows.size(); ++ri) {
@@ -816,7 +867,7 @@ int main(int argc, char** argv) {
 
   std::vector<Block> blocks;
   for (bool effects : {false, true}) {
-    blocks.push_back(run_block(base, effects, rows, sh));
+    blocks.push_back(run_block(base, effects, rows, sh, quick));
     print_block(blocks.back());
   }
   std::vector<Criterion> crit = criteria(blocks);
