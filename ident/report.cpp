@@ -284,7 +284,7 @@ Status write_report(const std::string& dir, const IdentResult& r, const std::vec
       if (auto s = write_file(d / "residual_psd.csv", csv); !s) return s;
       plots.push_back(PlotSpec{"residual_psd", "Power spectral density of the residual before and after (time domain)",
                                1000, 600,
-          "set title 'axis " + axis + ": residual spectrum'\nset logscale xy\nset format y '%.0e'\n"
+          "set title 'axis " + axis + ": residual spectrum'\nset logscale xy\nset autoscale xfix\nset format y '%.0e'\n"
           "set xlabel 'frequency (Hz)'\nset ylabel 'PSD (um^2/Hz)'\n"
           "plot " + q("residual_psd.csv") + " skip 1 using 1:2 with lines lw 1.5 lc rgb '#d62728' title 'before (baseline)', "
           "'' skip 1 using 1:3 with lines lw 1.5 lc rgb '#2ca02c' title 'after (augmented)'"});
