@@ -1,6 +1,8 @@
 // `feedloop ident fit|excite` (see ident_command.hpp).
 #include "cli/ident_command.hpp"
 
+#include <unistd.h>  // isatty
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -220,9 +222,11 @@ int fit(const std::vector<std::string>& args) {
   }
   Progress progress("ident fit " + axis->name);
   ident::FitOptions o;
-  o.progress = [&](double f, const std::string& what) { progress.update(f, what); };
+  // The progress bar only on a terminal: logs and pipes get the result lines alone.
+  const bool tty = ::isatty(2) != 0;
+  if (tty) o.progress = [&](double f, const std::string& what) { progress.update(f, what); };
   auto r = ident::identify_axis(axis->name, axis->cmd_mm, axis->meas_mm, tr.period_s(), o);
-  progress.finish();
+  if (tty) progress.finish();
   if (!r) {
     std::fprintf(stderr, "feedloop ident fit: %s\n", r.error().to_string().c_str());
     return 1;
