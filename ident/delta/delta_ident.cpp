@@ -359,12 +359,14 @@ Result<CouplingFit> identify_coupling(const DeltaMeasurements& meas, const model
     return true;
   };
   const double m2 = base.m2_kg > 0.0 ? base.m2_kg : 1e-3;
-  // Initial guess: per axis, a log grid over the m2 mode (k_j = m2 w^2, zeta 0.05), others fixed.
+  // Initial guess: start every axis at a 50 Hz m2 mode (k_j = m2 w^2, b_j = 2 zeta m2 w,
+  // zeta 0.05); then per axis a log grid over the mode (3-600 Hz, three damping ratios) with the
+  // other axes fixed, twice over.
   Eigen::VectorXd x(6);
   for (int j = 0; j < 3; ++j) {
     const double w = kTwoPi * 50.0;
     x[3 + j] = std::log(m2 * w * w);
-    x[j] = std::log(2.0 * 0.05 * std::sqrt(m2 * m2 * w * w));
+    x[j] = std::log(2.0 * 0.05 * m2 * w);
   }
   Eigen::VectorXd r_axis(6 * n);
   for (int pass = 0; pass < 2; ++pass) {
