@@ -234,7 +234,7 @@ int main(int argc, char** argv) {
     }
     const double avg_vw = tv->avg_acc_mag_pct.mean(), avg_pa = tp->avg_acc_mag_pct.mean();
     const char* supported = vw->coupling.rms_rel < pa->coupling.rms_rel ? "virtual work" : "paper (Eq. 25/69)";
-    std::printf("verdict: the centre measurements support the %s form (centre fit rms %.4f vs %.4f, "
+    std::printf("\nverdict: the centre measurements support the %s form (centre fit rms %.4f vs %.4f, "
                 "ratio %.1f); mean mu_acc mag %.1f %% (VW) vs %.1f %% (paper form)\n",
                 supported, vw->coupling.rms_rel, pa->coupling.rms_rel, pa->coupling.rms_rel / vw->coupling.rms_rel,
                 avg_vw, avg_pa);
