@@ -3,6 +3,8 @@
 //   feedloop print FILE          stream a G-code file to a running feedloopd
 //   feedloop batch FILE          the pipeline in virtual time against an ideal plant
 //   feedloop log info|export     flight-recorder logs
+//   feedloop replay LOG          re-run a recorded print against the simulator, compare
+//   feedloop record FILE         record a simulated print in virtual time
 //   feedloop help                this text
 #include <cstdio>
 #include <string>
@@ -13,6 +15,7 @@
 #include "cli/model_command.hpp"
 #include "cli/log_command.hpp"
 #include "cli/print_command.hpp"
+#include "cli/replay_command.hpp"
 
 namespace {
 
@@ -24,6 +27,8 @@ void usage(std::FILE* out) {
       "  batch FILE [--config CFG] [--json OUT]    whole pipeline in virtual time, no hardware\n"
       "  log info LOG...                           summarise flight-recorder logs\n"
       "  log export LOG... --csv FILE [--rate-hz N]  recorder logs -> trace CSV v1\n"
+      "  replay LOG... [--config F] [--keep-log DIR]  re-run a recorded print in virtual time, compare\n"
+      "  record FILE --dir DIR [--config F]         record a simulated print in virtual time\n"
       "  ident fit --trace F.csv --out DIR         identify an axis: baseline, effects, report\n"
       "  ident excite --axis x|y --out F.csv       simulated excitation trace (tests, demos)\n"
       "  model frf [--config F] --pos X,Y,Z --out F.csv [--virtual-work]   delta FRFs (Eq. 29)\n"
@@ -43,6 +48,8 @@ int main(int argc, char** argv) {
   if (cmd == "print") return feedloop::cli::print_command(args);
   if (cmd == "batch") return feedloop::cli::batch_command(args);
   if (cmd == "log") return feedloop::cli::log_command(args);
+  if (cmd == "replay") return feedloop::cli::replay_command(args);
+  if (cmd == "record") return feedloop::cli::record_command(args);
   if (cmd == "ident") return feedloop::cli::ident_command(args);
   if (cmd == "model") return feedloop::cli::model_command(args);
   if (cmd == "help" || cmd == "--help" || cmd == "-h") {

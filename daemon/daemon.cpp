@@ -8,6 +8,8 @@
 #include "config/config.hpp"
 #include "engine/executor_factory.hpp"
 #include "gcode/parser.hpp"
+#include "recorder/options_from_config.hpp"
+#include "recorder/replay.hpp"
 
 namespace feedloop::daemon {
 
@@ -49,6 +51,70 @@ Daemon::Daemon(config::MachineConfig cfg, DaemonOptions options)
 Daemon::~Daemon() {
   if (machine_) machine_->stop();
   close_channels();
+  close_recorder();
+}
+
+void Daemon::open_recorder() {
+  if (!cfg_.recorder.enabled) return;
+  // Joints in the engine's order, up to the last that is an axis of the config.
+  std::vector<std::string> names;
+  for (const std::string& n : engine::joint_names(cfg_)) names.push_back(n);
+  while (!names.empty() && cfg_.axis(names.back()) == nullptr) names.pop_back();
+  auto ro = recorder::recorder_options_from_config(cfg_, config::to_yaml(cfg_), names,
+                                                   config::path_vars_from_environment());
+  if (!ro) {
+    spdlog::warn("flight recorder off: {}", ro.error().to_string());
+    return;
+  }
+  ro->clock = machine_clock_.get();
+  auto rec = recorder::Recorder::create(std::move(*ro));
+  if (!rec) {
+    spdlog::warn("flight recorder off: {}", rec.error().to_string());
+    return;
+  }
+  recorder_ = std::move(*rec);
+  recording_ = std::make_unique<recorder::EngineRecording>(*recorder_, *machine_clock_);
+  recorder_->start_thread();
+  spdlog::info("flight recorder: prints are recorded in {}", cfg_.recorder.directory);
+}
+
+void Daemon::close_recorder() {
+  end_print();
+  if (recorder_) recorder_->stop_thread();
+  recording_.reset();
+  recorder_.reset();
+}
+
+Result<std::unique_ptr<engine::CommandExecutor>> Daemon::make_recorded_executor() {
+  auto stack = engine::make_motion_stack(cfg_, engine::motion_options(cfg_), recording_.get());
+  if (!stack) return stack.error();
+  if (recording_) stack->executor->set_telemetry(recording_.get());
+  return std::unique_ptr<engine::CommandExecutor>(std::move(stack->executor));
+}
+
+void Daemon::start_print(const Client& owner) {
+  if (!recorder_ || print_open_) return;
+  if (Status s = recorder_->start_print(owner.session->name()); !s) {
+    spdlog::warn("flight recorder: cannot start recording the print: {}", s.error().to_string());
+    return;
+  }
+  print_open_ = true;
+  recorder_->writer(recorder::Stream::io)
+      .event(recorder::EventKind::print_start, machine_clock_->now_ns(), -1, 0.0, owner.session->name());
+}
+
+void Daemon::end_print() {
+  if (!recorder_ || !print_open_) return;
+  print_open_ = false;
+  recorder_->writer(recorder::Stream::io).event(recorder::EventKind::print_end, machine_clock_->now_ns(), -1, 0.0);
+  const std::string last = recorder_->stats().current_path;
+  if (Status s = recorder_->end_print(); !s) spdlog::warn("flight recorder: {}", s.error().to_string());
+  const std::string err = recorder_->stats().last_error;
+  if (!err.empty()) spdlog::warn("flight recorder: {}", err);
+  if (!last.empty()) {
+    for (std::string& p : recorder::print_log_parts(last)) recorded_logs_.push_back(std::move(p));
+    spdlog::info("print recorded: {}", last);
+  }
 }
 
 Status Daemon::start() {
@@ -56,8 +122,12 @@ Status Daemon::start() {
     return Error{"--virtual-time needs a simulated printer (mcus with transport: mock)"};
   if (options_.virtual_time) machine_clock_ = std::make_unique<VirtualClock>();
   else machine_clock_ = std::make_unique<MonotonicClock>();
-  auto executor = engine::make_executor(cfg_);
-  if (!executor) return executor.error();
+  open_recorder();
+  auto executor = make_recorded_executor();
+  if (!executor) {
+    close_recorder();
+    return executor.error();
+  }
   std::string warnings;
   if (Status s = start_machine(std::move(*executor), &warnings); !s) return s;
   for (size_t b = 0, e; b < warnings.size(); b = e + 1) {
@@ -134,6 +204,7 @@ void Daemon::request_shutdown(const std::string& why) {
     notifier_.stopping();
     notifier_.stop_watchdog();
     if (machine_) machine_->stop();  // cancels queued commands; the servo loop ends its cycle
+    end_print();
     close_channels();
     std::vector<std::shared_ptr<ClientSession>> sessions;
     for (auto& [id, c] : clients_) sessions.push_back(c.session);
@@ -243,7 +314,8 @@ void Daemon::process_marlin_line(Client& c, std::string_view line) {
   }
   flush();  // e.g. "echo:Unknown command"
   auto weak = std::weak_ptr<ClientSession>(c.session);
-  std::string refused = submit(c, cmd, [weak](const Status& st) {
+  const auto source = c.session->name().rfind("pty", 0) == 0 ? recorder::GcodeSource::pty : recorder::GcodeSource::socket;
+  std::string refused = submit(c, cmd, line, source, [weak](const Status& st) {
     auto s = weak.lock();
     if (!s) return;
     if (!st) s->send_line("Error:" + st.error().to_string());
@@ -294,8 +366,8 @@ std::string Daemon::firmware_info() const {
          " EXTRUDER_COUNT:1";
 }
 
-std::string Daemon::submit(Client& c, const gcode::Command& cmd,
-                           std::function<void(const Status&)> done) {
+std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_view text,
+                           recorder::GcodeSource source, std::function<void(const Status&)> done) {
   const uint64_t cid = c.id;
   if (machine_->status().state == engine::MachineState::kEmergencyStopped)
     return "Printer halted (emergency stop); restart feedloopd to clear";
@@ -308,6 +380,10 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd,
     spdlog::info("{} owns the print", c.session->name());
   }
   owner_last_activity_ns_ = clock_.now_ns();
+  if (recorder_) {
+    start_print(c);
+    recorder_->writer(recorder::Stream::io).gcode_line(machine_clock_->now_ns(), source, text);
+  }
   const uint64_t ticket = next_ticket_++;
   pending_[ticket] = Pending{cid, std::move(done)};
   ++c.in_flight;
@@ -387,7 +463,7 @@ void Daemon::run_script_step(std::shared_ptr<Script> s) {
       asio::post(io_, [this, s] { run_script_step(s); });
       return;
     }
-    std::string refused = submit(*c, *cmd, [this, s, text](const Status& st) {
+    std::string refused = submit(*c, *cmd, text, recorder::GcodeSource::api, [this, s, text](const Status& st) {
       s->results.push_back({{"line", text}, {"ok", static_cast<bool>(st)}});
       if (!st) {
         s->results.back()["error"] = st.error().to_string();
@@ -489,6 +565,8 @@ void Daemon::tick() {
     c.session->send_line(json_rpc_notification("status", status_json).dump(), /*droppable=*/true);
     c.next_status_ns = now + static_cast<int64_t>(c.subscription.interval_ms) * 1'000'000;
   }
+  // The print ends when nobody owns the machine any more and it has stopped.
+  if (print_open_ && owner_ == 0 && machine_->idle() && pending_.empty()) end_print();
   if (reload_requested_ && machine_->idle() && pending_.empty()) reload_config();
   timer_.expires_after(kTickInterval);
   timer_.async_wait([this](const boost::system::error_code& ec) {
@@ -529,6 +607,16 @@ void Daemon::reload_config() {
   }
   machine_->stop();
   cfg_ = std::move(*next);
+  // The recorder follows the new config (joints, steps/mm, directory): a new one, and the
+  // executor again, with its taps.
+  close_recorder();
+  open_recorder();
+  executor = make_recorded_executor();
+  if (!executor) {
+    spdlog::critical("machine failed to restart after reload: {}", executor.error().to_string());
+    request_shutdown("reload failure");
+    return;
+  }
   std::string warnings;
   if (Status st = start_machine(std::move(*executor), &warnings); !st) {
     spdlog::critical("machine failed to restart after reload: {}", st.error().to_string());

@@ -7,6 +7,12 @@
 // other clients get "Error:busy" while someone owns it; queries (M105, M114, M115, JSON status)
 // are answered for everyone. A client that does not read its replies is disconnected; nothing
 // it does can stall motion.
+//
+// Flight recorder (docs/recorder.md): with `recorder.enabled` every print is recorded. A print
+// starts when a client takes ownership and ends when the ownership is released and the machine is
+// idle (or at shutdown / reload). The G-code lines submitted to the machine are recorded on the
+// I/O thread with their time on the machine clock; the engine records moves, step runs, encoder
+// samples, anchors and events (recorder::EngineRecording); the recorder thread writes the file.
 #pragma once
 
 #include <boost/asio.hpp>
@@ -26,6 +32,8 @@
 #include "daemon/watchdog.hpp"
 #include "engine/machine.hpp"
 #include "gcode/host_protocol.hpp"
+#include "recorder/engine_recording.hpp"
+#include "recorder/recorder.hpp"
 
 namespace feedloop::daemon {
 
@@ -54,6 +62,10 @@ class Daemon final : public JsonApiBackend {
   const std::string& api_socket_path() const { return api_socket_path_; }
   const std::string& pty_link() const { return pty_link_; }
   uint64_t reloads() const { return reloads_; }
+  // The flight recorder (nullptr: disabled or could not be created); tests read its stats.
+  const recorder::Recorder* flight_recorder() const { return recorder_.get(); }
+  // Logs of the prints recorded since start, in order (each print: its parts). I/O thread.
+  const std::vector<std::string>& recorded_logs() const { return recorded_logs_; }
 
   // JsonApiBackend
   nlohmann::json info() const override;
@@ -98,7 +110,9 @@ class Daemon final : public JsonApiBackend {
   // Answers queries at once; returns true if `cmd` was one.
   bool answer_query(const gcode::Command& cmd, std::string& reply);
   // Ownership + submit. Returns an error text when refused; parks when the queue is full.
-  std::string submit(Client& c, const gcode::Command& cmd, std::function<void(const Status&)> done);
+  // `text` is the line as received: recorded with its arrival time when the command is accepted.
+  std::string submit(Client& c, const gcode::Command& cmd, std::string_view text, recorder::GcodeSource source,
+                     std::function<void(const Status&)> done);
   void retry_parked();
   void run_script_step(std::shared_ptr<Script> s);
 
@@ -107,6 +121,13 @@ class Daemon final : public JsonApiBackend {
   void reload_config();
   void arm_signals();
   Status start_machine(std::unique_ptr<engine::CommandExecutor> executor, std::string* warnings);
+  // The recorder for cfg_ (a failure is a warning: the machine runs unrecorded).
+  void open_recorder();
+  void close_recorder();
+  // The executor with the recorder's taps in it.
+  Result<std::unique_ptr<engine::CommandExecutor>> make_recorded_executor();
+  void start_print(const Client& owner);
+  void end_print();
   std::string firmware_info() const;
 
   config::MachineConfig cfg_;
@@ -116,6 +137,11 @@ class Daemon final : public JsonApiBackend {
   boost::asio::steady_timer timer_;
   MonotonicClock clock_;                 // I/O side: timers, ownership, keepalives
   std::unique_ptr<Clock> machine_clock_;  // the machine's time line (virtual or monotonic)
+  // Declared before machine_: they outlive the executor that reports to them.
+  std::unique_ptr<recorder::Recorder> recorder_;
+  std::unique_ptr<recorder::EngineRecording> recording_;
+  bool print_open_ = false;
+  std::vector<std::string> recorded_logs_;
   std::unique_ptr<engine::Machine> machine_;
   SystemdNotifier notifier_;
 

@@ -31,6 +31,7 @@ class DaemonFixture : public ::testing::Test {
     cfg.sockets.pty_link = dir_ + "/ttyFeedloop";
     cfg.servo.realtime_priority = 0;
     cfg.servo.lock_memory = false;
+    cfg.recorder.directory = dir_ + "/recordings";  // never the user's state directory
     customize(cfg);
     daemon_ = std::make_unique<daemon::Daemon>(cfg, daemon::DaemonOptions{"", 0.3});
     Status s = daemon_->start();

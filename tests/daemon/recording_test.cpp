@@ -1,0 +1,118 @@
+// The flight recorder in the running daemon: a print sent over the socket is recorded (G-code
+// lines with arrival times, planned moves, step runs, time anchors, encoder samples, print start
+// and end), the file is closed when the print ends, and the recording replays.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "daemon_fixture.hpp"
+#include "line_client.hpp"
+#include "recorder/log_reader.hpp"
+#include "recorder/replay.hpp"
+#include "recorder/step_stream.hpp"
+
+namespace feedloop::testing {
+namespace {
+
+class Recording : public DaemonFixture {
+ protected:
+  // Open loop: the closed-loop servo path is being reworked (see recorder_replay_test).
+  void customize(config::MachineConfig& cfg) override { cfg.control.mode = config::ControlMode::open_loop; }
+  // Waits until the recorder has closed `files` prints.
+  bool wait_for_closed_prints(uint64_t files, double timeout_s) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (std::chrono::steady_clock::now() < end) {
+      const recorder::RecorderStats s = daemon_->flight_recorder()->stats();
+      if (s.files_opened >= files && s.current_path.empty()) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return false;
+  }
+  std::vector<std::string> logs() const {
+    std::vector<std::string> out;
+    for (const auto& e : std::filesystem::directory_iterator(dir_ + "/recordings"))
+      if (e.path().extension() == ".flrec") out.push_back(e.path().string());
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+};
+
+const std::vector<std::string> kPrint = {
+    "G90", "M83", "G1 Z0.3 F600", "G1 X20 Y20 F9000", "G1 X50 Y20 E1.5 F4800", "G1 X50 Y50 E1.5",
+    "G1 X20 Y50 E1.5", "G1 X20 Y20 E1.5", "G1 X30 Y30 F9000"};
+
+TEST_F(Recording, APrintOverTheSocketIsRecordedAndReplays) {
+  ASSERT_NE(daemon_->flight_recorder(), nullptr);
+  {
+    LineClient c;
+    ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+    for (const std::string& l : kPrint) {  // a Marlin host: one line, then wait for its ok
+      ASSERT_TRUE(c.send_line(l));
+      ASSERT_TRUE(c.read_until("ok", 10000)) << l;
+    }
+    ASSERT_TRUE(c.send_line("M400"));
+    ASSERT_TRUE(c.read_until("ok", 20000));
+    ASSERT_TRUE(c.send_line("M105"));  // a query: answered, not part of the print
+    ASSERT_TRUE(c.read_until("ok", 5000));
+  }  // disconnect: the ownership ends, and with the machine idle, the print
+  ASSERT_TRUE(wait_for_closed_prints(1, 20.0));
+  const std::vector<std::string> files = logs();
+  ASSERT_EQ(files.size(), 1u);
+
+  auto p = recorder::read_recorded_print(files);
+  ASSERT_TRUE(p.ok()) << p.error().to_string();
+  ASSERT_EQ(p->gcode.size(), kPrint.size() + 1);  // + M400
+  for (size_t i = 0; i < kPrint.size(); ++i) {
+    EXPECT_EQ(p->gcode[i].text, kPrint[i]);
+    EXPECT_EQ(p->gcode[i].source, recorder::GcodeSource::socket);
+    if (i > 0) {
+      EXPECT_GE(p->gcode[i].time_ns, p->gcode[i - 1].time_ns);
+    }
+  }
+  EXPECT_GE(p->moves.size(), 7u);
+  EXPECT_GE(p->anchors_s.size(), 1u);
+  ASSERT_EQ(p->encoders.size(), 4u);
+  EXPECT_GT(p->encoders[0].size(), 100u);  // x has an encoder and moved 30 mm
+  // The x encoder ends near the last commanded x (30 mm): samples stop with the plan, when the
+  // open-loop carriage still lags its deceleration (measured 0.10 mm).
+  if (!p->encoders[0].empty()) {
+    EXPECT_NEAR(static_cast<double>(p->encoders[0].back().counts) * p->header.joints[0].encoder_resolution_mm, 30.0,
+                0.3);
+  }
+  auto steps = recorder::read_step_streams(files);
+  ASSERT_TRUE(steps.ok()) << steps.error().to_string();
+  uint64_t x_steps = 0;
+  for (const auto& r : steps->runs[0]) x_steps += r.run.count;
+  // x travels 20 + 30 + 30 + 10 = 90 mm at 94.314 steps/mm: 8488 steps.
+  EXPECT_NEAR(static_cast<double>(x_steps), 8488.0, 2.0);
+
+  // print_start and print_end events frame the print.
+  auto reader = recorder::LogReader::open(files[0]);
+  ASSERT_TRUE(reader.ok());
+  int starts = 0, ends = 0;
+  while (const recorder::DecodedRecord* d = reader->next()) {
+    if (const auto* e = std::get_if<recorder::EventRecord>(&d->record)) {
+      starts += e->kind == recorder::EventKind::print_start;
+      ends += e->kind == recorder::EventKind::print_end;
+    }
+  }
+  EXPECT_EQ(starts, 1);
+  EXPECT_EQ(ends, 1);
+
+  // The replay re-runs the recorded lines in virtual time. In real time, a Marlin host's
+  // one-line-at-a-time pace decides where the lookahead was released, so only the pieces that do
+  // not depend on it are asserted; the report is printed for the record.
+  auto rep = recorder::replay_print(files);
+  ASSERT_TRUE(rep.ok()) << rep.error().to_string();
+  std::printf("%s", rep->to_text().c_str());
+  EXPECT_EQ(rep->rejected, 0u) << rep->first_error;
+  EXPECT_EQ(rep->gcode_lines, kPrint.size() + 1);
+  EXPECT_GT(rep->replayed_moves, 0u);
+}
+
+}  // namespace
+}  // namespace feedloop::testing
