@@ -37,6 +37,8 @@ Result<MotionStack> make_motion_stack(const config::MachineConfig& cfg) {
 
 Result<MotionStack> make_motion_stack(const config::MachineConfig& cfg, const MotionOptions& mo,
                                       StepObserver* observer) {
+  if (cfg.drive == config::Drive::dc_servo)  // voltage-driven axes: no step pipeline
+    return Error{"drive: dc_servo has no step pipeline: build its executor with make_executor()"};
   const planner::PlannerConfig pcfg = planner_config(cfg);
   if (Status s = pcfg.validate(); !s) return s.error();
   StepPipelineParams sp;
