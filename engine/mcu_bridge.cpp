@@ -86,6 +86,7 @@ struct McuBridge::JointPort final : device::MotorPort {
 
 McuBridge::McuBridge(const config::MachineConfig&, const McuBridgeOptions& options) : options_(options) {
   for (auto& e : encoder_mm_) e.store(NAN);
+  for (auto& e : encoder_time_s_) e.store(NAN);
 }
 
 McuBridge::~McuBridge() = default;
@@ -297,6 +298,10 @@ void McuBridge::inject_lost_steps(int joint, int64_t steps) {
   ports_[static_cast<size_t>(joint)]->swallow += steps;
 }
 
+double McuBridge::encoder_time_s(int joint) const {
+  return encoder_time_s_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
+}
+
 unsigned long long McuBridge::encoder_reports(int joint) const {
   return encoder_reports_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
 }
@@ -317,6 +322,11 @@ void McuBridge::collect(double) {
           if (it->axis == joint_motor_[j]) {
             encoder_mm_[j].store(static_cast<double>(it->counts) * encoder_mm_per_count_[j], std::memory_order_relaxed);
             encoder_reports_[j].fetch_add(1, std::memory_order_relaxed);
+            // When it was sampled, on the host clock (the clock sync's map, inverted).
+            const stepgen::TickMap map = tick_map(static_cast<int>(j));
+            if (map.ticks_per_s > 0.0)
+              encoder_time_s_[j].store((static_cast<double>(it->clock) - map.offset_ticks) / map.ticks_per_s,
+                                       std::memory_order_relaxed);
             break;
           }
       }

@@ -81,6 +81,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   double encoder_mm(int joint) const override;
   unsigned long long encoder_samples() const override { return encoder_samples_.load(std::memory_order_relaxed); }
   unsigned long long encoder_reports(int joint) const override;
+  double encoder_time_s(int joint) const override;
 
   // stepgen::BatchSink (servo thread): StepBatch::axis is the joint index.
   void on_batch(const stepgen::StepBatch& batch) override;
@@ -146,6 +147,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   std::array<std::atomic<double>, kJoints> encoder_mm_{};
   std::atomic<unsigned long long> encoder_samples_{0};
   std::array<std::atomic<unsigned long long>, kJoints> encoder_reports_{};
+  std::array<std::atomic<double>, kJoints> encoder_time_s_{};
   std::vector<drivers::EncoderSample> sample_buffer_;  // servo thread (swapped with the sessions')
 
   mutable std::mutex events_mutex_;  // taken only when an event happens (rare, not steady state)

@@ -273,6 +273,7 @@ void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now
   offset_s_ = now_s + options_.control_lead_s - next_sample_s_;
   steps_.set_time_offset_s(offset_s_);
   control_->reset_feedforward(at);
+  prime_pending_ = true;  // the preview fills once the moves are on the timeline (sampled_cycle)
   // The motor is where the steps put it; the correction the PI holds is part of that.
   sample_no_ = 0;
   Sample& s0 = history_[0];
@@ -311,11 +312,40 @@ void MotionExecutor::sampled_cycle(double now_s, double /*unused*/) {
     popped_.fetch_add(1, std::memory_order_release);
     telemetry_.segments.fetch_add(1, std::memory_order_relaxed);
   }
+  if (prime_pending_) {
+    // The feedforward was reset at rest (as if at t0 - P T); its preview now takes in the plan
+    // r(t0 + T) .. r(t0 + P T) (outputs discarded: they are for t0 - P T + T .. t0, at rest).
+    // The next step() then gets r(t0 + (P + 1) T) and returns u for t0 + T.
+    for (int i = 1; i <= preview; ++i) {
+      control::FeedforwardInput ahead;
+      reference(next_sample_s_ + i * period_s, ahead);
+      control::JointArray u_ff{}, u{};
+      control_->command(ahead, u_ff, u);
+    }
+    prime_pending_ = false;
+  }
   // Feedback: the encoders now against the samples commanded for now.
   const size_t cap = history_.size();
   uint64_t n_now = sample_no_;
   while (n_now > 0 && history_[n_now % cap].t_s > print_now_s + 1e-9 && sample_no_ - n_now + 1 < cap) --n_now;
   const Sample& at_now = history_[n_now % cap];
+  // The encoders were sampled a little earlier (sampling period, report latency): compare them
+  // with the plan at the instant they were sampled, or a velocity-proportional bias would reach
+  // the PI (100 mm/s x 1 ms = 0.1 mm).
+  uint64_t n_enc = n_now;
+  if (backend_ != nullptr) {
+    double t_enc_s = NAN;
+    for (int j = 0; j < kJoints; ++j) {
+      const double t = backend_->encoder_time_s(j);
+      if (std::isfinite(t) && !(t >= t_enc_s)) t_enc_s = t;  // the oldest reading
+    }
+    if (std::isfinite(t_enc_s)) {
+      const double print_enc_s = t_enc_s - offset_s_;
+      while (n_enc > 0 && history_[n_enc % cap].t_s > print_enc_s + 0.5 * period_s && sample_no_ - n_enc + 2 < cap)
+        --n_enc;
+    }
+  }
+  const Sample& at_enc = history_[n_enc % cap];
   control::JointArray enc{};
   std::array<bool, 4> fresh{};
   for (int j = 0; j < kJoints; ++j) {
@@ -328,10 +358,10 @@ void MotionExecutor::sampled_cycle(double now_s, double /*unused*/) {
   }
   if (control_->closed_loop()) {
     control::JointArray lead_mm{};
-    for (size_t i = 0; i < lead_mm.size(); ++i) lead_mm[i] = at_now.u_ff_mm[i] - at_now.r_mm[i];
+    for (size_t i = 0; i < lead_mm.size(); ++i) lead_mm[i] = at_enc.u_ff_mm[i] - at_enc.r_mm[i];
     ServoEvent ev;
     bool has_event = false;
-    const bool ok = control_->update_feedback(print_now_s, at_now.r_mm, enc, at_now.u_mm, lead_mm, fresh, &ev, &has_event);
+    const bool ok = control_->update_feedback(print_now_s, at_enc.r_mm, enc, at_enc.u_mm, lead_mm, fresh, &ev, &has_event);
     if (has_event && tap_ != nullptr) tap_->on_servo_event(ev);
     if (has_event) lost_step_events_.fetch_add(1, std::memory_order_relaxed);
     if (!ok) {

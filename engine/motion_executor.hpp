@@ -148,6 +148,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   };
   std::vector<Sample> history_;  // ring, indexed by sample number
   uint64_t sample_no_ = 0;       // samples emitted since the anchor
+  bool prime_pending_ = false;   // the feedforward's preview is to be filled (motion start)
   double next_sample_s_ = 0.0;   // servo time of the last command sample (segment end)
   double plan_shift_s_ = 0.0;    // servo time - plan (print) time: grows when a move arrives
                                  // while the loop holds the position after the plan's end

@@ -4,6 +4,7 @@
 // fault_message() may be read from any thread.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 
 #include "drivers/stepgen/step_generator.hpp"
@@ -30,6 +31,8 @@ class ServoBackend {
   virtual unsigned long long encoder_samples() const = 0;
   // Encoder reports that updated `joint` so far (a new value arrived when it changes). Any thread.
   virtual unsigned long long encoder_reports(int /*joint*/) const { return encoder_samples(); }
+  // Host time (s) at which the latest encoder reading of `joint` was sampled (NaN: unknown).
+  virtual double encoder_time_s(int /*joint*/) const { return NAN; }
 };
 
 }  // namespace feedloop::engine
