@@ -256,8 +256,9 @@ void ManeuverExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   }
   if (cancel) stop_and_hold();
   StreamWaypoint w;
-  while (!window_.full() && queue_.try_pop(w)) {
-    window_.push(w, kMinSegmentM);
+  const bool faulted = telemetry_.faulted.load(std::memory_order_relaxed);
+  while ((faulted || !window_.full()) && queue_.try_pop(w)) {
+    if (!faulted) window_.push(w, kMinSegmentM);  // after a fault nothing more is followed
     popped_.fetch_add(1, std::memory_order_release);
   }
   const bool was_holding = servo_.holding();

@@ -185,6 +185,23 @@ TEST(DcServoMachine, SpeedAssignmentsRankAsInTableIII) {
   EXPECT_LT(arc.max_cross_um, 0.1 * paper.max_cross_um);
 }
 
+// A tracking error beyond control.max_following_error_mm stops motion where it is, and later
+// motion commands are rejected with the reason.
+TEST(DcServoMachine, TrackingErrorBeyondTheLimitStopsMotion) {
+  config::MachineConfig cfg = example();
+  cfg.control.maneuver.speed_assignment = config::ManeuverSpeed::constant;  // 70 um at the corners
+  cfg.control.max_following_error_mm = 0.02;
+  const ProgramRun r = run_program(cfg, std::string(kProgram) + "G1 X50 Y50\n");
+  print("constant, 20 um limit", r);
+  EXPECT_TRUE(r.faulted);
+  EXPECT_EQ(r.failed, 1u);  // the move after M400
+  EXPECT_NE(r.error.find("tracking error beyond control.max_following_error_mm"), std::string::npos) << r.error;
+  EXPECT_LT(r.segments, r.moves / 2);  // stopped early (at the first corners)
+  EXPECT_LT(r.max_cross_um, 30.0);  // caught within a few periods of crossing 20 um
+  EXPECT_LT(r.max_error_um, 60.0);  // braking from 0.1 m/s to a hold where it stopped: measured 36 um
+  EXPECT_GT(std::hypot(r.pos_mm[0] - 20.0, r.pos_mm[1] - 25.0), 1.0);  // not at the program's end
+}
+
 TEST(DcServoMachine, VirtualTimeRunsAreDeterministic) {
   config::MachineConfig cfg = example();
   cfg.control.maneuver.speed_assignment = config::ManeuverSpeed::constant;  // the most sensitive to a late waypoint
