@@ -2,7 +2,9 @@
 // every problem with the maneuvering gains or the machine type is reported at its file:line:col.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <fstream>
+#include <random>
 #include <sstream>
 #include <string>
 
@@ -133,6 +135,39 @@ TEST(DcServoConfig, MachineTypeAndControlModeMustMatch) {
                false);  // and Table II's K_d at the stepper config's 1 kHz
   t = edit(stepper, "model:\n", "model:\n  cartesian_dc: {m_n_kg: 0.5}\n");
   expect_error(t, where(t, "cartesian_dc"), "model.cartesian_dc is the plant of drive: dc_servo");
+}
+
+// Seeded random edits of the example (as tests/config does for the others): loading never throws,
+// every problem is located inside the text, and a config either loads or reports problems.
+TEST(DcServoConfig, MutatedExampleProblemsAreAllLocated) {
+  const std::string original = example_text();
+  int lines = 1;
+  for (char c : original) lines += c == '\n';
+  std::mt19937 rng(20261122);
+  static const std::string alphabet = "abcxyz_:-[]{},#'\"\t\n 0123456789.e";
+  int rejected = 0, accepted = 0;
+  for (int i = 0; i < 200; ++i) {
+    std::string text = original;
+    for (int k = 0, edits = 1 + static_cast<int>(rng() % 3); k < edits; ++k) {
+      const size_t at = rng() % text.size();
+      switch (rng() % 3) {
+        case 0: text.erase(at, 1 + rng() % 8); break;
+        case 1: text.insert(at, 1, alphabet[rng() % alphabet.size()]); break;
+        default: text[at] = alphabet[rng() % alphabet.size()];
+      }
+    }
+    std::vector<Error> errors;
+    ASSERT_NO_THROW(errors = config::check_config_text(text, "m.yaml"));
+    EXPECT_EQ(config::load_config_text(text, "m.yaml").ok(), errors.empty());
+    (errors.empty() ? accepted : rejected)++;
+    for (const Error& e : errors) {
+      EXPECT_GE(e.where.line, 1) << e.to_string() << "\n--- text ---\n" << text;
+      EXPECT_LE(e.where.line, lines + 20) << e.to_string();
+      EXPECT_GE(e.where.column, 1) << e.to_string() << "\n--- text ---\n" << text;
+    }
+  }
+  std::printf("mutated dc_servo_sim.yaml: %d rejected, %d accepted\n", rejected, accepted);
+  EXPECT_GT(rejected, 50);
 }
 
 }  // namespace
