@@ -8,11 +8,13 @@
 #include <string>
 
 #include "ident/delta/rational_fit.hpp"
+#include "ident/frf.hpp"
 #include "model/delta_kinematics.hpp"
 #include "model/delta_lpv.hpp"
 #include "model/frf_metrics.hpp"
 #include "sim/linearize.hpp"
 #include "sim/rng.hpp"
+#include "sim/step_driver.hpp"
 
 namespace feedloop::ident::delta {
 
@@ -191,6 +193,75 @@ Result<DeltaMeasurements> simulate_measurements(const sim::DeltaPlantParams& tru
   m.cad.geometry = truth.model.geometry;
   m.cad.forearm_half_mass_on_m1 = truth.model.forearm_half_mass_on_m1;
   return m;
+}
+
+Result<std::vector<Complex>> measure_carriage_h1(const sim::DeltaPlantParams& truth, const MeasurementPlan& plan,
+                                                 bool added_mass, const SweepSpec& sweep) {
+  if (Status s = check_grid(plan.carriage_grid, "carriage_grid"); !s) return s.error();
+  if (!(sweep.rms_mm > 0.0) || sweep.periods < 1) return Error{"sweep: rms_mm > 0 and periods >= 1 needed", {}};
+  sim::DeltaPlantParams p = truth;
+  p.arm_stiffness_n_m = plan.detached_arm_stiffness_n_m;
+  p.arm_damping_n_s_m = 0.0;
+  p.gravity_m_s2 = 0.0;
+  p.initial_nozzle_mm = plan.centre_mm;
+  if (added_mass) p.model.m_c_kg += plan.m_add_kg;
+  auto plant = sim::DeltaPlant::create(p);
+  if (!plant.ok()) return plant.error();
+  sim::DeltaPlant& pl = **plant;
+
+  const model::FrequencyGrid& grid = plan.carriage_grid;
+  const double period_s = 1.0 / grid.step_hz;
+  const double rate_hz = p.substep_hz;
+  const auto per_period = static_cast<int>(std::llround(period_s * rate_hz));
+  if (std::abs(per_period / rate_hz - period_s) > 1e-9 * period_s)
+    return Error{"sweep: the multisine period must be a whole number of simulator substeps", {}};
+  // Random-phase multisine, one line per grid frequency, scaled to the requested RMS.
+  sim::Rng rng(plan.seed + (added_mass ? 101 : 0));
+  std::vector<double> phase(static_cast<size_t>(grid.size()));
+  for (double& ph : phase) ph = kTwoPi * rng.uniform();
+  const double amp = sweep.rms_mm * std::sqrt(2.0 / grid.size());
+  sim::StepDriver drive(pl.carriage_port(0), p.mm_per_step, 0.0, 0.0);
+  const int total = (sweep.periods + 1) * per_period;
+  std::vector<double> u, y;
+  u.reserve(static_cast<size_t>(sweep.periods * per_period));
+  y.reserve(u.capacity());
+  // sin(w_k t + phi_k) by rotation: one complex multiply per line per sample.
+  std::vector<Complex> rot(phase.size()), cur(phase.size());
+  for (size_t k = 0; k < phase.size(); ++k) {
+    rot[k] = std::polar(1.0, kTwoPi * grid.at_hz(static_cast<int>(k)) / rate_hz);
+    cur[k] = std::polar(1.0, phase[k]);
+  }
+  for (int n = 1; n <= total; ++n) {
+    double target = 0.0;
+    for (size_t k = 0; k < cur.size(); ++k) {
+      cur[k] *= rot[k];
+      target += amp * cur[k].imag();
+    }
+    if (n % per_period == 0)  // renormalise against rounding drift once a period
+      for (size_t k = 0; k < cur.size(); ++k) cur[k] /= std::abs(cur[k]);
+    const double t = n / rate_hz;
+    drive.update(t, target);
+    pl.advance_to(t);
+    if (n > per_period) {
+      u.push_back(drive.commanded_mm());
+      y.push_back(pl.carriage_rel_mm(0));
+    }
+  }
+  WelchOptions opt;
+  opt.segment_s = period_s;
+  opt.overlap = 0.0;
+  opt.window = FrfWindow::kRectangular;
+  opt.detrend = false;
+  auto est = estimate_frf_h1(u, y, rate_hz, grid, opt);
+  if (!est.ok()) return Error{"sweep H1: " + est.error().message, {}};
+  std::vector<Complex> h(est->h1.size());
+  const double dt = 1.0 / rate_hz;
+  for (size_t k = 0; k < h.size(); ++k) {
+    const double w = kTwoPi * grid.at_hz(static_cast<int>(k));
+    const Complex zoh = (1.0 - std::polar(1.0, -w * dt)) / Complex(0.0, w * dt);
+    h[k] = est->h1[k] / zoh;
+  }
+  return h;
 }
 
 Result<CarriageFit> identify_carriage(const DeltaMeasurements& meas) {

@@ -85,6 +85,19 @@ struct DeltaMeasurements {
 // plant cannot be built (bad parameters, unreachable position) or a grid is invalid.
 Result<DeltaMeasurements> simulate_measurements(const sim::DeltaPlantParams& truth, const MeasurementPlan& plan);
 
+// The Sect. IV-A carriage experiment in the time domain instead: a random-phase multisine with a
+// line at every carriage_grid frequency (period 1 / grid step) commanded to carriage A through
+// step pulses (one update per simulator substep, so each step lands on an update instant), the
+// true carriage position sampled at the same rate, H1 (ident/frf.hpp: rectangular window,
+// one period per segment, no overlap, the first period discarded) divided by the zero-order hold
+// of the step staircase, (1 - e^{-jwT}) / (jwT). added_mass: with plan.m_add_kg on the carriage.
+struct SweepSpec {
+  double rms_mm = 0.05;  // of the commanded multisine
+  int periods = 8;       // averaged (one more is run first to settle)
+};
+Result<std::vector<Complex>> measure_carriage_h1(const sim::DeltaPlantParams& truth, const MeasurementPlan& plan,
+                                                 bool added_mass, const SweepSpec& sweep = {});
+
 struct CarriageFit {
   model::TransferFunction g_qd;        // Eq. 42 rational fit (before the structured fit)
   model::TransferFunction g_qd_added;  // same with m_add
