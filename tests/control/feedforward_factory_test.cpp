@@ -3,8 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
+#include <string>
 #include <cstdio>
 
+#include "config/config.hpp"
 #include "control/feedforward/model_feedforward.hpp"
 
 namespace feedloop::control {
@@ -128,6 +131,22 @@ TEST(MakeModelFeedforward, DeltaLpvAndFrozenCentre) {
   }
   std::printf("delta at (-80,0,30), accelerating carriage: |u_lpv - u_centre| up to %.4f mm\n", max_diff);
   EXPECT_GT(max_diff, 1e-4);
+}
+
+TEST(MakeModelFeedforward, ExampleConfigs) {
+  // The shipped examples, with their full grids (delta: 9 x 9 x 6 points over z 0..250 mm).
+  for (const char* name : {"cartesian_sim.yaml", "delta_sim.yaml"}) {
+    auto cfg = config::load_config_file(std::string(FEEDLOOP_SOURCE_DIR) + "/config/examples/" + name);
+    ASSERT_TRUE(cfg.ok()) << cfg.error().to_string();
+    const auto t0 = std::chrono::steady_clock::now();
+    auto ff = make_model_feedforward(cfg.value(), 1.0 / cfg->servo.rate_hz);
+    const auto t1 = std::chrono::steady_clock::now();
+    ASSERT_TRUE(ff.ok()) << name << ": " << ff.error().message;
+    std::printf("%s: feedforward '%s' designed in %.0f ms, P = %d\n", name, (*ff)->name(),
+                std::chrono::duration<double, std::milli>(t1 - t0).count(), (*ff)->preview_samples());
+    EXPECT_EQ((*ff)->preview_samples(),
+              static_cast<int>(std::lround(cfg->feedforward.lpv.preview_ms * 1e-3 * cfg->servo.rate_hz)));
+  }
 }
 
 }  // namespace
