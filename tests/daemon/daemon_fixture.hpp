@@ -33,7 +33,9 @@ class DaemonFixture : public ::testing::Test {
     cfg.servo.lock_memory = false;
     cfg.recorder.directory = dir_ + "/recordings";  // never the user's state directory
     customize(cfg);
-    daemon_ = std::make_unique<daemon::Daemon>(cfg, daemon::DaemonOptions{"", 0.3});
+    daemon::DaemonOptions options{"", 0.3};
+    options.virtual_time = virtual_time();
+    daemon_ = std::make_unique<daemon::Daemon>(cfg, options);
     Status s = daemon_->start();
     ASSERT_TRUE(s.ok()) << s.error().to_string();
     thread_ = std::thread([this] { exit_code_ = daemon_->run(); });
@@ -46,6 +48,7 @@ class DaemonFixture : public ::testing::Test {
     std::filesystem::remove_all(dir_, ec);
   }
   virtual void customize(config::MachineConfig&) {}
+  virtual bool virtual_time() const { return false; }  // feedloopd --virtual-time
 
   std::string dir_;
   std::unique_ptr<daemon::Daemon> daemon_;

@@ -22,6 +22,8 @@ class Recording : public DaemonFixture {
  protected:
   // Open loop: the closed-loop servo path is being reworked (see recorder_replay_test).
   void customize(config::MachineConfig& cfg) override { cfg.control.mode = config::ControlMode::open_loop; }
+  bool virtual_time() const override { return virtual_; }
+  bool virtual_ = false;
   // Waits until the recorder has closed `files` prints.
   bool wait_for_closed_prints(uint64_t files, double timeout_s) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
@@ -112,6 +114,41 @@ TEST_F(Recording, APrintOverTheSocketIsRecordedAndReplays) {
   EXPECT_EQ(rep->rejected, 0u) << rep->first_error;
   EXPECT_EQ(rep->gcode_lines, kPrint.size() + 1);
   EXPECT_GT(rep->replayed_moves, 0u);
+}
+
+class VirtualRecording : public Recording {
+ protected:
+  VirtualRecording() { virtual_ = true; }
+};
+
+// feedloopd --virtual-time: the machine's clock is virtual, and a Marlin host's pace no longer
+// matters to the motion.
+TEST_F(VirtualRecording, AVirtualTimePrintIsRecordedAndReplays) {
+  {
+    LineClient c;
+    ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+    for (const std::string& l : kPrint) {
+      ASSERT_TRUE(c.send_line(l));
+      ASSERT_TRUE(c.read_until("ok", 10000)) << l;
+    }
+    ASSERT_TRUE(c.send_line("M400"));
+    ASSERT_TRUE(c.read_until("ok", 20000));
+  }
+  ASSERT_TRUE(wait_for_closed_prints(1, 20.0));
+  const std::vector<std::string> files = logs();
+  ASSERT_EQ(files.size(), 1u);
+  auto rep = recorder::replay_print(files);
+  ASSERT_TRUE(rep.ok()) << rep.error().to_string();
+  std::printf("%s", rep->to_text().c_str());
+  EXPECT_EQ(rep->gcode_lines, kPrint.size() + 1);
+  EXPECT_EQ(rep->recorded_moves, 7u);
+  EXPECT_FALSE(rep->move_mismatch) << *rep->move_mismatch;
+  EXPECT_FALSE(rep->anchor_mismatch) << *rep->anchor_mismatch;
+  EXPECT_NEAR(static_cast<double>(rep->steps_compared), 2 * 8488.0 + 120 + 576, 4.0);  // x, y, z, e
+  EXPECT_TRUE(rep->steps_identical()) << *rep->step_mismatch;
+  ASSERT_EQ(rep->residuals.size(), 2u);
+  EXPECT_EQ(rep->residuals[0].rms_um, 0.0);
+  EXPECT_EQ(rep->residuals[1].rms_um, 0.0);
 }
 
 }  // namespace
