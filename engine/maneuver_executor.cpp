@@ -154,6 +154,7 @@ void ManeuverExecutor::on_move(const planner::PlannedMove& m) {
   if (!m.kinematic || d.norm() < kMinSegmentM) {  // E only: the extruder position at the newest waypoint
     StreamWaypoint w = last_;
     w.e_mm = m.end_mm[3];
+    w.k_prev = -1.0;
     emit(w);  // same position: an update
     return;
   }
@@ -161,12 +162,10 @@ void ManeuverExecutor::on_move(const planner::PlannedMove& m) {
     emit(StreamWaypoint{a, 1.0, m.start_mm[3], m.line});
     last_dir_ = Vec3::Zero();
   }
-  if (last_dir_.squaredNorm() > 0.0) {  // the corner at the newest waypoint is known now (Eq. 64-66)
-    StreamWaypoint w = last_;
-    w.k = corner_k(last_dir_, d);
-    emit(w);  // same position: an update
-  }
-  emit(StreamWaypoint{b, 1.0, m.end_mm[3], m.line});  // a stop until the next move says otherwise
+  // The end of the move, a stop until the next move says otherwise; with it the corner weight of
+  // the waypoint before it, known now (Eq. 64-66).
+  const double k_prev = last_dir_.squaredNorm() > 0.0 ? corner_k(last_dir_, d) : 1.0;
+  emit(StreamWaypoint{b, 1.0, m.end_mm[3], m.line, k_prev});
   last_dir_ = d;
 }
 
@@ -288,7 +287,7 @@ void ManeuverExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   telemetry_.segments_entered.store(servo_.segments_entered(), std::memory_order_relaxed);
   telemetry_.holding.store(servo_.holding() && queue_.empty(), std::memory_order_relaxed);
   const uint64_t newest = window_.last();
-  need_more_.store(queue_.empty() && (servo_.holding() || servo_.segment() >= newest ||
+  need_more_.store(queue_.empty() && (servo_.holding() || servo_.segment() + 2 > newest ||
                                       (window_.s_m(newest) - servo_.s_m()) * 1e3 < options_.lead_mm),
                    std::memory_order_release);
   telemetry_.cycles.fetch_add(1, std::memory_order_relaxed);

@@ -12,7 +12,7 @@
 // speed along them (control.maneuver.path_speed_mm_s and speed_assignment), as the paper does: the
 // moves' feedrates and trapezoids are not used. The end of each move is released as soon as the
 // lookahead releases the move, as a provisional stop; the next move's direction fixes its corner
-// weight, sent as an update before the next waypoint. The planner thread stays at most
+// weight, which travels with the next waypoint. The planner thread stays at most
 // max_buffered_s of path (at the path speed) ahead of the servo.
 //
 // Safety: a tracking error |z_1| beyond control.max_following_error_mm stops motion (queued
@@ -124,8 +124,9 @@ class ManeuverExecutor final : public CommandExecutor, private planner::MoveSink
   int64_t last_ns_ = 0;
   bool started_ = false;
   std::atomic<uint64_t> popped_{0};
-  // The extruder is within lead_mm of the end of the known path, or on its last segment: what it
-  // does next depends on waypoints the planner has not released yet (virtual time waits for them).
+  // The extruder is within lead_mm of the end of the known path, or on one of its last two
+  // segments: what it does next may depend on waypoints the planner has not released yet (virtual
+  // time waits for them).
   std::atomic<bool> need_more_{false};
   ManeuverTelemetry telemetry_;
 };

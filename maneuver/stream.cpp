@@ -26,6 +26,7 @@ bool PathWindow::push(const StreamWaypoint& w, double min_segment_m) {
       return true;
     }
     if (full()) return false;
+    if (w.k_prev >= 0.0) prev.w.k = w.k_prev;
     Slot& slot = pts_[(last_ + 1) % pts_.size()];
     const double dtheta = param_ == Parameterization::unit ? 1.0 : len;  // Eq. 24 or arc length
     slot.w = w;

@@ -1,7 +1,7 @@
 // Output maneuvering on a path that arrives while it is being followed: what a daemon's servo
-// thread runs. The planner thread releases waypoints one by one; a waypoint pushed again at the
-// same position updates the newest one's corner weight k_n (Eq. 64-66, known once the next
-// segment's direction is) and extruder position. The servo thread appends them to a
+// thread runs. The planner thread releases waypoints one by one; each may carry the corner weight
+// k_n (Eq. 64-66) of the one before it, known once its own segment's direction is. A waypoint
+// pushed again at the same position updates the newest one's extruder position. The servo thread appends them to a
 // fixed-capacity window and follows the window with the controller of controller.hpp, exactly as
 // ManeuverServo follows a whole PiecewiseLinearPath with split steps (no segment can be skipped).
 //
@@ -25,6 +25,8 @@ struct StreamWaypoint {
   double k = 1.0;           // corner weight at p_n (Eq. 66); 1 where the path stops
   double e_mm = 0.0;        // extruder position at p_n (interpolated along the segment)
   int line = 0;             // G-code line of the move that ends here
+  double k_prev = -1.0;     // >= 0: the corner weight of the previous waypoint, now known (set as
+                            // this one is appended, so the servo never sees one without the other)
 };
 
 // The speed assignment of a streamed path: the profile and its parameters (the corner weights
