@@ -3,9 +3,12 @@
 #include <algorithm>  // std::max, std::clamp
 #include <cmath>      // std::ceil, std::abs
 #include <cstdio>     // std::snprintf
+#include <mutex>
 #include <thread>     // sleep_for
 
 #include "engine/config_mapping.hpp"
+#include "engine/executor_factory.hpp"
+#include "gcode/parser.hpp"
 #include "planner/junction.hpp"
 
 namespace feedloop::engine {
@@ -297,6 +300,69 @@ Result<std::unique_ptr<CommandExecutor>> make_maneuver_executor(const config::Ma
   auto ex = ManeuverExecutor::create(cfg);
   if (!ex.ok()) return ex.error();
   return std::unique_ptr<CommandExecutor>(std::move(ex.value()));
+}
+
+Result<ManeuverRunSummary> run_maneuver_virtual(const config::MachineConfig& cfg,
+                                                const std::vector<std::string>& gcode_lines, double timeout_s) {
+  auto made = ManeuverExecutor::create(cfg);
+  if (!made.ok()) return made.error();
+  ManeuverExecutor* ex = made.value().get();
+  VirtualClock clock(kNsPerS);
+  Machine m(machine_options(cfg), clock, std::move(made.value()));
+  ManeuverRunSummary r;
+  std::atomic<uint64_t> done{0};
+  std::mutex error_mutex;
+  m.set_done_callback([&](CommandDone d) {
+    if (!d.status.ok()) {
+      std::lock_guard lock(error_mutex);
+      if (r.rejected++ == 0) r.first_error = d.status.error().to_string();
+    }
+    done.fetch_add(1);
+  });
+  if (Status st = m.start(); !st) return st.error();
+  uint64_t ticket = 0;
+  bool timed_out = false;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  for (size_t i = 0; i < gcode_lines.size() && !timed_out; ++i) {
+    auto cmd = gcode::parse_line(gcode_lines[i], SourceLocation{"gcode", static_cast<int>(i) + 1, 0});
+    if (!cmd.ok()) {
+      std::lock_guard lock(error_mutex);
+      if (r.rejected++ == 0) r.first_error = cmd.error().to_string();
+      continue;
+    }
+    if (cmd.value().letter == 0) continue;  // blank or comment
+    while (!m.try_submit(ticket + 1, cmd.value())) {
+      if (std::chrono::steady_clock::now() > deadline) {
+        timed_out = true;
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    if (!timed_out) ++ticket;
+  }
+  auto m400 = gcode::parse_line("M400", SourceLocation{"gcode", 0, 0});
+  while (!timed_out && m400.ok() && !m.try_submit(ticket + 1, m400.value()))
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  if (!timed_out) ++ticket;  // the closing M400 waits for the end of motion
+  while (done.load() < ticket && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  timed_out = timed_out || done.load() < ticket;
+  m.stop();
+  if (timed_out) return Error{"the virtual-time run did not finish within " + std::to_string(timeout_s) + " s"};
+  const ManeuverTelemetry& t = ex->telemetry();
+  r.commands = ticket - 1;
+  r.moves = ex->moves_planned();
+  r.segments_entered = t.segments_entered.load();
+  r.virtual_s = seconds_from_ns(clock.now_ns()) - 1.0;
+  r.path_time_s = t.path_time_s.load();
+  r.path_mm = t.path_mm.load();
+  r.max_cross_track_mm = t.max_cross_track_mm.load();
+  r.iae_cross_track_mm_s = t.iae_cross_track_mm_s.load();
+  r.max_error_mm = t.max_error_mm.load();
+  r.max_voltage_v = t.max_voltage_v.load();
+  for (int i = 0; i < 3; ++i) r.end_mm[i] = t.pos_mm[i].load();
+  r.faulted = t.faulted.load();
+  return r;
 }
 
 }  // namespace feedloop::engine

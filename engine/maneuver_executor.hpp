@@ -24,6 +24,8 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "config/machine_config.hpp"
 #include "core/result.hpp"
@@ -78,6 +80,7 @@ class ManeuverExecutor final : public CommandExecutor, private planner::MoveSink
   void motion_status(MachineStatus& s) const override;
 
   const ManeuverTelemetry& telemetry() const { return telemetry_; }
+  uint64_t moves_planned() const { return moves_.load(std::memory_order_relaxed); }
   double servo_period_s() const { return period_s_; }
 
  private:
@@ -133,5 +136,27 @@ class ManeuverExecutor final : public CommandExecutor, private planner::MoveSink
 
 // The executor for config::Drive::dc_servo (engine/executor_factory.cpp).
 Result<std::unique_ptr<CommandExecutor>> make_maneuver_executor(const config::MachineConfig& cfg);
+
+// G-code through engine::Machine with the maneuvering executor on a VirtualClock (what `feedloop
+// batch` can call for drive: dc_servo): lines are streamed into the command queue as it drains.
+struct ManeuverRunSummary {
+  uint64_t commands = 0;         // lines executed (comments and blanks are not sent)
+  uint64_t rejected = 0;
+  std::string first_error;       // first rejected line, with its location
+  uint64_t moves = 0;            // final moves from the lookahead
+  uint64_t segments_entered = 0; // path segments the controller followed (none skipped: = moves)
+  double virtual_s = 0.0;        // machine time from start to the end of motion
+  double path_time_s = 0.0;      // time spent following the path
+  double path_mm = 0.0;
+  double max_cross_track_mm = 0.0;
+  double iae_cross_track_mm_s = 0.0;
+  double max_error_mm = 0.0;
+  double max_voltage_v = 0.0;
+  double end_mm[3] = {0.0, 0.0, 0.0};
+  bool faulted = false;
+};
+Result<ManeuverRunSummary> run_maneuver_virtual(const config::MachineConfig& cfg,
+                                                const std::vector<std::string>& gcode_lines,
+                                                double timeout_s = 600.0);
 
 }  // namespace feedloop::engine

@@ -11,7 +11,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <sstream>
+#include <vector>
 #include <string>
 #include <thread>
 
@@ -212,6 +214,46 @@ TEST(DcServoMachine, VirtualTimeRunsAreDeterministic) {
   EXPECT_EQ(a.max_cross_um, b.max_cross_um);
   EXPECT_EQ(a.iae_cross_um_s, b.iae_cross_um_s);
   for (int i = 0; i < 3; ++i) EXPECT_EQ(a.pos_mm[i], b.pos_mm[i]);
+}
+
+}  // namespace
+}  // namespace feedloop::engine
+
+namespace feedloop::engine {
+namespace {
+
+// A slicer's print (the first three layers of the corpus cube, 541 lines, perimeters, infill,
+// travel, retraction) through run_maneuver_virtual: streamed into the machine's command queue.
+TEST(DcServoMachine, SlicedCubeLayersThroughTheVirtualTimeRun) {
+  std::ifstream in(FEEDLOOP_SOURCE_DIR "/examples/gcode/cube20_3layers.gcode");
+  ASSERT_TRUE(in.good());
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  auto r = run_maneuver_virtual(example(), lines);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  std::printf("cube20 3 layers: %llu commands, %llu rejected, %llu moves, %llu segments entered, path %.1f mm in "
+              "%.2f s (virtual %.2f s), max cross-track %.2f um, IAE %.3f um*s, max |z1| %.2f um, max |V| %.1f V\n",
+              static_cast<unsigned long long>(r->commands), static_cast<unsigned long long>(r->rejected),
+              static_cast<unsigned long long>(r->moves), static_cast<unsigned long long>(r->segments_entered),
+              r->path_mm, r->path_time_s, r->virtual_s, r->max_cross_track_mm * 1e3, r->iae_cross_track_mm_s * 1e3,
+              r->max_error_mm * 1e3, r->max_voltage_v);
+  EXPECT_EQ(r->rejected, 0u) << r->first_error;
+  EXPECT_FALSE(r->faulted);
+  EXPECT_GT(r->moves, 400u);
+  // Every move with XYZ extent was followed as a segment; retractions (E only) are not segments.
+  size_t e_only = 0;
+  for (const std::string& l : lines) {
+    const std::string code = l.substr(0, l.find(';'));
+    if ((code.rfind("G1 ", 0) == 0 || code.rfind("G0 ", 0) == 0) && code.find_first_of("XYZ") == std::string::npos &&
+        code.find('E') != std::string::npos)
+      ++e_only;
+  }
+  EXPECT_GT(e_only, 5u);
+  EXPECT_EQ(r->segments_entered, r->moves - e_only);
+  EXPECT_LT(r->max_cross_track_mm, 0.010);
+  EXPECT_GT(r->path_mm, 1000.0);
+  EXPECT_GT(r->path_time_s, r->path_mm / 100.0);        // m_s = 100 mm/s at most
+  EXPECT_LT(r->path_time_s, 1.5 * r->path_mm / 100.0);
 }
 
 }  // namespace
