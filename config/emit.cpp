@@ -110,6 +110,7 @@ void write_motion(Writer& w, const MachineConfig& c) {
   w.num("skipped_step_threshold_mm", k.skipped_step_threshold_mm);
   w.num("max_following_error_mm", k.max_following_error_mm);
   w.num("max_encoder_jump_mm", k.max_encoder_jump_mm);
+  w.num("command_lead_ms", k.command_lead_ms);
   const ManeuverControlConfig& m = k.maneuver;
   w.begin("maneuver");
   w.num("k_p_per_s", m.k_p_per_s);

@@ -129,6 +129,8 @@ struct ControlConfig {
   double skipped_step_threshold_mm = 0.3;     // following error that counts as lost steps
   double max_following_error_mm = 2.0;        // beyond this: fault, stop motion
   double max_encoder_jump_mm = 1.0;           // a sample-to-sample jump beyond this is implausible
+  double command_lead_ms = 4.0;               // closed loop / feedforward: motor commands are computed
+                                              // this far ahead of execution (the PI's loop delay)
   ManeuverControlConfig maneuver;             // mode maneuver (drive: dc_servo)
   bool operator==(const ControlConfig&) const = default;
 };

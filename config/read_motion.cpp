@@ -87,6 +87,7 @@ void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) 
   const bool t = c.number("skipped_step_threshold_mm", cc.skipped_step_threshold_mm, Range::positive());
   const bool f = c.number("max_following_error_mm", cc.max_following_error_mm, Range::positive());
   c.number("max_encoder_jump_mm", cc.max_encoder_jump_mm, Range::positive());
+  c.number("command_lead_ms", cc.command_lead_ms, Range::closed(1.0, 500.0));
   read_maneuver(c, cfg, diag);
   if ((t || f) && !(cc.skipped_step_threshold_mm < cc.max_following_error_mm))
     diag.add(c.key_mark(f ? "max_following_error_mm" : "skipped_step_threshold_mm"),

@@ -28,6 +28,7 @@ Result<std::unique_ptr<CommandExecutor>> make_executor(const config::MachineConf
 MotionOptions motion_options(const config::MachineConfig& cfg) {
   MotionOptions mo;
   mo.lead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
+  mo.control_lead_s = cfg.control.command_lead_ms * 1e-3;
   return mo;
 }
 

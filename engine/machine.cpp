@@ -1,5 +1,7 @@
 #include "engine/machine.hpp"
 
+#include <system_error>
+
 #include <algorithm>  // std::min
 #include <chrono>     // wait_for
 #include <cstdio>     // snprintf
@@ -42,15 +44,23 @@ Status Machine::start(std::string* warnings) {
   }
   std::atomic<bool> rt_done{false};
   std::string rt_warning;
-  planner_thread_ = std::thread([this] { planner_main(); });
-  servo_thread_ = std::thread([this, &rt_done, &rt_warning] {
-    if (options_.realtime_priority > 0 && !clock_.is_virtual()) {
-      if (Status s = make_thread_realtime(options_.realtime_priority); !s)
-        rt_warning = s.error().message + "\n";
-    }
-    rt_done.store(true, std::memory_order_release);
-    servo_main();
-  });
+  try {
+    planner_thread_ = std::thread([this] { planner_main(); });
+    servo_thread_ = std::thread([this, &rt_done, &rt_warning] {
+      if (options_.realtime_priority > 0 && !clock_.is_virtual()) {
+        if (Status s = make_thread_realtime(options_.realtime_priority); !s)
+          rt_warning = s.error().message + "\n";
+      }
+      rt_done.store(true, std::memory_order_release);
+      servo_main();
+    });
+  } catch (const std::system_error& e) {  // no thread: out of memory or a resource limit
+    stopping_.store(true);
+    wake_cv_.notify_all();
+    if (planner_thread_.joinable()) planner_thread_.join();
+    started_ = false;
+    return Error{std::string("cannot start the machine's threads: ") + e.what()};
+  }
   while (!rt_done.load(std::memory_order_acquire)) std::this_thread::yield();
   warn += rt_warning;
   if (warnings) *warnings = warn;

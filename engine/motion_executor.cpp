@@ -228,7 +228,7 @@ void MotionExecutor::resync_to(const planner::PlannedMove& front) {
 // no planned move covers t_s (before the first, in a gap, after the last: the nearest end).
 bool MotionExecutor::reference(double t_s, control::FeedforwardInput& out) const {
   planner::CartesianSample c;
-  const bool covered = timeline_->sample(t_s, c);
+  const bool covered = timeline_->sample(t_s - plan_shift_s_, c);
   if (timeline_->size() == 0) return false;
   const planner::Joints q = kin_->inverse({c.pos_mm[0], c.pos_mm[1], c.pos_mm[2]});
   for (int j = 0; j < 3; ++j) out.r_mm[static_cast<size_t>(j)] = q[static_cast<size_t>(j)];
@@ -301,13 +301,12 @@ void MotionExecutor::sampled_cycle(double now_s, double /*unused*/) {
   const double need_s = print_now_s + lead_s + (preview + 2) * period_s;
   while (const planner::PlannedMove* front = queue_.front()) {
     if (front->start_time_s + plan_shift_s_ > need_s) break;
-    planner::PlannedMove m = *front;
+    const planner::PlannedMove& m = *front;
     // A move planned after the plan had run out while the loop was still holding the position:
     // the plan's clock stood still meanwhile, so the rest of the plan moves later by the gap.
     if (m.start_time_s + plan_shift_s_ < next_sample_s_ - 1e-9) plan_shift_s_ = next_sample_s_ - m.start_time_s;
-    m.start_time_s += plan_shift_s_;
-    timeline_->push(m);
-    executed_end_s_ = std::max(executed_end_s_, m.end_time_s());
+    timeline_->push(m);  // in plan time
+    executed_end_s_ = std::max(executed_end_s_, m.end_time_s());  // plan time
     queue_.try_pop(current_);
     popped_.fetch_add(1, std::memory_order_release);
     telemetry_.segments.fetch_add(1, std::memory_order_relaxed);
@@ -373,12 +372,32 @@ void MotionExecutor::sampled_cycle(double now_s, double /*unused*/) {
       return;
     }
   }
+  // A late cycle (the thread woke more than the lead late, on a machine without real-time
+  // scheduling): the samples still to come would be due in the past, and steps in the past stop
+  // the MCU (queue underrun). Instead the plan pauses: the motor holds its last command over the
+  // gap and the plan resumes a quarter of the lead from now. Counted in late_cycles.
+  const double earliest_s = print_now_s + 0.25 * lead_s;
+  if (next_sample_s_ + period_s < earliest_s) {
+    const double gap_s = earliest_s - (next_sample_s_ + period_s);
+    const Sample& last = history_[sample_no_ % cap];
+    for (int j = 0; j < kJoints; ++j) {
+      if (steps_.params().steps_per_mm[static_cast<size_t>(j)] <= 0.0) continue;
+      JointSegment hold;
+      hold.t0_s = next_sample_s_;
+      hold.duration_s = gap_s;
+      hold.c0_mm = last.u_mm[static_cast<size_t>(j)];
+      steps_.on_joint_segment(j, hold);
+    }
+    next_sample_s_ += gap_s;
+    plan_shift_s_ += gap_s;
+    late_cycles_.fetch_add(1, std::memory_order_relaxed);
+  }
   // Command samples up to control_lead_s ahead: u = F(r) + C(e), one linear segment per period;
   // after the plan's end (and the feedforward's preview), the loop holds the position for
   // control_settle_s more (the PI removes what is left of the error), then stops.
   const bool plan_empty = queue_.empty() && planner_queued_.load() == 0;
   const double hold_s = control_->closed_loop() ? options_.control_settle_s : 0.0;
-  const double stop_s = executed_end_s_ + preview * period_s + hold_s;
+  const double stop_s = executed_end_s_ + plan_shift_s_ + preview * period_s + hold_s;  // servo time
   while (next_sample_s_ + period_s <= print_now_s + lead_s + 1e-9 && !(plan_empty && next_sample_s_ >= stop_s)) {
     const double t_s = next_sample_s_ + period_s;
     control::FeedforwardInput ahead;
@@ -409,7 +428,10 @@ void MotionExecutor::sampled_cycle(double now_s, double /*unused*/) {
     next_sample_s_ = t_s;
   }
   steps_.flush_due(print_now_s + lead_s);
-  telemetry_.print_time_s.store(print_now_s - plan_shift_s_, std::memory_order_relaxed);
+  // Print time as the planner counts it: it stands at the plan's end while the loop holds.
+  const double print_plan_s = plan_empty ? std::min(print_now_s - plan_shift_s_, executed_end_s_)
+                                         : print_now_s - plan_shift_s_;
+  telemetry_.print_time_s.store(print_plan_s, std::memory_order_relaxed);
   if (tap_ != nullptr) publish_sample(now_s, print_now_s - plan_shift_s_, at_now.r_mm, at_now.u_mm, at_now.nozzle_mm);
   // Done when everything planned has been commanded (with the feedforward's preview drained and
   // the hold over) and executed.

@@ -139,6 +139,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void publish_sample(double now_s, double print_time_s, const control::JointArray& desired_mm,
                       const control::JointArray& command_mm, const std::array<double, 3>& nozzle_mm);
   std::atomic<uint64_t> lost_step_events_{0};
+  std::atomic<uint64_t> late_cycles_{0};  // sampled path: the plan paused for a late cycle
   std::unique_ptr<ServoControl> control_;
   std::unique_ptr<planner::MoveTimeline> timeline_;
   struct Sample {  // one command sample, kept for the feedback comparison
