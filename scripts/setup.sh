@@ -11,6 +11,7 @@ PACKAGES=(
   printrun                            # pronsole: the serial host used in the pty test
   systemd                             # systemd-analyze verify of the unit
   socat xz-utils
+  gnuplot-nox                         # the identification report's plots (ident fit --out DIR)
 )
 OPTIONAL=(rt-tests stress-ng)         # servo-latency benchmark only
 
