@@ -20,6 +20,8 @@ enum class KinematicsKind { cartesian, corexy, delta };
 enum class CorneringPolicy {
   junction_deviation,  // Marlin/Klipper "approximated centripetal velocity"
   sharp_corner,        // output-maneuvering paper, Eq. 63-69 (slow down only at sharp corners)
+  speed_change,        // closed-loop gantry thesis Sect. 2.2 (Marlin/Sailfish "max jerk"):
+                       // |v u_next - v u_prev| <= max_speed_change_mm_s (vector norm, XYZ)
 };
 
 enum class ProfileShape { trapezoid, scurve };
@@ -70,6 +72,9 @@ struct PlannerConfig {
   double junction_deviation_mm = 0.0;
   double square_corner_velocity_mm_s = 5.0;
   SharpCornerParams sharp;
+  // Speed change: the largest velocity change allowed at a junction (thesis Sect. 2.2; Sailfish's
+  // default and the thesis's normal setting is 15 mm/s, Sect. 5.4).
+  double max_speed_change_mm_s = 15.0;
   // Klipper's minimum_cruise_ratio: accel_to_decel = accel * (1 - ratio).
   double min_cruise_ratio = 0.5;
 

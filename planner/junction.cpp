@@ -45,4 +45,12 @@ double sharp_corner_speed(double m_s_mm_s, double alpha_deg, const SharpCornerPa
   return m_s_mm_s * (k * sharp_corner_h(0.0, p) + (1.0 - k) * sharp_corner_h(0.5, p));
 }
 
+double speed_change_v2(const double* up, const double* un, double dv_max_mm_s) {
+  // |u_next - u_prev|^2 from the differences (not 2 - 2 cos: exact for nearly straight junctions)
+  double du2 = 0.0;
+  for (int i = 0; i < 3; ++i) du2 += (un[i] - up[i]) * (un[i] - up[i]);
+  if (!(du2 > 0.0)) return std::numeric_limits<double>::infinity();
+  return dv_max_mm_s * dv_max_mm_s / du2;  // v |u_next - u_prev| <= dv_max
+}
+
 }  // namespace feedloop::planner

@@ -17,6 +17,18 @@
 //   v_corner = m_s (k_n h(0) + (1 - k_n) h(1/2)),
 // with m_s the programmed speed (the smaller of the two moves' cruise speeds). Eq. 63's
 // constant-speed assignment is the k_n = 0 case without the sigmoid.
+//
+// Speed change (closed-loop-gantry-thesis Sect. 2.2, Fig. 1; Sect. 5.4 "the maximum magnitude of
+// the difference between velocity before and velocity after a corner"): the corner speed v is the
+// largest with |v u_next - v u_prev| <= dv_max, where the thesis measures the "magnitude of the
+// vector difference between the command velocity just before and just after the corner". With
+// unit XYZ directions |u_next - u_prev| = 2 sin(alpha/2) (alpha the turn angle), so
+//   v = dv_max / |u_next - u_prev| = dv_max / (2 sin(alpha/2)),
+// unlimited straight through (alpha = 0) and dv_max / 2 at a full reversal. This is the Euclidean
+// norm of the thesis's wording, not Marlin's classic jerk, which bounds each axis's change
+// separately (max_i |v u_next,i - v u_prev,i| <= jerk_i, a square corner at +-45 deg then passes
+// at jerk/sin 45 = 1.41 jerk instead of jerk/sqrt 2 = 0.71 jerk). E is not part of it (as for the
+// junction deviation); there is no mid-move cap, so 300 mm/s takes every corner at full speed.
 #pragma once
 
 #include "planner/config.hpp"
@@ -33,5 +45,8 @@ double sharp_corner_k(double alpha_deg, const SharpCornerParams& p);          //
 double sharp_corner_h(double theta, const SharpCornerParams& p);              // Eq. 68
 // Eq. 67 evaluated at the corner: the corner speed for programmed speed m_s.
 double sharp_corner_speed(double m_s_mm_s, double alpha_deg, const SharpCornerParams& p);
+// Thesis Sect. 2.2: the v^2 limit (mm^2/s^2) for a velocity change of at most dv_max_mm_s
+// (vector norm over XYZ); +inf for a straight line.
+double speed_change_v2(const double* u_prev, const double* u_next, double dv_max_mm_s);
 
 }  // namespace feedloop::planner

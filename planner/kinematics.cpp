@@ -36,6 +36,7 @@ Status PlannerConfig::validate() const {
   if (!(sharp.alpha_a_deg >= 0.0 && sharp.alpha_a_deg < sharp.alpha_b_deg && sharp.alpha_b_deg <= 180.0))
     return bad("sharp corner angles need 0 <= alpha_a < alpha_b <= 180");
   if (!(sharp.a2 > 0.0)) return bad("sharp corner a2 must be > 0");
+  if (!(max_speed_change_mm_s > 0.0)) return bad("max_speed_change_mm_s must be > 0");
   if (!(max_jerk_mm_s3 > 0.0)) return bad("S-curve jerk must be > 0");
   if (lookahead_moves < 2 || lookahead_moves > 100000) return bad("lookahead_moves must be in [2, 100000]");
   if (!(arc_tolerance_mm > 0.0)) return bad("arc tolerance must be > 0");

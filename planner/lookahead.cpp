@@ -30,6 +30,7 @@ double Planner::corner_limit_v2(const Queued& prev, const Queued& next) const {
     const double v = sharp_corner_speed(m_s, corner_angle_deg(up, un), cfg_.sharp);
     return v * v;
   }
+  if (cfg_.cornering == CorneringPolicy::speed_change) return speed_change_v2(up, un, cfg_.max_speed_change_mm_s);
   return junction_deviation_v2(up, un, jd_mm_, prev.m.accel_mm_s2, next.m.accel_mm_s2, prev.delta_v2, next.delta_v2);
 }
 

@@ -1,8 +1,9 @@
 // The lookahead planner: a bounded window of moves, velocity/acceleration limits per axis and
-// along the path, cornering (junction deviation or the sharp-corner assignment), Klipper's
-// minimum cruise ratio, and deceleration planning so that the machine can always stop at the
-// end of the queued moves. Moves leave through the MoveSink as soon as later moves can no longer
-// change them (Klipper's lazy flush), each with a closed-form profile (profile.hpp).
+// along the path, cornering (junction deviation, the sharp-corner assignment or the thesis's
+// speed change), Klipper's minimum cruise ratio, and deceleration planning so that the machine
+// can always stop at the end of the queued moves. Moves leave through the MoveSink as soon as
+// later moves can no longer change them (Klipper's lazy flush), each with a closed-form profile
+// (profile.hpp).
 //
 // Algorithm (Klipper toolhead.py LookAheadQueue, restated):
 //   per move:  max_cruise_v2 = v^2, delta_v2 = 2 a L, smooth_delta_v2 = 2 a (1 - min_cruise_ratio) L

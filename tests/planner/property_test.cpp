@@ -1,5 +1,5 @@
 // Seeded random property test (Ruckig style): random move sequences with tiny, zero-length,
-// E-only and reversing moves, random feeds, accelerations, windows and both cornering policies
+// E-only and reversing moves, random feeds, accelerations, windows, the three cornering policies
 // and profiles. Every emitted move must be finite, continuous with its neighbours, within its
 // limits, its pieces must cover exactly its length, and the queue must always suffice to stop.
 #include <gtest/gtest.h>
@@ -20,7 +20,10 @@ TEST(PlannerProperties, RandomSequencesKeepTheInvariants) {
   for (int trial = 0; trial < 60; ++trial) {
     PlannerConfig c = test::cartesian_config();
     c.lookahead_moves = 2 + static_cast<size_t>(u01(rng) * 40);
-    c.cornering = trial % 3 == 2 ? CorneringPolicy::sharp_corner : CorneringPolicy::junction_deviation;
+    c.cornering = trial % 3 == 2   ? CorneringPolicy::sharp_corner
+                  : trial % 3 == 1 ? CorneringPolicy::speed_change
+                                   : CorneringPolicy::junction_deviation;
+    c.max_speed_change_mm_s = 1.0 + 60.0 * static_cast<double>((trial * 37) % 61) / 61.0;  // keeps rng's sequence
     c.profile = trial % 4 == 3 ? ProfileShape::scurve : ProfileShape::trapezoid;
     c.min_cruise_ratio = u01(rng) * 0.9;
     test::Recorder rec;
