@@ -82,6 +82,7 @@ void write_motion(Writer& w, const MachineConfig& c) {
   w.num("square_corner_velocity_mm_s", p.square_corner_velocity_mm_s);
   w.num("min_cruise_ratio", p.min_cruise_ratio);
   w.word("cornering", enum_name(cornering_names(), p.cornering));
+  w.num("max_speed_change_mm_s", p.max_speed_change_mm_s);
   w.begin("sharp_corner");
   w.num("alpha_a_deg", p.sharp_corner.alpha_a_deg);
   w.num("alpha_b_deg", p.sharp_corner.alpha_b_deg);

@@ -37,7 +37,8 @@ inline const EnumNames<ManeuverParameterization>& maneuver_parameterization_name
 }
 inline const EnumNames<Cornering>& cornering_names() {
   static const EnumNames<Cornering> n = {{"junction_deviation", Cornering::junction_deviation},
-                                         {"sharp_corner", Cornering::sharp_corner}};
+                                         {"sharp_corner", Cornering::sharp_corner},
+                                         {"speed_change", Cornering::speed_change}};
   return n;
 }
 inline const EnumNames<Profile>& profile_names() {

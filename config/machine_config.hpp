@@ -58,7 +58,7 @@ struct DeltaGeometryConfig {
 
 // ---- planner ------------------------------------------------------------------------------------
 
-enum class Cornering { junction_deviation, sharp_corner };
+enum class Cornering { junction_deviation, sharp_corner, speed_change };
 enum class Profile { trapezoid, scurve };
 
 // Output-maneuvering paper, Sect. III-D, Eq. 63-69: corners with angle alpha_n < alpha_a keep the
@@ -80,6 +80,9 @@ struct PlannerConfig {
   double min_cruise_ratio = 0.5;
   Cornering cornering = Cornering::junction_deviation;
   SharpCornerConfig sharp_corner;
+  // cornering: speed_change (closed-loop-gantry-thesis Sect. 2.2): the largest velocity change at a
+  // corner, |v u_out - v u_in|; 15 mm/s is Sailfish's default and the thesis's normal setting.
+  double max_speed_change_mm_s = 15.0;
   Profile profile = Profile::trapezoid;
   double max_jerk_mm_s3 = 100000.0;  // scurve only
   int lookahead_moves = 128;

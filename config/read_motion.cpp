@@ -15,6 +15,7 @@ void read_planner(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   p.number("square_corner_velocity_mm_s", pl.square_corner_velocity_mm_s, Range::non_negative());
   p.number("min_cruise_ratio", pl.min_cruise_ratio, Range::closed(0.0, 1.0));
   p.choice("cornering", pl.cornering, cornering_names());
+  p.number("max_speed_change_mm_s", pl.max_speed_change_mm_s, Range::positive());  // thesis Sect. 2.2
   MapReader sc = p.sub("sharp_corner");
   SharpCornerConfig& s = pl.sharp_corner;
   // Eq. 64-66: alpha_a <= alpha_n <= alpha_b is the "sharp" band, angles in [0, 180] deg.

@@ -54,9 +54,10 @@ planner::PlannerConfig planner_config(const config::MachineConfig& cfg) {
   p.max_velocity_mm_s = cfg.planner.max_velocity_mm_s;
   p.max_accel_mm_s2 = cfg.planner.max_accel_mm_s2;
   p.print_accel_mm_s2 = p.retract_accel_mm_s2 = p.travel_accel_mm_s2 = cfg.planner.max_accel_mm_s2;
-  p.cornering = cfg.planner.cornering == config::Cornering::sharp_corner
-                    ? planner::CorneringPolicy::sharp_corner
-                    : planner::CorneringPolicy::junction_deviation;
+  p.cornering = cfg.planner.cornering == config::Cornering::sharp_corner   ? planner::CorneringPolicy::sharp_corner
+                : cfg.planner.cornering == config::Cornering::speed_change ? planner::CorneringPolicy::speed_change
+                                                                           : planner::CorneringPolicy::junction_deviation;
+  p.max_speed_change_mm_s = cfg.planner.max_speed_change_mm_s;
   p.junction_deviation_mm = cfg.planner.junction_deviation_mm;
   p.square_corner_velocity_mm_s = cfg.planner.square_corner_velocity_mm_s;
   p.sharp.alpha_a_deg = cfg.planner.sharp_corner.alpha_a_deg;
