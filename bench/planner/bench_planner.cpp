@@ -179,9 +179,10 @@ int main(int argc, char** argv) {
     const std::string path = corpus + "/" + want;
     if (!std::filesystem::exists(path)) continue;
     const Loaded l = load(path);
-    for (CorneringPolicy pol : {CorneringPolicy::junction_deviation, CorneringPolicy::sharp_corner}) {
+    for (CorneringPolicy pol :
+         {CorneringPolicy::junction_deviation, CorneringPolicy::sharp_corner, CorneringPolicy::speed_change}) {
       PlannerConfig cfg = config_for(want);
-      cfg.cornering = pol;
+      cfg.cornering = pol;  // speed_change at its default 15 mm/s (thesis Sect. 2.2)
       const RunResult r = run(l, cfg, false, true);
       double sum = 0.0, mn = 1e300, sum45 = 0.0, sum_straight = 0.0;
       long n = 0, n45 = 0, n_straight = 0;
@@ -199,7 +200,9 @@ int main(int argc, char** argv) {
           ++n_straight;
         }
       }
-      const char* pname = pol == CorneringPolicy::junction_deviation ? "junction_deviation" : "sharp_corner_eq67";
+      const char* pname = pol == CorneringPolicy::junction_deviation ? "junction_deviation"
+                          : pol == CorneringPolicy::sharp_corner     ? "sharp_corner_eq67"
+                                                                     : "speed_change_15";
       const double mean = n ? sum / n : 0.0, mean45 = n45 ? sum45 / n45 : 0.0, mean_s = n_straight ? sum_straight / n_straight : 0.0;
       std::printf("%-28s %-20s %12.1f %9ld %10.2f %10.3f %12.2f %12.2f\n", want, pname, r.print_time_s, n, mean, n ? mn : 0.0,
                   mean45, mean_s);
