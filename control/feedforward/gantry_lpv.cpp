@@ -2,16 +2,25 @@
 #include "control/feedforward/gantry_lpv.hpp"
 
 #include <algorithm>  // std::max, std::min
-#include <cmath>      // std::isfinite
+#include <cmath>      // std::isfinite, std::tanh
 
 namespace feedloop::control {
 
-double belt_stiffness_n_m(const GantryAxisLpvModel& m, double x_mm) {
+double belt_stiffness_n_m(const GantryAxisLpvModel& m, double x_mm, int direction) {
   if (!(m.belt_unit_stiffness_n > 0.0)) return m.params.k2_n_m;
   const double L = m.pulley_distance_mm * 1e-3;
   const double x = std::clamp(x_mm * 1e-3, -0.8 * L, 0.8 * L);
-  // Eq. 6 with x0 = 0: k_hat / (L - x) pulling +, k_hat / (L + x) pulling -; their mean.
+  // Eq. 6 with x0 = 0: k_hat / (L - x) pulling +, k_hat / (L + x) pulling -; or their mean.
+  if (direction > 0) return m.belt_unit_stiffness_n / (L - x);
+  if (direction < 0) return m.belt_unit_stiffness_n / (L + x);
   return m.belt_unit_stiffness_n * L / (L * L - x * x);
+}
+
+double planned_belt_force_n(const model::GantryAxisParams& p, double r_prev_mm, double r0_mm, double r_next_mm,
+                            double period_s) {
+  const double v = (r_next_mm - r_prev_mm) * 1e-3 / (2.0 * period_s);
+  const double a = (r_next_mm - 2.0 * r0_mm + r_prev_mm) * 1e-3 / (period_s * period_s);
+  return p.m2_kg * a + p.c2_n_s_m * v;
 }
 
 Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
@@ -29,38 +38,67 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
     hi = std::isfinite(hi) ? std::min(hi, lim) : lim;
     if (!(hi >= lo)) return Error{axis + ": empty travel for the feedforward grid", {}};
     const bool lpv = ax.belt_unit_stiffness_n > 0.0 && hi > lo;
+    const bool directional = lpv && ax.direction_scheduled;
+    if (directional && !(ax.direction_force_n > 0.0 && std::isfinite(ax.direction_force_n)))
+      return Error{axis + ": direction_force_n must be > 0 and finite", {}};
     ff->grid_[a] = UniformGrid::span(lo, hi, lpv ? std::max(2, ax.grid_points) : 1);
+    ff->directional_[a] = directional;
+    ff->inv_force_[a] = directional ? 1.0 / ax.direction_force_n : 0.0;
+    ff->params_[a] = ax.params;
     std::vector<PreviewInverse> table;
-    for (int i = 0; i < ff->grid_[a].count; ++i) {
-      model::GantryAxisParams p = ax.params;
-      p.k2_n_m = belt_stiffness_n_m(ax, ff->grid_[a].at(i));  // Eq. 6 at this grid point
-      auto d = discretize_for_hold(model::gantry_state_space(p), opt.period_s, opt.hold);  // Eq. 15
-      if (!d) return Error{axis + ": " + d.error().message, {}};
-      auto inv = design_preview_inverse(d.value(), opt.preview_samples, ref_offset, opt.weights);
-      if (!inv) return Error{axis + ": " + inv.error().message, {}};
-      table.push_back(std::move(inv.value()));
+    // Directional: designs 0..G-1 pulling - (K2 = k_hat / (L + x)), G..2G-1 pulling +.
+    const int directions[2] = {-1, +1};
+    for (int dir = 0; dir < (directional ? 2 : 1); ++dir) {
+      for (int i = 0; i < ff->grid_[a].count; ++i) {
+        model::GantryAxisParams p = ax.params;
+        // Eq. 6 at this grid point (and direction, or the mean of both).
+        p.k2_n_m = belt_stiffness_n_m(ax, ff->grid_[a].at(i), directional ? directions[dir] : 0);
+        auto d = discretize_for_hold(model::gantry_state_space(p), opt.period_s, opt.hold);  // Eq. 15
+        if (!d) return Error{axis + ": " + d.error().message, {}};
+        auto inv = design_preview_inverse(d.value(), opt.preview_samples, ref_offset, opt.weights);
+        if (!inv) return Error{axis + ": " + inv.error().message, {}};
+        table.push_back(std::move(inv.value()));
+      }
     }
     if (Status st = ff->inv_[a].configure(table, opt.hold); !st) return st.error();
   }
   ff->P_ = opt.preview_samples;
+  ff->period_s_ = opt.period_s;
   ff->delay_.assign(static_cast<size_t>(ff->P_ + 1), JointArray{});
   return ff;
 }
 
-void GantryLpvFeedforward::schedule_(int axis, double pos_mm) {
-  int idx[2];
-  double w[2];
-  const UniformGrid& g = grid_[static_cast<size_t>(axis)];
-  g.locate(pos_mm, idx[0], w[1]);
+void GantryLpvFeedforward::schedule_(int axis, double pos_mm, double force_n) {
+  const size_t a = static_cast<size_t>(axis);
+  int idx[4];
+  double w[4];
+  const UniformGrid& g = grid_[a];
+  double wx = 0.0;
+  g.locate(pos_mm, idx[0], wx);
   idx[1] = g.count > 1 ? idx[0] + 1 : idx[0];
-  w[0] = 1.0 - w[1];
-  inv_[static_cast<size_t>(axis)].schedule(idx, w, 2);
+  w[0] = 1.0 - wx;
+  w[1] = wx;
+  if (!directional_[a]) {
+    inv_[a].schedule(idx, w, 2);
+    return;
+  }
+  // Bilinear: position x direction, w+ = 0.5 + 0.5 tanh(F / F0) on the designs pulling +.
+  const double wp = 0.5 + 0.5 * std::tanh(force_n * inv_force_[a]);
+  idx[2] = idx[0] + g.count;
+  idx[3] = idx[1] + g.count;
+  w[2] = w[0] * wp;
+  w[3] = w[1] * wp;
+  w[0] *= 1.0 - wp;
+  w[1] *= 1.0 - wp;
+  inv_[a].schedule(idx, w, 4);
 }
 
 void GantryLpvFeedforward::reset(const FeedforwardInput& at) {
   for (int a = 0; a < 2; ++a) {
-    schedule_(a, at.r_mm[static_cast<size_t>(a)]);
-    inv_[static_cast<size_t>(a)].reset(&at.r_mm[static_cast<size_t>(a)]);
+    const size_t as = static_cast<size_t>(a);
+    schedule_(a, at.r_mm[as], 0.0);
+    inv_[as].reset(&at.r_mm[as]);
+    r_prev_[as] = at.r_mm[as];
   }
   for (JointArray& j : delay_) j = at.r_mm;
   head_ = 0;
@@ -71,10 +109,16 @@ void GantryLpvFeedforward::step(const FeedforwardInput& in, JointArray& u_mm) {
   head_ = (head_ + 1) % (P_ + 1);
   u_mm = delay_[static_cast<size_t>(head_)];  // r_k for the pass-through joints
   for (int a = 0; a < 2; ++a) {
-    ScheduledPreviewInverse& inv = inv_[static_cast<size_t>(a)];
-    inv.push(&in.r_mm[static_cast<size_t>(a)]);
-    schedule_(a, inv.reference(0, 0));  // the model at the carriage's planned position at t_k
-    inv.step(&u_mm[static_cast<size_t>(a)]);
+    const size_t as = static_cast<size_t>(a);
+    ScheduledPreviewInverse& inv = inv_[as];
+    inv.push(&in.r_mm[as]);
+    const double r0 = inv.reference(0, 0);
+    // The model at the carriage's planned position at t_k and the planned belt force's direction.
+    const double f = directional_[as] ? planned_belt_force_n(params_[as], r_prev_[as], r0, inv.reference(1, 0), period_s_)
+                                      : 0.0;
+    schedule_(a, r0, f);
+    inv.step(&u_mm[as]);
+    r_prev_[as] = r0;
   }
 }
 

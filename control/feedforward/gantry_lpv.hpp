@@ -1,10 +1,15 @@
 // Model-based LPV feedforward for a Cartesian or CoreXY machine: per X and Y joint, the preview
 // inverse (preview_design.hpp) of the thesis's two-mass stepper + belt model (closed-loop-gantry
-// thesis, Eq. 13-16) whose belt stiffness depends on the carriage position (Eq. 5-6):
-//   K2(x) = k_hat / (L - x sgn(stretch))   ->   direction average  K2(x) = k_hat L / (L^2 - x^2)
-// (x0 = 0: K2(0) = k_hat / L). The direction dependence is NOT modelled (it is a switching
-// nonlinearity; the simulator has it, docs/feedforward.md). Designs are precomputed on a grid
-// over the travel and interpolated at the reference position r_k every period (LPV).
+// thesis, Eq. 13-16) whose belt stiffness depends on the carriage position AND on the direction
+// of the belt stretch (Eq. 5-6, x0 = 0):
+//   K2(x, s) = k_hat / (L - x s),   s = sgn(x1 - x2) = sgn(F),  K2(0, s) = k_hat / L.
+// The stretch sign is the sign of the force the belt transmits to the carriage, which the plan
+// predicts: F = m2 a + c2 v (planned acceleration and velocity from r_{k-1}, r_k, r_{k+1}).
+// Designs are precomputed for both directions on a grid over the travel (2 x grid_points) and
+// blended every period: linear in the reference position r_k, and with the smooth weight
+//   w+ = 0.5 + 0.5 tanh(F / F0)
+// in the direction (bilinear, 4 designs). direction_scheduled = false gives the earlier model:
+// the direction average K2(x) = k_hat L / (L^2 - x^2), linear in r_k only.
 // Z and E pass through, delayed by P periods so every joint's command is for the same t_k.
 #pragma once
 
@@ -27,10 +32,23 @@ struct GantryAxisLpvModel {
   double min_mm = -100.0;             // travel covered by the grid (clamped to |x| <= 0.8 L)
   double max_mm = 100.0;
   int grid_points = 25;
+  // Schedule on the stretch direction too (needs belt_unit_stiffness_n > 0). false: the
+  // direction-averaged K2 (the F0 -> infinity limit, up to blending designs vs averaging K2).
+  bool direction_scheduled = true;
+  // F0 of the direction weight, N: the planned belt force at which the blend is 88 % one
+  // direction (tanh(1) = 0.76). docs/feedforward.md has the measurement behind the default.
+  double direction_force_n = 0.5;
 };
 
-// Eq. 6 averaged over the two directions, in N/m, at carriage position x_mm.
-double belt_stiffness_n_m(const GantryAxisLpvModel& m, double x_mm);
+// Eq. 6 at carriage position x_mm, in N/m: direction > 0 for the belt pulling the carriage
+// towards + (stretch x1 - x2 > 0: k_hat / (L - x)), < 0 towards - (k_hat / (L + x)), 0 the mean
+// of the two, k_hat L / (L^2 - x^2). Without k_hat (<= 0): the constant params.k2_n_m.
+double belt_stiffness_n_m(const GantryAxisLpvModel& m, double x_mm, int direction = 0);
+
+// The planned belt force on the carriage, N (Eq. 13 load side at the plan: m2 a + c2 v), from
+// three consecutive reference samples (mm) T apart, centred on r0.
+double planned_belt_force_n(const model::GantryAxisParams& p, double r_prev_mm, double r0_mm, double r_next_mm,
+                            double period_s);
 
 class GantryLpvFeedforward final : public Feedforward {
  public:
@@ -45,10 +63,15 @@ class GantryLpvFeedforward final : public Feedforward {
 
  private:
   GantryLpvFeedforward() = default;
-  void schedule_(int axis, double pos_mm);
+  void schedule_(int axis, double pos_mm, double force_n);
   int P_ = 0;
+  double period_s_ = 1e-3;
   std::array<ScheduledPreviewInverse, 2> inv_;
   std::array<UniformGrid, 2> grid_;
+  std::array<bool, 2> directional_{};       // table = [pulling - | pulling +] x grid
+  std::array<double, 2> inv_force_{};       // 1 / F0
+  std::array<model::GantryAxisParams, 2> params_{};
+  std::array<double, 2> r_prev_{};          // r_{k-1}
   std::vector<JointArray> delay_;  // ring of the last P+1 inputs (pass-through joints)
   int head_ = 0;
 };
