@@ -249,6 +249,9 @@ config::MachineConfig make_config(const config::MachineConfig& base, const CaseD
   // The thesis's loop has no following-error stop (its large-star run reaches several mm); keep
   // the runs going so the error is measured, not cut short.
   cfg.control.max_following_error_mm = 20.0;
+  // The PI's loop delay: motor commands are computed 2 ms ahead of execution (the config's default
+  // is 4 ms); the shorter lead leaves the PI less delay to fight (bench/control/README.md).
+  cfg.control.command_lead_ms = 2.0;
   cfg.feedforward.type = row.ff;
   if (row.ff == FeedforwardType::shaper) {
     cfg.feedforward.shaper.type = config::ShaperType::mzv;
