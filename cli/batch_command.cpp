@@ -2,12 +2,18 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <cstdio>
+#include <string>
+#include <vector>
 #include <fstream>
 
 #include "cli/progress.hpp"
 #include "config/config.hpp"
 #include "engine/batch.hpp"
+#include "engine/config_mapping.hpp"
+#include "engine/maneuver_executor.hpp"
+#include "engine/sim_run.hpp"
 
 namespace feedloop::cli {
 namespace {
@@ -15,8 +21,12 @@ namespace {
 void usage() {
   std::fputs(
       "usage: feedloop batch FILE.gcode [--config CFG.yaml] [--json OUT.json] [--quiet]\n"
+      "       feedloop batch FILE.gcode [--config CFG.yaml] --export-trace TRACE.csv\n"
       "  Translates FILE through the whole pipeline in virtual time (no hardware) and prints a\n"
-      "  summary. Without --config the embedded simulated Cartesian printer is used.\n",
+      "  summary. Without --config the embedded simulated Cartesian printer is used.\n"
+      "  --export-trace runs FILE on the simulated printer of the config (its mock MCUs, the\n"
+      "  control law it configures) and writes every servo period's commanded motor positions and\n"
+      "  encoder readings as trace CSV v1 (DESIGN.md), for replay on another simulator or ident.\n",
       stderr);
 }
 
@@ -27,15 +37,114 @@ std::string format_duration(double s) {
   return buf;
 }
 
+// Trace CSV v1 of a simulated run: per joint with steps, the commanded motor position (the steps
+// the command puts out by then: n = round(u steps_per_mm)) and the encoder reading.
+int export_trace(const std::string& file, const config::MachineConfig& cfg, const std::string& trace_path,
+                 bool quiet) {
+  std::ifstream in(file);
+  if (!in) {
+    std::fprintf(stderr, "feedloop batch: cannot read %s\n", file.c_str());
+    return 1;
+  }
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  std::ofstream out(trace_path);
+  if (!out) {
+    std::fprintf(stderr, "feedloop batch: cannot write %s\n", trace_path.c_str());
+    return 1;
+  }
+  const auto names = engine::joint_names(cfg);
+  const auto spm = engine::steps_per_mm(cfg);
+  std::vector<int> joints;  // the motion joints with an encoder
+  for (int j = 0; j < 3; ++j) {
+    const config::AxisConfig* a = cfg.axis(names[static_cast<size_t>(j)]);
+    const bool encoder = a != nullptr ? a->encoder.has_value() : cfg.kinematics == config::Kinematics::delta;
+    if (spm[static_cast<size_t>(j)] > 0.0 && encoder) joints.push_back(j);
+  }
+  if (joints.empty()) {
+    std::fprintf(stderr, "feedloop batch: the config's axes have no encoders: nothing to measure\n");
+    return 1;
+  }
+  out << "# source=feedloop batch --export-trace\n# gcode=" << file << "\n# sample_rate_hz=" << cfg.servo.rate_hz
+      << "\n# machine=" << cfg.name << "\ntime_s";
+  for (int j : joints) out << ',' << names[static_cast<size_t>(j)] << "_cmd_mm," << names[static_cast<size_t>(j)] << "_meas_mm";
+  out << '\n';
+  uint64_t rows = 0;
+  double t0_s = NAN;  // machine time of the first sample: the trace's time 0
+  engine::SimRunOptions o;
+  o.keep_samples = false;
+  o.timeout_s = 1e7;
+  o.on_sample = [&](const engine::SimRunSample& s) {
+    char buf[64];
+    if (std::isnan(t0_s)) t0_s = s.servo.host_time_s;
+    std::snprintf(buf, sizeof buf, "%.6f", s.servo.host_time_s - t0_s);
+    out << buf;
+    for (int j : joints) {
+      const size_t i = static_cast<size_t>(j);
+      const double cmd = std::round(s.servo.command_mm[i] * spm[i]) / spm[i];
+      std::snprintf(buf, sizeof buf, ",%.6f,%.6f", cmd, s.servo.encoder_mm[i]);
+      out << buf;
+    }
+    out << '\n';
+    ++rows;
+  };
+  auto r = engine::run_simulated(cfg, lines, o);
+  if (!r) {
+    std::fprintf(stderr, "feedloop batch: %s\n", r.error().to_string().c_str());
+    return 1;
+  }
+  out.close();
+  if (!quiet)
+    std::printf("trace: %s (%llu samples at %.0f Hz, %llu commands, %llu rejected, %llu lost full steps)\n",
+                trace_path.c_str(), static_cast<unsigned long long>(rows), cfg.servo.rate_hz,
+                static_cast<unsigned long long>(r->commands), static_cast<unsigned long long>(r->rejected),
+                static_cast<unsigned long long>(r->lost_full_steps[0] + r->lost_full_steps[1] + r->lost_full_steps[2]));
+  if (!r->error.empty()) std::fprintf(stderr, "feedloop batch: %s\n", r->error.c_str());
+  return r->error.empty() ? 0 : 1;
+}
+
+// A DC-servo machine (drive: dc_servo): the G-code through engine::Machine with the maneuvering
+// executor in virtual time, and the path-following figures.
+int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bool quiet) {
+  std::ifstream in(file);
+  if (!in) {
+    std::fprintf(stderr, "feedloop batch: cannot read %s\n", file.c_str());
+    return 1;
+  }
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  auto r = engine::run_maneuver_virtual(cfg, lines, 1e7);
+  if (!r) {
+    std::fprintf(stderr, "feedloop batch: %s\n", r.error().to_string().c_str());
+    return 1;
+  }
+  if (!quiet) {
+    std::printf("batch summary (DC-servo, output maneuvering): %s\n", file.c_str());
+    std::printf("  lines             %llu executed, %llu rejected%s%s\n", static_cast<unsigned long long>(r->commands),
+                static_cast<unsigned long long>(r->rejected), r->first_error.empty() ? "" : ": ",
+                r->first_error.c_str());
+    std::printf("  moves             %llu (%llu path segments followed)\n", static_cast<unsigned long long>(r->moves),
+                static_cast<unsigned long long>(r->segments_entered));
+    std::printf("  time              %.2f s of machine time (%.2f s on the path)\n", r->virtual_s, r->path_time_s);
+    std::printf("  path              %.1f mm\n", r->path_mm);
+    std::printf("  max cross-track   %.2f um (IAE %.4f mm s)\n", r->max_cross_track_mm * 1e3, r->iae_cross_track_mm_s);
+    std::printf("  max error         %.2f um, max voltage %.1f V\n", r->max_error_mm * 1e3, r->max_voltage_v);
+    std::printf("  end position      X %.3f Y %.3f Z %.3f mm%s\n", r->end_mm[0], r->end_mm[1], r->end_mm[2],
+                r->faulted ? " (stopped on a tracking fault)" : "");
+  }
+  return r->faulted ? 1 : 0;
+}
+
 }  // namespace
 
 int batch_command(const std::vector<std::string>& args) {
-  std::string file, config_path, json_path;
+  std::string file, config_path, json_path, trace_path;
   bool quiet = false;
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--config" && i + 1 < args.size()) config_path = args[++i];
     else if (args[i] == "--json" && i + 1 < args.size()) json_path = args[++i];
     else if (args[i] == "--quiet") quiet = true;
+    else if (args[i] == "--export-trace" && i + 1 < args.size()) trace_path = args[++i];
     else if (args[i] == "--help") { usage(); return 0; }
     else if (file.empty() && args[i].rfind("--", 0) != 0) file = args[i];
     else { std::fprintf(stderr, "feedloop batch: unexpected argument '%s'\n", args[i].c_str()); usage(); return 2; }
@@ -47,6 +156,8 @@ int batch_command(const std::vector<std::string>& args) {
     std::fprintf(stderr, "feedloop batch: invalid config:\n%s\n", cfg.error().to_string().c_str());
     return 1;
   }
+  if (cfg->drive == config::Drive::dc_servo) return maneuver_batch(file, *cfg, quiet);
+  if (!trace_path.empty()) return export_trace(file, *cfg, trace_path, quiet);
   Progress progress("batch");
   engine::BatchOptions opt;
   if (!quiet) opt.on_progress = [&](double f) { progress.update(f); };

@@ -86,6 +86,8 @@ void Daemon::close_recorder() {
 }
 
 Result<std::unique_ptr<engine::CommandExecutor>> Daemon::make_recorded_executor() {
+  // A DC-servo machine has no step pipeline to record: its own executor, unrecorded for now.
+  if (cfg_.drive == config::Drive::dc_servo) return engine::make_executor(cfg_);
   auto stack = engine::make_motion_stack(cfg_, engine::motion_options(cfg_), recording_.get());
   if (!stack) return stack.error();
   if (recording_) stack->executor->set_telemetry(recording_.get());

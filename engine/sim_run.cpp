@@ -28,7 +28,7 @@ class Recorder final : public TelemetryTap {
         bridge_.inject_lost_steps(i.joint, i.steps);
         i.steps = 0;
       }
-    if (!keep_) return;
+    if (!keep_ && !on_sample_) return;
     SimRunSample r;
     r.servo = s;
     r.actual_mm.fill(NAN);
@@ -46,8 +46,10 @@ class Recorder final : public TelemetryTap {
           r.actual_nozzle_mm[static_cast<size_t>(j)] = g->carriage_mm();
         }
     }
-    out_.samples.push_back(r);
+    if (on_sample_) on_sample_(r);
+    if (keep_) out_.samples.push_back(r);
   }
+  std::function<void(const SimRunSample&)> on_sample_;
   void on_servo_event(const ServoEvent& e) override { out_.events.push_back(e); }
 
  private:
@@ -73,6 +75,7 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   SimRunResult out;
   if (options.keep_samples) out.samples.reserve(1 << 16);
   Recorder rec(out, bridge, options.keep_samples, cfg.kinematics == config::Kinematics::delta, options.lose_steps);
+  rec.on_sample_ = options.on_sample;
   ex.set_telemetry(&rec);
 
   const double period_s = 1.0 / cfg.servo.rate_hz;
@@ -96,7 +99,12 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
       if (out.error.empty()) out.error = cmd.error().message;
       continue;
     }
-    if (Status st = ex.execute(cmd.value(), cancel); !st) {
+    const gcode::Command& c = cmd.value();
+    if (c.is('M', 104) || c.is('M', 109) || c.is('M', 140) || c.is('M', 190)) {  // heaters: Machine's
+      ++out.commands;
+      continue;
+    }
+    if (Status st = ex.execute(c, cancel); !st) {
       ++out.rejected;
       if (out.error.empty()) out.error = "line " + std::to_string(line_no) + ": " + st.error().message;
       continue;

@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,8 @@
 #include "engine/telemetry_tap.hpp"
 
 namespace feedloop::engine {
+
+struct SimRunSample;
 
 // Fault injection: at print time `at_s` the next `steps` steps of `joint` are lost on their way
 // to the motor (what a skipped step looks like from the encoder).
@@ -27,6 +30,8 @@ struct SimRunOptions {
   double settle_s = 0.05;        // keep sampling this long after the motion's planned end
   double timeout_s = 600.0;      // of virtual time
   bool keep_samples = true;      // false: only the summary figures
+  // Called with every sample as it is produced (streaming, e.g. a trace export); may be empty.
+  std::function<void(const SimRunSample&)> on_sample;
   std::vector<LostStepInjection> lose_steps;
 };
 

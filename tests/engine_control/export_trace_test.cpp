@@ -1,0 +1,52 @@
+// `feedloop batch FILE --export-trace TRACE.csv`: the sample cube's first layers on the simulated
+// printer (default config: PI on the encoders) written as trace CSV v1 and read back with the
+// identification's reader (the contract other tools rely on, DESIGN.md).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "cli/batch_command.hpp"
+#include "ident/trace.hpp"
+
+namespace feedloop {
+namespace {
+
+TEST(ExportTrace, SimulatedPrintAsTraceCsvV1) {
+  const std::string gcode = std::string(FEEDLOOP_SOURCE_DIR) + "/examples/gcode/cube20_3layers.gcode";
+  const std::string out = std::string(FEEDLOOP_BINARY_DIR) + "/export_trace_test.csv";
+  std::filesystem::remove(out);
+  ASSERT_EQ(cli::batch_command({gcode, "--export-trace", out, "--quiet"}), 0);
+  auto trace = ident::read_trace_csv(out);
+  ASSERT_TRUE(trace.ok()) << trace.error().message;
+  const ident::Trace& t = trace.value();
+  ASSERT_NE(t.axis("x"), nullptr);
+  ASSERT_NE(t.axis("y"), nullptr);
+  EXPECT_EQ(t.axis("z"), nullptr);  // no encoder on Z in this machine: nothing measured
+  // One row per servo period while the machine moves: the cube's 3 layers take about 81 s.
+  std::printf("%zu samples, period %.6f s\n", t.samples(), t.period_s());
+  EXPECT_GT(t.samples(), 60000u);
+  EXPECT_NEAR(t.period_s(), 1e-3, 1e-4);
+  // Commanded positions are whole steps (x, y: 94.314 steps/mm) and the encoders follow them.
+  const ident::AxisTrace& x = *t.axis("x");
+  double max_dev_mm = 0.0, max_x_mm = 0.0;
+  size_t whole = 0;
+  for (size_t i = 0; i < t.samples(); ++i) {
+    const double steps = x.cmd_mm[i] * 94.314;
+    if (std::fabs(steps - std::round(steps)) < 1e-3) ++whole;
+    if (std::isfinite(x.meas_mm[i])) max_dev_mm = std::max(max_dev_mm, std::fabs(x.meas_mm[i] - x.cmd_mm[i]));
+    max_x_mm = std::max(max_x_mm, x.cmd_mm[i]);
+  }
+  std::printf("x: max commanded %.3f mm, max |encoder - command| %.4f mm, %zu/%zu whole steps\n", max_x_mm,
+              max_dev_mm, whole, t.samples());
+  EXPECT_GT(max_x_mm, 100.0);   // the cube sits in the middle of the 220 mm bed
+  EXPECT_LT(max_dev_mm, 2.0);   // the loop's correction and the belt's stretch, never a lost axis
+  EXPECT_GT(whole, t.samples() * 99 / 100);
+  std::filesystem::remove(out);
+}
+
+}  // namespace
+}  // namespace feedloop
