@@ -227,6 +227,7 @@ void Machine::servo_main() {
     if (late_ns > period_ns) {  // a whole period lost: count it and do not try to catch up
       st.deadline_misses += static_cast<uint64_t>(late_ns / period_ns);
       deadline += (late_ns / period_ns) * period_ns;
+      executor_->on_deadline_miss(wake, late_ns);  // e.g. into the flight recorder
     }
     executor_->servo_cycle(wake, cancel_.load(std::memory_order_relaxed));
     st.last_wake_ns = wake;

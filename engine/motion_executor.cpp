@@ -109,6 +109,15 @@ double MotionExecutor::executing_print_time_s() const {
 
 // Virtual time may run on while enough planned motion lies ahead, or when the planner holds
 // nothing back; never into moves the lookahead has not released yet.
+void MotionExecutor::on_deadline_miss(int64_t /*now_ns*/, int64_t late_ns) {
+  if (tap_ == nullptr) return;
+  ServoEvent e;
+  e.kind = ServoEventKind::kDeadlineMiss;
+  e.print_time_s = telemetry_.print_time_s.load(std::memory_order_relaxed);
+  e.size_mm = static_cast<double>(late_ns) * 1e-9;  // lateness, s
+  tap_->on_servo_event(e);
+}
+
 bool MotionExecutor::may_advance_virtual(bool planner_busy) const {
   if (waiting_.load()) return true;  // M400 flushed everything and waits for the machine
   if (planned_end_s_.load() - executing_print_time_s() > options_.lead_s + 0.01) return true;

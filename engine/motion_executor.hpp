@@ -79,6 +79,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   bool motion_pending() const override;
   void motion_status(MachineStatus& s) const override;
   bool may_advance_virtual(bool planner_busy) const override;
+  void on_deadline_miss(int64_t now_ns, int64_t late_ns) override;
 
   // The MCUs behind the batch sink (engine/mcu_bridge.hpp); set before the servo thread starts.
   // Each servo cycle then services it first, takes its clock estimates for step timing, waits

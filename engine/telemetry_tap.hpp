@@ -26,6 +26,7 @@ enum class ServoEventKind : uint8_t {
   kEncoderFault,   // implausible jump or stale reports: motion stopped
   kFollowingError, // error beyond max_following_error_mm: motion stopped
   kMcuFault,       // an MCU disconnected or stopped
+  kDeadlineMiss,   // the servo thread woke more than a period late (size_mm holds the lateness, s)
 };
 const char* to_string(ServoEventKind k);
 
@@ -50,6 +51,7 @@ inline const char* to_string(ServoEventKind k) {
     case ServoEventKind::kEncoderFault: return "encoder_fault";
     case ServoEventKind::kFollowingError: return "following_error";
     case ServoEventKind::kMcuFault: return "mcu_fault";
+    case ServoEventKind::kDeadlineMiss: return "deadline_miss";
   }
   return "?";
 }

@@ -58,7 +58,9 @@ void EngineRecording::on_servo_sample(const engine::ServoSample& s) {
 }
 
 void EngineRecording::on_servo_event(const engine::ServoEvent& e) {
-  const EventKind kind = e.kind == engine::ServoEventKind::kLostSteps ? EventKind::lost_steps : EventKind::error;
+  const EventKind kind = e.kind == engine::ServoEventKind::kLostSteps      ? EventKind::lost_steps
+                         : e.kind == engine::ServoEventKind::kDeadlineMiss ? EventKind::deadline_miss
+                                                                           : EventKind::error;
   rec_.writer(Stream::servo).event(kind, clock_.now_ns(), e.joint, e.size_mm, engine::to_string(e.kind));
 }
 

@@ -43,6 +43,7 @@ TEST(EngineRecordingTest, RecordsWhatTheEngineReports) {
     er.on_servo_sample(s);
   }
   er.on_servo_event({engine::ServoEventKind::kLostSteps, 1.0, 0, 0.05});
+  er.on_servo_event({engine::ServoEventKind::kDeadlineMiss, 1.5, -1, 0.0042});
   EXPECT_EQ(er.encoder_samples(), 2u);
   ASSERT_TRUE((*rec)->end_print().ok());
   auto logs = dir.logs();
@@ -65,7 +66,7 @@ TEST(EngineRecordingTest, RecordsWhatTheEngineReports) {
   EXPECT_EQ(enc[0].clock, 1000);            // map offset at host time 0
   EXPECT_EQ(enc[1].counts, 1002);
   EXPECT_EQ(enc[1].clock, 1000 + 216000);  // 3 ms at 72 MHz
-  ASSERT_EQ(ev.size(), 2u);
+  ASSERT_EQ(ev.size(), 3u);
   EXPECT_EQ(ev[0].kind, EventKind::time_anchor);
   EXPECT_EQ(ev[0].value, 0.25);
   EXPECT_EQ(ev[0].time_ns, 5'000'000'000);
@@ -73,6 +74,9 @@ TEST(EngineRecordingTest, RecordsWhatTheEngineReports) {
   EXPECT_EQ(ev[1].joint, 0);
   EXPECT_EQ(ev[1].value, 0.05);
   EXPECT_EQ(ev[1].text, "lost_steps");
+  EXPECT_EQ(ev[2].kind, EventKind::deadline_miss);  // lateness 4.2 ms
+  EXPECT_EQ(ev[2].value, 0.0042);
+  EXPECT_EQ(ev[2].text, "deadline_miss");
 }
 
 TEST(EngineRecordingTest, ServoThreadCallsAllocateNothing) {
