@@ -37,17 +37,23 @@ std::string format_duration(double s) {
   return buf;
 }
 
+// The G-code file's lines (false, with a message, when it cannot be read).
+bool read_lines(const std::string& file, std::vector<std::string>& lines) {
+  std::ifstream in(file);
+  if (!in) {
+    std::fprintf(stderr, "feedloop batch: cannot read %s\n", file.c_str());
+    return false;
+  }
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return true;
+}
+
 // Trace CSV v1 of a simulated run: per joint with steps, the commanded motor position (the steps
 // the command puts out by then: n = round(u steps_per_mm)) and the encoder reading.
 int export_trace(const std::string& file, const config::MachineConfig& cfg, const std::string& trace_path,
                  bool quiet) {
-  std::ifstream in(file);
-  if (!in) {
-    std::fprintf(stderr, "feedloop batch: cannot read %s\n", file.c_str());
-    return 1;
-  }
   std::vector<std::string> lines;
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  if (!read_lines(file, lines)) return 1;
   std::ofstream out(trace_path);
   if (!out) {
     std::fprintf(stderr, "feedloop batch: cannot write %s\n", trace_path.c_str());
@@ -106,13 +112,8 @@ int export_trace(const std::string& file, const config::MachineConfig& cfg, cons
 // A DC-servo machine (drive: dc_servo): the G-code through engine::Machine with the maneuvering
 // executor in virtual time, and the path-following figures.
 int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bool quiet) {
-  std::ifstream in(file);
-  if (!in) {
-    std::fprintf(stderr, "feedloop batch: cannot read %s\n", file.c_str());
-    return 1;
-  }
   std::vector<std::string> lines;
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  if (!read_lines(file, lines)) return 1;
   auto r = engine::run_maneuver_virtual(cfg, lines, 1e7);
   if (!r) {
     std::fprintf(stderr, "feedloop batch: %s\n", r.error().to_string().c_str());

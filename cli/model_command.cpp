@@ -5,6 +5,7 @@
 #include <cstdlib>
 
 #include "config/config.hpp"
+#include "control/feedforward/model_feedforward.hpp"
 #include "model/delta_lpv.hpp"
 #include "model/frf_csv.hpp"
 
@@ -77,7 +78,7 @@ int frf(const std::vector<std::string>& args) {
   const model::ForceTransform form =
       virtual_work || lpv.force_transform == config::ForceTransform::virtual_work ? model::ForceTransform::VirtualWork
                                                                                   : model::ForceTransform::Paper;
-  auto m = model::DeltaLpvModel::create(delta_params_from_config(lpv, geo), form);
+  auto m = model::DeltaLpvModel::create(control::delta_params_from_config(lpv, geo), form);
   if (!m) {
     std::fprintf(stderr, "feedloop model frf: %s\n", m.error().to_string().c_str());
     return 1;
@@ -92,35 +93,6 @@ int frf(const std::vector<std::string>& args) {
 }
 
 }  // namespace
-
-model::DeltaParams delta_params_from_config(const config::DeltaLpvConfig& c, const config::DeltaGeometryConfig& g) {
-  model::DeltaParams p;
-  p.m_c_kg = c.m_c_kg;
-  p.m_f_kg = c.m_f_kg;
-  p.c_n_s_m = c.c_ns_per_m;
-  p.b_n_s_m = c.b_ns_per_m;
-  p.k_n_m = c.k_n_per_m;
-  p.d0_per_s2 = c.d0_per_s2;
-  p.d1_per_s = c.d1_per_s;
-  p.d2_per_s = c.d2_per_s;
-  p.m1_kg = c.m1_kg;
-  p.m2_kg = c.m2_kg;
-  p.b_x_n_s_m = c.b_x_ns_per_m;
-  p.b_y_n_s_m = c.b_y_ns_per_m;
-  p.b_z_n_s_m = c.b_z_ns_per_m;
-  p.k_x_n_m = c.k_x_n_per_m;
-  p.k_y_n_m = c.k_y_n_per_m;
-  p.k_z_n_m = c.k_z_n_per_m;
-  p.delta_x_mm = c.delta_x_mm;
-  p.delta_y_mm = c.delta_y_mm;
-  p.delta_z_mm = c.delta_z_mm;
-  p.D_e_mm = c.d_e_mm;
-  p.geometry.radius_mm = g.radius_mm;
-  p.geometry.arm_length_mm = g.arm_length_mm;
-  p.geometry.nozzle_offset_mm = g.nozzle_offset_mm;
-  p.geometry.tower_angle_deg = {g.angle_a_deg, g.angle_b_deg, g.angle_c_deg};
-  return p;
-}
 
 int model_command(const std::vector<std::string>& args) {
   if (!args.empty() && args[0] == "frf") return frf(std::vector<std::string>(args.begin() + 1, args.end()));

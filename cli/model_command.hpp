@@ -15,7 +15,4 @@ namespace feedloop::cli {
 
 int model_command(const std::vector<std::string>& args);
 
-// config::DeltaLpvConfig + geometry -> model::DeltaParams (exposed for tests).
-model::DeltaParams delta_params_from_config(const config::DeltaLpvConfig& c, const config::DeltaGeometryConfig& g);
-
 }  // namespace feedloop::cli
