@@ -381,12 +381,19 @@ void MotionExecutor::sampled_cycle(double now_s, double /*unused*/) {
       return;
     }
   }
+  // Command samples up to control_lead_s ahead: u = F(r) + C(e), one linear segment per period;
+  // after the plan's end (and the feedforward's preview), the loop holds the position for
+  // control_settle_s more (the PI removes what is left of the error), then stops.
+  const bool plan_empty = queue_.empty() && planner_queued_.load() == 0;
+  const double hold_s = control_->closed_loop() ? options_.control_settle_s : 0.0;
+  const double stop_s = executed_end_s_ + plan_shift_s_ + preview * period_s + hold_s;  // servo time
   // A late cycle (the thread woke more than the lead late, on a machine without real-time
   // scheduling): the samples still to come would be due in the past, and steps in the past stop
   // the MCU (queue underrun). Instead the plan pauses: the motor holds its last command over the
   // gap and the plan resumes a quarter of the lead from now. Counted in late_cycles.
   const double earliest_s = print_now_s + 0.25 * lead_s;
-  if (next_sample_s_ + period_s < earliest_s) {
+  const bool commanding = !(plan_empty && next_sample_s_ >= stop_s);
+  if (commanding && next_sample_s_ + period_s < earliest_s) {
     const double gap_s = earliest_s - (next_sample_s_ + period_s);
     const Sample& last = history_[sample_no_ % cap];
     for (int j = 0; j < kJoints; ++j) {
@@ -401,12 +408,6 @@ void MotionExecutor::sampled_cycle(double now_s, double /*unused*/) {
     plan_shift_s_ += gap_s;
     late_cycles_.fetch_add(1, std::memory_order_relaxed);
   }
-  // Command samples up to control_lead_s ahead: u = F(r) + C(e), one linear segment per period;
-  // after the plan's end (and the feedforward's preview), the loop holds the position for
-  // control_settle_s more (the PI removes what is left of the error), then stops.
-  const bool plan_empty = queue_.empty() && planner_queued_.load() == 0;
-  const double hold_s = control_->closed_loop() ? options_.control_settle_s : 0.0;
-  const double stop_s = executed_end_s_ + plan_shift_s_ + preview * period_s + hold_s;  // servo time
   while (next_sample_s_ + period_s <= print_now_s + lead_s + 1e-9 && !(plan_empty && next_sample_s_ >= stop_s)) {
     const double t_s = next_sample_s_ + period_s;
     control::FeedforwardInput ahead;

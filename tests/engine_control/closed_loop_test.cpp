@@ -43,9 +43,12 @@ Errors errors_of(const SimRunResult& r, double x_end, double y_end) {
 
 std::vector<std::string> lines(std::initializer_list<const char*> l) { return {l.begin(), l.end()}; }
 
+// The default config's command lead (25 ms) is for a daemon on a kernel without real-time
+// scheduling; these tests measure the loop as a real-time kernel runs it (4 ms).
 config::MachineConfig with_mode(config::ControlMode mode) {
   config::MachineConfig cfg = config::default_config();
   cfg.control.mode = mode;
+  cfg.control.command_lead_ms = 4.0;
   return cfg;
 }
 
