@@ -526,6 +526,8 @@ json Daemon::status() const {
             {"planned_until_s", s.planned_until_s},
             {"moves_planned", s.moves_planned},
             {"motion_starts", s.motion_starts},
+            {"lost_step_events", s.lost_step_events},
+            {"late_cycles", s.late_cycles},
             {"segments_queued", s.segments_queued}}},
           {"clients", clients_.size()},
           {"owner", o ? json(o->session->name()) : json(nullptr)},

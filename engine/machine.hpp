@@ -47,6 +47,8 @@ struct MachineStatus {
   uint64_t moves_planned = 0;
   uint64_t segments_queued = 0;     // joint segments waiting for the servo thread
   uint64_t motion_starts = 0;       // times motion started from rest
+  uint64_t lost_step_events = 0;    // closed loop: slips detected (and made up)
+  uint64_t late_cycles = 0;         // sampled path: the plan paused for a late servo cycle
   double encoder_mm[4] = {0, 0, 0, 0};  // latest encoder reading per joint from the MCUs (NaN: none)
   uint64_t encoder_samples = 0;         // encoder samples received from the MCUs
   char last_error[192] = {};

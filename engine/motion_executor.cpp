@@ -75,6 +75,8 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
   s.moves_planned = moves_emitted_.load(std::memory_order_relaxed);
   s.segments_queued = pushed_.load() - popped_.load();
   s.motion_starts = telemetry_.anchors.load(std::memory_order_relaxed);
+  s.lost_step_events = lost_step_events_.load(std::memory_order_relaxed);
+  s.late_cycles = late_cycles_.load(std::memory_order_relaxed);
   if (backend_ != nullptr) {  // the MCUs: encoder positions, and a fault naming the MCU
     for (int j = 0; j < 4; ++j) s.encoder_mm[j] = backend_->encoder_mm(j);
     s.encoder_samples = backend_->encoder_samples();
@@ -181,7 +183,7 @@ void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
     return;
   }
   if (control_) {
-    sampled_cycle(now_s, 0.0);
+    sampled_cycle(now_s);
     return;
   }
   const double horizon_s = now_s + options_.lead_s;
@@ -239,11 +241,18 @@ bool MotionExecutor::reference(double t_s, control::FeedforwardInput& out) const
   planner::CartesianSample c;
   const bool covered = timeline_->sample(t_s - plan_shift_s_, c);
   if (timeline_->size() == 0) return false;
+  out = input_at(c);
+  return covered;
+}
+
+// A planned Cartesian state as the feedforward's input: joints through the kinematics, nozzle.
+control::FeedforwardInput MotionExecutor::input_at(const planner::CartesianSample& c) const {
+  control::FeedforwardInput out;
   const planner::Joints q = kin_->inverse({c.pos_mm[0], c.pos_mm[1], c.pos_mm[2]});
   for (int j = 0; j < 3; ++j) out.r_mm[static_cast<size_t>(j)] = q[static_cast<size_t>(j)];
   out.r_mm[3] = c.pos_mm[3];
   for (int i = 0; i < 3; ++i) out.nozzle_mm[static_cast<size_t>(i)] = c.pos_mm[static_cast<size_t>(i)];
-  return covered;
+  return out;
 }
 
 void MotionExecutor::publish_sample(double now_s, double print_time_s, const control::JointArray& desired_mm,
@@ -268,12 +277,7 @@ void MotionExecutor::publish_sample(double now_s, double print_time_s, const con
 // start, control_lead_s from now.
 void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now_s) {
   // The first move's start, at rest: the reference every filter starts from.
-  control::FeedforwardInput at;
-  const planner::CartesianSample c = planner::sample_move(first, first.start_time_s);
-  const planner::Joints q = kin_->inverse({c.pos_mm[0], c.pos_mm[1], c.pos_mm[2]});
-  for (int j = 0; j < 3; ++j) at.r_mm[static_cast<size_t>(j)] = q[static_cast<size_t>(j)];
-  at.r_mm[3] = c.pos_mm[3];
-  for (int i = 0; i < 3; ++i) at.nozzle_mm[static_cast<size_t>(i)] = c.pos_mm[static_cast<size_t>(i)];
+  const control::FeedforwardInput at = input_at(planner::sample_move(first, first.start_time_s));
   if (resync_) {
     resync_to(first);
     control_->reset_all(at);
@@ -293,7 +297,7 @@ void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now
   s0.u_mm = last_command_mm_;
 }
 
-void MotionExecutor::sampled_cycle(double now_s, double /*unused*/) {
+void MotionExecutor::sampled_cycle(double now_s) {
   const double period_s = pcfg_.servo_period_s;
   const int preview = control_->preview_samples();
   const double lead_s = options_.control_lead_s;

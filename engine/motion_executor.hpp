@@ -133,10 +133,11 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void drop_queued_moves();
   planner::PlannedMove current_;  // the move most recently handed to step generation
   // Sampled path (servo thread).
-  void sampled_cycle(double now_s, double unused);
+  void sampled_cycle(double now_s);
   void start_sampled(const planner::PlannedMove& first, double now_s);
   void resync_to(const planner::PlannedMove& front);
   bool reference(double t_s, control::FeedforwardInput& out) const;
+  control::FeedforwardInput input_at(const planner::CartesianSample& c) const;
   void publish_sample(double now_s, double print_time_s, const control::JointArray& desired_mm,
                       const control::JointArray& command_mm, const std::array<double, 3>& nozzle_mm);
   std::atomic<uint64_t> lost_step_events_{0};
