@@ -112,6 +112,16 @@ void write_motion(Writer& w, const MachineConfig& c) {
   w.num("max_following_error_mm", k.max_following_error_mm);
   w.num("max_encoder_jump_mm", k.max_encoder_jump_mm);
   w.num("command_lead_ms", k.command_lead_ms);
+  if (!k.axes.empty()) {
+    w.begin("axes");
+    for (const AxisGainsConfig& a : k.axes) {
+      w.begin(a.axis);
+      w.num("kp", a.kp);
+      w.num("ki_per_s", a.ki_per_s);
+      w.end();
+    }
+    w.end();
+  }
   const ManeuverControlConfig& m = k.maneuver;
   w.begin("maneuver");
   w.num("k_p_per_s", m.k_p_per_s);
@@ -167,6 +177,7 @@ void write_model(Writer& w, const MachineConfig& c) {
       w.num("k2_n_per_m", g.k2_n_per_m);
       w.num("c1_ns_per_m", g.c1_ns_per_m);
       w.num("c2_ns_per_m", g.c2_ns_per_m);
+      w.num("coulomb_friction_n", g.coulomb_friction_n);
       const StepperConfig& s = g.stepper;
       w.begin("stepper");
       w.num("holding_torque_nm", s.holding_torque_nm);

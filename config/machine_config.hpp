@@ -124,6 +124,15 @@ struct ManeuverControlConfig {
   bool operator==(const ManeuverControlConfig&) const = default;
 };
 
+// One axis's PI gains (control.axes.<axis>): the X and Y axes of a gantry have resonances a
+// factor 4 apart (thesis Table 4: 80 / 21 Hz), so the gain one tolerates the other does not.
+struct AxisGainsConfig {
+  std::string axis;
+  double kp = 0.5;
+  double ki_per_s = 20.0;
+  bool operator==(const AxisGainsConfig&) const = default;
+};
+
 struct ControlConfig {
   ControlMode mode = ControlMode::open_loop;  // pi needs encoders
   double kp = 0.5;                            // thesis Sect. 5: P = 0.5
@@ -135,6 +144,14 @@ struct ControlConfig {
   double command_lead_ms = 4.0;               // closed loop / feedforward: motor commands are computed
                                               // this far ahead of execution (the PI's loop delay)
   ManeuverControlConfig maneuver;             // mode maneuver (drive: dc_servo)
+  std::vector<AxisGainsConfig> axes;          // per-axis kp / ki_per_s overrides
+
+  // The gains of one axis (joint): its override, else the common kp / ki_per_s.
+  AxisGainsConfig gains_for(const std::string& axis_name) const {
+    for (const AxisGainsConfig& a : axes)
+      if (a.axis == axis_name) return a;
+    return AxisGainsConfig{axis_name, kp, ki_per_s};
+  }
   bool operator==(const ControlConfig&) const = default;
 };
 
@@ -203,6 +220,9 @@ struct GantryModelConfig {
   double k2_n_per_m = 110e3;      // belt stiffness (Table 4)
   double c1_ns_per_m = 2100.0;    // motor damping (Table 4)
   double c2_ns_per_m = 112.0;     // bearing damping (Table 4)
+  double coulomb_friction_n = 0.0;  // sliding friction on the carriage (not in Eq. 13: what
+                                    // `feedloop ident fit` reports as coulomb_friction force_n);
+                                    // the LPV feedforward supplies it (docs/feedforward.md)
   StepperConfig stepper;
   bool operator==(const GantryModelConfig&) const = default;
 };

@@ -53,6 +53,7 @@ void read_gantry(MapReader& model, MachineConfig& cfg, Diagnostics& diag) {
     g.number("k2_n_per_m", m.k2_n_per_m, Range::positive(), Need::required);
     g.number("c1_ns_per_m", m.c1_ns_per_m, Range::non_negative(), Need::required);
     g.number("c2_ns_per_m", m.c2_ns_per_m, Range::non_negative(), Need::required);
+    g.number("coulomb_friction_n", m.coulomb_friction_n, Range::closed(0.0, 1000.0));
     read_stepper(g, m.stepper, diag);
     g.finish();
     cfg.model.gantry.push_back(m);

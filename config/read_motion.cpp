@@ -90,6 +90,21 @@ void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) 
   c.number("max_encoder_jump_mm", cc.max_encoder_jump_mm, Range::positive());
   c.number("command_lead_ms", cc.command_lead_ms, Range::closed(1.0, 500.0));
   read_maneuver(c, cfg, diag);
+  MapReader gains = c.sub("axes");
+  for (const std::string& name : gains.keys()) {
+    const YAML::Mark where = gains.key_mark(name);
+    MapReader a(gains.get(name), gains.key_path(name), diag, where);
+    if (cfg.axis(name) == nullptr) {
+      diag.add(where, gains.path() + ": '" + name + "' is not an axis in axes");
+      continue;
+    }
+    AxisGainsConfig own = cc.gains_for(name);  // inherit the common gains
+    a.number("kp", own.kp, Range::non_negative());
+    a.number("ki_per_s", own.ki_per_s, Range::non_negative());
+    a.finish();
+    cc.axes.push_back(own);
+  }
+  gains.finish();
   if ((t || f) && !(cc.skipped_step_threshold_mm < cc.max_following_error_mm))
     diag.add(c.key_mark(f ? "max_following_error_mm" : "skipped_step_threshold_mm"),
              "control: skipped_step_threshold_mm (" + format_number(cc.skipped_step_threshold_mm) +

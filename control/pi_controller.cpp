@@ -7,10 +7,11 @@
 
 namespace feedloop::control {
 
-PiParams pi_params_from_config(const config::ControlConfig& control, double period_s) {
+PiParams pi_params_from_config(const config::ControlConfig& control, const std::string& axis, double period_s) {
+  const config::AxisGainsConfig gains = control.gains_for(axis);
   PiParams p;
-  p.kp = control.kp;
-  p.ki_per_s = control.ki_per_s;
+  p.kp = gains.kp;
+  p.ki_per_s = gains.ki_per_s;
   p.period_s = period_s;
   p.max_correction_mm_s = control.max_correction_mm_s;
   return p;

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 
 #include "config/machine_config.hpp"
 #include "core/result.hpp"
@@ -26,8 +27,9 @@ struct PiParams {
   bool anti_windup = true;             // conditional integration (false only to show the windup)
 };
 
-// The PI parameters of the config (ControlConfig has no integral limit: PiParams's default).
-PiParams pi_params_from_config(const config::ControlConfig& control, double period_s);
+// The PI parameters of the config for one axis (joint) name: its control.axes gains, else the
+// common ones (ControlConfig has no integral limit: PiParams's default).
+PiParams pi_params_from_config(const config::ControlConfig& control, const std::string& axis, double period_s);
 
 class PiController {
  public:

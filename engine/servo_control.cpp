@@ -20,15 +20,15 @@ Result<std::unique_ptr<ServoControl>> ServoControl::create(const ServoControlPar
   std::unique_ptr<ServoControl> c(new ServoControl(p, std::move(feedforward)));
   const char* names[4] = {"j0", "j1", "j2", "j3"};
   for (size_t j = 0; j < 4; ++j) {
-    if (Status s = c->pi_[j].configure(control::pi_params_from_config(p.control, p.period_s)); !s)
-      return Error{std::string("control: ") + s.error().message};
+    const std::string axis = p.joint_names[j].empty() ? names[j] : p.joint_names[j];
+    if (Status s = c->pi_[j].configure(control::pi_params_from_config(p.control, axis, p.period_s)); !s)
+      return Error{"control: " + axis + ": " + s.error().message};
     control::LostStepParams lp = control::lost_step_params_from_config(p.control, p.mm_per_full_step[j]);
     // A slip is permanent, a transient of the model residual (a resonance the model has slightly
     // off) is not: the residual must stay beyond the threshold for lost_step_confirm_s.
     lp.settle_periods = std::max(lp.settle_periods, static_cast<int>(std::lround(p.lost_step_confirm_s / p.period_s)));
     if (Status s = c->lost_[j].configure(lp); !s)
       return Error{std::string("control: ") + s.error().message};
-    const std::string axis = p.joint_names[j].empty() ? names[j] : p.joint_names[j];
     if (Status s = c->guard_[j].configure(control::encoder_guard_params_from_config(p.control, axis)); !s)
       return Error{std::string("control: ") + s.error().message};
     if (p.carriage_model[j]) {

@@ -2,7 +2,7 @@
 #include "control/feedforward/gantry_lpv.hpp"
 
 #include <algorithm>  // std::max, std::min
-#include <cmath>      // std::isfinite, std::tanh
+#include <cmath>      // std::exp, std::isfinite, std::tanh
 
 namespace feedloop::control {
 
@@ -45,6 +45,11 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
     ff->directional_[a] = directional;
     ff->inv_force_[a] = directional ? 1.0 / ax.direction_force_n : 0.0;
     ff->params_[a] = ax.params;
+    if (!(ax.coulomb_friction_n >= 0.0 && std::isfinite(ax.coulomb_friction_n)))
+      return Error{axis + ": coulomb_friction_n must be >= 0 and finite", {}};
+    if (ax.coulomb_friction_n > 0.0 && !(ax.friction_bristle_mm > 0.0 && std::isfinite(ax.friction_bristle_mm)))
+      return Error{axis + ": friction_bristle_mm must be > 0 and finite", {}};
+    ff->models_[a] = ax;
     std::vector<PreviewInverse> table;
     // Directional: designs 0..G-1 pulling - (K2 = k_hat / (L + x)), G..2G-1 pulling +.
     const int directions[2] = {-1, +1};
@@ -93,9 +98,25 @@ void GantryLpvFeedforward::schedule_(int axis, double pos_mm, double force_n) {
   inv_[a].schedule(idx, w, 4);
 }
 
+double GantryLpvFeedforward::friction_n_(int axis, double r_mm) {
+  const size_t a = static_cast<size_t>(axis);
+  const GantryAxisLpvModel& m = models_[a];
+  const double dr = r_mm - r_fric_prev_[a];
+  r_fric_prev_[a] = r_mm;
+  double& z = bristle_mm_[a];
+  // Dahl, exact over a step of constant direction: z -> s z_max - (s z_max - z) exp(-|dr| / z_max).
+  if (dr != 0.0) {
+    const double target = dr > 0.0 ? m.friction_bristle_mm : -m.friction_bristle_mm;
+    z = target - (target - z) * std::exp(-std::abs(dr) / m.friction_bristle_mm);
+  }
+  return m.coulomb_friction_n * z / m.friction_bristle_mm;
+}
+
 void GantryLpvFeedforward::reset(const FeedforwardInput& at) {
   for (int a = 0; a < 2; ++a) {
     const size_t as = static_cast<size_t>(a);
+    bristle_mm_[as] = 0.0;  // at rest: the friction holds no force
+    r_fric_prev_[as] = at.r_mm[as];
     schedule_(a, at.r_mm[as], 0.0);
     inv_[as].reset(&at.r_mm[as]);
     r_prev_[as] = at.r_mm[as];
@@ -114,10 +135,19 @@ void GantryLpvFeedforward::step(const FeedforwardInput& in, JointArray& u_mm) {
     inv.push(&in.r_mm[as]);
     const double r0 = inv.reference(0, 0);
     // The model at the carriage's planned position at t_k and the planned belt force's direction.
-    const double f = directional_[as] ? planned_belt_force_n(params_[as], r_prev_[as], r0, inv.reference(1, 0), period_s_)
-                                      : 0.0;
+    const double friction_n = models_[as].coulomb_friction_n > 0.0 ? friction_n_(a, r0) : 0.0;
+    const double f = directional_[as]
+                         ? planned_belt_force_n(params_[as], r_prev_[as], r0, inv.reference(1, 0), period_s_) + friction_n
+                         : 0.0;
     schedule_(a, r0, f);
     inv.step(&u_mm[as]);
+    if (friction_n != 0.0) {
+      // Static compliance of motor and belt in series, the belt at the scheduled stretch direction.
+      const double wp = directional_[as] ? 0.5 + 0.5 * std::tanh(f * inv_force_[as]) : 0.5;
+      const GantryAxisLpvModel& m = models_[as];
+      const double inv_k2 = wp / belt_stiffness_n_m(m, r0, +1) + (1.0 - wp) / belt_stiffness_n_m(m, r0, -1);
+      u_mm[as] += friction_n * (1.0 / params_[as].k1_n_m + inv_k2) * 1e3;
+    }
     r_prev_[as] = r0;
   }
 }

@@ -10,6 +10,11 @@
 //   w+ = 0.5 + 0.5 tanh(F / F0)
 // in the direction (bilinear, 4 designs). direction_scheduled = false gives the earlier model:
 // the direction average K2(x) = k_hat L / (L^2 - x^2), linear in r_k only.
+// Coulomb friction (not in Eq. 13; the identified coulomb_friction effect): a Dahl model run on the
+// planned carriage position, dz = dr (1 - sgn(dr) z / z_max), gives the friction force
+// F_c z / z_max that the belt must add to m2 a + c2 v; the command moves by it through the
+// chain's static compliance, 1 / k1 + 1 / K2(x, s) (motor and belt in series), and the force
+// joins the planned belt force that picks the stretch direction.
 // Z and E pass through, delayed by P periods so every joint's command is for the same t_k.
 #pragma once
 
@@ -38,6 +43,10 @@ struct GantryAxisLpvModel {
   // F0 of the direction weight, N: the planned belt force at which the blend is 88 % one
   // direction (tanh(1) = 0.76). docs/feedforward.md has the measurement behind the default.
   double direction_force_n = 0.5;
+  // Coulomb friction on the carriage, N (0: none), and the Dahl bristle deflection at which it
+  // is fully developed (the simulator's and the identification's 20 um).
+  double coulomb_friction_n = 0.0;
+  double friction_bristle_mm = 0.02;
 };
 
 // Eq. 6 at carriage position x_mm, in N/m: direction > 0 for the belt pulling the carriage
@@ -64,6 +73,8 @@ class GantryLpvFeedforward final : public Feedforward {
  private:
   GantryLpvFeedforward() = default;
   void schedule_(int axis, double pos_mm, double force_n);
+  // Friction force on the carriage at the planned position r_mm (advances the Dahl state).
+  double friction_n_(int axis, double r_mm);
   int P_ = 0;
   double period_s_ = 1e-3;
   std::array<ScheduledPreviewInverse, 2> inv_;
@@ -71,6 +82,9 @@ class GantryLpvFeedforward final : public Feedforward {
   std::array<bool, 2> directional_{};       // table = [pulling - | pulling +] x grid
   std::array<double, 2> inv_force_{};       // 1 / F0
   std::array<model::GantryAxisParams, 2> params_{};
+  std::array<GantryAxisLpvModel, 2> models_{};  // for K2(x, s) of the friction compensation
+  std::array<double, 2> bristle_mm_{};      // Dahl state z
+  std::array<double, 2> r_fric_prev_{};     // r at the previous friction update
   std::array<double, 2> r_prev_{};          // r_{k-1}
   std::vector<JointArray> delay_;  // ring of the last P+1 inputs (pass-through joints)
   int head_ = 0;

@@ -90,6 +90,7 @@ Result<std::unique_ptr<Feedforward>> make_model_feedforward(const config::Machin
     m.params = gantry_params_from_config(*g);
     m.belt_unit_stiffness_n = g->stepper.belt_unit_stiffness_n;
     m.pulley_distance_mm = g->stepper.pulley_distance_mm;
+    m.coulomb_friction_n = g->coulomb_friction_n;
     if (const config::AxisConfig* ax = cfg.axis(names[a])) {
       m.min_mm = ax->min_mm;
       m.max_mm = ax->max_mm;

@@ -46,7 +46,9 @@ std::string full_yaml() {
        "    periodic_position: {period_mm: 33.9, amplitude_um: 25}\n"
        "    direction_dependent_stiffness: {ratio: 1.4}\n"
        "    extra_resonance: {freq_hz: 95, damping: 0.03}\n    time_delay: {delay_ms: 1.5}\n"
-       "    scale_error: {scale: 1.003, axes: [y]}\n";
+       "    scale_error: {scale: 1.003, axes: [y]}\n"
+       "control:\n  kp: 0.6\n  axes:\n    x: {kp: 1.0}\n    y: {kp: 0.75, ki_per_s: 10}\n";
+  y = testing::edit(y, "      c2_ns_per_m: 112\n", "      c2_ns_per_m: 112\n      coulomb_friction_n: 1.8\n");
   y = testing::edit(y, "  - name: mcu_e\n    axes: [e]\n    transport: mock\n",
                     "  - name: mcu_e\n    axes: [e]\n    transport: serial\n"
                     "    serial: {device: /dev/ttyACM0}\n");
@@ -86,6 +88,27 @@ TEST(ConfigShaper, PerAxisOverridesInheritTheCommonValues) {
   Result<MachineConfig> back = load_config_text(to_yaml(*r), "roundtrip");
   ASSERT_TRUE(back.ok()) << back.error().to_string();
   EXPECT_TRUE(*back == *r);
+}
+
+TEST(ConfigControl, PerAxisGainsInheritTheCommonValues) {
+  Result<MachineConfig> r = load_config_text(full_yaml(), "full.yaml");
+  ASSERT_TRUE(r.ok()) << r.error().to_string();
+  const ControlConfig& c = r->control;
+  EXPECT_DOUBLE_EQ(c.gains_for("x").kp, 1.0);
+  EXPECT_DOUBLE_EQ(c.gains_for("x").ki_per_s, 20.0);  // inherited default
+  EXPECT_DOUBLE_EQ(c.gains_for("y").kp, 0.75);
+  EXPECT_DOUBLE_EQ(c.gains_for("y").ki_per_s, 10.0);
+  EXPECT_DOUBLE_EQ(c.gains_for("z").kp, 0.6);  // no override: the common values
+  EXPECT_DOUBLE_EQ(r->model.gantry_for("x")->coulomb_friction_n, 1.8);
+  Result<MachineConfig> back = load_config_text(to_yaml(*r), "roundtrip");
+  ASSERT_TRUE(back.ok()) << back.error().to_string();
+  EXPECT_TRUE(*back == *r);
+  const std::string bad = std::string(testing::kMinimal) + "control:\n  axes:\n    q: {kp: 1}\n    x: {kp: -1}\n";
+  const std::vector<Error> errors = check_config_text(bad, "c.yaml");
+  ASSERT_EQ(errors.size(), 2u);
+  EXPECT_NE(errors[0].message.find("'q' is not an axis"), std::string::npos);
+  EXPECT_EQ(errors[0].where.line, testing::pos_of(bad, "q: {").line);
+  EXPECT_NE(errors[1].message.find("kp"), std::string::npos);
 }
 
 TEST(ConfigShaper, OverrideForAMissingAxisIsAnError) {

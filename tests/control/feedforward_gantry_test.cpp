@@ -5,6 +5,7 @@
 // simulator has it, integrated here at 100 kHz): direction-scheduled vs direction-averaged model.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <vector>
 
@@ -303,6 +304,50 @@ TEST(GantryLpvFeedforward, UsesThePreviewAndNoMore) {
   EXPECT_LT(first_move, c);
   EXPECT_LT(max_dev, 20.0);
   EXPECT_NEAR(u[0], 1.0, 1e-6);
+}
+
+TEST(GantryLpvFeedforward, FrictionMovesTheCommandByTheForceOverTheChainsCompliance) {
+  // A slow ramp (10 mm/s: the inertial terms are 1e-4 of the friction term) out and back, with
+  // and without a 2 N friction model: the difference is F_c (1/k1 + 1/K2) once the Dahl bristle
+  // has developed, flips on the way back, and is 1 - 1/e of it one bristle (20 um) after a start.
+  std::array<GantryAxisLpvModel, 2> plain{axis_model(false), axis_model(true)}, fric = plain;
+  for (auto& a : fric) a.coulomb_friction_n = 2.0;
+  LpvDesignOptions opt;
+  opt.period_s = kT;
+  opt.preview_samples = 20;
+  auto f0 = GantryLpvFeedforward::create(plain, opt), f1 = GantryLpvFeedforward::create(fric, opt);
+  ASSERT_TRUE(f0.ok() && f1.ok());
+  FeedforwardInput at;
+  at.r_mm = {50.0, 50.0, 0.0, 0.0};
+  f0.value()->reset(at);
+  f1.value()->reset(at);
+  const int P = opt.preview_samples;
+  // At rest until k = 100, out 10 mm, back 9 mm.
+  auto r_at = [](int k) { return k < 100 ? 50.0 : k < 1100 ? 50.0 + 0.01 * (k - 100) : 60.0 - 0.01 * (k - 1100); };
+  JointArray u0{}, u1{};
+  for (int k = 0; k < 2000; ++k) {
+    FeedforwardInput in = at;
+    in.r_mm[0] = in.r_mm[1] = r_at(k + P);
+    f0.value()->step(in, u0);
+    f1.value()->step(in, u1);
+    const double r = r_at(k);  // the commands are for t_k
+    for (int a = 0; a < 2; ++a) {
+      const double full_mm = 2.0 * (1.0 / plain[a].params.k1_n_m + 1.0 / belt_stiffness_n_m(plain[a], r, +1) / 2.0 +
+                                    1.0 / belt_stiffness_n_m(plain[a], r, -1) / 2.0) * 1e3;
+      const double d = u1[a] - u0[a];
+      if (k == 100) {
+        EXPECT_NEAR(d, 0.0, 1e-12) << "axis " << a;  // at rest from the start: no force
+      } else if (k == 102) {
+        EXPECT_NEAR(d, (1.0 - std::exp(-1.0)) * full_mm, 0.02 * full_mm) << "axis " << a;
+      } else if (k == 900) {
+        EXPECT_NEAR(d, full_mm, 1e-3 * full_mm) << "axis " << a;
+      } else if (k == 1900) {
+        EXPECT_NEAR(d, -full_mm, 1e-3 * full_mm) << "axis " << a;
+      }
+    }
+  }
+  fric[0].coulomb_friction_n = -1.0;
+  EXPECT_FALSE(GantryLpvFeedforward::create(fric, opt).ok());
 }
 
 TEST(GantryLpvFeedforward, BeltStiffnessFollowsEq6) {
