@@ -43,6 +43,23 @@ void apply_effects(const config::SimEffectsConfig& e, const std::string& axis, s
 
 }  // namespace
 
+Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfig& cfg, int joint) {
+  const auto names = joint_names(cfg);
+  const auto spm = steps_per_mm(cfg);
+  const size_t js = static_cast<size_t>(joint);
+  if (joint < 0 || joint > 2) return Error{"simulated gantry: joint " + std::to_string(joint) + " is not x, y or z"};
+  sim::GantryAxisParams p = joint == 1 ? sim::thesis_y_axis() : sim::thesis_x_axis();
+  if (!(spm[js] > 0)) return Error{"axis " + names[js] + ": steps_per_mm must be > 0"};
+  // The pulley that gives the configured steps/mm (x, y: the thesis's 5.40 mm).
+  p.pulley_radius_mm = p.full_steps_per_rev * p.microsteps / (2.0 * std::numbers::pi * spm[js]);
+  p.encoder.noise_um = cfg.simulator.encoder_noise_um;
+  p.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
+  if (const config::AxisConfig* a = cfg.axis(names[js]); a && a->encoder) p.encoder.resolution_um = a->encoder->resolution_um;
+  p.seed = cfg.simulator.seed + 1000 * js;
+  apply_effects(cfg.simulator.effects, names[js], p.effects);
+  return p;
+}
+
 struct McuBridge::Mcu {
   std::string name;
   std::unique_ptr<device::VirtualMcu> vmcu;
@@ -124,17 +141,9 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
   } else {
     for (int j = 0; j < 3; ++j) {
       const size_t js = static_cast<size_t>(j);
-      sim::GantryAxisParams p = j == 1 ? sim::thesis_y_axis() : sim::thesis_x_axis();
-      if (!(spm[js] > 0)) return Error{"axis " + names[js] + ": steps_per_mm must be > 0"};
-      // The pulley that gives the configured steps/mm (x, y: the thesis's 5.40 mm).
-      p.pulley_radius_mm = p.full_steps_per_rev * p.microsteps / (2.0 * std::numbers::pi * spm[js]);
-      p.encoder.noise_um = cfg.simulator.encoder_noise_um;
-      p.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
-      if (const config::AxisConfig* a = cfg.axis(names[js]); a && a->encoder)
-        p.encoder.resolution_um = a->encoder->resolution_um;
-      p.seed = cfg.simulator.seed + 1000 * js;
-      apply_effects(cfg.simulator.effects, names[js], p.effects);
-      auto g = sim::GantryAxis::create(p);
+      auto p = simulated_gantry_params(cfg, j);
+      if (!p) return p.error();
+      auto g = sim::GantryAxis::create(p.value());
       if (!g.ok()) return Error{"simulated axis " + names[js] + ": " + g.error().message};
       gantries_[js] = std::make_unique<sim::GantryAxis>(std::move(g.value()));
       plant_port[js] = gantries_[js].get();

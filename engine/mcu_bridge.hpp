@@ -60,6 +60,12 @@ struct JointTiming {
   double max_time_err_us = 0.0;    // max |true step time - intended host time|
 };
 
+// The simulated plant of gantry joint `joint` (0 x, 1 y, 2 z) of a Cartesian / CoreXY config: the
+// thesis's axis with the configured steps/mm, encoder and simulator effects. What the bridge
+// builds; also what an identification run on the simulated machine excites (bench_control).
+// Errors: steps_per_mm not > 0.
+Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfig& cfg, int joint);
+
 class McuBridge final : public stepgen::BatchSink, public ServoBackend {
  public:
   static Result<std::unique_ptr<McuBridge>> create(const config::MachineConfig& cfg,
