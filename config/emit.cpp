@@ -161,6 +161,8 @@ void write_motion(Writer& w, const MachineConfig& c) {
   w.begin("lpv");
   w.num("preview_ms", f.lpv.preview_ms);
   w.boolean("freeze_at_centre", f.lpv.freeze_at_centre);
+  w.num("jump_accel_mm_s2", f.lpv.jump_accel_mm_s2);
+  w.num("jump_window_ms", f.lpv.jump_window_ms);
   w.end();
   w.end();
 }
@@ -217,6 +219,7 @@ void write_model(Writer& w, const MachineConfig& c) {
     w.num("delta_y_mm", d.delta_y_mm);
     w.num("delta_z_mm", d.delta_z_mm);
     w.num("d_e_mm", d.d_e_mm);
+    w.num("gravity_m_s2", d.gravity_m_s2);
     w.word("force_transform", enum_name(force_transform_names(), d.force_transform));
     w.end();
   }

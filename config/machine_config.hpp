@@ -185,6 +185,11 @@ struct ShaperConfig {
 struct LpvFeedforwardConfig {
   double preview_ms = 20.0;  // preview of the stable approximate inverse (DESIGN.md: RHP zero)
   bool freeze_at_centre = false;  // delta: the model of the centre everywhere (the fixed-model baseline)
+  // A planned velocity jump (speed-change corners) is spread over the time it needs at this
+  // acceleration before the inverse sees it (control/feedforward/velocity_jump_smoother.hpp);
+  // 0: off. The window is at most jump_window_ms wide (it adds to the preview).
+  double jump_accel_mm_s2 = 10000.0;
+  double jump_window_ms = 31.0;
   bool operator==(const LpvFeedforwardConfig&) const = default;
 };
 
@@ -251,7 +256,9 @@ struct DeltaLpvConfig {
   double delta_x_mm = 10.21;      // centre-of-mass offset from the centroid (Eq. 20)
   double delta_y_mm = -16.52;
   double delta_z_mm = 19.31;
-  double d_e_mm = 39.91;          // centroid to forearm reaction point (Eq. 20)
+  double d_e_mm = 39.91;
+  double gravity_m_s2 = 9.81;     // the effector's weight on the carriages (not in Eq. 29): the
+                                  // LPV feedforward supplies its position-dependent belt stretch          // centroid to forearm reaction point (Eq. 20)
   ForceTransform force_transform = ForceTransform::paper;  // Eq. 25/69 vs tau = Jbar^T W X
   bool operator==(const DeltaLpvConfig&) const = default;
 };

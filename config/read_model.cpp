@@ -94,6 +94,7 @@ void read_delta_lpv(MapReader& model, MachineConfig& cfg, Diagnostics& diag) {
   d.number("delta_y_mm", p.delta_y_mm, Range::any());
   d.number("delta_z_mm", p.delta_z_mm, Range::any());
   d.number("d_e_mm", p.d_e_mm, Range::positive());
+  d.number("gravity_m_s2", p.gravity_m_s2, Range::closed(0.0, 100.0));
   d.choice("force_transform", p.force_transform, force_transform_names());
   d.finish();
   cfg.model.delta_lpv = p;

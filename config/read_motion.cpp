@@ -139,6 +139,8 @@ void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) 
   MapReader lpv = ff.sub("lpv");
   lpv.number("preview_ms", fc.lpv.preview_ms, Range::closed(0.0, 1000.0));
   lpv.boolean("freeze_at_centre", fc.lpv.freeze_at_centre);
+  lpv.number("jump_accel_mm_s2", fc.lpv.jump_accel_mm_s2, Range::closed(0.0, 1e7));
+  lpv.number("jump_window_ms", fc.lpv.jump_window_ms, Range::closed(0.0, 200.0));
   lpv.finish();
   ff.finish();
 }

@@ -435,6 +435,11 @@ void MotionExecutor::sampled_cycle(double now_s) {
     reference(t_s, now_ref);
     s.t_s = t_s;
     s.r_mm = now_ref.r_mm;
+    // What the command aims at: the feedback compares the encoders with it (a smoothed velocity
+    // jump is the feedforward's reference there, not the plan's corner).
+    control::JointArray target{};
+    if (control_->feedforward_target(target))
+      for (int j = 0; j < 3; ++j) s.r_mm[static_cast<size_t>(j)] = target[static_cast<size_t>(j)];
     s.nozzle_mm = now_ref.nozzle_mm;
     s.u_ff_mm = u_ff;
     s.u_mm = u;

@@ -54,6 +54,9 @@ class ServoControl {
   bool closed_loop() const { return closed_loop_; }
   int preview_samples() const { return ff_->preview_samples(); }
   const char* feedforward_name() const { return ff_->name(); }
+  // RT-safe. After command(): the joint positions its command aims at when the feedforward
+  // changed the reference (a smoothed velocity jump), and true; false: the plan's.
+  bool feedforward_target(control::JointArray& r_mm) const { return ff_->target(r_mm); }
 
   // At rest at `at` (motion starts from rest): the feedforward's history. The PI state is kept
   // across stops (its correction is part of where the motor is); reset_all() clears it too.

@@ -378,6 +378,7 @@ struct Criterion {
   bool available = false;
   bool pass = false;
   std::string value, threshold;
+  bool info = false;  // shown for comparison, not one of the issue's criteria
 };
 
 
@@ -667,9 +668,13 @@ void accel_criterion(std::vector<Criterion>& out, const Block& b, const char* ro
 std::vector<Criterion> criteria(const std::vector<Block>& blocks) {
   std::vector<Criterion> out;
   for (const Block& b : blocks) {
-    for (const char* row : {"pi_thesis", "pi_tuned"}) {
+    // The margins are for the PI tuned to this machine; the thesis's gains (tuned to its own
+    // machine) are shown beside them.
+    for (const char* row : {"pi_tuned", "pi_thesis"}) {
       ratio_criterion(out, b, "circle_90", row, 0.25, "PI: circle e_t -75 % vs open loop");
+      out.back().info = std::strcmp(row, "pi_thesis") == 0;
       ratio_criterion(out, b, "small_star_90", row, 0.57, "PI: small star 90 mm/s e_t -43 % vs open loop");
+      out.back().info = std::strcmp(row, "pi_thesis") == 0;
     }
     if (b.id == "effects")
       for (const CaseDef& c : gantry_cases())
@@ -678,7 +683,11 @@ std::vector<Criterion> criteria(const std::vector<Block>& blocks) {
           ratio_criterion(out, b, c.id, "lpv_pi", 0.10, "");
           out.back().what = what;
         }
-    for (const char* row : {"pi_tuned", "lpv_pi"}) accel_criterion(out, b, row);
+    // The issue asks it of LPV FF + PI; PI alone is shown beside it (the thesis's claim for PI).
+    for (const char* row : {"lpv_pi", "pi_tuned"}) {
+      accel_criterion(out, b, row);
+      out.back().info = std::strcmp(row, "pi_tuned") == 0;
+    }
   }
   return out;
 }
@@ -718,7 +727,9 @@ std::vector<DeltaRun> run_delta(const config::MachineConfig& base, bool quick) {
       for (const DeltaRow& dr : rows) {
         DeltaRun r{shape, dr.id, cx, cy, {}, false};
         config::MachineConfig cfg = base;
-        if (dr.virtual_work && cfg.model.delta_lpv) cfg.model.delta_lpv->force_transform = config::ForceTransform::virtual_work;
+        if (cfg.model.delta_lpv)
+          cfg.model.delta_lpv->force_transform =
+              dr.virtual_work ? config::ForceTransform::virtual_work : config::ForceTransform::paper;
         cfg.recorder.enabled = false;
         cfg.planner.max_accel_mm_s2 = 3000.0;
         cfg.planner.max_velocity_mm_s = std::max(cfg.planner.max_velocity_mm_s, kDeltaSpeed_mm_s);
@@ -774,6 +785,9 @@ void print_delta(const std::vector<DeltaRun>& runs, std::vector<Criterion>& crit
       Criterion k{"delta " + std::string(form == 0 ? "(paper form)" : "(virtual work)") + ": LPV beats fixed centre " +
                       pos + " " + r.shape,
                   "delta", "lpv" + suffix, false, false, "", "e_t < fixed centre"};
+      // The criterion is on the model the identification supports and the example config uses
+      // (virtual work); the paper's form is shown beside it.
+      k.info = form == 0;
       cmp[form] = "-";
       if (c && l && c->out.ok && l->out.ok) {
         k.available = true;
@@ -798,7 +812,8 @@ void print_criteria(const std::vector<Criterion>& crit) {
               "threshold", "result");
   for (const Criterion& c : crit)
     std::printf("  %-70s %-8s %-10s %-34s %-24s %s\n", c.what.c_str(), c.block.c_str(), c.row.c_str(),
-                c.value.substr(0, 34).c_str(), c.threshold.c_str(), !c.available ? "n/a" : c.pass ? "PASS" : "FAIL");
+                c.value.substr(0, 34).c_str(), c.threshold.c_str(),
+                !c.available ? "n/a" : c.info ? (c.pass ? "(pass, info)" : "(fail, info)") : c.pass ? "PASS" : "FAIL");
 }
 
 // ---- JSON ----------------------------------------------------------------------------------------
@@ -908,7 +923,7 @@ bool write_json(const char* path, const Tuning& t, const Tuning& tl, const Shape
                     "\"result\": %s}",
                  i ? ",\n  " : "\n  ", jstr(c.what).c_str(), jstr(c.block).c_str(), jstr(c.row).c_str(),
                  jstr(c.value).c_str(), jstr(c.threshold).c_str(),
-                 jstr(!c.available ? "n/a" : c.pass ? "PASS" : "FAIL").c_str());
+                 jstr(!c.available ? "n/a" : c.info ? (c.pass ? "info: pass" : "info: fail") : c.pass ? "PASS" : "FAIL").c_str());
   }
   std::fprintf(f, "]}\n");
   std::fclose(f);
@@ -918,7 +933,7 @@ bool write_json(const char* path, const Tuning& t, const Tuning& tl, const Shape
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false, self_test = false, delta = true;
+  bool quick = false, self_test = false, delta = true, gantry = true;
   const char* json_path = nullptr;
   std::string only;  // CASE:ROW, one gantry run (nominal) with its figures, for a quick look
   double only_kp[2] = {NAN, NAN}, only_ki[2] = {NAN, NAN};  // --kp / --ki X[,Y]: the --only run's gains
@@ -929,6 +944,7 @@ int main(int argc, char** argv) {
     if (a == "--quick") quick = true;
     else if (a == "--self-test") self_test = true;
     else if (a == "--no-delta") delta = false;
+    else if (a == "--delta-only") gantry = false;
     else if (a == "--json" && i + 1 < argc) json_path = argv[++i];
     else if (a == "--delta-config" && i + 1 < argc) delta_config = argv[++i];
     else if (a == "--only" && i + 1 < argc) only = argv[++i];
@@ -941,7 +957,7 @@ int main(int argc, char** argv) {
     }
     else if (a == "--effects") only_effects = true;
     else {
-      std::fprintf(stderr, "usage: %s [--quick] [--json FILE] [--delta-config FILE] [--no-delta] [--self-test]\n"
+      std::fprintf(stderr, "usage: %s [--quick] [--json FILE] [--delta-config FILE] [--no-delta | --delta-only] [--self-test]\n"
                    "       %s --only CASE:ROW [--kp KX[,KY]] [--ki KX[,KY]] [--effects]\n",
                    argv[0], argv[0]);
       return 2;
@@ -992,10 +1008,13 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "--only CASE:ROW: no such case/row\n");
     return 2;
   }
+  Tuning tuning, tuning_lpv;
+  std::vector<Block> blocks;
+  if (gantry) {
   std::fprintf(stderr, "tuning PI on the nominal circle and small star...\n");
-  const Tuning tuning = tune_pi(base, quick, FeedforwardType::none);
+  tuning = tune_pi(base, quick, FeedforwardType::none);
   print_tuning(tuning);
-  const Tuning tuning_lpv = tune_pi(base, quick, FeedforwardType::lpv);
+  tuning_lpv = tune_pi(base, quick, FeedforwardType::lpv);
   print_tuning(tuning_lpv);
   const std::vector<RowDef> rows = gantry_rows(tuning, tuning_lpv);
 
@@ -1009,10 +1028,10 @@ int main(int argc, char** argv) {
                 friction.rms_um[a][0], friction.rms_um[a][1], friction.force_n[a]);
   if (!friction.ok) std::printf("  identification failed: %s (the LPV rows run without friction)\n", friction.error.c_str());
 
-  std::vector<Block> blocks;
   for (bool effects : {false, true}) {
     blocks.push_back(run_block(base, effects, rows, sh, &friction, quick));
     print_block(blocks.back());
+  }
   }
   std::vector<Criterion> crit = criteria(blocks);
 

@@ -2,7 +2,7 @@
 #include "control/feedforward/delta_lpv.hpp"
 
 #include <algorithm>  // std::max
-#include <cmath>      // std::ceil, std::hypot
+#include <cmath>      // std::ceil, std::hypot, std::isfinite
 #include <string>
 
 #include "model/delta_lpv.hpp"
@@ -19,12 +19,17 @@ int points_for(double lo, double hi, double step) {
 Result<std::unique_ptr<DeltaLpvFeedforward>> DeltaLpvFeedforward::create(const model::DeltaParams& params,
                                                                          model::ForceTransform form,
                                                                          const DeltaLpvGrid& grid,
-                                                                         const LpvDesignOptions& opt) {
+                                                                         const LpvDesignOptions& opt,
+                                                                         double gravity_m_s2) {
   auto mdl = model::DeltaLpvModel::create(params, form);
   if (!mdl) return Error{"delta feedforward: " + mdl.error().message, {}};
   if (!(grid.z_max_mm >= grid.z_min_mm)) return Error{"delta feedforward: z_max_mm < z_min_mm", {}};
   std::unique_ptr<DeltaLpvFeedforward> ff(new DeltaLpvFeedforward());
   ff->frozen_ = grid.freeze_at_centre;
+  if (!(gravity_m_s2 >= 0.0 && std::isfinite(gravity_m_s2))) return Error{"delta feedforward: gravity must be >= 0", {}};
+  ff->geometry_ = params.geometry;
+  ff->weight_n_ = grid.freeze_at_centre ? 0.0 : (params.m1_effective_kg() + params.m2_kg) * gravity_m_s2;
+  ff->belt_k_n_m_ = params.k_n_m;
   const double r = grid.freeze_at_centre ? 0.0 : std::max(0.0, grid.xy_radius_mm);
   ff->gx_ = UniformGrid::span(-r, r, points_for(-r, r, grid.xy_step_mm));
   ff->gy_ = ff->gx_;
@@ -95,6 +100,20 @@ void DeltaLpvFeedforward::step(const FeedforwardInput& in, JointArray& u_mm) {
   inv_.push(in.r_mm.data());  // carriages A, B, C
   schedule_(now.nozzle_mm);
   inv_.step(u_mm.data());
+  add_weight_(now.nozzle_mm, u_mm);
+}
+
+void DeltaLpvFeedforward::add_weight_(const std::array<double, 3>& nozzle_mm, JointArray& u_mm) const {
+  if (!(weight_n_ > 0.0)) return;
+  const Eigen::Vector3d x(nozzle_mm[0], nozzle_mm[1], nozzle_mm[2]);
+  auto j = model::jacobian(geometry_, x);
+  auto j0 = model::jacobian(geometry_, Eigen::Vector3d(0.0, 0.0, x.z()));
+  if (!j || !j0) return;  // out of reach: the inverse's own schedule clamps; no weight term there
+  // tau = J^T F with F = [0, 0, -W]: the third row of J, times -W.
+  const Eigen::Vector3d tau = -weight_n_ * j.value().row(2).transpose();
+  const Eigen::Vector3d tau0 = -weight_n_ * j0.value().row(2).transpose();
+  // Carriage i sags by -tau_i / k (tau_i < 0 pulls it down): command it up by as much.
+  for (int i = 0; i < 3; ++i) u_mm[static_cast<size_t>(i)] -= (tau[i] - tau0[i]) / belt_k_n_m_ * 1e3;
 }
 
 }  // namespace feedloop::control

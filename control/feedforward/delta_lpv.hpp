@@ -7,6 +7,12 @@
 // trilinearly interpolated at the planned nozzle position at t_k every period.
 // freeze_at_centre: the model at (0, 0, z) only (the "fixed centre model" of the benchmarks;
 // still scheduled on z). The extruder joint passes through, delayed by P periods.
+// The effector's weight (not in Eq. 29, a model linearised about a point): the carriages carry
+// tau = J(X)^T [0, 0, -(m1 + m2) g] (virtual work, Eq. 12), which stretches each belt by tau_i / k.
+// Its share moves between the carriages as the effector moves off the centre (where the three
+// shares are equal: a uniform stretch is a z offset that calibration absorbs), so the LPV
+// feedforward adds -(tau_i(X) - tau_i(0, 0, z)) / k at the planned position; the fixed centre model
+// adds nothing (its model is the centre's).
 #pragma once
 
 #include <array>
@@ -35,7 +41,7 @@ class DeltaLpvFeedforward final : public Feedforward {
  public:
   static Result<std::unique_ptr<DeltaLpvFeedforward>> create(const model::DeltaParams& params,
                                                              model::ForceTransform form, const DeltaLpvGrid& grid,
-                                                             const LpvDesignOptions& opt);
+                                                             const LpvDesignOptions& opt, double gravity_m_s2 = 0.0);
 
   const char* name() const override { return frozen_ ? "lpv-centre" : "lpv"; }
   int preview_samples() const override { return P_; }
@@ -47,6 +53,11 @@ class DeltaLpvFeedforward final : public Feedforward {
  private:
   DeltaLpvFeedforward() = default;
   void schedule_(const std::array<double, 3>& nozzle_mm);
+  // The belt stretch of the effector's weight at X relative to the centre at the same height, mm.
+  void add_weight_(const std::array<double, 3>& nozzle_mm, JointArray& u_mm) const;
+  model::DeltaGeometry geometry_;
+  double weight_n_ = 0.0;       // (m1 + m2) g; 0: no weight term
+  double belt_k_n_m_ = 1.0;     // k of the carriage's belt
   int P_ = 0;
   bool frozen_ = false;
   ScheduledPreviewInverse inv_;

@@ -1,10 +1,11 @@
 // Config -> model-based LPV feedforward (see model_feedforward.hpp).
 #include "control/feedforward/model_feedforward.hpp"
 
-#include <cmath>  // std::lround, std::isfinite
+#include <cmath>  // std::floor, std::lround, std::isfinite
 #include <string>
 
 #include "control/feedforward/delta_lpv.hpp"
+#include "control/feedforward/velocity_jump_smoother.hpp"
 
 namespace feedloop::control {
 
@@ -49,8 +50,11 @@ model::DeltaParams delta_params_from_config(const config::DeltaLpvConfig& c, con
   return p;
 }
 
-Result<std::unique_ptr<Feedforward>> make_model_feedforward(const config::MachineConfig& cfg, double period_s,
-                                                           bool freeze_at_centre) {
+namespace {
+
+// The model inverse alone (gantry or delta).
+Result<std::unique_ptr<Feedforward>> model_inverse(const config::MachineConfig& cfg, double period_s,
+                                                   bool freeze_at_centre) {
   if (!(period_s > 0.0) || !std::isfinite(period_s))
     return Error{"feedforward: servo period must be positive", {}};
   const double preview_ms = cfg.feedforward.lpv.preview_ms;
@@ -75,7 +79,8 @@ Result<std::unique_ptr<Feedforward>> make_model_feedforward(const config::Machin
     const model::ForceTransform form = cfg.model.delta_lpv->force_transform == config::ForceTransform::virtual_work
                                            ? model::ForceTransform::VirtualWork
                                            : model::ForceTransform::Paper;
-    auto ff = DeltaLpvFeedforward::create(delta_params_from_config(*cfg.model.delta_lpv, g), form, grid, opt);
+    auto ff = DeltaLpvFeedforward::create(delta_params_from_config(*cfg.model.delta_lpv, g), form, grid, opt,
+                                          cfg.model.delta_lpv->gravity_m_s2);
     if (!ff) return ff.error();
     return std::unique_ptr<Feedforward>(std::move(ff.value()));
   }
@@ -99,6 +104,24 @@ Result<std::unique_ptr<Feedforward>> make_model_feedforward(const config::Machin
   auto ff = GantryLpvFeedforward::create(axes, opt);
   if (!ff) return ff.error();
   return std::unique_ptr<Feedforward>(std::move(ff.value()));
+}
+
+}  // namespace
+
+Result<std::unique_ptr<Feedforward>> make_model_feedforward(const config::MachineConfig& cfg, double period_s,
+                                                           bool freeze_at_centre) {
+  auto inverse = model_inverse(cfg, period_s, freeze_at_centre);
+  if (!inverse) return inverse;
+  const config::LpvFeedforwardConfig& lpv = cfg.feedforward.lpv;
+  const int half_width = static_cast<int>(std::floor(0.5 * (lpv.jump_window_ms * 1e-3 / period_s - 1.0) + 1e-9));
+  if (!(lpv.jump_accel_mm_s2 > 0.0) || half_width < 1) return inverse;
+  VelocityJumpSmoothing smoothing;
+  smoothing.period_s = period_s;
+  smoothing.max_accel_mm_s2 = lpv.jump_accel_mm_s2;
+  smoothing.max_half_width = half_width;
+  auto smoothed = VelocityJumpSmoother::create(std::move(inverse.value()), smoothing);
+  if (!smoothed) return smoothed.error();
+  return std::unique_ptr<Feedforward>(std::move(smoothed.value()));
 }
 
 }  // namespace feedloop::control

@@ -23,6 +23,8 @@ model::DeltaParams delta_params_from_config(const config::DeltaLpvConfig& c, con
 // P = round(lpv.preview_ms / period). Errors: a config without the model section its kinematics
 // needs (model.gantry.x and .y; model.delta_lpv and delta), a preview shorter than 2 periods,
 // a bad period, a model the design rejects. freeze_at_centre (delta only): the fixed centre model.
+// With feedforward.lpv.jump_accel_mm_s2 > 0 the inverse sits behind a VelocityJumpSmoother
+// (velocity_jump_smoother.hpp): its preview grows by the jump window.
 Result<std::unique_ptr<Feedforward>> make_model_feedforward(const config::MachineConfig& cfg, double period_s,
                                                            bool freeze_at_centre = false);
 

@@ -74,7 +74,7 @@ TEST(ConfigExamples, DeltaSimHasCanonicalGeometryAndTableOne) {
   const DeltaLpvConfig& p = *c.model.delta_lpv;
   EXPECT_DOUBLE_EQ(p.d1_per_s, -212.1);
   EXPECT_DOUBLE_EQ(p.delta_y_mm, -16.52);
-  EXPECT_EQ(p.force_transform, ForceTransform::paper);
+  EXPECT_EQ(p.force_transform, ForceTransform::virtual_work);  // what the identification supports
   // DESIGN.md: m = m_c + m_f/2 = 0.195 kg and k = 1.21e5 N/m give omega_n = 787.7 rad/s.
   EXPECT_NEAR(std::sqrt(p.k_n_per_m / (p.m_c_kg + p.m_f_kg / 2)), 787.7, 0.1);
   // The electrical mode: sqrt(d0) = 378 rad/s = 60.2 Hz.

@@ -4,6 +4,7 @@ feedloop_add_test(feedforward_model_test
   SOURCES ${CMAKE_CURRENT_LIST_DIR}/feedforward_gantry_test.cpp
           ${CMAKE_CURRENT_LIST_DIR}/feedforward_delta_test.cpp
           ${CMAKE_CURRENT_LIST_DIR}/feedforward_factory_test.cpp
+          ${CMAKE_CURRENT_LIST_DIR}/velocity_jump_smoother_test.cpp
   LIBS feedloop_control
   TIMEOUT 120)
 feedloop_add_test(feedforward_rt_test

@@ -126,5 +126,64 @@ TEST(DeltaLpvFeedforward, StepReferenceGivesABoundedCommandAtEveryValidationPosi
   }
 }
 
+// The effector's weight: at rest off the centre the command is the reference plus each carriage's
+// extra belt stretch, (tau_i(X) - tau_i(0, 0, z)) / k. Checked against the statics solved directly
+// (arm tensions along the arms balancing the weight, their vertical parts on the carriages), not
+// against the virtual-work formula the feedforward uses; none at the centre, none when frozen.
+TEST(DeltaLpvFeedforward, WeightStretchOffTheCentreIsCommandedAway) {
+  DeltaLpvGrid g;
+  g.z_min_mm = 20.0;
+  g.z_max_mm = 40.0;
+  g.z_step_mm = 20.0;
+  LpvDesignOptions opt;
+  opt.period_s = kT;
+  opt.preview_samples = 20;
+  auto lpv = DeltaLpvFeedforward::create(kParams, model::ForceTransform::VirtualWork, g, opt, 9.81);
+  g.freeze_at_centre = true;
+  auto centre = DeltaLpvFeedforward::create(kParams, model::ForceTransform::VirtualWork, g, opt, 9.81);
+  ASSERT_TRUE(lpv.ok() && centre.ok());
+  const double weight_n = (kParams.m1_effective_kg() + kParams.m2_kg) * 9.81;
+  // Vertical load on each carriage from the statics: S f = [0, 0, W], S's columns the unit
+  // vectors from each effector joint up its arm to the carriage.
+  auto loads = [&](const Eigen::Vector3d& x) {
+    const Eigen::Vector3d q = model::inverse_kinematics(kParams.geometry, x).value();
+    Eigen::Matrix3d S;
+    for (int i = 0; i < 3; ++i) {
+      const Eigen::Vector2d t = kParams.geometry.tower_xy_mm(i);
+      S.col(i) = Eigen::Vector3d(t.x() - x.x(), t.y() - x.y(), q[i] - x.z() - kParams.geometry.nozzle_offset_mm)
+                     .normalized();
+    }
+    const Eigen::Vector3d f = S.fullPivLu().solve(Eigen::Vector3d(0.0, 0.0, weight_n));  // tensions
+    Eigen::Vector3d down;
+    for (int i = 0; i < 3; ++i) down[i] = f[i] * S(2, i);
+    return down;
+  };
+  for (const Eigen::Vector3d& x : {Eigen::Vector3d(-80, 0, 30), Eigen::Vector3d(40, -69, 30),
+                                   Eigen::Vector3d(40, 69, 30), Eigen::Vector3d(0, 0, 30)}) {
+    FeedforwardInput at;
+    const Eigen::Vector3d q = model::inverse_kinematics(kParams.geometry, x).value();
+    at.r_mm = {q[0], q[1], q[2], 0.0};
+    at.nozzle_mm = {x.x(), x.y(), x.z()};
+    (*lpv)->reset(at);
+    (*centre)->reset(at);
+    JointArray u{}, uc{};
+    for (int k = 0; k < 50; ++k) {
+      (*lpv)->step(at, u);
+      (*centre)->step(at, uc);
+    }
+    const Eigen::Vector3d extra = (loads(x) - loads(Eigen::Vector3d(0, 0, x.z()))) / kParams.k_n_m * 1e3;
+    for (int i = 0; i < 3; ++i) {
+      const size_t j = static_cast<size_t>(i);
+      EXPECT_NEAR(u[j] - at.r_mm[j], extra[i], 1e-4) << "carriage " << i << " at " << x.transpose();
+      EXPECT_NEAR(uc[j], at.r_mm[j], 1e-8);  // the centre's model: no weight term
+    }
+    std::printf("(%.0f, %.0f, %.0f): weight stretch commanded %+.4f %+.4f %+.4f mm\n", x.x(), x.y(), x.z(),
+                u[0] - at.r_mm[0], u[1] - at.r_mm[1], u[2] - at.r_mm[2]);
+    if (x.x() == -80) {
+      EXPECT_GT(extra.cwiseAbs().maxCoeff(), 5e-3);  // microns: it matters
+    }
+  }
+}
+
 }  // namespace
 }  // namespace feedloop::control

@@ -52,12 +52,17 @@ TEST(MakeModelFeedforward, GantryPreviewFromConfig) {
   config::MachineConfig c = cartesian();
   auto ff = make_model_feedforward(c, 1e-3);
   ASSERT_TRUE(ff.ok()) << ff.error().message;
-  EXPECT_EQ((*ff)->preview_samples(), 20);  // 20 ms at 1 kHz
+  // 20 ms at 1 kHz, and the velocity-jump window in front of it: 31 ms, 2 h + 1 = 31 periods.
+  EXPECT_EQ((*ff)->preview_samples(), 20 + 31);
   EXPECT_STREQ((*ff)->name(), "lpv");
   c.feedforward.lpv.preview_ms = 10.0;
-  auto ff2 = make_model_feedforward(c, 0.25e-3);  // 4 kHz
+  auto ff2 = make_model_feedforward(c, 0.25e-3);  // 4 kHz: 40 + (2 * 61 + 1)
   ASSERT_TRUE(ff2.ok()) << ff2.error().message;
-  EXPECT_EQ((*ff2)->preview_samples(), 40);
+  EXPECT_EQ((*ff2)->preview_samples(), 40 + 123);
+  c.feedforward.lpv.jump_accel_mm_s2 = 0.0;  // no smoothing: the inverse's preview alone
+  auto ff3 = make_model_feedforward(c, 0.25e-3);
+  ASSERT_TRUE(ff3.ok()) << ff3.error().message;
+  EXPECT_EQ((*ff3)->preview_samples(), 40);
   // At rest it commands the reference.
   FeedforwardInput at;
   at.r_mm = {50.0, 120.0, 3.0, 1.0};
@@ -113,7 +118,7 @@ TEST(MakeModelFeedforward, DeltaLpvAndFrozenCentre) {
   std::printf("delta feedforward design: 162 grid points in %.0f ms (%.2f ms per point)\n", ms, ms / 162.0);
   EXPECT_STREQ((*lpv)->name(), "lpv");
   EXPECT_STREQ((*centre)->name(), "lpv-centre");
-  EXPECT_EQ((*lpv)->preview_samples(), 20);
+  EXPECT_EQ((*lpv)->preview_samples(), 20 + 31);
   // Off centre the two differ during a move (the models differ), at rest both command r.
   FeedforwardInput at;
   at.nozzle_mm = {-80.0, 0.0, 30.0};
@@ -144,8 +149,11 @@ TEST(MakeModelFeedforward, ExampleConfigs) {
     ASSERT_TRUE(ff.ok()) << name << ": " << ff.error().message;
     std::printf("%s: feedforward '%s' designed in %.0f ms, P = %d\n", name, (*ff)->name(),
                 std::chrono::duration<double, std::milli>(t1 - t0).count(), (*ff)->preview_samples());
-    EXPECT_EQ((*ff)->preview_samples(),
-              static_cast<int>(std::lround(cfg->feedforward.lpv.preview_ms * 1e-3 * cfg->servo.rate_hz)));
+    const config::LpvFeedforwardConfig& lpv = cfg->feedforward.lpv;
+    const int window = lpv.jump_accel_mm_s2 > 0.0
+                           ? 2 * static_cast<int>(std::floor(0.5 * (lpv.jump_window_ms * 1e-3 * cfg->servo.rate_hz - 1.0))) + 1
+                           : 0;
+    EXPECT_EQ((*ff)->preview_samples(), static_cast<int>(std::lround(lpv.preview_ms * 1e-3 * cfg->servo.rate_hz)) + window);
   }
 }
 
