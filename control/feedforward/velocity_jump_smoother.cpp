@@ -1,4 +1,5 @@
-// Velocity-jump smoothing of the reference ahead of a model inverse (see velocity_jump_smoother.hpp).
+// Velocity-jump smoothing of the reference ahead of a model inverse (see
+// velocity_jump_smoother.hpp).
 #include "control/feedforward/velocity_jump_smoother.hpp"
 
 #include <algorithm>  // std::clamp, std::max
@@ -10,14 +11,15 @@ namespace {
 constexpr int kMotionJoints = 3;  // the extruder (joint 3) passes through
 }
 
-Result<std::unique_ptr<VelocityJumpSmoother>> VelocityJumpSmoother::create(std::unique_ptr<Feedforward> inner,
-                                                                          const VelocityJumpSmoothing& params) {
+Result<std::unique_ptr<VelocityJumpSmoother>> VelocityJumpSmoother::create(
+    std::unique_ptr<Feedforward> inner, const VelocityJumpSmoothing& params) {
   if (!inner) return Error{"velocity-jump smoothing: no feedforward to feed", {}};
   if (!(params.period_s > 0.0 && std::isfinite(params.period_s)))
     return Error{"velocity-jump smoothing: the servo period must be > 0", {}};
   if (!(params.max_accel_mm_s2 > 0.0 && std::isfinite(params.max_accel_mm_s2)))
     return Error{"velocity-jump smoothing: max_accel_mm_s2 must be > 0 and finite", {}};
-  if (params.max_half_width < 1) return Error{"velocity-jump smoothing: the window must span at least 3 periods", {}};
+  if (params.max_half_width < 1)
+    return Error{"velocity-jump smoothing: the window must span at least 3 periods", {}};
   std::unique_ptr<VelocityJumpSmoother> s(new VelocityJumpSmoother());
   s->p_ = params;
   s->h_max_ = params.max_half_width;
@@ -57,7 +59,8 @@ void VelocityJumpSmoother::step(const FeedforwardInput& in, JointArray& u_mm) {
       a_mm = std::max(a_mm, std::abs(next.r_mm[j] - 2.0 * here.r_mm[j] + prev.r_mm[j]));
     if (!(a_mm > limit_mm)) continue;
     // 2 h_j + 1 >= Delta v / (a_max T) = a_mm / limit_mm.
-    const int hj = std::clamp(static_cast<int>(std::ceil(0.5 * (a_mm / limit_mm - 1.0))), 1, h_max_);
+    const int hj =
+        std::clamp(static_cast<int>(std::ceil(0.5 * (a_mm / limit_mm - 1.0))), 1, h_max_);
     const int dist = std::abs(d);
     if (dist > 2 * hj) continue;
     alpha = std::max(alpha, std::clamp(2.0 - static_cast<double>(dist) / hj, 0.0, 1.0));

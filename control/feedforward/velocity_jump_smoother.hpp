@@ -34,9 +34,9 @@
 namespace feedloop::control {
 
 struct VelocityJumpSmoothing {
-  double period_s = 1e-3;              // servo period T
-  double max_accel_mm_s2 = 20000.0;    // a_max per joint: a reference beyond it is a velocity jump
-  int max_half_width = 10;             // h_max, samples (the box spans at most 2 h_max + 1 periods)
+  double period_s = 1e-3;            // servo period T
+  double max_accel_mm_s2 = 20000.0;  // a_max per joint: a reference beyond it is a velocity jump
+  int max_half_width = 10;           // h_max, samples (the box spans at most 2 h_max + 1 periods)
 };
 
 class VelocityJumpSmoother final : public Feedforward {
@@ -56,15 +56,17 @@ class VelocityJumpSmoother final : public Feedforward {
 
  private:
   VelocityJumpSmoother() = default;
-  const FeedforwardInput& at_(int offset) const;  // the sample offset from the centre (-2h-1 .. 2h+1)
+  const FeedforwardInput& at_(
+      int offset) const;  // the sample offset from the centre (-2h-1 .. 2h+1)
 
   std::unique_ptr<Feedforward> inner_;
   VelocityJumpSmoothing p_;
   int h_max_ = 10;
-  int extra_ = 21;                       // 2 h_max + 1 more preview
-  std::vector<FeedforwardInput> ring_;   // the last 4 h_max + 3 inputs; newest = centre + 2 h_max + 1
-  int head_ = 0;                         // index of the newest
-  std::vector<JointArray> smoothed_;     // r_s of the last P_inner + 1 centres; oldest = t_k
+  int extra_ = 21;  // 2 h_max + 1 more preview
+  std::vector<FeedforwardInput>
+      ring_;                          // the last 4 h_max + 3 inputs; newest = centre + 2 h_max + 1
+  int head_ = 0;                      // index of the newest
+  std::vector<JointArray> smoothed_;  // r_s of the last P_inner + 1 centres; oldest = t_k
   int smoothed_head_ = 0;
   long jumps_ = 0;
 };

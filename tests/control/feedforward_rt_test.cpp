@@ -10,12 +10,22 @@
 
 #include "control/feedforward/delta_lpv.hpp"
 #include "control/feedforward/gantry_lpv.hpp"
+#include "control/feedforward/velocity_jump_smoother.hpp"
 #include "model/delta_kinematics.hpp"
 
 #include "tests/common/malloc_counter.hpp"
 
 namespace feedloop::control {
 namespace {
+
+// As the factory builds it: behind the velocity-jump smoother (control/feedforward/model_feedforward.hpp).
+std::unique_ptr<Feedforward> with_jump_smoothing(std::unique_ptr<Feedforward> inner) {
+  VelocityJumpSmoothing p;
+  p.max_half_width = 15;
+  auto s = VelocityJumpSmoother::create(std::move(inner), p);
+  EXPECT_TRUE(s.ok());
+  return std::move(s.value());
+}
 
 std::unique_ptr<Feedforward> gantry() {
   std::array<GantryAxisLpvModel, 2> axes;
@@ -24,11 +34,12 @@ std::unique_ptr<Feedforward> gantry() {
   for (auto& a : axes) {
     a.belt_unit_stiffness_n = a.params.k2_n_m * 0.3;
     a.pulley_distance_mm = 300.0;
+    a.coulomb_friction_n = 2.0;  // the Dahl friction term runs too
   }
   LpvDesignOptions opt;
   auto ff = GantryLpvFeedforward::create(axes, opt);
   EXPECT_TRUE(ff.ok());
-  return std::move(ff.value());
+  return with_jump_smoothing(std::move(ff.value()));
 }
 
 std::unique_ptr<Feedforward> delta() {
@@ -37,9 +48,9 @@ std::unique_ptr<Feedforward> delta() {
   g.z_max_mm = 40.0;
   g.z_step_mm = 20.0;
   LpvDesignOptions opt;
-  auto ff = DeltaLpvFeedforward::create(model::delta_table1_params(), model::ForceTransform::Paper, g, opt);
+  auto ff = DeltaLpvFeedforward::create(model::delta_table1_params(), model::ForceTransform::Paper, g, opt, 9.81);
   EXPECT_TRUE(ff.ok());
-  return std::move(ff.value());
+  return with_jump_smoothing(std::move(ff.value()));
 }
 
 // A circle of radius 40 mm at 100 mm/s around the centre, z = 30 mm: crosses many grid cells.

@@ -81,8 +81,10 @@ TEST(VelocityJumpSmoother, SpreadsAVelocityJumpAtTheLimitAndCutsTheCornerSymmetr
   };
   auto ref = [&](int k, JointArray& r) {
     const double s = path_mm(k), sc = path_mm(corner);
-    if (k <= corner) r = {s, 0.0, 0.0, 0.0};
-    else r = {sc + (s - sc) * std::cos(turn), (s - sc) * std::sin(turn), 0.0, 0.0};
+    if (k <= corner)
+      r = {s, 0.0, 0.0, 0.0};
+    else
+      r = {sc + (s - sc) * std::cos(turn), (s - sc) * std::sin(turn), 0.0, 0.0};
   };
   auto s = make(10000.0, 15);
   const Out o = run(*s, ref, 400);
@@ -105,8 +107,8 @@ TEST(VelocityJumpSmoother, SpreadsAVelocityJumpAtTheLimitAndCutsTheCornerSymmetr
     // target() is what the command aims at: here (F = 1) the command itself.
     EXPECT_DOUBLE_EQ(o.tx[i], o.ux[i]);
   }
-  std::printf("corner: max acceleration %.0f mm/s^2, max deviation %.3f mm over samples %d..%d\n", max_a, max_dev,
-              first, last);
+  std::printf("corner: max acceleration %.0f mm/s^2, max deviation %.3f mm over samples %d..%d\n",
+              max_a, max_dev, first, last);
   // 284 mm/s over 2 h + 1 = 29 periods: 9.8 m/s^2 in the box, a little more where the blend
   // ramps in; before: 284 m/s^2.
   EXPECT_LT(max_a, 1.5 * 10000.0);
