@@ -38,6 +38,14 @@ class Feedforward {
   // RT-safe. When the filter changes the reference it follows (velocity_jump_smoother.hpp): the
   // joint positions at t_k that the last step()'s command aims at, and true. false: the plan's.
   virtual bool target(JointArray& /*r_mm*/) const { return false; }
+  // RT-safe. The part of the last step()'s command that a modelled load (friction, the effector's
+  // weight) takes up as stretch of motor and belt, not as motion, and true; false: none. The lost-
+  // step detector's linear model (which has no such load) is driven by the command without it.
+  virtual bool load_offset(JointArray& /*mm*/) const { return false; }
+  // Whether the command is a model inverse's (the carriage is predicted to follow target(), or the
+  // reference): the lost-step detector then predicts the carriage as that reference plus its own
+  // model's response to the correction only, instead of running its simpler model on all of u.
+  virtual bool inverts_model() const { return false; }
 };
 
 // F = 1: the motor command is the desired position (no preview).

@@ -369,11 +369,16 @@ void MotionExecutor::sampled_cycle(double now_s) {
     encoder_reports_seen_[i] = reports;
   }
   if (control_->closed_loop()) {
-    control::JointArray lead_mm{};
-    for (size_t i = 0; i < lead_mm.size(); ++i) lead_mm[i] = at_enc.u_ff_mm[i] - at_enc.r_mm[i];
+    // The lost-step detector's model has no friction or weight: it gets the commands without the
+    // share those loads take up.
+    control::JointArray lead_mm{}, motor_mm{};
+    for (size_t i = 0; i < lead_mm.size(); ++i) {
+      lead_mm[i] = at_enc.u_ff_mm[i] - at_enc.load_mm[i] - at_enc.r_mm[i];
+      motor_mm[i] = at_enc.u_mm[i] - at_enc.load_mm[i];
+    }
     ServoEvent ev;
     bool has_event = false;
-    const bool ok = control_->update_feedback(print_now_s, at_enc.r_mm, enc, at_enc.u_mm, lead_mm, fresh, &ev, &has_event);
+    const bool ok = control_->update_feedback(print_now_s, at_enc.r_mm, enc, motor_mm, lead_mm, fresh, &ev, &has_event);
     if (has_event && tap_ != nullptr) tap_->on_servo_event(ev);
     if (has_event) lost_step_events_.fetch_add(1, std::memory_order_relaxed);
     if (!ok) {
@@ -440,6 +445,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
     control::JointArray target{};
     if (control_->feedforward_target(target))
       for (int j = 0; j < 3; ++j) s.r_mm[static_cast<size_t>(j)] = target[static_cast<size_t>(j)];
+    if (!control_->feedforward_load(s.load_mm)) s.load_mm = control::JointArray{};
     s.nozzle_mm = now_ref.nozzle_mm;
     s.u_ff_mm = u_ff;
     s.u_mm = u;

@@ -147,6 +147,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   struct Sample {  // one command sample, kept for the feedback comparison
     double t_s = 0.0;
     control::JointArray r_mm{}, u_mm{}, u_ff_mm{};
+    control::JointArray load_mm{};  // the feedforward's load share of u (friction, weight)
     std::array<double, 3> nozzle_mm{};
   };
   std::vector<Sample> history_;  // ring, indexed by sample number

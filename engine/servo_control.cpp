@@ -43,7 +43,9 @@ Result<std::unique_ptr<ServoControl>> ServoControl::create(const ServoControlPar
 }
 
 ServoControl::ServoControl(const ServoControlParams& p, std::unique_ptr<control::Feedforward> ff)
-    : p_(p), closed_loop_(p.control.mode == config::ControlMode::pi), ff_(std::move(ff)) {}
+    : p_(p), closed_loop_(p.control.mode == config::ControlMode::pi), ff_(std::move(ff)) {
+  ff_inverts_ = ff_->inverts_model();
+}
 
 void ServoControl::reset_feedforward(const control::FeedforwardInput& at) { ff_->reset(at); }
 
@@ -92,7 +94,11 @@ bool ServoControl::update_feedback(double print_time_s, const control::JointArra
     // S accounts for the model's y_hat running ahead of the carriage by what was lost.
     double y_hat_mm = motor_mm[j] - expected_lead_mm[j];
     if (has_model_[j]) {
-      const double u_m = motor_mm[j] * 1e-3;
+      // Behind a model inverse (a better model than this one: position- and direction-dependent
+      // belt, friction) the carriage is predicted at the desired position plus this model's
+      // response to the correction u - u_ff alone; otherwise this model runs on all of u.
+      const double correction_mm = motor_mm[j] - expected_lead_mm[j] - desired_mm[j];
+      const double u_m = (ff_inverts_ ? correction_mm : motor_mm[j]) * 1e-3;
       if (!model_primed_[j]) {
         carriage_[j].reset_to_steady_state(&u_m);
         model_primed_[j] = true;
@@ -100,7 +106,7 @@ bool ServoControl::update_feedback(double print_time_s, const control::JointArra
       }
       double y_m = 0.0;
       carriage_[j].step(&u_m, &y_m);
-      y_hat_mm = y_m * 1e3;
+      y_hat_mm = (ff_inverts_ ? desired_mm[j] : 0.0) + y_m * 1e3;
     }
     const double residual_mm = y_hat_mm - encoder_mm[j];
     // The baseline follows the residual net of the slips already reported (the detector

@@ -57,6 +57,8 @@ class ServoControl {
   // RT-safe. After command(): the joint positions its command aims at when the feedforward
   // changed the reference (a smoothed velocity jump), and true; false: the plan's.
   bool feedforward_target(control::JointArray& r_mm) const { return ff_->target(r_mm); }
+  // RT-safe. After command(): the share of its command a modelled load takes up (friction, weight).
+  bool feedforward_load(control::JointArray& mm) const { return ff_->load_offset(mm); }
 
   // At rest at `at` (motion starts from rest): the feedforward's history. The PI state is kept
   // across stops (its correction is part of where the motor is); reset_all() clears it too.
@@ -85,6 +87,7 @@ class ServoControl {
   bool closed_loop_ = false;
   std::unique_ptr<control::Feedforward> ff_;
   std::array<control::PiController, 4> pi_;
+  bool ff_inverts_ = false;  // the feedforward is a model inverse (lost-step prediction, above)
   std::array<control::LostStepDetector, 4> lost_;
   std::array<control::EncoderGuard, 4> guard_;
   control::JointArray correction_mm_{};

@@ -103,7 +103,13 @@ void DeltaLpvFeedforward::step(const FeedforwardInput& in, JointArray& u_mm) {
   add_weight_(now.nozzle_mm, u_mm);
 }
 
-void DeltaLpvFeedforward::add_weight_(const std::array<double, 3>& nozzle_mm, JointArray& u_mm) const {
+bool DeltaLpvFeedforward::load_offset(JointArray& mm) const {
+  mm = weight_mm_;
+  return weight_n_ > 0.0;
+}
+
+void DeltaLpvFeedforward::add_weight_(const std::array<double, 3>& nozzle_mm, JointArray& u_mm) {
+  weight_mm_ = JointArray{};
   if (!(weight_n_ > 0.0)) return;
   const Eigen::Vector3d x(nozzle_mm[0], nozzle_mm[1], nozzle_mm[2]);
   auto j = model::jacobian(geometry_, x);
@@ -113,7 +119,10 @@ void DeltaLpvFeedforward::add_weight_(const std::array<double, 3>& nozzle_mm, Jo
   const Eigen::Vector3d tau = -weight_n_ * j.value().row(2).transpose();
   const Eigen::Vector3d tau0 = -weight_n_ * j0.value().row(2).transpose();
   // Carriage i sags by -tau_i / k (tau_i < 0 pulls it down): command it up by as much.
-  for (int i = 0; i < 3; ++i) u_mm[static_cast<size_t>(i)] -= (tau[i] - tau0[i]) / belt_k_n_m_ * 1e3;
+  for (int i = 0; i < 3; ++i) {
+    weight_mm_[static_cast<size_t>(i)] = -(tau[i] - tau0[i]) / belt_k_n_m_ * 1e3;
+    u_mm[static_cast<size_t>(i)] += weight_mm_[static_cast<size_t>(i)];
+  }
 }
 
 }  // namespace feedloop::control

@@ -47,6 +47,8 @@ class DeltaLpvFeedforward final : public Feedforward {
   int preview_samples() const override { return P_; }
   void reset(const FeedforwardInput& at) override;
   void step(const FeedforwardInput& in, JointArray& u_mm) override;
+  bool load_offset(JointArray& mm) const override;
+  bool inverts_model() const override { return true; }
 
   int grid_points() const { return inv_.points(); }
 
@@ -54,7 +56,8 @@ class DeltaLpvFeedforward final : public Feedforward {
   DeltaLpvFeedforward() = default;
   void schedule_(const std::array<double, 3>& nozzle_mm);
   // The belt stretch of the effector's weight at X relative to the centre at the same height, mm.
-  void add_weight_(const std::array<double, 3>& nozzle_mm, JointArray& u_mm) const;
+  void add_weight_(const std::array<double, 3>& nozzle_mm, JointArray& u_mm);
+  JointArray weight_mm_{};      // the weight's share of the last command
   model::DeltaGeometry geometry_;
   double weight_n_ = 0.0;       // (m1 + m2) g; 0: no weight term
   double belt_k_n_m_ = 1.0;     // k of the carriage's belt

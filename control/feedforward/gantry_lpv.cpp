@@ -98,6 +98,11 @@ void GantryLpvFeedforward::schedule_(int axis, double pos_mm, double force_n) {
   inv_[a].schedule(idx, w, 4);
 }
 
+bool GantryLpvFeedforward::load_offset(JointArray& mm) const {
+  mm = {friction_mm_[0], friction_mm_[1], 0.0, 0.0};
+  return models_[0].coulomb_friction_n > 0.0 || models_[1].coulomb_friction_n > 0.0;
+}
+
 double GantryLpvFeedforward::friction_n_(int axis, double r_mm) {
   const size_t a = static_cast<size_t>(axis);
   const GantryAxisLpvModel& m = models_[a];
@@ -116,6 +121,7 @@ void GantryLpvFeedforward::reset(const FeedforwardInput& at) {
   for (int a = 0; a < 2; ++a) {
     const size_t as = static_cast<size_t>(a);
     bristle_mm_[as] = 0.0;  // at rest: the friction holds no force
+    friction_mm_[as] = 0.0;
     r_fric_prev_[as] = at.r_mm[as];
     schedule_(a, at.r_mm[as], 0.0);
     inv_[as].reset(&at.r_mm[as]);
@@ -141,12 +147,14 @@ void GantryLpvFeedforward::step(const FeedforwardInput& in, JointArray& u_mm) {
                          : 0.0;
     schedule_(a, r0, f);
     inv.step(&u_mm[as]);
+    friction_mm_[as] = 0.0;
     if (friction_n != 0.0) {
       // Static compliance of motor and belt in series, the belt at the scheduled stretch direction.
       const double wp = directional_[as] ? 0.5 + 0.5 * std::tanh(f * inv_force_[as]) : 0.5;
       const GantryAxisLpvModel& m = models_[as];
       const double inv_k2 = wp / belt_stiffness_n_m(m, r0, +1) + (1.0 - wp) / belt_stiffness_n_m(m, r0, -1);
-      u_mm[as] += friction_n * (1.0 / params_[as].k1_n_m + inv_k2) * 1e3;
+      friction_mm_[as] = friction_n * (1.0 / params_[as].k1_n_m + inv_k2) * 1e3;
+      u_mm[as] += friction_mm_[as];
     }
     r_prev_[as] = r0;
   }

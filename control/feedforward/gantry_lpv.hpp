@@ -69,6 +69,8 @@ class GantryLpvFeedforward final : public Feedforward {
   int preview_samples() const override { return P_; }
   void reset(const FeedforwardInput& at) override;
   void step(const FeedforwardInput& in, JointArray& u_mm) override;
+  bool load_offset(JointArray& mm) const override;
+  bool inverts_model() const override { return true; }
 
  private:
   GantryLpvFeedforward() = default;
@@ -85,6 +87,7 @@ class GantryLpvFeedforward final : public Feedforward {
   std::array<GantryAxisLpvModel, 2> models_{};  // for K2(x, s) of the friction compensation
   std::array<double, 2> bristle_mm_{};      // Dahl state z
   std::array<double, 2> r_fric_prev_{};     // r at the previous friction update
+  std::array<double, 2> friction_mm_{};     // the friction's share of the last command
   std::array<double, 2> r_prev_{};          // r_{k-1}
   std::vector<JointArray> delay_;  // ring of the last P+1 inputs (pass-through joints)
   int head_ = 0;

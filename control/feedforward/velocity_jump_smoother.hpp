@@ -50,6 +50,8 @@ class VelocityJumpSmoother final : public Feedforward {
   void reset(const FeedforwardInput& at) override;
   void step(const FeedforwardInput& in, JointArray& u_mm) override;
   bool target(JointArray& r_mm) const override;
+  bool load_offset(JointArray& mm) const override { return inner_->load_offset(mm); }
+  bool inverts_model() const override { return inner_->inverts_model(); }
 
   // Jumps seen so far (samples where the reference's acceleration exceeded a_max); for tests.
   long jumps() const { return jumps_; }
