@@ -69,6 +69,25 @@ void read_maneuver(MapReader& c, MachineConfig& cfg, Diagnostics& diag) {
   m.finish();
 }
 
+// Each `<axis>: {...}` entry of the per-axis map `key` under `parent`, for an axis the config
+// has (another name is an error at its key); read_one reads the entry's keys.
+template <class ReadOne>
+void read_per_axis(MapReader& parent, const char* key, const MachineConfig& cfg, Diagnostics& diag,
+                   ReadOne&& read_one) {
+  MapReader per_axis = parent.sub(key);
+  for (const std::string& name : per_axis.keys()) {
+    const YAML::Mark where = per_axis.key_mark(name);
+    MapReader a(per_axis.get(name), per_axis.key_path(name), diag, where);
+    if (cfg.axis(name) == nullptr) {
+      diag.add(where, per_axis.path() + ": '" + name + "' is not an axis in axes");
+      continue;
+    }
+    read_one(name, a);
+    a.finish();
+  }
+  per_axis.finish();
+}
+
 }  // namespace
 
 void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
@@ -90,21 +109,12 @@ void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) 
   c.number("max_encoder_jump_mm", cc.max_encoder_jump_mm, Range::positive());
   c.number("command_lead_ms", cc.command_lead_ms, Range::closed(1.0, 500.0));
   read_maneuver(c, cfg, diag);
-  MapReader gains = c.sub("axes");
-  for (const std::string& name : gains.keys()) {
-    const YAML::Mark where = gains.key_mark(name);
-    MapReader a(gains.get(name), gains.key_path(name), diag, where);
-    if (cfg.axis(name) == nullptr) {
-      diag.add(where, gains.path() + ": '" + name + "' is not an axis in axes");
-      continue;
-    }
+  read_per_axis(c, "axes", cfg, diag, [&](const std::string& name, MapReader& a) {
     AxisGainsConfig own = cc.gains_for(name);  // inherit the common gains
     a.number("kp", own.kp, Range::non_negative());
     a.number("ki_per_s", own.ki_per_s, Range::non_negative());
-    a.finish();
     cc.axes.push_back(own);
-  }
-  gains.finish();
+  });
   if ((t || f) && !(cc.skipped_step_threshold_mm < cc.max_following_error_mm))
     diag.add(c.key_mark(f ? "max_following_error_mm" : "skipped_step_threshold_mm"),
              "control: skipped_step_threshold_mm (" + format_number(cc.skipped_step_threshold_mm) +
@@ -119,22 +129,13 @@ void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) 
   sh.choice("type", fc.shaper.type, shaper_names());
   sh.number("freq_hz", fc.shaper.freq_hz, Range::closed(1.0, 500.0));
   sh.number("damping", fc.shaper.damping, Range::open(0.0, 1.0));
-  MapReader per_axis = sh.sub("axes");
-  for (const std::string& name : per_axis.keys()) {
-    const YAML::Mark where = per_axis.key_mark(name);
-    MapReader a(per_axis.get(name), per_axis.key_path(name), diag, where);
-    if (cfg.axis(name) == nullptr) {
-      diag.add(where, per_axis.path() + ": '" + name + "' is not an axis in axes");
-      continue;
-    }
+  read_per_axis(sh, "axes", cfg, diag, [&](const std::string& name, MapReader& a) {
     AxisShaperConfig own = fc.shaper.for_axis(name);  // inherit the common values
     a.choice("type", own.type, shaper_names());
     a.number("freq_hz", own.freq_hz, Range::closed(1.0, 500.0));
     a.number("damping", own.damping, Range::open(0.0, 1.0));
-    a.finish();
     fc.shaper.axes.push_back(own);
-  }
-  per_axis.finish();
+  });
   sh.finish();
   MapReader lpv = ff.sub("lpv");
   lpv.number("preview_ms", fc.lpv.preview_ms, Range::closed(0.0, 1000.0));
