@@ -58,7 +58,8 @@ struct CaseDef {
   Shape shape;
   double speed_mm_s;
   double accel_mm_s2;
-  double speed_change_mm_s;  // > 0: the thesis's speed-change corner rule (Sect. 2.2); 0: junction deviation
+  double speed_change_mm_s;  // > 0: the thesis's corner rule (Sect. 2.2) at this limit; 0: at the
+                             // thesis's default 15 mm/s; < 0: junction deviation (the config's)
   ThesisRef thesis;
   bool thesis_case;  // counts for the ">= 90 % with effects" criterion
 };
@@ -71,7 +72,7 @@ std::vector<CaseDef> gantry_cases() {
       {"small_star_150_a6000", Shape::small_star, 150, 6000, 0, {1.175, -1, -1, 0.479, 0.362, -1, -1, 0.482}, true},
       {"large_star_150_sc15", Shape::large_star, 150, 3000, 15, {-1, -1, -1, 2.2, -1, -1, -1, -1}, true},
       {"large_star_150_sc300", Shape::large_star, 150, 3000, 300, {5.19, -1, -1, 1.7, 1.19, -1, -1, -1}, true},
-      {"large_star_150_jd", Shape::large_star, 150, 3000, 0, {}, false},
+      {"large_star_150_jd", Shape::large_star, 150, 3000, -1, {}, false},
   };
 }
 
@@ -313,11 +314,11 @@ config::MachineConfig make_config(const config::MachineConfig& base, const CaseD
   cfg.planner.max_velocity_mm_s = std::max(cfg.planner.max_velocity_mm_s, c.speed_mm_s);
   for (auto& a : cfg.axes)
     if (a.name == "x" || a.name == "y") a.max_accel_mm_s2 = std::max(a.max_accel_mm_s2, c.accel_mm_s2);
-  // Cornering: the large-star cases need the thesis's speed-change rule (the caller skips them
-  // when the planner lacks it); the others use it at the thesis's default of 15 mm/s when the
-  // planner has it (Sect. 5.4: "the default, 15 mm/s"), else junction deviation.
+  // Cornering: the thesis's speed-change rule (Sect. 2.2) at the case's limit, or at its default
+  // of 15 mm/s (Sect. 5.4: "the default"); the jd case uses the config's junction deviation.
   cfg.planner.cornering = config::Cornering::junction_deviation;
-  apply_speed_change_cornering(cfg, c.speed_change_mm_s > 0 ? c.speed_change_mm_s : kThesisSpeedChange_mm_s);
+  if (c.speed_change_mm_s >= 0)
+    apply_speed_change_cornering(cfg, c.speed_change_mm_s > 0 ? c.speed_change_mm_s : kThesisSpeedChange_mm_s);
   cfg.control.mode = row.mode;
   cfg.control.kp = row.gains.kp[0];
   cfg.control.ki_per_s = row.gains.ki_per_s[0];
@@ -603,7 +604,7 @@ Block run_block(const config::MachineConfig& base, bool effects, const std::vect
     config::MachineConfig cbase = base;
     config::MachineConfig probe = base;
     const double sc = c.speed_change_mm_s > 0 ? c.speed_change_mm_s : kThesisSpeedChange_mm_s;
-    const bool have_sc = apply_speed_change_cornering(probe, sc);
+    const bool have_sc = c.speed_change_mm_s >= 0 && apply_speed_change_cornering(probe, sc);
     cr.cornering = have_sc ? "speed change " + fmt(sc, "%.0f") + " mm/s (thesis Sect. 2.2)"
                            : "junction deviation " + fmt(base.planner.junction_deviation_mm, "%.3f") + " mm";
     cr.positions = table1_case(c) && !quick ? "4 runs pooled at the bed's quadrant centres (Table 1)"
