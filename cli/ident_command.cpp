@@ -20,7 +20,7 @@ namespace {
 
 void usage(std::FILE* out) {
   std::fputs(
-      "usage: feedloop ident fit --trace FILE.csv --out DIR [--axis NAME] [--no-plots]\n"
+      "usage: feedloop ident fit --trace FILE.csv --out DIR [--axis NAME] [--max-effects N] [--no-plots]\n"
       "       feedloop ident frf --trace FILE.csv --out FRF.csv [--axis NAME] [--segment S] [--overlap F]\n"
       "                          [--window hann|rect]   (H1 and coherence, 2-125 Hz in 0.5 Hz steps)\n"
       "       feedloop ident excite --axis x|y --out FILE.csv [--effect NAME[:key=value,...]]...\n"
@@ -184,11 +184,17 @@ int excite(const std::vector<std::string>& args) {
 int fit(const std::vector<std::string>& args) {
   std::string trace_path, out_dir, axis_name;
   ident::ReportOptions report_options;
+  ident::FitOptions o;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     const bool has_value = i + 1 < args.size();
+    double v = 0.0;
     if (a == "--trace" && has_value) {
       trace_path = args[++i];
+    } else if (a == "--max-effects" && has_value && parse_number(args[i + 1], &v) && v >= 0.0 && v <= 7.0 &&
+               v == static_cast<int>(v)) {
+      o.max_effects = static_cast<int>(v);
+      ++i;
     } else if (a == "--out" && has_value) {
       out_dir = args[++i];
     } else if (a == "--axis" && has_value) {
@@ -221,7 +227,6 @@ int fit(const std::vector<std::string>& args) {
     return 1;
   }
   Progress progress("ident fit " + axis->name);
-  ident::FitOptions o;
   // The progress bar only on a terminal: logs and pipes get the result lines alone.
   const bool tty = ::isatty(2) != 0;
   if (tty) o.progress = [&](double f, const std::string& what) { progress.update(f, what); };

@@ -57,6 +57,11 @@ Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfi
   if (const config::AxisConfig* a = cfg.axis(names[js]); a && a->encoder) p.encoder.resolution_um = a->encoder->resolution_um;
   p.seed = cfg.simulator.seed + 1000 * js;
   apply_effects(cfg.simulator.effects, names[js], p.effects);
+  // direction_dependent_stiffness: the belt anchor offset x0 of Eq. 6 that gives K2(pulling +) /
+  // K2(pulling -) = ratio at x2 = 0, ratio = (L + x0) / (L - x0). The LPV feedforward's model has
+  // x0 = 0, so its direction dependence is off by as much.
+  if (const auto& d = cfg.simulator.effects.direction_dependent_stiffness; d && config::applies_to(*d, names[js]))
+    p.belt_x0_mm = p.belt_span_mm * (d->ratio - 1.0) / (d->ratio + 1.0);
   return p;
 }
 

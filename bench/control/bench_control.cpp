@@ -227,7 +227,7 @@ void effects_on(config::MachineConfig& cfg) {
 
 // What the LPV rows of the effects block know of the friction: the coulomb_friction force that
 // identification finds on the effects plant, as a user finds it on a printer (`feedloop ident
-// excite`, then `ident fit`): the thesis's random-move excitation (Appendix D.3) on each simulated
+// excite`, then `ident fit --max-effects 5`): the thesis's random-move excitation (Appendix D.3) on each simulated
 // axis (engine::simulated_gantry_params: the plant the bench runs, effects included), commanded
 // steps in and encoder out, then ident::identify_axis. Nothing of the simulator's settings is
 // read. 0 when it finds no friction.
@@ -259,7 +259,10 @@ IdentifiedFriction identify_friction(const config::MachineConfig& effects_cfg) {
       return out;
     }
     const ident::AxisTrace& tr = trace.value().axes.front();
-    auto id = ident::identify_axis(name, tr.cmd_mm, tr.meas_mm, trace.value().period_s(), ident::FitOptions{});
+    ident::FitOptions fit;
+    fit.max_effects = 5;  // `ident fit --max-effects 5`: the plant has four effects (and a scale);
+                          // at the default three, X reported direction, runout and scale, not friction
+    auto id = ident::identify_axis(name, tr.cmd_mm, tr.meas_mm, trace.value().period_s(), fit);
     if (!id) {
       out.error = id.error().message;
       return out;

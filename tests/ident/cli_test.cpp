@@ -72,6 +72,12 @@ TEST(IdentCli, ExciteThenFitFindsThePeriodicEffectAndWritesTheContract) {
   if (rc >= 0) {
     EXPECT_EQ(rc, 0) << json;
   }
+  // --max-effects 0: the baseline alone, nothing added.
+  ASSERT_EQ(ident_command({"fit", "--trace", trace.string(), "--out", (dir / "base").string(), "--max-effects", "0",
+                           "--no-plots"}),
+            0);
+  const std::string base = slurp(dir / "base" / "report.json");
+  EXPECT_EQ(base.find("\"name\": \"periodic_position\""), std::string::npos) << base;
   std::filesystem::remove_all(dir);
 }
 
@@ -83,6 +89,8 @@ TEST(IdentCli, UserErrorsAreReportedNotCrashes) {
   EXPECT_EQ(ident_command({"excite", "--axis", "x", "--effect", "wobble", "--out", (dir / "t.csv").string()}), 2);
   EXPECT_EQ(ident_command({"excite", "--axis", "x", "--effect", "backlash:depth=3", "--out", (dir / "t.csv").string()}), 2);
   EXPECT_EQ(ident_command({"frobnicate"}), 2);
+  EXPECT_EQ(ident_command({"fit", "--trace", "t.csv", "--out", dir.string(), "--max-effects", "2.5"}), 2);
+  EXPECT_EQ(ident_command({"fit", "--trace", "t.csv", "--out", dir.string(), "--max-effects", "-1"}), 2);
   EXPECT_EQ(model_command({"frf", "--pos", "1,2", "--out", (dir / "f.csv").string()}), 2);
   std::filesystem::remove_all(dir);
 }
