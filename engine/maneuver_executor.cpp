@@ -259,6 +259,11 @@ void ManeuverExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   if (cancel) stop_and_hold();
   StreamWaypoint w;
   const bool faulted = telemetry_.faulted.load(std::memory_order_relaxed);
+  // Not holding any more once waypoints are taken, said before they are counted as taken: the
+  // planner thread's M400 (motion_pending) reads popped_ and then holding, and must not see all
+  // waypoints taken beside the holding flag of the last idle cycle (it returned with 1 of 50
+  // segments entered, under the sanitizers' slower servo thread).
+  if (!queue_.empty()) telemetry_.holding.store(false, std::memory_order_relaxed);
   while ((faulted || !window_.full()) && queue_.try_pop(w)) {
     if (!faulted) window_.push(w, kMinSegmentM);  // after a fault nothing more is followed
     popped_.fetch_add(1, std::memory_order_release);
