@@ -106,8 +106,7 @@ bool GantryLpvFeedforward::load_offset(JointArray& mm) const {
 double GantryLpvFeedforward::friction_n_(int axis, double r_mm) {
   const size_t a = static_cast<size_t>(axis);
   const GantryAxisLpvModel& m = models_[a];
-  const double dr = r_mm - r_fric_prev_[a];
-  r_fric_prev_[a] = r_mm;
+  const double dr = r_mm - r_prev_[a];  // r_{k-1}: step() moves it on after this
   double& z = bristle_mm_[a];
   // Dahl, exact over a step of constant direction: z -> s z_max - (s z_max - z) exp(-|dr| / z_max).
   if (dr != 0.0) {
@@ -122,7 +121,6 @@ void GantryLpvFeedforward::reset(const FeedforwardInput& at) {
     const size_t as = static_cast<size_t>(a);
     bristle_mm_[as] = 0.0;  // at rest: the friction holds no force
     friction_mm_[as] = 0.0;
-    r_fric_prev_[as] = at.r_mm[as];
     schedule_(a, at.r_mm[as], 0.0);
     inv_[as].reset(&at.r_mm[as]);
     r_prev_[as] = at.r_mm[as];

@@ -86,7 +86,6 @@ class GantryLpvFeedforward final : public Feedforward {
   std::array<model::GantryAxisParams, 2> params_{};
   std::array<GantryAxisLpvModel, 2> models_{};  // for K2(x, s) of the friction compensation
   std::array<double, 2> bristle_mm_{};      // Dahl state z
-  std::array<double, 2> r_fric_prev_{};     // r at the previous friction update
   std::array<double, 2> friction_mm_{};     // the friction's share of the last command
   std::array<double, 2> r_prev_{};          // r_{k-1}
   std::vector<JointArray> delay_;  // ring of the last P+1 inputs (pass-through joints)
