@@ -109,8 +109,7 @@ double MotionExecutor::executing_print_time_s() const {
              : idle_base_s_.load(std::memory_order_relaxed);
 }
 
-// Virtual time may run on while enough planned motion lies ahead, or when the planner holds
-// nothing back; never into moves the lookahead has not released yet.
+// A servo cycle that woke late: an event for the telemetry tap (the recorder logs it).
 void MotionExecutor::on_deadline_miss(int64_t /*now_ns*/, int64_t late_ns) {
   if (tap_ == nullptr) return;
   ServoEvent e;
@@ -120,6 +119,8 @@ void MotionExecutor::on_deadline_miss(int64_t /*now_ns*/, int64_t late_ns) {
   tap_->on_servo_event(e);
 }
 
+// Virtual time may run on while enough planned motion lies ahead, or when the planner holds
+// nothing back; never into moves the lookahead has not released yet.
 bool MotionExecutor::may_advance_virtual(bool planner_busy) const {
   if (waiting_.load()) return true;  // M400 flushed everything and waits for the machine
   if (planned_end_s_.load() - executing_print_time_s() > options_.lead_s + 0.01) return true;
