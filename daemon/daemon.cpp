@@ -88,7 +88,11 @@ void Daemon::close_recorder() {
 Result<std::unique_ptr<engine::CommandExecutor>> Daemon::make_recorded_executor() {
   // A DC-servo machine has no step pipeline to record: its own executor, unrecorded for now.
   if (cfg_.drive == config::Drive::dc_servo) return engine::make_executor(cfg_);
-  auto stack = engine::make_motion_stack(cfg_, engine::motion_options(cfg_), recording_.get());
+  engine::MotionOptions mo = engine::motion_options(cfg_);
+  // In virtual time no time passes while the machine is idle, so no settling to record either
+  // (and a tail cut short by the host's next line would make the recording depend on its pace).
+  if (options_.virtual_time) mo.settle_tail_s = 0.0;
+  auto stack = engine::make_motion_stack(cfg_, mo, recording_.get());
   if (!stack) return stack.error();
   if (recording_) stack->executor->set_telemetry(recording_.get());
   return std::unique_ptr<engine::CommandExecutor>(std::move(stack->executor));
@@ -224,6 +228,7 @@ void Daemon::add_client(std::shared_ptr<ClientSession> session, Kind kind) {
   c.id = id;
   c.session = session;
   c.kind = kind;
+  c.last_progress_ns = clock_.now_ns();
   if (kind == Kind::kMarlin) {
     gcode::HostProtocol::Options po;
     po.defer_ok = true;
@@ -388,6 +393,9 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
   }
   const uint64_t ticket = next_ticket_++;
   pending_[ticket] = Pending{cid, std::move(done)};
+  // The keepalive's 2 s count from the moment the client starts waiting, not from whenever the
+  // last tick happened to see it idle (a command sent right after connecting got "busy" at once).
+  if (c.in_flight == 0 && !c.parked) c.last_progress_ns = clock_.now_ns();
   ++c.in_flight;
   if (!machine_->try_submit(ticket, cmd)) {
     c.parked = Parked{ticket, cmd};

@@ -110,7 +110,7 @@ bool Machine::healthy() const {
 }
 
 bool Machine::idle() const {
-  return queue_.empty() && !executing_.load() && !executor_->motion_pending();
+  return queue_.empty() && !executing_.load() && !executor_->motion_pending() && !executor_->settling();
 }
 
 void Machine::publish_status() {
@@ -212,7 +212,7 @@ void Machine::servo_main() {
   int64_t deadline = clock_.now_ns() + period_ns;
   while (!stopping_.load(std::memory_order_relaxed)) {
     if (clock_.is_virtual() &&
-        (!executor_->motion_pending() ||
+        ((!executor_->motion_pending() && !executor_->settling()) ||
          !executor_->may_advance_virtual(executing_.load() || !queue_.empty()))) {
       // Virtual time moves only while there is motion to simulate; otherwise wait for work.
       std::this_thread::sleep_for(std::chrono::microseconds(200));

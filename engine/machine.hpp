@@ -83,6 +83,10 @@ class CommandExecutor {
   virtual void on_deadline_miss(int64_t /*now_ns*/, int64_t /*late_ns*/) {}
   // True while moves are queued anywhere or being executed. Any thread.
   virtual bool motion_pending() const { return false; }
+  // True while the motion has ended but the telemetry still follows the carriage as it settles
+  // (the flight recorder keeps its encoder samples). Not motion: M400 does not wait for it; the
+  // machine is idle only after it. Any thread.
+  virtual bool settling() const { return false; }
   // Virtual time only: may the servo thread advance time now? It must not run past the motion
   // the planner is still producing (that would cut the motion into pieces), but must advance
   // when the planner has nothing more to give. `planner_busy`: a command is queued or executing.

@@ -55,6 +55,8 @@ struct MotionOptions {
   double control_settle_s = 0.4;      // closed loop: the loop holds the position this long after
                                       // the plan's end (thesis Sect. 5.1: the integrator needs ~400 ms)
   size_t timeline_capacity = 8192;    // sampled path: planned moves kept for sampling
+  double settle_tail_s = 0.25;        // the telemetry tap (the recorder) keeps sampling the encoders
+                                      // this long after the motion ends: the carriage still settles
 };
 
 // Figures the servo side publishes (relaxed atomics; for status and tests).
@@ -77,6 +79,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void idle_tick(const std::atomic<bool>& cancel) override;
   void servo_cycle(int64_t now_ns, bool cancel) override;
   bool motion_pending() const override;
+  bool settling() const override { return settling_.load(std::memory_order_relaxed); }
   void motion_status(MachineStatus& s) const override;
   bool may_advance_virtual(bool planner_busy) const override;
   void on_deadline_miss(int64_t now_ns, int64_t late_ns) override;
@@ -156,9 +159,15 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   double next_sample_s_ = 0.0;   // servo time of the last command sample (segment end)
   double plan_shift_s_ = 0.0;    // servo time - plan (print) time: grows when a move arrives
                                  // while the loop holds the position after the plan's end
-  control::JointArray encoder_offset_mm_{};
-  control::JointArray last_command_mm_{};
-  std::array<unsigned long long, 4> encoder_reports_seen_{};    // the motor command the steps follow (sampled path)  // joint position - encoder reading, set at resync
+  control::JointArray encoder_offset_mm_{};   // joint position - encoder reading, set at resync
+  control::JointArray last_command_mm_{};     // the motor command the steps follow (sampled path)
+  std::array<unsigned long long, 4> encoder_reports_seen_{};
+  // After the motion ends: the last sample, republished with fresh encoders until settle_end_s_.
+  void run_cycle(double now_s, bool cancel);  // servo_cycle() before the settling tail
+  void publish_settling(double now_s, bool was_anchored);
+  ServoSample last_sample_{};
+  double settle_end_s_ = 0.0;
+  std::atomic<bool> settling_{false};
   TelemetryTap* tap_ = nullptr;
   std::atomic<bool> control_fault_{false};
   char control_fault_text_[160] = {};

@@ -66,6 +66,7 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   MotionOptions mo = motion_options(cfg);
   mo.max_buffered_s = 1e6;       // execute() never waits for the servo: this thread runs both
   mo.input_pause_flush_s = 0.0;  // idle_tick() releases the lookahead at once
+  mo.settle_tail_s = 0.0;        // options.settle_s keeps the cycles running instead
   auto stack = make_motion_stack(cfg, mo);
   if (!stack.ok()) return stack.error();
   if (!stack.value().bridge) return Error{"run_simulated: the config has no MCUs (use the mock transport)"};

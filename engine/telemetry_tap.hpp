@@ -10,7 +10,8 @@
 
 namespace feedloop::engine {
 
-// One servo period while motion is anchored (every joint; NaN where a value does not exist).
+// One servo period while motion is anchored, and for MotionOptions::settle_tail_s after it ends
+// (every joint; NaN where a value does not exist).
 struct ServoSample {
   double host_time_s = 0.0;   // machine clock at the cycle
   double print_time_s = 0.0;  // print time whose targets this cycle commanded

@@ -181,6 +181,21 @@ TEST_F(Channels, OneClientOwnsThePrintAtATime) {
   EXPECT_EQ(b.read_line()->rfind("X:2.000", 0), 0u);
 }
 
+// Marlin's keepalive: "echo:busy: processing" every 2 s of a blocking command, counted from the
+// moment the host started waiting. A wait as the connection's first command once got "busy" at
+// the first 5 ms tick (the count started at 0 when no tick had seen the client idle yet).
+TEST_F(Channels, KeepalivesCountTwoSecondsFromTheStartOfAWait) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(c.send_line("M190 S41"));  // 21 -> 40 C at 40 C/s: a 0.5 s wait
+  EXPECT_EQ(c.read_line(5000), "ok");
+  EXPECT_GT(std::chrono::steady_clock::now() - t0, std::chrono::milliseconds(300));
+  ASSERT_TRUE(c.send_line("M109 S141"));  // 21 -> 140 C: a 3 s wait, one keepalive
+  EXPECT_EQ(c.read_line(5000), "echo:busy: processing");
+  EXPECT_EQ(c.read_line(5000), "ok");
+}
+
 TEST_F(Channels, AClientThatNeverReadsDoesNotStallMotion) {
   LineClient sleeper;  // subscribes to fast status notifications and never reads them
   ASSERT_TRUE(sleeper.connect_unix(daemon_->api_socket_path()));
