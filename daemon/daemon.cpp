@@ -510,6 +510,31 @@ json Daemon::info() const {
           {"config", options_.config_path.empty() ? "(embedded default)" : options_.config_path}};
 }
 
+namespace {
+// Each MCU link: frames, errors, clock-query round trips (us) and the MCU clock's measured rate.
+json links_json(const engine::LinkTelemetrySet& set) {
+  json out = json::array();
+  for (int i = 0; i < set.count && i < engine::LinkTelemetrySet::kMaxLinks; ++i) {
+    const engine::LinkTelemetry& l = set.links[i];
+    out.push_back({{"name", l.name},
+                   {"state", l.state},
+                   {"frames_sent", l.frames_sent},
+                   {"retransmitted", l.retransmitted},
+                   {"delivered", l.delivered},
+                   {"duplicates_dropped", l.duplicates_dropped},
+                   {"out_of_order_dropped", l.out_of_order_dropped},
+                   {"crc_errors", l.crc_errors},
+                   {"resets", l.resets},
+                   {"bytes_written", l.bytes_written},
+                   {"in_flight", l.in_flight},
+                   {"rtt_us", {{"last", l.rtt_last_us}, {"min", l.rtt_min_us}, {"mean", l.rtt_mean_us}}},
+                   {"clock_samples", l.clock_samples},
+                   {"clock_rate_ppm", l.clock_rate_ppm}});
+  }
+  return out;
+}
+}  // namespace
+
 json Daemon::status() const {
   const engine::MachineStatus s = machine_->status();
   const engine::ServoStatus v = machine_->servo_status();
@@ -537,6 +562,7 @@ json Daemon::status() const {
             {"lost_step_events", s.lost_step_events},
             {"late_cycles", s.late_cycles},
             {"segments_queued", s.segments_queued}}},
+          {"links", links_json(s.links)},
           {"clients", clients_.size()},
           {"owner", o ? json(o->session->name()) : json(nullptr)},
           {"progress_percent", progress_percent_},

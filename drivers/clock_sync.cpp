@@ -17,9 +17,17 @@ void ClockSync::configure(const ClockSyncParams& p) {
 
 void ClockSync::add_sample(double send_s, double recv_s, int64_t mcu_clock) {
   if (recv_s < send_s) return;
+  last_rtt_s_ = recv_s - send_s;
   ring_[static_cast<size_t>((head_ + count_) % p_.window)] = {0.5 * (send_s + recv_s), recv_s - send_s, mcu_clock};
   if (count_ < p_.window) ++count_; else head_ = (head_ + 1) % p_.window;
   fit();
+}
+
+double ClockSync::mean_rtt_s() const {
+  if (count_ == 0) return 0.0;
+  double sum = 0.0;
+  for (int i = 0; i < count_; ++i) sum += ring_[static_cast<size_t>((head_ + i) % p_.window)].rtt_s;
+  return sum / count_;
 }
 
 void ClockSync::fit() {

@@ -37,6 +37,8 @@ class ClockSync {
   double host_time_at(double clock) const { return m_ref_ + (clock - c_ref_) / freq_hz_; }
   double freq_hz() const { return freq_hz_; }
   double min_rtt_s() const { return min_rtt_s_; }
+  double last_rtt_s() const { return last_rtt_s_; }
+  double mean_rtt_s() const;  // over the window
   int samples() const { return count_; }
   // Print time (= host time here) -> ticks, for the step generator.
   stepgen::TickMap tick_map() const { return {c_ref_ - freq_hz_ * m_ref_, freq_hz_}; }
@@ -51,7 +53,7 @@ class ClockSync {
   std::vector<Sample> ring_;
   std::vector<double> scratch_;
   int head_ = 0, count_ = 0;
-  double freq_hz_ = 20e6, c_ref_ = 0.0, m_ref_ = 0.0, min_rtt_s_ = 0.0;
+  double freq_hz_ = 20e6, c_ref_ = 0.0, m_ref_ = 0.0, min_rtt_s_ = 0.0, last_rtt_s_ = 0.0;
 };
 
 }  // namespace feedloop::drivers

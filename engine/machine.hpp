@@ -23,6 +23,7 @@
 #include "core/spsc_queue.hpp"
 #include "engine/heater_sim.hpp"
 #include "engine/latency_histogram.hpp"
+#include "engine/link_telemetry.hpp"
 #include "engine/seqlock.hpp"
 #include "gcode/command.hpp"
 
@@ -51,6 +52,7 @@ struct MachineStatus {
   uint64_t late_cycles = 0;         // sampled path: the plan paused for a late servo cycle
   double encoder_mm[4] = {0, 0, 0, 0};  // latest encoder reading per joint from the MCUs (NaN: none)
   uint64_t encoder_samples = 0;         // encoder samples received from the MCUs
+  LinkTelemetrySet links;               // each MCU link (frames, retransmissions, round trips)
   char last_error[192] = {};
 };
 

@@ -350,6 +350,52 @@ void McuBridge::collect(double) {
   }
 }
 
+namespace {
+const char* state_name(drivers::McuState s) {
+  switch (s) {
+    case drivers::McuState::kIdle: return "idle";
+    case drivers::McuState::kIdentifying: return "identifying";
+    case drivers::McuState::kReady: return "ready";
+    case drivers::McuState::kDisconnected: return "disconnected";
+    case drivers::McuState::kFailed: return "failed";
+  }
+  return "?";
+}
+}  // namespace
+
+// The links' figures for the API (servo thread, RT-safe: fixed arrays and a seqlock), every 10 ms.
+void McuBridge::publish_links(double now_s) {
+  if (now_s < next_links_s_) return;
+  next_links_s_ = now_s + 0.01;
+  LinkTelemetrySet& set = links_scratch_;
+  set.count = static_cast<int>(std::min<size_t>(mcus_.size(), LinkTelemetrySet::kMaxLinks));
+  for (int i = 0; i < set.count; ++i) {
+    const Mcu& m = *mcus_[static_cast<size_t>(i)];
+    const drivers::McuSession& s = *m.session;
+    LinkTelemetry& l = set.links[i];
+    std::snprintf(l.name, sizeof l.name, "%s", m.name.c_str());
+    std::snprintf(l.state, sizeof l.state, "%s", state_name(s.state()));
+    const protocol::LinkStats& ls = s.link_stats();
+    l.frames_sent = ls.sent;
+    l.retransmitted = ls.retransmitted;
+    l.delivered = ls.delivered;
+    l.duplicates_dropped = ls.duplicates_dropped;
+    l.out_of_order_dropped = ls.out_of_order_dropped;
+    l.resets = ls.resets;
+    l.crc_errors = s.decoder_stats().crc_errors;
+    l.bytes_written = s.bytes_written();
+    l.in_flight = s.frames_in_flight();
+    const drivers::ClockSync& c = s.clock();
+    l.clock_samples = c.samples();
+    l.rtt_last_us = c.last_rtt_s() * 1e6;
+    l.rtt_min_us = c.min_rtt_s() * 1e6;
+    l.rtt_mean_us = c.mean_rtt_s() * 1e6;
+    const double nominal_hz = static_cast<double>(s.mcu_clock_hz());
+    l.clock_rate_ppm = c.ready() && nominal_hz > 0.0 ? (c.freq_hz() / nominal_hz - 1.0) * 1e6 : 0.0;
+  }
+  links_.store(set);
+}
+
 void McuBridge::service(double host_s) {
   if (!started_) {
     (void)start(host_s);  // a failure latches fault(); retried like any other fault
@@ -369,6 +415,7 @@ void McuBridge::service(double host_s) {
     if (g) g->advance_to(now_s);
   if (delta_) delta_->advance_to(now_s);
   collect(now_s);
+  publish_links(now_s);
 
   auto describe_down = [&]() -> std::string {
     for (auto& m : mcus_) {

@@ -88,6 +88,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   unsigned long long encoder_samples() const override { return encoder_samples_.load(std::memory_order_relaxed); }
   unsigned long long encoder_reports(int joint) const override;
   double encoder_time_s(int joint) const override;
+  void links(LinkTelemetrySet& out) const override { out = links_.load(); }
 
   // stepgen::BatchSink (servo thread): StepBatch::axis is the joint index.
   void on_batch(const stepgen::StepBatch& batch) override;
@@ -120,6 +121,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   double sim_time(double host_s);
   void poll_all(double now_s);
   void collect(double now_s);
+  void publish_links(double now_s);
   void latch_fault(const std::string& message);
   void log(std::string message);
 
@@ -132,6 +134,9 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   std::vector<std::unique_ptr<sim::GantryAxis>> gantries_;  // by joint (nullptr: none)
   std::unique_ptr<sim::DeltaPlant> delta_;
   bool simulated_ = false;  // some MCU is a virtual one (mock transport)
+  Seqlock<LinkTelemetrySet> links_;
+  LinkTelemetrySet links_scratch_;  // servo thread: filled, then published
+  double next_links_s_ = 0.0;
 
   // Servo thread state.
   enum class Phase { kStarting, kRunning, kFaulted };

@@ -80,6 +80,7 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
   if (backend_ != nullptr) {  // the MCUs: encoder positions, and a fault naming the MCU
     for (int j = 0; j < 4; ++j) s.encoder_mm[j] = backend_->encoder_mm(j);
     s.encoder_samples = backend_->encoder_samples();
+    backend_->links(s.links);
     if (backend_->fault()) backend_->fault_message(s.last_error, sizeof s.last_error);
   }
   if (control_fault_.load()) std::snprintf(s.last_error, sizeof s.last_error, "%s", control_fault_text_);

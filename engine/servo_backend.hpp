@@ -8,6 +8,7 @@
 #include <cstddef>
 
 #include "drivers/stepgen/step_generator.hpp"
+#include "engine/link_telemetry.hpp"
 
 namespace feedloop::engine {
 
@@ -33,6 +34,8 @@ class ServoBackend {
   virtual unsigned long long encoder_reports(int /*joint*/) const { return encoder_samples(); }
   // Host time (s) at which the latest encoder reading of `joint` was sampled (NaN: unknown).
   virtual double encoder_time_s(int /*joint*/) const { return NAN; }
+  // Each MCU link as last seen by the servo thread (at most every 10 ms). Any thread.
+  virtual void links(LinkTelemetrySet& out) const { out.count = 0; }
 };
 
 }  // namespace feedloop::engine

@@ -107,6 +107,8 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   uint64_t bytes_written() const { return bytes_written_; }
   uint64_t frames_written() const { return frames_written_; }
   const protocol::LinkStats& link_stats() const { return link_.stats(); }
+  const protocol::FrameDecoderStats& decoder_stats() const { return link_.decoder_stats(); }
+  int frames_in_flight() const { return link_.in_flight(); }
   uint32_t mcu_clock_hz() const { return mcu_clock_hz_; }
   int mcu_axes() const { return mcu_axes_; }
 

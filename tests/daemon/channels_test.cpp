@@ -72,6 +72,39 @@ TEST_F(Channels, UnixSocketSpeaksTheMarlinHostProtocol) {
   EXPECT_EQ(pos->rfind("X:12.500", 0), 0u) << *pos;
 }
 
+// Per-link telemetry: every MCU of the simulated printer, with its frames, round trips and clock
+// rate (the virtual MCUs run 50 ppm fast or slow, alternately: engine/mcu_bridge.hpp).
+TEST_F(Channels, StatusShowsEveryMcuLink) {
+  LineClient printer;
+  ASSERT_TRUE(printer.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(printer.send_line("G1 X5 Y5 F6000"));
+  ASSERT_TRUE(printer.read_until("ok", 5000));
+  ASSERT_TRUE(printer.send_line("M400"));
+  ASSERT_TRUE(printer.read_until("ok", 10000));
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  const json st = call(api, {{"jsonrpc", "2.0"}, {"id", 1}, {"method", "status"}});
+  const json& links = st["result"]["links"];
+  ASSERT_EQ(links.size(), 4u) << st.dump();  // mcu_x, mcu_y, mcu_z, mcu_e
+  for (size_t i = 0; i < links.size(); ++i) {
+    const json& l = links[i];
+    std::printf("%s\n", l.dump().c_str());
+    SCOPED_TRACE(l.dump());
+    EXPECT_EQ(l["state"], "ready");
+    EXPECT_GT(l["frames_sent"].get<uint64_t>(), 10u);  // identify, configure, clock queries, steps
+    EXPECT_GT(l["delivered"].get<uint64_t>(), 10u);
+    EXPECT_EQ(l["crc_errors"].get<uint64_t>(), 0u);
+    EXPECT_GT(l["clock_samples"].get<int>(), 8);
+    const double rtt_min = l["rtt_us"]["min"].get<double>(), rtt_mean = l["rtt_us"]["mean"].get<double>();
+    EXPECT_GT(rtt_min, 0.0);
+    EXPECT_LE(rtt_min, rtt_mean);
+    EXPECT_LT(rtt_mean, 5000.0);
+    const double expected_ppm = i % 2 == 0 ? 50.0 : -50.0;
+    EXPECT_NEAR(l["clock_rate_ppm"].get<double>(), expected_ppm, 1.0);  // measured within 0.002 ppm
+  }
+  EXPECT_EQ(links[0]["name"], "mcu_x");
+}
+
 TEST_F(Channels, PtyLooksLikeAMarlinSerialPort) {
   LineClient tty;
   ASSERT_TRUE(tty.open_tty(daemon_->pty_link())) << daemon_->pty_link();
