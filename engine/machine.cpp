@@ -170,7 +170,13 @@ void Machine::planner_main() {
   int64_t last_heater_ns = clock_.now_ns();
   while (!stopping_.load()) {
     Queued q;
+    // Busy from before the command leaves the queue: the servo thread reads the queue, then this
+    // flag (servo_main), so it never sees neither while a command is on its way to the executor.
+    // (Popped first, a command was briefly in neither, and virtual time could run on past a
+    // waypoint the planner was about to release: a DC-servo run differed by 0.2 ms of path time.)
+    executing_.store(true);
     if (!queue_.try_pop(q)) {
+      executing_.store(false);
       {
         std::unique_lock lock(wake_mutex_);
         wake_cv_.wait_for(lock, std::chrono::milliseconds(5));
@@ -184,7 +190,6 @@ void Machine::planner_main() {
       publish_status();
       continue;
     }
-    executing_.store(true);
     Status st;
     if (estop_.load()) {
       st = Error{"machine is emergency-stopped; restart the daemon (or send M999) to clear"};
@@ -213,7 +218,7 @@ void Machine::servo_main() {
   while (!stopping_.load(std::memory_order_relaxed)) {
     if (clock_.is_virtual() &&
         ((!executor_->motion_pending() && !executor_->settling()) ||
-         !executor_->may_advance_virtual(executing_.load() || !queue_.empty()))) {
+         !executor_->may_advance_virtual(!queue_.empty() || executing_.load()))) {
       // Virtual time moves only while there is motion to simulate; otherwise wait for work.
       std::this_thread::sleep_for(std::chrono::microseconds(200));
       servo_last_cycle_ns_.store(clock_.now_ns(), std::memory_order_release);

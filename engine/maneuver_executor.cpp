@@ -119,6 +119,7 @@ Status ManeuverExecutor::execute(const gcode::Command& cmd, const std::atomic<bo
   if (motion) wait_for_room(cancel);
   Status st = interp_->execute(cmd);
   planner_queued_.store(planner_.queued());
+  release();
   if (st && wait_done_) wait_motion_done(cancel);  // M400
   return st;
 }
@@ -141,6 +142,7 @@ double ManeuverExecutor::corner_k(const Vec3& d_in, const Vec3& d_out) const {
 
 void ManeuverExecutor::emit(const StreamWaypoint& w) {
   while (!queue_.try_push(w)) {
+    release();  // a full queue: the servo must take what is there to make room
     if (cancel_ != nullptr && cancel_->load()) return;
     std::this_thread::sleep_for(std::chrono::microseconds(500));
   }
@@ -189,6 +191,7 @@ void ManeuverExecutor::idle_tick(const std::atomic<bool>& cancel) {
                      std::chrono::duration<double>(options_.input_pause_flush_s);
   if (quiet || buffered_mm() < options_.lead_mm) planner_.flush();
   planner_queued_.store(planner_.queued());
+  release();
 }
 
 bool ManeuverExecutor::motion_pending() const {
@@ -203,7 +206,7 @@ bool ManeuverExecutor::motion_pending() const {
 bool ManeuverExecutor::may_advance_virtual(bool planner_busy) const {
   if (waiting_.load()) return true;
   if (!need_more_.load()) return true;
-  if (pushed_.load() != popped_.load()) return true;  // new waypoints: the next cycle takes them
+  if (released_.load() > popped_.load()) return true;  // new waypoints: the next cycle takes them
   return !planner_busy && planner_queued_.load() == 0;
 }
 
@@ -215,6 +218,7 @@ void ManeuverExecutor::wait_for_room(const std::atomic<bool>& cancel) {
 void ManeuverExecutor::wait_motion_done(const std::atomic<bool>& cancel) {
   planner_.flush();
   planner_queued_.store(planner_.queued());
+  release();
   struct Waiting {
     std::atomic<bool>& w;
     explicit Waiting(std::atomic<bool>& f) : w(f) { w = true; }
@@ -248,8 +252,10 @@ void ManeuverExecutor::stop_and_hold() {
 
 void ManeuverExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   // The plant ran with the voltages held since the last cycle (zero-order hold).
+  // The first cycle counts one period too (the plant rested through it), so the path time does
+  // not depend on whether the first waypoints came before the first cycle or after it.
   const double dt_s =
-      started_ ? std::clamp(static_cast<double>(now_ns - last_ns_) * 1e-9, 0.0, 20.0 * period_s_) : 0.0;
+      started_ ? std::clamp(static_cast<double>(now_ns - last_ns_) * 1e-9, 0.0, 20.0 * period_s_) : period_s_;
   started_ = true;
   last_ns_ = now_ns;
   if (dt_s > 0.0) {
@@ -263,8 +269,9 @@ void ManeuverExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   // planner thread's M400 (motion_pending) reads popped_ and then holding, and must not see all
   // waypoints taken beside the holding flag of the last idle cycle (it returned with 1 of 50
   // segments entered, under the sanitizers' slower servo thread).
-  if (!queue_.empty()) telemetry_.holding.store(false, std::memory_order_relaxed);
-  while ((faulted || !window_.full()) && queue_.try_pop(w)) {
+  const uint64_t released = released_.load(std::memory_order_acquire);
+  if (popped_.load(std::memory_order_relaxed) < released) telemetry_.holding.store(false, std::memory_order_relaxed);
+  while ((faulted || !window_.full()) && popped_.load(std::memory_order_relaxed) < released && queue_.try_pop(w)) {
     if (!faulted) window_.push(w, kMinSegmentM);  // after a fault nothing more is followed
     popped_.fetch_add(1, std::memory_order_release);
   }
@@ -295,7 +302,8 @@ void ManeuverExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   telemetry_.segments_entered.store(servo_.segments_entered(), std::memory_order_relaxed);
   telemetry_.holding.store(servo_.holding() && queue_.empty(), std::memory_order_relaxed);
   const uint64_t newest = window_.last();
-  need_more_.store(queue_.empty() && (servo_.holding() || servo_.segment() + 2 > newest ||
+  const bool none_released = popped_.load(std::memory_order_relaxed) >= released_.load(std::memory_order_acquire);
+  need_more_.store(none_released && (servo_.holding() || servo_.segment() + 2 > newest ||
                                       (window_.s_m(newest) - servo_.s_m()) * 1e3 < options_.lead_mm),
                    std::memory_order_release);
   telemetry_.cycles.fetch_add(1, std::memory_order_relaxed);

@@ -115,6 +115,11 @@ class ManeuverExecutor final : public CommandExecutor, private planner::MoveSink
   maneuver::Vec3 last_dir_ = maneuver::Vec3::Zero();  // direction of the segment ending there
   std::atomic<double> pushed_mm_{0.0};     // path length handed to the servo thread
   std::atomic<uint64_t> pushed_{0};
+  // Waypoints the servo thread may take: each planner step (a command, a flush) publishes all
+  // the waypoints it produced at once, so virtual time never runs a cycle on part of them (the
+  // cycle's braking depends on how far the known path reaches).
+  std::atomic<uint64_t> released_{0};
+  void release() { released_.store(pushed_.load(std::memory_order_relaxed), std::memory_order_release); }
   std::atomic<uint64_t> moves_{0};
   std::atomic<bool> waiting_{false};
   std::atomic<size_t> planner_queued_{0};
@@ -130,7 +135,7 @@ class ManeuverExecutor final : public CommandExecutor, private planner::MoveSink
   // The extruder is within lead_mm of the end of the known path, or on one of its last two
   // segments: what it does next may depend on waypoints the planner has not released yet (virtual
   // time waits for them).
-  std::atomic<bool> need_more_{false};
+  std::atomic<bool> need_more_{true};  // at power-on the servo holds, waiting for waypoints
   ManeuverTelemetry telemetry_;
 };
 
