@@ -125,7 +125,7 @@ void AxisLoop::apply_staged(int64_t clock) {
   horizon_margin_ticks_ = p.horizon_margin_ticks != 0 ? static_cast<int64_t>(p.horizon_margin_ticks)
                                                       : static_cast<int64_t>(0.02f * clock_hz_);
   plaus_.configure(p.max_speed_nm_s, p.encoder_margin_nm, p.encoder_reject_limit, clock_hz_);
-  slip_.configure(p.slip_threshold_nm, p.slip_cycle_nm, p.slip_settle_ticks);
+  slip_.configure(p.slip_threshold_nm, p.slip_cycle_nm, p.slip_settle_s);
   if (was_running) {
     pi_.set_gains(p.kp, p.ki_per_s, p.max_correction_nm);  // bumpless
   } else {
@@ -274,9 +274,14 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
     pi_.update(e_nm_, dt_s);
     // 4. Skipped steps: motor - carriage against the deflection model.
     const float deflection = p_.deflection_s2 * a_ref_nm_s2_ + p_.deflection_s * v_ref_nm_s_;
-    const SlipEvent s = slip_.update(static_cast<float>(motor_nm - y_nm_), deflection);
+    const bool was_pending = slip_.pending();
+    const SlipEvent s = slip_.update(static_cast<float>(motor_nm - y_nm_), deflection, dt_s);
+    if (slip_.pending() && !was_pending) integral_before_slip_nm_ = pi_.integral_nm();
     if (s.happened) {
-      pi_.shift(s.size_nm);  // recovery: make up the lost steps
+      // Recovery: make up the lost steps at once (the shift) and drop what the integral gained
+      // from the slip's error while it was being confirmed, so the two do not add up.
+      pi_.set_integral(integral_before_slip_nm_);
+      pi_.shift(s.size_nm);
       event(LoopEventKind::kSlip, in.clock, s.cycles, static_cast<int64_t>(s.size_nm));
     }
   }

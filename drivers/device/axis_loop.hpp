@@ -170,6 +170,7 @@ class AxisLoop {
   int64_t last_motor_nm_ = 0;
   float last_target_slope_nm_s_ = 0.0f;  // slope of the queue's last piece
   int64_t device_steps_ = 0;
+  float integral_before_slip_nm_ = 0.0f;
 
   // Counters.
   uint64_t ticks_ = 0, deadline_misses_ = 0, encoder_rejects_ = 0, events_dropped_ = 0;

@@ -16,7 +16,7 @@ const char* loop_param_error_name(LoopParamError e) {
     case LoopParamError::kGeometry: return "nm per encoder count or per step is 0";
     case LoopParamError::kGains: return "kp or ki negative or not finite";
     case LoopParamError::kLimits: return "a correction clamp, rate, following-error limit, speed or margin is not > 0";
-    case LoopParamError::kSlip: return "slip threshold not > 0, or slip cycle not > 2 x threshold";
+    case LoopParamError::kSlip: return "slip threshold not > 0, slip cycle not > 2 x threshold, or settle time < 0";
     case LoopParamError::kStop: return "stop deceleration not > 0";
     case LoopParamError::kModel: return "deflection model terms not finite or filter time < 0";
   }
@@ -33,7 +33,8 @@ LoopParamError validate_loop_params(const LoopParams& p) {
       !positive(p.max_following_error_nm) || !positive(p.max_speed_nm_s) || !positive(p.encoder_margin_nm))
     return LoopParamError::kLimits;
   if (!positive(p.slip_threshold_nm) || !std::isfinite(p.slip_cycle_nm) || p.slip_cycle_nm < 0.0f ||
-      (p.slip_cycle_nm > 0.0f && p.slip_cycle_nm <= 2.0f * p.slip_threshold_nm))
+      (p.slip_cycle_nm > 0.0f && p.slip_cycle_nm <= 2.0f * p.slip_threshold_nm) || !std::isfinite(p.slip_settle_s) ||
+      p.slip_settle_s < 0.0f)
     return LoopParamError::kSlip;
   if (!positive(p.stop_decel_nm_s2)) return LoopParamError::kStop;
   if (!std::isfinite(p.deflection_s2) || !std::isfinite(p.deflection_s) || !std::isfinite(p.accel_filter_s) ||

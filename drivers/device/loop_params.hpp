@@ -34,7 +34,7 @@ struct LoopParams {
   // Skipped steps (control/lost_step_detector.hpp on the device): d = motor - y - deflection - S.
   float slip_threshold_nm = 250.0e3f;     // |d| beyond this: a slip is suspected
   float slip_cycle_nm = 0.0f;             // 4 full steps (the torque law's period); 0: not rounded
-  uint32_t slip_settle_ticks = 5;         // control ticks to wait before confirming
+  float slip_settle_s = 0.010f;           // MCU time |d| must stay beyond the threshold (the ringing decays)
 
   // Small model of the motor-to-carriage deflection (belt stretch), motor - carriage =
   //   deflection_s2 * a_ref + deflection_s * v_ref   (a_ref filtered from r's slope).

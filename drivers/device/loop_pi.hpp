@@ -21,6 +21,8 @@ class LoopPi {
   // Bumpless gain and clamp change (the output for the last error stays the same).
   void set_gains(float kp, float ki_per_s, float max_output_nm);
   void shift(float shift_nm);
+  // Restores the integral (the recovery after a slip drops what it gained from the slip's error).
+  void set_integral(float integral_nm) { integral_nm_ = integral_nm; }
 
   float output_nm() const { return u_nm_; }
   float integral_nm() const { return integral_nm_; }

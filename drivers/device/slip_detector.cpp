@@ -3,27 +3,33 @@
 
 namespace feedloop::device {
 
-void SlipDetector::configure(float threshold_nm, float cycle_nm, uint32_t settle_ticks) {
+void SlipDetector::configure(float threshold_nm, float cycle_nm, float settle_s) {
   threshold_nm_ = threshold_nm;
   cycle_nm_ = cycle_nm;
-  settle_ = settle_ticks < 1 ? 1 : settle_ticks;
+  settle_s_ = settle_s;
 }
 
 void SlipDetector::reset() {
-  total_nm_ = d_nm_ = 0.0f;
-  pending_ = count_ = 0;
+  total_nm_ = d_nm_ = pending_s_ = 0.0f;
+  pending_ = false;
+  count_ = 0;
 }
 
-SlipEvent SlipDetector::update(float motor_minus_encoder_nm, float expected_deflection_nm) {
+SlipEvent SlipDetector::update(float motor_minus_encoder_nm, float expected_deflection_nm, float dt_s) {
   SlipEvent ev;
   const float d = motor_minus_encoder_nm - expected_deflection_nm - total_nm_;
   d_nm_ = d;
   if (d <= threshold_nm_ && d >= -threshold_nm_) {
-    pending_ = 0;  // back under the threshold: a transient deflection, not a slip
+    pending_ = false;  // back under the threshold: a transient deflection, not a slip
     return ev;
   }
-  if (pending_ <= settle_) ++pending_;
-  if (pending_ <= settle_) return ev;
+  if (!pending_) {
+    pending_ = true;
+    pending_s_ = 0.0f;
+    return ev;
+  }
+  pending_s_ += dt_s;
+  if (pending_s_ < settle_s_) return ev;
   float size = d;
   if (cycle_nm_ > 0.0f) {
     const float c = d / cycle_nm_;
@@ -32,7 +38,7 @@ SlipEvent SlipDetector::update(float motor_minus_encoder_nm, float expected_defl
     size = static_cast<float>(cycles) * cycle_nm_;
     ev.cycles = cycles;
   }
-  pending_ = 0;
+  pending_ = false;
   total_nm_ += size;
   ++count_;
   d_nm_ = d - size;

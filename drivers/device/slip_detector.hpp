@@ -2,7 +2,8 @@
 // thesis Sect. 5.3-5.4), per control tick:
 //   d[k] = motor[k] - y[k] - deflection_model[k] - S[k-1]
 // motor = every executed step (host's and the loop's) x nm/step, y = encoder, S = the slips
-// already reported. |d| beyond the threshold for settle_ticks ticks in a row confirms a slip; when
+// already reported. |d| beyond the threshold for settle_s of MCU time (not a count of ticks: the
+// carriage rings for the same time at 1 or 10 kHz) confirms a slip, sized from d then; when
 // the torque law's period (4 full steps) is known the size is rounded to whole cycles (a stepper
 // that slips falls into the next equilibrium, sim/gantry_axis.hpp). The size is the recovery: the
 // loop shifts its correction by it (LoopPi::shift), so the motor re-synchronises with the
@@ -22,9 +23,12 @@ struct SlipEvent {
 
 class SlipDetector {
  public:
-  void configure(float threshold_nm, float cycle_nm, uint32_t settle_ticks);
+  void configure(float threshold_nm, float cycle_nm, float settle_s);
   void reset();
-  SlipEvent update(float motor_minus_encoder_nm, float expected_deflection_nm);
+  // dt_s: MCU time since the previous update.
+  SlipEvent update(float motor_minus_encoder_nm, float expected_deflection_nm, float dt_s);
+  // A slip is suspected (|d| beyond the threshold, waiting for the settle time).
+  bool pending() const { return pending_; }
 
   float discrepancy_nm() const { return d_nm_; }
   float total_nm() const { return total_nm_; }
@@ -32,9 +36,11 @@ class SlipDetector {
 
  private:
   float threshold_nm_ = 0.0f, cycle_nm_ = 0.0f;
-  uint32_t settle_ = 1;
+  float settle_s_ = 0.0f;
   float total_nm_ = 0.0f, d_nm_ = 0.0f;
-  uint32_t pending_ = 0, count_ = 0;
+  float pending_s_ = 0.0f;
+  bool pending_ = false;
+  uint32_t count_ = 0;
 };
 
 }  // namespace feedloop::device
