@@ -304,7 +304,9 @@ void VirtualMcu::begin_controlled_stop(StopReason why, McuError code, int64_t de
     if (a.loop.state() == LoopState::kRunning) {
       a.loop.request_stop(why);
       any = true;
-    } else if (!a.loop.active()) {
+    } else if (a.loop.state() == LoopState::kStopping) {
+      any = true;  // the axis that tripped: already braking
+    } else {
       a.run_head = a.run_count = 0;  // no loop on this motor: it stops at once, as in protocol v1
       a.have_queued_end = false;
     }
