@@ -52,6 +52,8 @@ struct MachineStatus {
   uint64_t late_cycles = 0;         // sampled path: the plan paused for a late servo cycle
   double encoder_mm[4] = {0, 0, 0, 0};  // latest encoder reading per joint from the MCUs (NaN: none)
   uint64_t encoder_samples = 0;         // encoder samples received from the MCUs
+  int64_t step_count[4] = {0, 0, 0, 0};  // each joint's step counter (the executor steps them)
+  bool has_step_count = false;           // false: this executor makes no steps
   LinkTelemetrySet links;               // each MCU link (frames, retransmissions, round trips)
   char last_error[192] = {};
 };
