@@ -210,6 +210,8 @@ void Daemon::request_shutdown(const std::string& why) {
     notifier_.stopping();
     notifier_.stop_watchdog();
     if (machine_) machine_->stop();  // cancels queued commands; the servo loop ends its cycle
+    if (const std::string summary = rejected_log_.flush(clock_.now_ns(), true); !summary.empty())
+      spdlog::warn("command rejected: {}", summary);
     end_print();
     close_channels();
     std::vector<std::shared_ptr<ClientSession>> sessions;
@@ -477,7 +479,13 @@ void Daemon::on_command_done(engine::CommandDone d) {
     c->last_progress_ns = clock_.now_ns();
     if (p.client_id == owner_) owner_last_activity_ns_ = clock_.now_ns();
   }
-  if (!d.status) spdlog::warn("command rejected: {}", d.status.error().to_string());
+  if (!d.status) {
+    // The same refusal for every later line (a fault): one line, then a count (RepeatFilter).
+    std::string summary;
+    const bool log = rejected_log_.admit(d.status.error().message, clock_.now_ns(), &summary);
+    if (!summary.empty()) spdlog::warn("command rejected: {}", summary);
+    if (log) spdlog::warn("command rejected: {}", d.status.error().to_string());
+  }
   if (p.done) p.done(d.status);
 }
 
@@ -651,6 +659,8 @@ void Daemon::tick() {
     c.session->send_line(json_rpc_notification("status", status_json).dump(), /*droppable=*/true);
     c.next_status_ns = now + static_cast<int64_t>(c.subscription.interval_ms) * 1'000'000;
   }
+  if (const std::string summary = rejected_log_.flush(now); !summary.empty())
+    spdlog::warn("command rejected: {}", summary);
   // The print ends when nobody owns the machine any more and it has stopped.
   if (print_open_ && owner_ == 0 && machine_->idle() && pending_.empty()) end_print();
   if (reload_requested_ && machine_->idle() && pending_.empty()) reload_config();

@@ -29,6 +29,7 @@
 #include "core/result.hpp"
 #include "daemon/json_api.hpp"
 #include "daemon/listeners.hpp"
+#include "daemon/repeat_filter.hpp"
 #include "daemon/watchdog.hpp"
 #include "engine/machine.hpp"
 #include "gcode/host_protocol.hpp"
@@ -171,6 +172,7 @@ class Daemon final : public JsonApiBackend {
   bool reload_requested_ = false;
   uint64_t reloads_ = 0;
   bool shutting_down_ = false;
+  RepeatFilter rejected_log_;     // "command rejected" warnings: one line plus a count
   std::string display_message_;  // M117
   int progress_percent_ = -1;    // M73 P
 };

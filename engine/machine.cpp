@@ -110,7 +110,8 @@ bool Machine::healthy() const {
 }
 
 bool Machine::idle() const {
-  return queue_.empty() && !executing_.load() && !executor_->motion_pending() && !executor_->settling();
+  if (!queue_.empty() || executing_.load()) return false;
+  return executor_->faulted() || (!executor_->motion_pending() && !executor_->settling());
 }
 
 void Machine::publish_status() {
@@ -119,6 +120,8 @@ void Machine::publish_status() {
     s.state = MachineState::kEmergencyStopped;
   } else if (stopping_.load()) {
     s.state = MachineState::kStopped;
+  } else if (executor_ && executor_->faulted()) {
+    s.state = MachineState::kError;  // not busy: the queued motion will not run
   } else {
     s.state = idle() ? MachineState::kIdle : MachineState::kBusy;
   }

@@ -91,6 +91,9 @@ class CommandExecutor {
   // (the flight recorder keeps its encoder samples). Not motion: M400 does not wait for it; the
   // machine is idle only after it. Any thread.
   virtual bool settling() const { return false; }
+  // True while a fault (an MCU gone, an implausible encoder) has stopped the motion: the motion
+  // still queued will not run, so the machine is not busy but in error. Any thread.
+  virtual bool faulted() const { return false; }
   // Virtual time only: may the servo thread advance time now? It must not run past the motion
   // the planner is still producing (that would cut the motion into pieces), but must advance
   // when the planner has nothing more to give. `planner_busy`: a command is queued or executing.

@@ -63,6 +63,10 @@ void MotionExecutor::idle_tick(const std::atomic<bool>& cancel) {
   planner_queued_.store(planner_.queued());
 }
 
+bool MotionExecutor::faulted() const {
+  return control_fault_.load() || (backend_ != nullptr && backend_->fault());
+}
+
 bool MotionExecutor::motion_pending() const {
   return planner_queued_.load() > 0 || pushed_.load() != popped_.load() ||
          telemetry_.anchored.load(std::memory_order_relaxed);

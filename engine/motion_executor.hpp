@@ -79,6 +79,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void position(double out_mm[4]) const override;
   void idle_tick(const std::atomic<bool>& cancel) override;
   void servo_cycle(int64_t now_ns, bool cancel) override;
+  bool faulted() const override;
   bool motion_pending() const override;
   bool settling() const override { return settling_.load(std::memory_order_relaxed); }
   void motion_status(MachineStatus& s) const override;
