@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "config/config.hpp"
+#include "daemon/runtime_dir.hpp"
 #include "engine/executor_factory.hpp"
 #include "gcode/parser.hpp"
 #include "recorder/options_from_config.hpp"
@@ -170,6 +171,13 @@ Status Daemon::open_channels() {
   socket_path_ = *sock;
   api_socket_path_ = *api;
   pty_link_ = *pty;
+  std::vector<std::string> warnings;
+  if (Status s = check_channel_path("sockets.unix_socket", socket_path_, vars.runtime_dir, cfg_.sockets.mode, &warnings); !s)
+    return s;
+  if (Status s = check_channel_path("sockets.api_socket", api_socket_path_, vars.runtime_dir, cfg_.sockets.mode, &warnings); !s)
+    return s;
+  if (Status s = check_channel_path("sockets.pty_link", pty_link_, vars.runtime_dir, 0, &warnings); !s) return s;
+  for (const std::string& w : warnings) spdlog::warn("{}", w);
   if (Status s = gcode_listener_.listen(socket_path_, cfg_.sockets.mode,
                                         [this](auto session) { add_client(std::move(session), Kind::kMarlin); });
       !s)

@@ -223,6 +223,29 @@ TEST_F(Process, SigtermEndsWithinTwoSecondsInEveryStateWithTheRecordingClosed) {
   }
 }
 
+// Each peer is logged with its uid and pid (SO_PEERCRED); a world-writable runtime directory
+// without the sticky bit stops the start with a message.
+TEST_F(Process, PeersAreLoggedAndAnUnsafeRuntimeDirectoryIsRefused) {
+  {
+    Subprocess d({FEEDLOOPD_PATH}, env(), dir_ + "/daemon.log");
+    ASSERT_TRUE(d.wait_for_output("ready", 20)) << d.output();
+    LineClient c;
+    ASSERT_TRUE(c.connect_unix(dir_ + "/feedloop.sock"));
+    const std::string who = "uid " + std::to_string(::getuid()) + " gid " + std::to_string(::getgid()) +
+                            " pid " + std::to_string(::getpid());
+    EXPECT_TRUE(d.wait_for_output("socket#1 connected: " + who, 5)) << d.output();
+    d.signal(SIGTERM);
+    EXPECT_EQ(d.wait(10), 0);
+  }
+  const std::string run = dir_ + "/open";
+  fs::create_directories(run);
+  ASSERT_EQ(::chmod(run.c_str(), 0777), 0);
+  Subprocess d({FEEDLOOPD_PATH}, {"RUNTIME_DIRECTORY=" + run, "STATE_DIRECTORY=" + dir_}, dir_ + "/daemon2.log");
+  EXPECT_NE(d.wait(20), 0) << d.output();
+  EXPECT_NE(d.output().find("has no sticky bit"), std::string::npos) << d.output();
+  EXPECT_FALSE(fs::exists(run + "/feedloop.sock"));
+}
+
 // Printrun's pronsole (Debian package printrun) connects to the pty, sends a real sliced file
 // line by line with its own host protocol and gets an ok for every line.
 TEST_F(Process, PronsolePrintsARealFileOverThePty) {
