@@ -3,18 +3,20 @@
 // P ms (defaults: 50 clients, 10 ms), several repetitions each, interleaved (A B B A ...: the
 // machine is shared and noisy, so drift falls on both conditions alike). Per run it prints the
 // servo loop's deadline misses, wake-up latency p99/max, lost-step events, late cycles and
-// rejected lines, the pollers' reply round trips, and the daemon's CPU time; then the median of
-// each condition side by side.
+// rejected lines, machine faults, the pollers' reply round trips, and the daemon's CPU time (all
+// threads, and its I/O thread alone); then each condition's median and range side by side.
 //
 // Each run starts a fresh feedloopd (the binary, as users run it: SCHED_FIFO and mlockall when
 // permitted) with its runtime and state directories in a temporary directory, streams the G-code
 // file through feedloop.sock as a Marlin host (window of 4 lines, like `feedloop print`) with
 // heater waits (M109/M190) sent as plain set-points (the bench measures motion, not heating),
 // stops sending after --seconds of streaming (0: the whole file), waits for the machine to go
-// idle, and reads the counters through the JSON API before and after.
+// idle (or to stop on a fault), and reads the counters through the JSON API before and after.
+// --priority 0 runs the servo thread without SCHED_FIFO, as for a user without CAP_SYS_NICE.
 //
-//   build/bench/clients/bench_clients [--clients 50] [--poll-ms 10] [--reps 3] [--seconds 30]
-//        [--file examples/gcode/cube20_3layers.gcode] [--feedloopd PATH] [--json FILE]
+//   build/bench/clients/bench_clients [--clients 50] [--poll-ms 10] [--reps 3] [--seconds 10]
+//        [--priority PRIO] [--file examples/gcode/cube20_3layers.gcode] [--feedloopd PATH]
+//        [--json FILE]
 #include <fcntl.h>       // open
 #include <poll.h>        // poll
 #include <signal.h>      // kill
@@ -51,7 +53,7 @@ struct Args {
   int clients = 50;
   double poll_ms = 10.0;
   int reps = 3;
-  double seconds = 30.0;
+  double seconds = 10.0;  // the daemon takes ~43 s of the cube's motion in the first 0.1 s
   std::string file = "examples/gcode/cube20_3layers.gcode";
   std::string feedloopd = FEEDLOOPD_PATH;
   std::string json_path;
@@ -221,9 +223,11 @@ StreamResult stream(const std::string& sock, const std::vector<std::string>& lin
       ++in_flight;
     }
     if (in_flight == 0 && !(next < lines.size() && (seconds <= 0 || since_s(t0) < seconds))) break;
-    auto reply = c.read_line(60.0);
+    // The machine takes tens of seconds of motion at once; an `ok` can be that far away (the
+    // daemon's "echo:busy" keepalives come every 2 s meanwhile).
+    auto reply = c.read_line(120.0);
     if (!reply) {
-      r.error = "no reply from the G-code socket within 60 s";
+      r.error = "no reply from the G-code socket within 120 s";
       return r;
     }
     if (reply->rfind("Error:", 0) == 0) {
@@ -238,8 +242,10 @@ StreamResult stream(const std::string& sock, const std::vector<std::string>& lin
   return r;
 }
 
-double cpu_s_of(pid_t pid) {
-  std::ifstream f("/proc/" + std::to_string(pid) + "/stat");
+// CPU time (user + system) of a process, or of one of its threads.
+double cpu_s_of(pid_t pid, pid_t tid = 0) {
+  std::ifstream f("/proc/" + std::to_string(pid) +
+                  (tid ? "/task/" + std::to_string(tid) : std::string()) + "/stat");
   std::string s((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   const size_t rp = s.rfind(')');
   if (rp == std::string::npos) return 0;
@@ -260,7 +266,8 @@ struct Run {
   bool sched_fifo = true;
   uint64_t deadline_misses = 0, cycles = 0, lost_steps = 0, late_cycles = 0, rejected = 0;
   uint64_t lines_sent = 0, error_replies = 0;
-  double p99_us = 0, max_us = 0, print_s = 0, daemon_cpu_s = 0;
+  std::string fault;  // the machine stopped with this error
+  double p99_us = 0, max_us = 0, print_s = 0, daemon_cpu_s = 0, io_cpu_s = 0;
   uint64_t replies = 0, failures = 0;
   int pollers_connected = 0;
   double reply_p50_ms = 0, reply_p99_ms = 0, reply_max_ms = 0;
@@ -319,7 +326,10 @@ Run run_once(const Args& a, const std::vector<std::string>& program, int clients
     std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
     r.sched_fifo = text.find("SCHED_FIFO") == std::string::npos;
     std::error_code ec;
-    std::filesystem::remove_all(dir, ec);
+    if (r.ok)
+      std::filesystem::remove_all(dir, ec);
+    else
+      r.error += " (daemon log kept: " + log + ")";
   };
   const std::string api = dir + "/api.sock", sock = dir + "/feedloop.sock";
   Conn control;
@@ -338,17 +348,21 @@ Run run_once(const Args& a, const std::vector<std::string>& program, int clients
       std::chrono::milliseconds(1000));  // every poller connected and polling
   const auto s0 = request_status(control, 1);
   const double cpu0 = cpu_s_of(pid);
+  const double io0 = cpu_s_of(pid, pid);  // the main thread is the daemon's I/O thread
   const auto t0 = Clock::now();
   StreamResult sr = stream(sock, program, a.seconds);
   // The queued motion runs out.
   std::optional<json> s1;
   for (int i = 0; sr.ok && i < 1200; ++i) {
     s1 = request_status(control, 2 + i);
-    if (!s1 || (s1->at("state") == "idle" && s1->at("queue").at("depth") == 0)) break;
+    if (!s1 || s1->at("state") == "error" ||
+        (s1->at("state") == "idle" && s1->at("queue").at("depth") == 0))
+      break;
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
   r.print_s = since_s(t0);
   r.daemon_cpu_s = cpu_s_of(pid) - cpu0;
+  r.io_cpu_s = cpu_s_of(pid, pid) - io0;
   stop.store(true);
   for (auto& t : threads) t.join();
   finish();
@@ -362,6 +376,7 @@ Run run_once(const Args& a, const std::vector<std::string>& program, int clients
     r.lost_steps = u64(*s1, "motion", "lost_step_events") - u64(*s0, "motion", "lost_step_events");
     r.late_cycles = u64(*s1, "motion", "late_cycles") - u64(*s0, "motion", "late_cycles");
     r.rejected = u64(*s1, "commands", "rejected") - u64(*s0, "commands", "rejected");
+    if (s1->at("state") == "error") r.fault = s1->at("last_error").get<std::string>();
     r.p99_us = s1->at("servo").at("latency_us").at("p99").get<double>();
     r.max_us = s1->at("servo").at("latency_us").at("max").get<double>();
   } catch (const json::exception& e) {
@@ -405,6 +420,7 @@ json to_json(const Run& r) {
           {"rep", r.rep},
           {"ok", r.ok},
           {"error", r.error},
+          {"fault", r.fault},
           {"sched_fifo", r.sched_fifo},
           {"seconds", r.print_s},
           {"servo_cycles", r.cycles},
@@ -422,7 +438,8 @@ json to_json(const Run& r) {
           {"reply_p50_ms", r.reply_p50_ms},
           {"reply_p99_ms", r.reply_p99_ms},
           {"reply_max_ms", r.reply_max_ms},
-          {"daemon_cpu_s", r.daemon_cpu_s}};
+          {"daemon_cpu_s", r.daemon_cpu_s},
+          {"io_thread_cpu_s", r.io_cpu_s}};
 }
 
 int usage() {
@@ -475,9 +492,9 @@ int main(int argc, char** argv) {
           ? ("streaming stops after " + std::to_string(static_cast<int>(a.seconds)) + " s").c_str()
           : "whole file",
       a.clients, a.poll_ms, a.reps);
-  std::printf("%-8s %3s %7s %7s %7s %9s %9s %5s %5s %8s %8s %9s %8s %8s %7s\n", "clients", "rep",
-              "time_s", "cycles", "misses", "p99_us", "max_us", "lost", "late", "rejected",
-              "err_rep", "replies/s", "rtt_p50", "rtt_p99", "cpu_s");
+  std::printf("%-8s %3s %7s %7s %7s %9s %9s %5s %5s %8s %8s %9s %8s %8s %7s %7s\n", "clients",
+              "rep", "time_s", "cycles", "misses", "p99_us", "max_us", "lost", "late", "rejected",
+              "err_rep", "replies/s", "rtt_p50", "rtt_p99", "cpu_s", "io_cpu");
   std::vector<Run> runs;
   for (int rep = 0; rep < a.reps; ++rep) {
     // A B, then B A: interleaved so that a slow stretch of the shared machine hits both.
@@ -489,7 +506,7 @@ int main(int argc, char** argv) {
       } else {
         std::printf(
             "%-8d %3d %7.1f %7llu %7llu %9.1f %9.1f %5llu %5llu %8llu %8llu %9.0f %8.2f %8.2f "
-            "%7.2f%s\n",
+            "%7.2f %7.2f%s\n",
             n, rep + 1, r.print_s, static_cast<unsigned long long>(r.cycles),
             static_cast<unsigned long long>(r.deadline_misses), r.p99_us, r.max_us,
             static_cast<unsigned long long>(r.lost_steps),
@@ -497,7 +514,8 @@ int main(int argc, char** argv) {
             static_cast<unsigned long long>(r.rejected),
             static_cast<unsigned long long>(r.error_replies),
             static_cast<double>(r.replies) / r.print_s, r.reply_p50_ms, r.reply_p99_ms,
-            r.daemon_cpu_s, r.sched_fifo ? "" : "  (no SCHED_FIFO)");
+            r.daemon_cpu_s, r.io_cpu_s, r.sched_fifo ? "" : "  (no SCHED_FIFO)");
+        if (!r.fault.empty()) std::printf("         machine fault: %s\n", r.fault.c_str());
         for (const std::string& e : r.first_errors)
           std::printf("         error reply: %s\n", e.c_str());
         if (n > 0 && (r.pollers_connected < n || r.failures > 0))
@@ -508,23 +526,32 @@ int main(int argc, char** argv) {
       runs.push_back(std::move(r));
     }
   }
-  std::printf("\nmedian of %d reps    %12s %12s\n", a.reps, "0 clients",
+  std::printf("\nmedian [min..max] of %d reps   %17s %26s\n", a.reps, "0 clients",
               (std::to_string(a.clients) + " clients").c_str());
   json summary = json::object();
+  // Median and range of each condition: the two are the same within noise where the ranges
+  // overlap.
   auto row = [&](const char* name, auto field, const char* fmt) {
-    double m[2];
+    std::string cell[2];
+    json j[2];
     for (int k = 0; k < 2; ++k) {
       std::vector<double> v;
       for (const Run& r : runs)
         if (r.ok && (r.clients > 0) == (k == 1)) v.push_back(static_cast<double>(field(r)));
-      m[k] = median(v);
+      if (v.empty()) continue;
+      const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+      char med[32], lo_text[32], hi_text[32];
+      std::snprintf(med, sizeof med, fmt, median(v));
+      std::snprintf(lo_text, sizeof lo_text, fmt, *lo);
+      std::snprintf(hi_text, sizeof hi_text, fmt, *hi);
+      cell[k] = std::string(med) + " [" + lo_text + ".." + hi_text + "]";
+      j[k] = {{"median", median(v)}, {"min", *lo}, {"max", *hi}};
     }
-    char b0[32], b1[32];
-    std::snprintf(b0, sizeof b0, fmt, m[0]);
-    std::snprintf(b1, sizeof b1, fmt, m[1]);
-    std::printf("%-20s %12s %12s\n", name, b0, b1);
-    summary[name] = {{"no_clients", m[0]}, {"clients", m[1]}};
+    std::printf("%-20s %26s %26s\n", name, cell[0].c_str(), cell[1].c_str());
+    summary[name] = {{"no_clients", j[0]}, {"clients", j[1]}};
   };
+  row(
+      "machine_faults", [](const Run& r) { return r.fault.empty() ? 0 : 1; }, "%.0f");
   row(
       "deadline_misses", [](const Run& r) { return r.deadline_misses; }, "%.0f");
   row(
