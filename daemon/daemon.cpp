@@ -239,16 +239,24 @@ void Daemon::add_client(std::shared_ptr<ClientSession> session, Kind kind) {
         Client* cl = find_client(id);
         if (!cl) return;
         if (cl->kind == Kind::kMarlin) {
-          on_marlin_line(*cl, line, too_long);
+          // Every channel handler catches what it throws: the client gets an error, the
+          // connection and the print go on.
+          try {
+            on_marlin_line(*cl, line, too_long);
+          } catch (const std::exception& e) {
+            spdlog::error("{}: internal error on a line: {}", cl->session->name(), e.what());
+            cl->session->send_line(std::string("Error:internal error: ") + e.what());
+            cl->session->send_line("ok");
+          }
           return;
         }
         if (too_long) {
-          cl->session->send_line(json_rpc_error(nullptr, -32700, "request line too long").dump());
+          cl->session->send_line(to_wire(json_rpc_error(nullptr, -32700, "request line too long")));
           return;
         }
         auto weak = std::weak_ptr<ClientSession>(cl->session);
         handle_json_request(*this, *cl->session, line, cl->subscription, [weak](const json& r) {
-          if (auto s = weak.lock()) s->send_line(r.dump());
+          if (auto s = weak.lock()) s->send_line(to_wire(r));
         });
       },
       [this, id](ClientSession&) { asio::post(io_, [this, id] { remove_client(id); }); });
@@ -600,7 +608,7 @@ void Daemon::tick() {
   for (auto& [id, c] : clients_) {
     if (c.kind != Kind::kJson || !c.subscription.status || now < c.next_status_ns) continue;
     if (status_json.is_null()) status_json = status();
-    c.session->send_line(json_rpc_notification("status", status_json).dump(), /*droppable=*/true);
+    c.session->send_line(to_wire(json_rpc_notification("status", status_json)), /*droppable=*/true);
     c.next_status_ns = now + static_cast<int64_t>(c.subscription.interval_ms) * 1'000'000;
   }
   // The print ends when nobody owns the machine any more and it has stopped.

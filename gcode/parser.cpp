@@ -10,6 +10,7 @@
 #include <string>
 
 #include "gcode/code_table.hpp"
+#include "core/utf8.hpp"
 #include "gcode/number.hpp"
 
 namespace feedloop::gcode {
@@ -145,7 +146,7 @@ Status LineParser::parse_words() {
           const std::string_view rest =
               s_.substr(i_, semicolon == std::string_view::npos ? std::string_view::npos
                                                                 : semicolon - i_);
-          out_.text.assign(trim_text(rest));
+          assign_valid_utf8(out_.text, trim_text(rest));  // the outside-string boundary
           return Status::Ok();
         }
       } else {
@@ -257,9 +258,10 @@ void LineParser::keep_as_text() {
   out_.line_number = line_number;
   out_.unknown = true;
   const size_t semicolon = s_.find(';', code_end_);
-  out_.text.assign(trim_text(s_.substr(
-      code_end_, semicolon == std::string_view::npos ? std::string_view::npos
-                                                     : semicolon - code_end_)));
+  assign_valid_utf8(out_.text,
+                    trim_text(s_.substr(code_end_, semicolon == std::string_view::npos
+                                                       ? std::string_view::npos
+                                                       : semicolon - code_end_)));
 }
 
 Status LineParser::validate() const {
