@@ -57,7 +57,7 @@ TEST_F(Channels, UnixSocketSpeaksTheMarlinHostProtocol) {
   ASSERT_TRUE(c.send_line("M114"));
   auto pos = c.read_line();
   ASSERT_TRUE(pos);
-  EXPECT_EQ(pos->rfind("X:12.500 Y:3.000 Z:0.300", 0), 0u) << *pos;
+  EXPECT_EQ(pos->rfind("X:12.50 Y:3.00 Z:0.30", 0), 0u) << *pos;
   EXPECT_EQ(c.read_line(), "ok");
   // A line that fails validation: an error with its location, and nothing executes.
   ASSERT_TRUE(c.send_line("G1 X5 Q7"));
@@ -69,7 +69,7 @@ TEST_F(Channels, UnixSocketSpeaksTheMarlinHostProtocol) {
   ASSERT_TRUE(c.send_line("M114"));
   pos = c.read_line();
   ASSERT_TRUE(pos);
-  EXPECT_EQ(pos->rfind("X:12.500", 0), 0u) << *pos;
+  EXPECT_EQ(pos->rfind("X:12.50 ", 0), 0u) << *pos;
 }
 
 // Per-link telemetry: every MCU of the simulated printer, with its frames, round trips and clock
@@ -123,7 +123,7 @@ TEST_F(Channels, PtyLooksLikeAMarlinSerialPort) {
   ASSERT_TRUE(again.send_line("M114"));
   auto pos = again.read_until("X:");
   ASSERT_TRUE(pos);
-  EXPECT_EQ(pos->rfind("X:4.000 Y:4.000", 0), 0u) << *pos;
+  EXPECT_EQ(pos->rfind("X:4.00 Y:4.00", 0), 0u) << *pos;
 }
 
 TEST_F(Channels, JsonApiAnswersStatusRunsGcodeAndStreamsSubscriptions) {
@@ -137,7 +137,7 @@ TEST_F(Channels, JsonApiAnswersStatusRunsGcodeAndStreamsSubscriptions) {
                         {"params", {{"script", "G91\nG1 X7 Y2\nG1 X1\nM114"}}}});
   ASSERT_TRUE(run.contains("result")) << run.dump();
   ASSERT_EQ(run["result"]["results"].size(), 4u);
-  EXPECT_EQ(run["result"]["results"][3]["reply"].get<std::string>().rfind("X:8.000 Y:2.000", 0), 0u);
+  EXPECT_EQ(run["result"]["results"][3]["reply"].get<std::string>().rfind("X:8.00 Y:2.00", 0), 0u);
 
   json st = call(api, {{"jsonrpc", "2.0"}, {"id", 3}, {"method", "status"}});
   EXPECT_DOUBLE_EQ(st["result"]["position_mm"]["x"].get<double>(), 8.0);
@@ -283,7 +283,7 @@ TEST_F(Channels, OneClientOwnsThePrintAtATime) {
   }
   EXPECT_EQ(reply, "ok");
   ASSERT_TRUE(b.send_line("M114"));
-  EXPECT_EQ(b.read_line()->rfind("X:2.000", 0), 0u);
+  EXPECT_EQ(b.read_line()->rfind("X:2.00 ", 0), 0u);
 }
 
 // Marlin's keepalive: "echo:busy: processing" every 2 s of a blocking command, counted from the
@@ -335,7 +335,7 @@ TEST_F(Channels, OverlongLinesAreRejectedWithoutGrowingMemory) {
   EXPECT_EQ(c.read_line(), "ok");
   EXPECT_EQ(c.read_line(), "ok");  // G1 X3 still runs
   ASSERT_TRUE(c.send_line("M114"));
-  EXPECT_EQ(c.read_line()->rfind("X:3.000", 0), 0u);
+  EXPECT_EQ(c.read_line()->rfind("X:3.00 ", 0), 0u);
 }
 
 TEST_F(Channels, ShutdownUnderLoadStopsPromptlyAndCleansUp) {
