@@ -22,6 +22,7 @@
 #include "config/config.hpp"
 #include "config/machine_config.hpp"
 #include "engine/mcu_bridge.hpp"
+#include "engine/simulated_printer.hpp"
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
 #include "ident/trace.hpp"
