@@ -32,6 +32,7 @@
 #include "drivers/host/mcu_session.hpp"
 #include "drivers/transport/mock_transport.hpp"
 #include "engine/config_mapping.hpp"
+#include "engine/device_loop_link.hpp"
 #include "engine/seqlock.hpp"
 #include "engine/servo_backend.hpp"
 #include "engine/simulated_plant.hpp"
@@ -57,6 +58,7 @@ struct JointTiming {
   uint64_t hash_sent = device::kStepHashSeed;  // step_hash over what was sent
   uint64_t steps_executed = 0;     // steps the plant received
   uint64_t unexpected_steps = 0;   // executed steps that were never sent (must stay 0)
+  uint64_t device_steps = 0;       // steps the device loop added (corrections, stop ramps)
   double max_time_err_us = 0.0;    // max |true step time - intended host time|
 };
 
@@ -83,6 +85,15 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   unsigned long long encoder_reports(int joint) const override;
   double encoder_time_s(int joint) const override;
   void links(LinkTelemetrySet& out) const override { out = links_.load(); }
+  bool device_loop(int joint) const override { return loop_link_.enabled(joint); }
+  void queue_target(int joint, double host_time_s, double r_mm) override;
+  void flush_targets(bool end_of_motion) override;
+  size_t take_device_events(ServoEvent* out, size_t cap) override;
+  unsigned long long device_lost_step_events() const override {
+    return device_slips_.load(std::memory_order_relaxed);
+  }
+  // The device loop's last report of `joint` (servo thread's data: read when it is not running).
+  const DeviceLoopTelemetry& device_loop_telemetry(int joint) const { return loop_link_.telemetry(joint); }
 
   // stepgen::BatchSink (servo thread): StepBatch::axis is the joint index.
   void on_batch(const stepgen::StepBatch& batch) override;
@@ -122,6 +133,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   std::vector<std::unique_ptr<Mcu>> mcus_;
   std::array<int, kJoints> joint_mcu_{{-1, -1, -1, -1}};
   std::array<int, kJoints> joint_motor_{{0, 0, 0, 0}};
+  std::array<std::string, kJoints> joint_names_;
   std::array<double, kJoints> encoder_mm_per_count_{};
   std::array<std::unique_ptr<JointPort>, kJoints> ports_;
   std::unique_ptr<SimulatedPlant> plant_;
@@ -152,6 +164,12 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   std::array<std::atomic<unsigned long long>, kJoints> encoder_reports_{};
   std::array<std::atomic<double>, kJoints> encoder_time_s_{};
   std::vector<drivers::EncoderSample> sample_buffer_;  // servo thread (swapped with the sessions')
+  DeviceLoopLink loop_link_;                           // servo thread
+  std::atomic<unsigned long long> device_slips_{0};
+  void configure_device_loops(double host_s);
+  bool loops_configured_ = false;
+  std::array<ServoEvent, 32> device_events_{};  // since the last take_device_events()
+  size_t device_event_count_ = 0;
 
   mutable std::mutex events_mutex_;  // taken only when an event happens (rare, not steady state)
   std::vector<std::string> events_;

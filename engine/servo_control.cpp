@@ -43,7 +43,9 @@ Result<std::unique_ptr<ServoControl>> ServoControl::create(const ServoControlPar
 }
 
 ServoControl::ServoControl(const ServoControlParams& p, std::unique_ptr<control::Feedforward> ff)
-    : p_(p), closed_loop_(p.control.mode == config::ControlMode::pi), ff_(std::move(ff)) {
+    : p_(p),
+      closed_loop_(p.control.mode == config::ControlMode::pi && p.control.loop == config::ControlLoop::host),
+      ff_(std::move(ff)) {
   ff_inverts_ = ff_->inverts_model();
 }
 

@@ -275,7 +275,7 @@ void VirtualMcu::receive(const uint8_t* data, size_t n, double t_s) {
 
 void VirtualMcu::do_extra_step(Axis& a) {
   const int dir = a.extra_left > 0 ? 1 : -1;
-  if (a.port != nullptr) a.port->step(true_time_at(a.extra_next_clock), dir);
+  if (a.port != nullptr) a.port->device_step(true_time_at(a.extra_next_clock), dir);
   a.st.device_steps += dir;
   ++a.st.device_steps_executed;
   a.extra_left -= dir;
