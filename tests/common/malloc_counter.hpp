@@ -13,7 +13,10 @@
 #include <cstddef>
 
 #if defined(FEEDLOOP_SANITIZED)
-#include <sanitizer/allocator_interface.h>
+// sanitizer/allocator_interface.h ships with clang, not with GCC; GCC's libsanitizer exports the
+// same function.
+extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*, std::size_t),
+                                                         void (*free_hook)(const volatile void*));
 #define FEEDLOOP_COUNT_MALLOC 1
 namespace {
 std::atomic<bool> g_counting{false};
