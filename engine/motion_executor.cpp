@@ -25,7 +25,7 @@ void MotionExecutor::set_control(std::unique_ptr<ServoControl> control) {
   control_ = std::move(control);
   // Samples between the feedback instant (now) and the newest command (control_lead_s ahead).
   const double period_s = pcfg_.servo_period_s;
-  history_.assign(static_cast<size_t>(std::max(options_.control_lead_s, options_.lead_s) / period_s) + 16, Sample{});
+  history_.assign(static_cast<size_t>(std::max(options_.control_lead_s, options_.lead_s + kDeviceHorizonSlack_s) / period_s) + 16, Sample{});
 }
 
 Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) {
@@ -212,6 +212,18 @@ void MotionExecutor::publish_settling(double now_s, bool was_anchored) {
 
 void MotionExecutor::run_cycle(double now_s, bool cancel) {
   bool anchored = telemetry_.anchored.load(std::memory_order_relaxed);
+  // Device loop: the MCUs hold r(t) and the steps for command_lead_s; a motion stage that woke
+  // later than that (less the device's 20 ms horizon margin and a knot's 10 ms) finds them
+  // braking. Named here, before the MCUs' stop reports arrive, so the message says why.
+  const double gap_s = now_s - last_cycle_s_;
+  last_cycle_s_ = now_s;
+  if (device_loop_ && anchored && gap_s > command_lead_s() - kDeviceHorizonSlack_s && !control_fault_.load()) {
+    std::snprintf(control_fault_text_, sizeof control_fault_text_,
+                  "host stalled: the motion stage woke %.0f ms late, more than the %.0f ms of motion the "
+                  "MCUs had queued; they stopped in a controlled stop",
+                  gap_s * 1e3, (command_lead_s() - kDeviceHorizonSlack_s) * 1e3);
+    control_fault_.store(true);
+  }
   if (backend_ != nullptr) {
     backend_->service(now_s);
     if (backend_->fault()) {  // an MCU is gone or stopped: stop everything, resync afterwards

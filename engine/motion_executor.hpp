@@ -157,9 +157,14 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   bool device_loop_ = false;  // some joint's PI runs on its MCU: r(t) is streamed to it
   // How far ahead the sampled path commands: the host loop's delay, or with the device loop as
   // far ahead as the steps (the MCUs must hold r(t) for a stall of that length).
+  // The device stops when r's queue ends within its 20 ms horizon margin, and a knot may wait 10 ms
+  // in the compressor: the lead covers that on top of lead_s, so a stall up to lead_s is harmless.
+  static constexpr double kDeviceHorizonSlack_s = 0.035;
   double command_lead_s() const {
-    return device_loop_ ? std::max(options_.control_lead_s, options_.lead_s) : options_.control_lead_s;
+    return device_loop_ ? std::max(options_.control_lead_s, options_.lead_s + kDeviceHorizonSlack_s)
+                        : options_.control_lead_s;
   }
+  double last_cycle_s_ = 0.0;
   std::unique_ptr<planner::MoveTimeline> timeline_;
   struct Sample {  // one command sample, kept for the feedback comparison
     double t_s = 0.0;

@@ -75,12 +75,20 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   int64_t now_ns = 1'000'000'000;
   const int64_t end_ns = now_ns + static_cast<int64_t>(options.timeout_s * 1e9);
   std::atomic<bool> cancel{false};
+  size_t next_stall = 0;
+  int64_t ready_ns = -1;
   auto cycle = [&] {
     now_ns += period_ns;
+    if (ready_ns >= 0 && next_stall < options.stalls.size() &&
+        now_ns - ready_ns >= static_cast<int64_t>(options.stalls[next_stall].at_s * 1e9)) {
+      now_ns += static_cast<int64_t>(std::llround(options.stalls[next_stall].duration_s * 1e9));
+      ++next_stall;
+    }
     ex.servo_cycle(now_ns, false);
   };
   while (!bridge.ready() && now_ns < end_ns) cycle();
   if (!bridge.ready()) return Error{"run_simulated: the simulated MCUs did not become ready"};
+  ready_ns = now_ns;
 
   int line_no = 0;
   for (const std::string& line : gcode_lines) {
