@@ -244,6 +244,17 @@ void Daemon::add_client(std::shared_ptr<ClientSession> session, Kind kind) {
     po.defer_ok = true;
     c.protocol = std::make_unique<gcode::HostProtocol>(session->name(), po);
   }
+  session->set_limits(kind == Kind::kJson ? options_.api_limits : options_.marlin_limits);
+  if (kind == Kind::kMarlin) {
+    session->set_urgent(
+        [](std::string_view line) { return gcode::HostProtocol::is_emergency_stop(line); });
+  } else {
+    // A stop request never waits behind the client's other requests or its rate limit (a false
+    // positive, e.g. the word in a G-code comment, is only handled early).
+    session->set_urgent([](std::string_view line) {
+      return line.find("\"emergency_stop\"") != std::string_view::npos;
+    });
+  }
   session->set_handlers(
       [this, id](ClientSession&, std::string_view line, bool too_long) {
         Client* cl = find_client(id);
@@ -265,9 +276,10 @@ void Daemon::add_client(std::shared_ptr<ClientSession> session, Kind kind) {
           return;
         }
         auto weak = std::weak_ptr<ClientSession>(cl->session);
-        handle_json_request(*this, *cl->session, line, cl->subscription, [weak](const json& r) {
-          if (auto s = weak.lock()) s->send_line(to_wire(r));
-        });
+        handle_json_request_wire(*this, *cl->session, line, cl->subscription,
+                                 [weak](std::string wire) {
+                                   if (auto s = weak.lock()) s->send_line(wire);
+                                 });
       },
       [this, id](ClientSession&) { asio::post(io_, [this, id] { remove_client(id); }); });
   spdlog::debug("client {} connected", session->name());
@@ -463,6 +475,7 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
   // last tick happened to see it idle (a command sent right after connecting got "busy" at once).
   if (c.in_flight == 0 && !c.parked) c.last_progress_ns = clock_.now_ns();
   ++c.in_flight;
+  c.session->refund();  // paced by the machine's queue, not by the client's rate limit
   if (!machine_->try_submit(ticket, cmd)) {
     c.parked = Parked{ticket, cmd};
     c.session->pause_reading();  // backpressure: the host waits for our ok
@@ -517,7 +530,11 @@ void Daemon::run_script(ClientSession& client, std::string script,
     s->lines.push_back(script.substr(b, e - b));
     b = e + 1;
   }
-  s->done = std::move(done);
+  // The client's next status shows what its script did: the snapshot is renewed after it.
+  s->done = [this, done = std::move(done)](json result, std::string error) {
+    snapshot_.stale = true;
+    done(std::move(result), std::move(error));
+  };
   run_script_step(s);
 }
 
@@ -566,6 +583,7 @@ void Daemon::run_script_step(std::shared_ptr<Script> s) {
 void Daemon::emergency_stop(const std::string& reason) {
   spdlog::error("emergency stop: {}", reason);
   machine_->emergency_stop(reason);
+  snapshot_.stale = true;
 }
 
 json Daemon::info() const {
@@ -645,6 +663,25 @@ json Daemon::status() const {
           {"last_error", s.last_error}};
 }
 
+std::shared_ptr<const std::string> Daemon::status_text() {
+  const int64_t now = clock_.now_ns();
+  if (snapshot_.text && !snapshot_.stale &&
+      now - snapshot_.taken_ns < static_cast<int64_t>(options_.status_period_ms) * 1'000'000)
+    return snapshot_.text;
+  json s = status();
+  s["snapshot"] = {{"seq", ++snapshot_.seq}, {"period_ms", options_.status_period_ms}};
+  snapshot_.text = std::make_shared<const std::string>(to_wire(s));
+  // {"jsonrpc":"2.0","method":"status","params":...}: what to_wire(json_rpc_notification()) makes.
+  snapshot_.notification.clear();
+  snapshot_.notification.reserve(snapshot_.text->size() + 48);
+  snapshot_.notification += R"({"jsonrpc":"2.0","method":"status","params":)";
+  snapshot_.notification += *snapshot_.text;
+  snapshot_.notification += '}';
+  snapshot_.taken_ns = now;
+  snapshot_.stale = false;
+  return snapshot_.text;
+}
+
 void Daemon::tick() {
   if (shutting_down_) return;
   retry_parked();
@@ -669,12 +706,19 @@ void Daemon::tick() {
       c.last_progress_ns = now;
     }
   }
-  // Status subscriptions (notifications are droppable for slow readers).
-  json status_json;
+  // Lines waiting for their turn or for the rate limit; flooding clients are dropped here.
+  {
+    std::vector<std::shared_ptr<ClientSession>> sessions;
+    sessions.reserve(clients_.size());
+    for (auto& [id, c] : clients_)
+      if (c.session->queued_lines() > 0) sessions.push_back(c.session);
+    for (auto& s : sessions) s->service();
+  }
+  // Status subscriptions, from the snapshot (notifications are droppable for slow readers).
   for (auto& [id, c] : clients_) {
     if (c.kind != Kind::kJson || !c.subscription.status || now < c.next_status_ns) continue;
-    if (status_json.is_null()) status_json = status();
-    c.session->send_line(to_wire(json_rpc_notification("status", status_json)), /*droppable=*/true);
+    status_text();
+    c.session->send_line(snapshot_.notification, /*droppable=*/true);
     c.next_status_ns = now + static_cast<int64_t>(c.subscription.interval_ms) * 1'000'000;
   }
   if (const std::string summary = rejected_log_.flush(now); !summary.empty())

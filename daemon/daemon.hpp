@@ -27,6 +27,7 @@
 #include "config/machine_config.hpp"
 #include "core/clock.hpp"
 #include "core/result.hpp"
+#include "daemon/client_session.hpp"
 #include "daemon/json_api.hpp"
 #include "daemon/listeners.hpp"
 #include "daemon/repeat_filter.hpp"
@@ -44,6 +45,12 @@ struct DaemonOptions {
   // Simulated printers only: the machine runs in virtual time, as fast as the CPU allows (the
   // same pipeline; for tests and demos). Channels and timers stay in real time.
   bool virtual_time = false;
+  // Client I/O (client_session.hpp): JSON API requests, and Marlin lines that do not go to the
+  // machine (queries, errors, refusals; machine commands are paced by the machine's queue).
+  InputLimits api_limits{200.0, 200.0, 5.0, 16};
+  InputLimits marlin_limits{1000.0, 1000.0, 5.0, 16};
+  // `status` replies and notifications come from a snapshot at most this old (ms).
+  int status_period_ms = 10;
 };
 
 class Daemon final : public JsonApiBackend {
@@ -71,6 +78,7 @@ class Daemon final : public JsonApiBackend {
   // JsonApiBackend
   nlohmann::json info() const override;
   nlohmann::json status() const override;
+  std::shared_ptr<const std::string> status_text() override;
   void run_script(ClientSession& client, std::string script,
                   std::function<void(nlohmann::json, std::string)> done) override;
   void emergency_stop(const std::string& reason) override;
@@ -175,6 +183,16 @@ class Daemon final : public JsonApiBackend {
   RepeatFilter rejected_log_;     // "command rejected" warnings: one line plus a count
   std::string display_message_;  // M117
   int progress_percent_ = -1;    // M73 P
+  // The status snapshot: serialised at most every status_period_ms, shared by every reply and
+  // notification until the next (a JSON gcode request's end and an emergency stop renew it).
+  struct StatusSnapshot {
+    std::shared_ptr<const std::string> text;
+    std::string notification;  // the "status" notification around `text`
+    int64_t taken_ns = 0;
+    uint64_t seq = 0;
+    bool stale = true;
+  };
+  StatusSnapshot snapshot_;
 };
 
 }  // namespace feedloop::daemon

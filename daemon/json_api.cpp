@@ -23,7 +23,31 @@ json json_rpc_notification(const std::string& method, json params) {
   return json{{"jsonrpc", "2.0"}, {"method", method}, {"params", std::move(params)}};
 }
 
+std::string result_wire(const json& id, std::string_view result_text) {
+  // nlohmann's objects keep their keys sorted: "id", "jsonrpc", "result".
+  std::string out;
+  const std::string id_text = to_wire(id);
+  out.reserve(result_text.size() + id_text.size() + 32);
+  out += "{\"id\":";
+  out += id_text;
+  out += ",\"jsonrpc\":\"2.0\",\"result\":";
+  out += result_text;
+  out += '}';
+  return out;
+}
+
+std::shared_ptr<const std::string> JsonApiBackend::status_text() {
+  return std::make_shared<const std::string>(to_wire(status()));
+}
+
 namespace {
+
+// One reply: a JSON value, or text already serialised (the status snapshot spliced in).
+struct Reply {
+  const json* value = nullptr;
+  std::string_view wire;
+};
+using ReplyFn = std::function<void(const Reply&)>;
 
 json result_of(const json& id, json result) {
   return json{{"jsonrpc", "2.0"}, {"id", id}, {"result", std::move(result)}};
@@ -61,7 +85,8 @@ json request_id(const json& req) {
 }
 
 void dispatch(JsonApiBackend& backend, ClientSession& client, const json& req,
-              Subscription& subscription, const std::function<void(const json&)>& reply) {
+              Subscription& subscription, const ReplyFn& out) {
+  auto reply = [&out](const json& r) { out(Reply{&r, {}}); };
   if (!req.is_object() || req.value("jsonrpc", "") != "2.0" || !req.contains("method") ||
       !req["method"].is_string()) {
     reply(json_rpc_error(
@@ -89,7 +114,10 @@ void dispatch(JsonApiBackend& backend, ClientSession& client, const json& req,
   if (method == "info") {
     respond(result_of(id, backend.info()));
   } else if (method == "status") {
-    respond(result_of(id, backend.status()));
+    if (notification) return;
+    const std::shared_ptr<const std::string> text = backend.status_text();
+    const std::string wire = result_wire(id, *text);
+    out(Reply{nullptr, wire});
   } else if (method == "subscribe" || method == "unsubscribe") {
     const bool on = method == "subscribe";
     Subscription next = subscription;
@@ -116,12 +144,11 @@ void dispatch(JsonApiBackend& backend, ClientSession& client, const json& req,
       return;
     }
     backend.run_script(client, params["script"].get<std::string>(),
-                       [reply, id, notification](json result, std::string error) {
+                       [out, id, notification](json result, std::string error) {
                          if (notification) return;
-                         if (!error.empty())
-                           reply(json_rpc_error(id, -32000, error));
-                         else
-                           reply(result_of(id, std::move(result)));
+                         const json r = !error.empty() ? json_rpc_error(id, -32000, error)
+                                                       : result_of(id, std::move(result));
+                         out(Reply{&r, {}});
                        });
   } else if (method == "emergency_stop") {
     std::string reason = "requested over the JSON API";
@@ -136,11 +163,9 @@ void dispatch(JsonApiBackend& backend, ClientSession& client, const json& req,
   }
 }
 
-}  // namespace
-
-void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::string_view line,
-                         Subscription& subscription,
-                         const std::function<void(const json&)>& reply) {
+void handle_request(JsonApiBackend& backend, ClientSession& client, std::string_view line,
+                    Subscription& subscription, const ReplyFn& out) {
+  auto reply = [&out](const json& r) { out(Reply{&r, {}}); };
   // The outside-string boundary (core/utf8.hpp): a request must be UTF-8 (RFC 8259 Sect. 8.1).
   // Checked here so the error can say where, and so no invalid byte reaches a reply.
   {
@@ -186,12 +211,33 @@ void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::st
     return;
   }
   try {
-    dispatch(backend, client, req, subscription, reply);
+    dispatch(backend, client, req, subscription, out);
   } catch (const std::exception& e) {
     // A handler's failure is this request's error, never the daemon's end.
     reply(json_rpc_error(request_id(req), -32603,
                          std::string("internal error: ") + valid_utf8(e.what())));
   }
+}
+
+}  // namespace
+
+// `reply` is copied: a gcode request answers after this call has returned.
+void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::string_view line,
+                         Subscription& subscription,
+                         const std::function<void(const json&)>& reply) {
+  handle_request(backend, client, line, subscription, [reply](const Reply& r) {
+    if (r.value != nullptr) reply(*r.value);
+    else reply(json::parse(r.wire));
+  });
+}
+
+void handle_json_request_wire(JsonApiBackend& backend, ClientSession& client, std::string_view line,
+                              Subscription& subscription,
+                              const std::function<void(std::string wire)>& reply) {
+  handle_request(backend, client, line, subscription, [reply](const Reply& r) {
+    if (r.value != nullptr) reply(to_wire(*r.value));
+    else reply(std::string(r.wire));
+  });
 }
 
 }  // namespace feedloop::daemon

@@ -12,6 +12,9 @@
 //   gcode {script}            -> runs the lines as this client (print ownership applies); the
 //                                response comes when every line has executed: {results:[...]}
 //   emergency_stop {reason}
+// `status` is served from a snapshot (JsonApiBackend::status_text): the daemon serialises the
+// status at most once per period and every client gets that same text, spliced into its reply;
+// the snapshot carries {"snapshot": {"seq", "period_ms"}}.
 // Errors use JSON-RPC codes: -32700 parse error (with the column), -32600 invalid request,
 // -32601 unknown method, -32602 invalid params, -32603 internal error, -32000 machine error.
 // No request can end the daemon: a line that is not valid UTF-8, a number out of range (an "id"
@@ -21,6 +24,7 @@
 #include <nlohmann/json.hpp>
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <string_view>
 
@@ -34,6 +38,10 @@ class JsonApiBackend {
   virtual ~JsonApiBackend() = default;
   virtual nlohmann::json info() const = 0;
   virtual nlohmann::json status() const = 0;
+  // The status object serialised (to_wire), shared by the replies until the next snapshot. The
+  // default serialises status() for every call; the daemon's is a snapshot taken at most once
+  // per period.
+  virtual std::shared_ptr<const std::string> status_text();
   // Runs a G-code script for `client`; `done` receives {results:[{line, ok, error?, reply?}]}
   // or an error message (e.g. not the print owner) on the I/O thread.
   virtual void run_script(ClientSession& client, std::string script,
@@ -53,6 +61,16 @@ struct Subscription {
 void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::string_view line,
                          Subscription& subscription,
                          const std::function<void(const nlohmann::json&)>& reply);
+
+// The same with every reply already serialised (to_wire) and without its '\n': the daemon's form,
+// which splices the shared status text into `status` replies instead of building them.
+void handle_json_request_wire(JsonApiBackend& backend, ClientSession& client, std::string_view line,
+                              Subscription& subscription,
+                              const std::function<void(std::string wire)>& reply);
+
+// `{"id":ID,"jsonrpc":"2.0","result":RESULT}` around an already serialised result: byte for byte
+// what to_wire() makes of the same reply.
+std::string result_wire(const nlohmann::json& id, std::string_view result_text);
 
 nlohmann::json json_rpc_error(const nlohmann::json& id, int code, const std::string& message);
 // The one way the daemon serialises JSON for the wire: never throws. A string that is not valid

@@ -256,7 +256,7 @@ TEST_F(HostileInput, HostileLinesGetAnErrorAndThePrintGoesOn) {
   EXPECT_DOUBLE_EQ(st["result"]["position_mm"]["y"].get<double>(), 29.0);
   EXPECT_EQ(st["result"]["last_error"], "");
   ASSERT_TRUE(printer.send_line("M114"));
-  EXPECT_EQ(printer.read_line()->rfind("X:20.00 Y:29.00", 0), 0u);
+  EXPECT_EQ(printer.read_line()->rfind("X:20.00 Y:29.00 ", 0), 0u);
 }
 
 TEST_F(Channels, OneClientOwnsThePrintAtATime) {

@@ -36,6 +36,7 @@ class DaemonFixture : public ::testing::Test {
     customize(cfg);
     daemon::DaemonOptions options{"", 0.3};
     options.virtual_time = virtual_time();
+    customize_options(options);
     daemon_ = std::make_unique<daemon::Daemon>(cfg, options);
     Status s = daemon_->start();
     ASSERT_TRUE(s.ok()) << s.error().to_string();
@@ -49,6 +50,7 @@ class DaemonFixture : public ::testing::Test {
     std::filesystem::remove_all(dir_, ec);
   }
   virtual void customize(config::MachineConfig&) {}
+  virtual void customize_options(daemon::DaemonOptions&) {}
   virtual bool virtual_time() const { return false; }  // feedloopd --virtual-time
 
   std::string dir_;
