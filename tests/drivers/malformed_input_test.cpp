@@ -1,0 +1,273 @@
+// What the fuzz targets found on the MCU link (fuzz/corpus/mcu_host/regress_*,
+// fuzz/corpus/mcu_device/regress_*): malformed messages that pass the CRC are refused whole, with
+// a message, and never reach arithmetic that overflows or a motor that steps back in time.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "drivers/device/virtual_mcu.hpp"
+#include "drivers/host/mcu_session.hpp"
+#include "drivers/protocol/messages.hpp"
+#include "drivers/protocol/reliable_link.hpp"
+#include "drivers/stepgen/run_codec.hpp"
+
+namespace feedloop::drivers {
+namespace {
+
+using protocol::MsgType;
+using protocol::MsgWriter;
+
+// A device played by the test: its messages go to the session over a real link.
+class ScriptedDevice final : public Transport,
+                             private protocol::FrameOutput,
+                             private protocol::PayloadHandler {
+ public:
+  ScriptedDevice() { link_.configure({}, this, this); }
+  Status open() override { return Status::Ok(); }
+  void close() override {}
+  bool connected() const override { return true; }
+  Status write(const uint8_t* data, size_t n) override {
+    link_.on_bytes(data, n, 0);
+    return Status::Ok();
+  }
+  Result<size_t> read(uint8_t* buf, size_t cap) override {
+    const size_t n = std::min(cap, rx_.size());
+    std::memcpy(buf, rx_.data(), n);
+    rx_.erase(rx_.begin(), rx_.begin() + static_cast<std::ptrdiff_t>(n));
+    return n;
+  }
+  void poll(double, double) override {}
+  std::string describe() const override { return "scripted"; }
+  void send(const MsgWriter& w, const uint8_t* buf) { link_.send(buf, w.size(), 0); }
+
+ private:
+  void write_frame(const uint8_t* f, size_t n) override { rx_.insert(rx_.end(), f, f + n); }
+  void on_payload(const uint8_t*, size_t) override {}
+  protocol::ReliableLink link_;
+  std::vector<uint8_t> rx_;
+};
+
+struct HostRig {
+  ScriptedDevice dev;
+  McuSession session{[] {
+                       McuSessionParams p;
+                       p.name = "x";
+                       return p;
+                     }(),
+                     dev};
+  double now = 0.0;
+  HostRig() { EXPECT_TRUE(session.start(now).ok()); }
+  void identify(uint64_t hz, uint8_t axis_byte) {
+    uint8_t b[32];
+    MsgWriter w(b, sizeof b);
+    w.u8(static_cast<uint8_t>(MsgType::kIdentifyResponse))
+        .u16(protocol::kProtocolVersion)
+        .var(hz)
+        .u8(axis_byte)
+        .u8(0);
+    dev.send(w, b);
+    poll();
+  }
+  void poll() {
+    now += 1e-3;
+    session.poll(now);
+  }
+  bool has_event(const std::string& part) {
+    for (const std::string& e : session.take_events())
+      if (e.find(part) != std::string::npos) return true;
+    return false;
+  }
+};
+
+TEST(McuSessionInput, IdentifyWithAZeroClockFailsTheSessionNamingTheMcu) {
+  HostRig rig;
+  rig.identify(0, 0);  // fuzz/corpus/mcu_host/regress_identify_zero_hz
+  EXPECT_EQ(rig.session.state(), McuState::kFailed);
+  ASSERT_TRUE(rig.session.error().has_value());
+  EXPECT_NE(rig.session.error()->message.find("MCU 'x'"), std::string::npos)
+      << rig.session.error()->message;
+  EXPECT_NE(rig.session.error()->message.find("clock of 0 Hz"), std::string::npos)
+      << rig.session.error()->message;
+}
+
+TEST(McuSessionInput, IdentifyWithAClockAbove32BitsOrNineMotorsFails) {
+  HostRig big;
+  big.identify(uint64_t{1} << 32, 0);
+  EXPECT_EQ(big.session.state(), McuState::kFailed);
+  HostRig board;
+  board.identify(20'000'000, 0x80 | 9);
+  EXPECT_EQ(board.session.state(), McuState::kFailed);
+  EXPECT_NE(board.session.error()->message.find("9 motors"), std::string::npos)
+      << board.session.error()->message;
+  HostRig ok;
+  ok.identify(20'000'000, 0x80 | 4);
+  EXPECT_TRUE(ok.session.ready());
+  EXPECT_EQ(ok.session.mcu_axes(), 4);
+  EXPECT_EQ(ok.session.mcu_clock_hz(), 20'000'000u);
+}
+
+TEST(McuSessionInput, EncoderReportWhoseClocksOverflowIsIgnoredWhole) {
+  HostRig rig;
+  rig.identify(20'000'000, 0);
+  ASSERT_TRUE(rig.session.ready());
+  uint8_t b[64];
+  // fuzz/corpus/mcu_host/regress_encoder_clock_overflow: first + i * period beyond 2^63.
+  MsgWriter bad(b, sizeof b);
+  bad.u8(static_cast<uint8_t>(MsgType::kEncoderReport))
+      .u8(0)
+      .var(uint64_t{1} << 62)
+      .var(uint64_t{1} << 62)
+      .var(3);
+  bad.zz(5).zz(1).zz(1);
+  rig.dev.send(bad, b);
+  rig.poll();
+  std::vector<EncoderSample> samples;
+  EXPECT_EQ(rig.session.take_encoder_samples(samples), 0u);
+  EXPECT_TRUE(rig.has_event("malformed encoder report"));
+  // Counts that overflow: also refused whole.
+  MsgWriter counts(b, sizeof b);
+  counts.u8(static_cast<uint8_t>(MsgType::kEncoderReport))
+      .u8(0)
+      .var(1000)
+      .var(10)
+      .var(2)
+      .zz(INT64_MAX)
+      .zz(1);
+  rig.dev.send(counts, b);
+  rig.poll();
+  EXPECT_EQ(rig.session.take_encoder_samples(samples), 0u);
+  // A good report after them arrives sample by sample.
+  MsgWriter good(b, sizeof b);
+  good.u8(static_cast<uint8_t>(MsgType::kEncoderReport))
+      .u8(0)
+      .var(1000)
+      .var(10)
+      .var(3)
+      .zz(5)
+      .zz(2)
+      .zz(-4);
+  rig.dev.send(good, b);
+  rig.poll();
+  ASSERT_EQ(rig.session.take_encoder_samples(samples), 3u);
+  EXPECT_EQ(samples[2].clock, 1020);
+  EXPECT_EQ(samples[2].counts, 3);
+}
+
+TEST(McuSessionInput, ClockResponseBeyond63BitsIsIgnored) {
+  HostRig rig;
+  rig.identify(20'000'000, 0);
+  ASSERT_TRUE(rig.session.ready());
+  rig.poll();  // the first clock query (token 1) goes out
+  uint8_t b[32];
+  // fuzz/corpus/mcu_host/regress_clock_response_overflow: the clock sync subtracted such clocks.
+  MsgWriter w(b, sizeof b);
+  w.u8(static_cast<uint8_t>(MsgType::kClockResponse)).var(1).var((uint64_t{1} << 63) + 5);
+  rig.dev.send(w, b);
+  rig.poll();
+  EXPECT_EQ(rig.session.clock().samples(), 0);
+  EXPECT_TRUE(rig.has_event("impossible clock"));
+}
+
+// ---- device side
+
+struct StepLog final : device::MotorPort {
+  std::vector<double> t;
+  void step(double t_s, int) override { t.push_back(t_s); }
+  void set_enabled(double, bool) override {}
+  int64_t read_encoder_counts(double) override { return 0; }
+};
+
+// The host played by the test: numbered frames into the virtual MCU.
+struct DeviceRig {
+  StepLog motor;
+  device::VirtualMcu mcu{[] {
+                           device::VirtualMcuParams p;
+                           p.clock_hz = 1e6;
+                           return p;
+                         }(),
+                         &motor};
+  uint16_t seq = 0;
+  void send(const uint8_t* payload, size_t n) {
+    uint8_t f[protocol::kMaxFrame];
+    const uint8_t flags = static_cast<uint8_t>(protocol::kFlagData |
+                                               (seq == 0 ? protocol::kFlagReset : 0) | (3 << 4));
+    mcu.receive(f, protocol::encode_frame(f, flags, seq++, 0, payload, n), 0.0);
+  }
+  void identify() {
+    const uint8_t id[3] = {static_cast<uint8_t>(MsgType::kIdentify),
+                           protocol::kProtocolVersion & 0xFF, 0};
+    send(id, sizeof id);
+  }
+  // QUEUE_STEPS for motor 0 starting at first_clock.
+  void queue(uint64_t first_clock, const std::vector<stepgen::StepRun>& runs) {
+    uint8_t b[protocol::kMaxPayload] = {static_cast<uint8_t>(MsgType::kQueueSteps), 0};
+    stepgen::RunEncoder enc;
+    ASSERT_TRUE(enc.begin(b + 2, sizeof b - 2, first_clock));
+    for (const auto& r : runs) ASSERT_TRUE(enc.append(r));
+    send(b, 2 + enc.size());
+  }
+};
+
+TEST(VirtualMcuInput, ABatchWithARunThatStepsBackInTimeIsRefusedWhole) {
+  DeviceRig rig;
+  rig.identify();
+  // fuzz/corpus/mcu_device/regress_negative_interval: intervals 11, -37, ... after a good run.
+  rig.queue(10000, {{1000, -5, 10, 1}, {11, -48, 4, -1}});
+  rig.mcu.run_until(1.0);
+  EXPECT_EQ(rig.motor.t.size(), 0u);  // not even the good first run
+  EXPECT_EQ(rig.mcu.status().last_error, protocol::McuError::kBadMessage);
+  EXPECT_EQ(rig.mcu.status().queued_runs, 0u);
+  // The next good batch runs: 10 steps, 1 ms apart from clock 1.01e6 (1.01 s at 1 MHz).
+  rig.queue(1'010'000, {{1000, 0, 10, 1}});
+  rig.mcu.run_until(2.0);
+  ASSERT_EQ(rig.motor.t.size(), 10u);
+  EXPECT_NEAR(rig.motor.t[0], 1.011, 1e-9);
+  EXPECT_NEAR(rig.motor.t[9], 1.020, 1e-9);
+}
+
+TEST(VirtualMcuInput, ZeroIntervalsAndClocksBeyond63BitsAreMalformed) {
+  DeviceRig rig;
+  rig.identify();
+  rig.queue(100, {{0, 0, 4'000'000'000u, 1}});  // would step 4e9 times at one clock
+  rig.queue(uint64_t{1} << 63, {{10, 0, 1, 1}});
+  rig.mcu.run_until(0.5);
+  EXPECT_EQ(rig.motor.t.size(), 0u);
+  EXPECT_EQ(rig.mcu.status().errors, 2u);
+  EXPECT_EQ(rig.mcu.status().last_error, protocol::McuError::kBadMessage);
+}
+
+TEST(StepRunLaw, ValidRunsHavePositiveIntervalsAndRepresentableClocks) {
+  using stepgen::run_is_valid;
+  EXPECT_TRUE(run_is_valid(0, {1, 0, 1, 1}));
+  EXPECT_FALSE(run_is_valid(0, {0, 0, 1, 1}));
+  EXPECT_FALSE(run_is_valid(0, {5, 0, 0, 1}));
+  EXPECT_TRUE(run_is_valid(0, {3, -1, 3, 1}));   // intervals 3, 2, 1
+  EXPECT_FALSE(run_is_valid(0, {2, -1, 3, 1}));  // intervals 2, 1, 0
+  EXPECT_TRUE(run_is_valid(0, {1, 0, 3'000'000'000u, 1}));
+  EXPECT_FALSE(run_is_valid(0, {1, 0, 4'000'000'000u, 1}));  // n (n-1) overflows
+  EXPECT_FALSE(run_is_valid(INT64_MAX - 10, {5, 0, 3, 1}));
+  EXPECT_TRUE(run_is_valid(INT64_MAX - 15, {5, 0, 3, 1}));
+  EXPECT_EQ(stepgen::run_end_clock(INT64_MAX - 15, {5, 0, 3, 1}), INT64_MAX);
+}
+
+TEST(RunCodecInput, IntervalsBeyond64BitsAreMalformed) {
+  uint8_t b[64];
+  size_t p = protocol::put_varint(b, 0, sizeof b, 0);
+  for (int i = 0; i < 2; ++i) {  // two runs whose interval deltas sum beyond INT64_MAX
+    p = protocol::put_varint(b, p, sizeof b, 2);
+    p = protocol::put_varint(b, p, sizeof b, protocol::zigzag(INT64_MAX - 1));
+    p = protocol::put_varint(b, p, sizeof b, 0);
+  }
+  stepgen::RunDecoder dec;
+  ASSERT_TRUE(dec.begin(b, p));
+  stepgen::StepRun r;
+  ASSERT_TRUE(dec.next(r));
+  EXPECT_EQ(r.interval_ticks, INT64_MAX - 1);
+  EXPECT_FALSE(dec.next(r));
+}
+
+}  // namespace
+}  // namespace feedloop::drivers
