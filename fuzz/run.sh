@@ -19,10 +19,12 @@ shift 2
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 
 # Every target and its corpus folder.
-all=(fuzz_gcode_parser fuzz_json_api fuzz_mcu_host fuzz_mcu_device fuzz_config_loader)
+all=(fuzz_gcode_parser fuzz_json_api fuzz_daemon_channels fuzz_mcu_host fuzz_mcu_device
+  fuzz_recording_reader fuzz_config_loader)
 declare -A corpus_of=(
-  [fuzz_gcode_parser]=gcode [fuzz_json_api]=json_api [fuzz_mcu_host]=mcu_host
-  [fuzz_mcu_device]=mcu_device [fuzz_config_loader]=config)
+  [fuzz_gcode_parser]=gcode [fuzz_json_api]=json_api [fuzz_daemon_channels]=daemon_channels
+  [fuzz_mcu_host]=mcu_host [fuzz_mcu_device]=mcu_device [fuzz_recording_reader]=recording
+  [fuzz_config_loader]=config)
 
 targets=()
 while [[ $# -gt 0 ]]; do
@@ -70,7 +72,8 @@ for name in "${targets[@]}"; do
   summary+=("$line")
   if [[ $rc -ne 0 || $findings -ne 0 ]]; then
     failed=1
-    grep -E 'ERROR|runtime error|SUMMARY|what\(\)|Test unit written|^    #[0-9]+ .* in [^f]' "$work/fuzz.log" | head -n 30 >&2 || true
+    { grep -E 'ERROR|runtime error|SUMMARY|what\(\)|Test unit written' "$work/fuzz.log" | head -n 8
+      grep -E '^ +#[0-9]+ .* in feedloop::' "$work/fuzz.log" | head -n 8; } | cut -c1-240 >&2 || true
     echo "FINDING in $name (exit code $rc): reproducer and log in $work" >&2
   else
     rm -rf "$work"
