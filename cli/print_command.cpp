@@ -10,6 +10,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <deque>
 #include <fstream>
@@ -18,6 +20,7 @@
 
 #include "cli/progress.hpp"
 #include "config/config.hpp"
+#include "cli/print_lines.hpp"
 #include "gcode/host_protocol.hpp"
 #include "gcode/line_splitter.hpp"
 
@@ -76,26 +79,16 @@ struct Sent {
   std::string text;  // the full "N.. cmd*cs" line
 };
 
-std::string numbered_line(int64_t n, std::string_view cmd) {
-  std::string s = "N" + std::to_string(n) + " ";
-  s.append(cmd);
-  s += "*" + std::to_string(gcode::HostProtocol::checksum(s));
-  return s;
-}
-
-std::string_view strip_comment(std::string_view line) {
-  line = line.substr(0, line.find(';'));
-  while (!line.empty() && (line.back() == ' ' || line.back() == '\t' || line.back() == '\r'))
-    line.remove_suffix(1);
-  while (!line.empty() && (line.front() == ' ' || line.front() == '\t')) line.remove_prefix(1);
-  return line;
-}
-
 void usage() {
   std::fputs(
-      "usage: feedloop print FILE [--socket PATH] [--api PATH] [--window N]\n"
+      "usage: feedloop print FILE [--socket PATH] [--api PATH] [--window N] [--resume-from LINE]\n"
       "  Streams FILE to a running feedloopd (Marlin host protocol with line numbers and\n"
       "  checksums, N lines in flight, default 4) and prints a summary.\n"
+      "  Lines that carry their own N and *checksum are verified and renumbered.\n"
+      "  --resume-from LINE: starts at the file's physical line LINE; of the lines before it the\n"
+      "  settings (temperatures, modes, limits, homing) are sent and the moves only followed, so\n"
+      "  the head is placed where they left it first.\n"
+      "  Exit status: 0 all lines accepted, 3 some lines answered with an error, 1 no connection.\n"
       "  Default sockets: ${RUNTIME_DIR}/feedloop.sock and ${RUNTIME_DIR}/api.sock.\n",
       stderr);
 }
@@ -105,16 +98,34 @@ void usage() {
 int print_command(const std::vector<std::string>& args) {
   std::string file, socket_path, api_path;
   size_t window = 4;
+  int64_t resume_from = 0;
+  auto number = [](const std::string& s, int64_t* out) {
+    char* end = nullptr;
+    errno = 0;
+    const long long v = std::strtoll(s.c_str(), &end, 10);
+    if (errno != 0 || end == s.c_str() || *end != 0 || v < 1) return false;
+    *out = v;
+    return true;
+  };
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--socket" && i + 1 < args.size()) socket_path = args[++i];
     else if (args[i] == "--api" && i + 1 < args.size()) api_path = args[++i];
-    else if (args[i] == "--window" && i + 1 < args.size()) window = std::stoul(args[++i]);
+    else if ((args[i] == "--window" || args[i] == "--resume-from") && i + 1 < args.size()) {
+      int64_t v = 0;
+      if (!number(args[i + 1], &v)) {
+        std::fprintf(stderr, "feedloop print: %s needs a positive whole number, not '%s'\n", args[i].c_str(),
+                     args[i + 1].c_str());
+        return 2;
+      }
+      if (args[i] == "--window") window = static_cast<size_t>(std::min<int64_t>(v, 64));
+      else resume_from = v;
+      ++i;
+    }
     else if (args[i] == "--help") { usage(); return 0; }
     else if (file.empty() && args[i].rfind("--", 0) != 0) file = args[i];
     else { std::fprintf(stderr, "feedloop print: unexpected argument '%s'\n", args[i].c_str()); usage(); return 2; }
   }
   if (file.empty()) { usage(); return 2; }
-  if (window < 1) window = 1;
   const config::PathVars vars = config::path_vars_from_environment();
   if (socket_path.empty()) socket_path = *config::expand_path("${RUNTIME_DIR}/feedloop.sock", vars);
   if (api_path.empty()) api_path = *config::expand_path("${RUNTIME_DIR}/api.sock", vars);
@@ -131,6 +142,11 @@ int print_command(const std::vector<std::string>& args) {
     in.clear();
     in.seekg(0);
   }
+  if (resume_from > static_cast<int64_t>(total_lines) + 1) {
+    std::fprintf(stderr, "feedloop print: --resume-from %lld is past the end of %s (%.0f lines)\n",
+                 static_cast<long long>(resume_from), file.c_str(), total_lines);
+    return 2;
+  }
   Connection conn;
   if (!conn.open(socket_path)) {
     std::fprintf(stderr, "feedloop print: cannot connect to %s: %s (is feedloopd running?)\n",
@@ -141,29 +157,64 @@ int print_command(const std::vector<std::string>& args) {
   // Read the whole file's command lines lazily through the splitter.
   std::deque<Sent> in_flight;  // sent, not yet acknowledged (also the resend buffer)
   std::deque<Sent> to_send;
-  int64_t next_n = 1, acked = 0, errors = 0, resends = 0, lines_sent = 0;
+  int64_t next_n = 1, acked = 0, rejected = 0, resends = 0, lines_sent = 0, renumbered = 0;
   gcode::LineSplitter splitter;
-  std::vector<std::pair<int, std::string>> pending;  // (file line, command) from the last chunk
   char chunk[65536];
   int acked_file_line = 0;
   bool eof = false;
+  ResumeTracker resume;
+  bool resume_preamble_sent = resume_from <= 1;
+  std::string line_error;  // the Error: text of the line whose ok comes next
   Progress progress("printing " + file.substr(file.find_last_of('/') + 1));
   const auto t0 = std::chrono::steady_clock::now();
 
   conn.send("M110 N0\n");
-  if (conn.read_line(5000) != std::optional<std::string>("ok")) {
-    std::fprintf(stderr, "feedloop print: no answer from feedloopd on %s\n", socket_path.c_str());
-    return 1;
+  for (;;) {  // skip what a previous client may have left (e.g. a keepalive) until the ok
+    auto r = conn.read_line(5000);
+    if (!r) {
+      std::fprintf(stderr, "feedloop print: no answer from feedloopd on %s\n", socket_path.c_str());
+      return 1;
+    }
+    if (classify_reply(*r).kind == ReplyKind::Kind::kOk) break;
   }
+  auto queue = [&](int file_line, std::string_view cmd) {
+    to_send.push_back({next_n, file_line, numbered_line(next_n, cmd)});
+    ++next_n;
+  };
+  auto reject = [&](int file_line, const std::string& message) {
+    ++rejected;
+    std::fprintf(stderr, "\n%s:%d: %s\n", file.c_str(), file_line, message.c_str());
+  };
   auto refill = [&] {
     while (to_send.size() < 256 && !eof) {
       in.read(chunk, sizeof chunk);
       const std::streamsize got = in.gcount();
       auto on_line = [&](const gcode::SplitLine& l) {
-        const std::string_view cmd = l.too_long ? std::string_view("G4 P0 ; too long") : strip_comment(l.text);
-        if (cmd.empty()) return;
-        to_send.push_back({next_n, static_cast<int>(l.number), numbered_line(next_n, cmd)});
-        ++next_n;
+        const int file_line = static_cast<int>(l.number);
+        if (l.too_long) {
+          reject(file_line, "line too long (" + std::to_string(l.length_bytes) + " bytes); not sent");
+          return;
+        }
+        PreparedLine p = prepare_line(l.text);
+        if (p.kind == PreparedLine::Kind::kBadChecksum) {
+          reject(file_line, p.problem);
+          return;
+        }
+        if (p.kind != PreparedLine::Kind::kSend) return;
+        if (l.text.find('*') != std::string_view::npos) ++renumbered;
+        if (l.number < resume_from) {
+          if (resume.skip(p.command)) queue(file_line, p.command);
+          return;
+        }
+        if (!resume_preamble_sent) {
+          resume_preamble_sent = true;
+          const std::string pre = resume.preamble();
+          for (size_t b = 0, e; b < pre.size(); b = e + 1) {
+            e = pre.find('\n', b);
+            queue(file_line, std::string_view(pre).substr(b, e - b));
+          }
+        }
+        queue(file_line, p.command);
       };
       splitter.feed(std::string_view(chunk, static_cast<size_t>(got)), on_line);
       if (got < static_cast<std::streamsize>(sizeof chunk)) {
@@ -189,25 +240,40 @@ int print_command(const std::vector<std::string>& args) {
                    closed ? "feedloopd closed the connection" : "no reply for 30 s; giving up");
       return 1;
     }
-    if (*reply == "ok") {
-      if (!in_flight.empty()) {
-        acked_file_line = in_flight.front().file_line;
-        in_flight.pop_front();
-      }
-      ++acked;
-    } else if (reply->rfind("Resend: ", 0) == 0) {
-      const int64_t n = std::stoll(reply->substr(8));
-      ++resends;
-      // Everything from n on goes again, in order; the ok that follows acknowledges nothing.
-      while (!in_flight.empty() && in_flight.back().n >= n) {
-        to_send.push_front(std::move(in_flight.back()));
-        in_flight.pop_back();
-      }
-      conn.read_line(5000);  // the ok of the refused line
-    } else if (reply->rfind("Error:", 0) == 0) {
-      ++errors;
-      const int file_line = in_flight.empty() ? 0 : in_flight.front().file_line;
-      std::fprintf(stderr, "\n%s:%d: %s\n", file.c_str(), file_line, reply->c_str() + 6);
+    const ReplyKind kind = classify_reply(*reply);
+    switch (kind.kind) {
+      case ReplyKind::Kind::kOk:
+        // The daemon answers every line in order: this ok is the oldest line's.
+        if (!in_flight.empty()) {
+          const Sent& s = in_flight.front();
+          if (!line_error.empty()) {
+            ++rejected;
+            std::fprintf(stderr, "\n%s\n", locate_error(line_error, file, s.file_line).c_str());
+            line_error.clear();
+          }
+          acked_file_line = s.file_line;
+          in_flight.pop_front();
+        }
+        ++acked;
+        break;
+      case ReplyKind::Kind::kResend:
+        ++resends;
+        // Everything from n on goes again, in order; the ok that follows acknowledges nothing.
+        while (!in_flight.empty() && in_flight.back().n >= kind.resend_n) {
+          to_send.push_front(std::move(in_flight.back()));
+          in_flight.pop_back();
+        }
+        for (;;) {  // the ok of the refused line
+          auto r = conn.read_line(5000);
+          if (!r || classify_reply(*r).kind == ReplyKind::Kind::kOk) break;
+        }
+        break;
+      case ReplyKind::Kind::kError:
+        if (line_error.empty()) line_error = *reply;  // one line, one rejection
+        break;
+      case ReplyKind::Kind::kResendError:
+      case ReplyKind::Kind::kOther:
+        break;  // echo:busy, echo:Unknown command, temperatures...
     }
     progress.update(total_lines > 0 ? std::min(1.0, acked_file_line / total_lines) : 1.0,
                     std::to_string(acked) + " lines acknowledged");
@@ -216,17 +282,23 @@ int print_command(const std::vector<std::string>& args) {
   conn.send(numbered_line(next_n, "M400") + "\n");
   for (;;) {
     auto reply = conn.read_line(600000);
-    if (!reply || *reply == "ok") break;
-    if (reply->rfind("Error:", 0) == 0) { ++errors; std::fprintf(stderr, "\n%s\n", reply->c_str()); }
+    if (!reply) break;
+    const ReplyKind k = classify_reply(*reply);
+    if (k.kind == ReplyKind::Kind::kOk) break;
+    if (k.kind == ReplyKind::Kind::kError) std::fprintf(stderr, "\n%s\n", reply->c_str());
   }
   progress.update(1.0, std::to_string(acked) + " lines acknowledged, machine finished");
   progress.finish();
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   std::printf("\nprint summary: %s\n", file.c_str());
-  std::printf("  lines sent        %lld (%lld acknowledged, %lld errors, %lld resends)\n",
+  std::printf("  lines sent        %lld (%lld acknowledged, %lld rejected, %lld resends)\n",
               static_cast<long long>(lines_sent), static_cast<long long>(acked),
-              static_cast<long long>(errors), static_cast<long long>(resends));
+              static_cast<long long>(rejected), static_cast<long long>(resends));
+  if (renumbered > 0)
+    std::printf("  renumbered        %lld lines carried their own N/* (checked, sent under new numbers)\n",
+                static_cast<long long>(renumbered));
+  if (resume_from > 1) std::printf("  resumed from      line %lld\n", static_cast<long long>(resume_from));
   std::printf("  wall time         %.2f s (%.0f lines/s)\n", wall_s, lines_sent / std::max(wall_s, 1e-9));
   Connection api;
   if (api.open(api_path) && api.send(R"({"jsonrpc":"2.0","id":1,"method":"status"})" "\n")) {
@@ -249,7 +321,7 @@ int print_command(const std::vector<std::string>& args) {
       }
     }
   }
-  return errors == 0 ? 0 : 3;
+  return rejected == 0 ? 0 : 3;
 }
 
 }  // namespace feedloop::cli

@@ -16,6 +16,23 @@ const std::vector<std::string>& allowed_axes(Kinematics k) {
   return k == Kinematics::delta ? abce : xyze;
 }
 
+namespace {
+// Plausibility bounds (docs/decisions-config.md): values beyond them are typing errors, and some
+// of them would make the daemon allocate without bound (steps/mm x speed = steps per second).
+constexpr double kMaxStepsPerMm = 1e6;        // 256 microsteps x 400 steps/turn on a 0.1 mm lead
+constexpr double kMaxStepRateHz = 4e6;        // a step every 0.25 us: beyond any MCU step timer
+constexpr double kMaxAxisVelocityMmS = 10000; // 10 m/s
+constexpr double kMaxAxisAccelMmS2 = 1e6;     // 100 g
+
+// An upper plausibility bound, reported at the value.
+void at_most(MapReader& a, Diagnostics& diag, bool present, const char* key, double value, double max,
+             const char* unit) {
+  if (!present || !(value > max)) return;
+  diag.add(a.get(key).Mark(), a.path() + "." + key + " " + format_number(value) + " " + unit +
+                                  " is not plausible (at most " + format_number(max) + " " + unit + ")");
+}
+}  // namespace
+
 void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag,
                bool kinematics_known) {
   MapReader axes = root.sub("axes", Need::required);
@@ -45,8 +62,9 @@ void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& d
     axis.name = name;
     const bool is_e = name == "e";
     // Voltage-driven DC motors take no steps (drive: dc_servo).
-    a.number("steps_per_mm", axis.steps_per_mm, Range::positive(),
-             cfg.drive == Drive::dc_servo ? Need::optional : Need::required);
+    const bool has_steps = a.number("steps_per_mm", axis.steps_per_mm, Range::positive(),
+                                    cfg.drive == Drive::dc_servo ? Need::optional : Need::required);
+    at_most(a, diag, has_steps, "steps_per_mm", axis.steps_per_mm, kMaxStepsPerMm, "1/mm");
     a.boolean("invert_direction", axis.invert_direction);
     if (a.has("encoder")) {
       MapReader enc = a.sub("encoder");
@@ -66,8 +84,20 @@ void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& d
                                          format_number(axis.max_mm) + ")");
     if (is_e && has_min != has_max)
       diag.add(a.mark(), a.path() + ": give both min_mm and max_mm, or neither (unlimited)");
-    a.number("max_velocity_mm_s", axis.max_velocity_mm_s, Range::positive(), Need::required);
-    a.number("max_accel_mm_s2", axis.max_accel_mm_s2, Range::positive(), Need::required);
+    const bool has_velocity =
+        a.number("max_velocity_mm_s", axis.max_velocity_mm_s, Range::positive(), Need::required);
+    at_most(a, diag, has_velocity, "max_velocity_mm_s", axis.max_velocity_mm_s, kMaxAxisVelocityMmS, "mm/s");
+    const bool has_accel = a.number("max_accel_mm_s2", axis.max_accel_mm_s2, Range::positive(), Need::required);
+    at_most(a, diag, has_accel, "max_accel_mm_s2", axis.max_accel_mm_s2, kMaxAxisAccelMmS2, "mm/s^2");
+    if (has_steps && has_velocity && axis.steps_per_mm > 0.0 &&
+        axis.steps_per_mm <= kMaxStepsPerMm && axis.max_velocity_mm_s <= kMaxAxisVelocityMmS &&
+        axis.steps_per_mm * axis.max_velocity_mm_s > kMaxStepRateHz)
+      diag.add(a.key_mark("steps_per_mm"),
+               a.path() + ": steps_per_mm " + format_number(axis.steps_per_mm) + " x max_velocity_mm_s " +
+                   format_number(axis.max_velocity_mm_s) + " = " +
+                   format_number(axis.steps_per_mm * axis.max_velocity_mm_s) +
+                   " steps/s, more than the step pipeline and the MCUs follow (" + format_number(kMaxStepRateHz) +
+                   " steps/s); lower one of them");
     a.finish();
     cfg.axes.push_back(axis);
   }

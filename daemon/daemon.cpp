@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "config/config.hpp"
+#include "daemon/runtime_dir.hpp"
 #include "engine/executor_factory.hpp"
 #include "gcode/parser.hpp"
 #include "recorder/options_from_config.hpp"
@@ -170,6 +171,13 @@ Status Daemon::open_channels() {
   socket_path_ = *sock;
   api_socket_path_ = *api;
   pty_link_ = *pty;
+  std::vector<std::string> warnings;
+  if (Status s = check_channel_path("sockets.unix_socket", socket_path_, vars.runtime_dir, cfg_.sockets.mode, &warnings); !s)
+    return s;
+  if (Status s = check_channel_path("sockets.api_socket", api_socket_path_, vars.runtime_dir, cfg_.sockets.mode, &warnings); !s)
+    return s;
+  if (Status s = check_channel_path("sockets.pty_link", pty_link_, vars.runtime_dir, 0, &warnings); !s) return s;
+  for (const std::string& w : warnings) spdlog::warn("{}", w);
   if (Status s = gcode_listener_.listen(socket_path_, cfg_.sockets.mode,
                                         [this](auto session) { add_client(std::move(session), Kind::kMarlin); });
       !s)
@@ -210,6 +218,8 @@ void Daemon::request_shutdown(const std::string& why) {
     notifier_.stopping();
     notifier_.stop_watchdog();
     if (machine_) machine_->stop();  // cancels queued commands; the servo loop ends its cycle
+    if (const std::string summary = rejected_log_.flush(clock_.now_ns(), true); !summary.empty())
+      spdlog::warn("command rejected: {}", summary);
     end_print();
     close_channels();
     std::vector<std::shared_ptr<ClientSession>> sessions;
@@ -239,16 +249,24 @@ void Daemon::add_client(std::shared_ptr<ClientSession> session, Kind kind) {
         Client* cl = find_client(id);
         if (!cl) return;
         if (cl->kind == Kind::kMarlin) {
-          on_marlin_line(*cl, line, too_long);
+          // Every channel handler catches what it throws: the client gets an error, the
+          // connection and the print go on.
+          try {
+            on_marlin_line(*cl, line, too_long);
+          } catch (const std::exception& e) {
+            spdlog::error("{}: internal error on a line: {}", cl->session->name(), e.what());
+            cl->session->send_line(std::string("Error:internal error: ") + e.what());
+            cl->session->send_line("ok");
+          }
           return;
         }
         if (too_long) {
-          cl->session->send_line(json_rpc_error(nullptr, -32700, "request line too long").dump());
+          cl->session->send_line(to_wire(json_rpc_error(nullptr, -32700, "request line too long")));
           return;
         }
         auto weak = std::weak_ptr<ClientSession>(cl->session);
         handle_json_request(*this, *cl->session, line, cl->subscription, [weak](const json& r) {
-          if (auto s = weak.lock()) s->send_line(r.dump());
+          if (auto s = weak.lock()) s->send_line(to_wire(r));
         });
       },
       [this, id](ClientSession&) { asio::post(io_, [this, id] { remove_client(id); }); });
@@ -298,40 +316,78 @@ void Daemon::process_marlin_line(Client& c, std::string_view line) {
   gcode::Reply reply;
   gcode::Command cmd;
   const auto action = c.protocol->on_line(line, reply, cmd);
+  // Every answer goes out in the order of the lines: behind the answers still pending.
   auto flush = [&] {
-    if (!reply.text.empty())
-      c.session->send_line(std::string_view(reply.text).substr(0, reply.text.size() - 1));
+    if (!reply.text.empty()) {
+      const std::string_view text = std::string_view(reply.text).substr(0, reply.text.size() - 1);
+      if (c.replies.empty()) {
+        c.session->send_line(text);
+      } else {
+        auto slot = std::make_shared<ReplySlot>();
+        slot->ready = true;
+        slot->text = std::string(text);
+        c.replies.push_back(std::move(slot));
+      }
+    }
     reply.clear();
   };
   if (action == gcode::HostProtocol::Action::kEmergencyStop) {
     emergency_stop("M112 from " + c.session->name());
-    reply.line(gcode::HostProtocol::kHalted);
-    flush();
+    c.session->send_line(gcode::HostProtocol::kHalted);  // at once, ahead of everything
     return;
   }
   if (action != gcode::HostProtocol::Action::kExecute) {
     flush();
     return;
   }
-  std::string answer;
-  if (answer_query(cmd, answer)) {
-    flush();
-    c.session->send_line(answer);
+  flush();  // e.g. "echo:Unknown command"
+  if (is_query(cmd)) {
+    if (c.replies.empty()) {
+      std::string answer;
+      answer_query(cmd, answer);
+      c.session->send_line(answer);
+    } else {
+      auto slot = std::make_shared<ReplySlot>();
+      slot->is_query = true;
+      slot->query = cmd;
+      c.replies.push_back(std::move(slot));
+    }
     return;
   }
-  flush();  // e.g. "echo:Unknown command"
-  auto weak = std::weak_ptr<ClientSession>(c.session);
+  auto slot = std::make_shared<ReplySlot>();
+  c.replies.push_back(slot);
+  const uint64_t cid = c.id;
   const auto source = c.session->name().rfind("pty", 0) == 0 ? recorder::GcodeSource::pty : recorder::GcodeSource::socket;
-  std::string refused = submit(c, cmd, line, source, [weak](const Status& st) {
-    auto s = weak.lock();
-    if (!s) return;
-    if (!st) s->send_line("Error:" + st.error().to_string());
-    s->send_line(gcode::HostProtocol::kOk);
+  std::string refused = submit(c, cmd, line, source, [this, cid, slot](const Status& st) {
+    if (!st) slot->text = "Error:" + st.error().to_string() + "\n";
+    slot->text += gcode::HostProtocol::kOk;
+    slot->ready = true;
+    if (Client* cl = find_client(cid)) flush_replies(*cl);
   });
   if (!refused.empty()) {
-    c.session->send_line("Error:" + refused);
-    c.session->send_line(gcode::HostProtocol::kOk);
+    slot->text = "Error:" + refused + "\n" + std::string(gcode::HostProtocol::kOk);
+    slot->ready = true;
   }
+  flush_replies(c);
+}
+
+void Daemon::flush_replies(Client& c) {
+  while (!c.replies.empty()) {
+    ReplySlot& r = *c.replies.front();
+    if (r.is_query) {
+      answer_query(r.query, r.text);
+    } else if (!r.ready) {
+      break;
+    }
+    c.session->send_line(r.text);
+    c.replies.pop_front();
+  }
+}
+
+bool Daemon::is_query(const gcode::Command& cmd) {
+  if (cmd.empty()) return true;
+  return cmd.letter == 'M' && (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 ||
+                               cmd.code == 117 || cmd.code == 73);
 }
 
 bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply) {
@@ -346,11 +402,21 @@ bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply) {
     case 105:
       reply = format_temp_reply(s);
       return true;
-    case 114:
-      std::snprintf(buf, sizeof buf, "X:%.3f Y:%.3f Z:%.3f E:%.3f Count X:0 Y:0 Z:0\nok",
-                    s.pos_mm[0], s.pos_mm[1], s.pos_mm[2], s.pos_mm[3]);
+    case 114: {
+      // Marlin's M114: the logical position, then each stepper's step counter
+      // (Marlin/src/module/stepper.cpp, Stepper::report_positions; labels from language.h:
+      // " Count X:" on Cartesian machines, " Count A:" where the steppers are not the axes).
+      const char* labels = cfg_.kinematics == config::Kinematics::delta    ? "A:%lld B:%lld C:%lld"
+                           : cfg_.kinematics == config::Kinematics::corexy ? "A:%lld B:%lld Z:%lld"
+                                                                           : "X:%lld Y:%lld Z:%lld";
+      char count[96];
+      std::snprintf(count, sizeof count, labels, static_cast<long long>(s.step_count[0]),
+                    static_cast<long long>(s.step_count[1]), static_cast<long long>(s.step_count[2]));
+      std::snprintf(buf, sizeof buf, "X:%.2f Y:%.2f Z:%.2f E:%.2f Count %s\nok", s.pos_mm[0], s.pos_mm[1],
+                    s.pos_mm[2], s.pos_mm[3], count);
       reply = buf;
       return true;
+    }
     case 115:
       reply = firmware_info() + "\nok";
       return true;
@@ -429,7 +495,13 @@ void Daemon::on_command_done(engine::CommandDone d) {
     c->last_progress_ns = clock_.now_ns();
     if (p.client_id == owner_) owner_last_activity_ns_ = clock_.now_ns();
   }
-  if (!d.status) spdlog::warn("command rejected: {}", d.status.error().to_string());
+  if (!d.status) {
+    // The same refusal for every later line (a fault): one line, then a count (RepeatFilter).
+    std::string summary;
+    const bool log = rejected_log_.admit(d.status.error().message, clock_.now_ns(), &summary);
+    if (!summary.empty()) spdlog::warn("command rejected: {}", summary);
+    if (log) spdlog::warn("command rejected: {}", d.status.error().to_string());
+  }
   if (p.done) p.done(d.status);
 }
 
@@ -600,9 +672,11 @@ void Daemon::tick() {
   for (auto& [id, c] : clients_) {
     if (c.kind != Kind::kJson || !c.subscription.status || now < c.next_status_ns) continue;
     if (status_json.is_null()) status_json = status();
-    c.session->send_line(json_rpc_notification("status", status_json).dump(), /*droppable=*/true);
+    c.session->send_line(to_wire(json_rpc_notification("status", status_json)), /*droppable=*/true);
     c.next_status_ns = now + static_cast<int64_t>(c.subscription.interval_ms) * 1'000'000;
   }
+  if (const std::string summary = rejected_log_.flush(now); !summary.empty())
+    spdlog::warn("command rejected: {}", summary);
   // The print ends when nobody owns the machine any more and it has stopped.
   if (print_open_ && owner_ == 0 && machine_->idle() && pending_.empty()) end_print();
   if (reload_requested_ && machine_->idle() && pending_.empty()) reload_config();

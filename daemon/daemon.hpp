@@ -29,6 +29,7 @@
 #include "core/result.hpp"
 #include "daemon/json_api.hpp"
 #include "daemon/listeners.hpp"
+#include "daemon/repeat_filter.hpp"
 #include "daemon/watchdog.hpp"
 #include "engine/machine.hpp"
 #include "gcode/host_protocol.hpp"
@@ -80,6 +81,14 @@ class Daemon final : public JsonApiBackend {
     uint64_t ticket;
     gcode::Command command;
   };
+  // A Marlin line's answer, kept in arrival order: Marlin answers every line in order, and hosts
+  // pair each `ok` with the oldest line they sent. A query waits behind the commands before it.
+  struct ReplySlot {
+    bool ready = false;
+    bool is_query = false;
+    gcode::Command query;  // is_query: answered when it reaches the front
+    std::string text;      // ready: the reply lines, without the last '\n'
+  };
   struct Client {
     uint64_t id = 0;
     std::shared_ptr<ClientSession> session;
@@ -91,6 +100,7 @@ class Daemon final : public JsonApiBackend {
     std::optional<Parked> parked;     // a command waiting for room in the machine queue
     size_t in_flight = 0;             // submitted, not yet done
     int64_t last_progress_ns = 0;     // last ok, or last keepalive sent
+    std::deque<std::shared_ptr<ReplySlot>> replies;  // Marlin channels: answers not yet sent
   };
   // A submitted command: who gets the answer.
   struct Pending {
@@ -109,6 +119,9 @@ class Daemon final : public JsonApiBackend {
   void process_marlin_line(Client& c, std::string_view line);
   // Answers queries at once; returns true if `cmd` was one.
   bool answer_query(const gcode::Command& cmd, std::string& reply);
+  static bool is_query(const gcode::Command& cmd);
+  // Sends the ready answers at the front of c.replies (queries are answered there).
+  void flush_replies(Client& c);
   // Ownership + submit. Returns an error text when refused; parks when the queue is full.
   // `text` is the line as received: recorded with its arrival time when the command is accepted.
   std::string submit(Client& c, const gcode::Command& cmd, std::string_view text, recorder::GcodeSource source,
@@ -159,6 +172,7 @@ class Daemon final : public JsonApiBackend {
   bool reload_requested_ = false;
   uint64_t reloads_ = 0;
   bool shutting_down_ = false;
+  RepeatFilter rejected_log_;     // "command rejected" warnings: one line plus a count
   std::string display_message_;  // M117
   int progress_percent_ = -1;    // M73 P
 };

@@ -1,8 +1,11 @@
 #include "daemon/json_api.hpp"
 
 #include <algorithm>  // std::clamp
+#include <cmath>
+#include <cstdio>
 
 #include "core/result.hpp"
+#include "core/utf8.hpp"
 
 namespace feedloop::daemon {
 
@@ -10,6 +13,10 @@ using nlohmann::json;
 
 json json_rpc_error(const json& id, int code, const std::string& message) {
   return json{{"jsonrpc", "2.0"}, {"id", id}, {"error", {{"code", code}, {"message", message}}}};
+}
+
+std::string to_wire(const json& message) {
+  return message.dump(-1, ' ', /*ensure_ascii=*/false, json::error_handler_t::replace);
 }
 
 json json_rpc_notification(const std::string& method, json params) {
@@ -29,41 +36,48 @@ Status read_topics(const json& params, Subscription& sub, bool on) {
   for (const json& t : topics) {
     if (!t.is_string()) return Error{"'topics' must be an array of strings"};
     const std::string name = t.get<std::string>();
-    if (name == "status") sub.status = on;
-    else if (name == "events") sub.events = on;
-    else return Error{"unknown topic '" + name + "' (known: status, events)"};
+    if (name == "status")
+      sub.status = on;
+    else if (name == "events")
+      sub.events = on;
+    else
+      return Error{"unknown topic '" + name + "' (known: status, events)"};
   }
   return Status::Ok();
 }
 
 }  // namespace
 
-void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::string_view line,
-                         Subscription& subscription,
-                         const std::function<void(const json&)>& reply) {
-  json req;
-  try {
-    req = json::parse(line);
-  } catch (const json::parse_error& e) {
-    // e.byte is the 1-based position of the error in the line; keep the library's reason only.
-    std::string why = e.what();
-    if (const size_t p = why.find("column "); p != std::string::npos) {
-      if (const size_t colon = why.find(": ", p); colon != std::string::npos) why = why.substr(colon + 2);
-    }
-    reply(json_rpc_error(nullptr, -32700,
-                         "parse error at column " + std::to_string(e.byte) + ": " + why));
-    return;
-  }
+namespace {
+
+// The request's "id" when it is one JSON-RPC allows (string, number, null); else null.
+json request_id(const json& req) {
+  if (!req.is_object() || !req.contains("id")) return nullptr;
+  const json& id = req["id"];
+  if (id.is_string() || id.is_number_integer() || id.is_number_unsigned() || id.is_null())
+    return id;
+  if (id.is_number_float() && std::isfinite(id.get<double>())) return id;
+  return nullptr;
+}
+
+void dispatch(JsonApiBackend& backend, ClientSession& client, const json& req,
+              Subscription& subscription, const std::function<void(const json&)>& reply) {
   if (!req.is_object() || req.value("jsonrpc", "") != "2.0" || !req.contains("method") ||
       !req["method"].is_string()) {
-    reply(json_rpc_error(req.is_object() && req.contains("id") ? req["id"] : json(nullptr), -32600,
-                         "invalid request: expected {\"jsonrpc\":\"2.0\",\"method\":...,\"id\":...}"));
+    reply(json_rpc_error(
+        request_id(req), -32600,
+        "invalid request: expected {\"jsonrpc\":\"2.0\",\"method\":...,\"id\":...}"));
     return;
   }
   const bool notification = !req.contains("id");
-  const json id = notification ? json(nullptr) : req["id"];
+  const json id = request_id(req);
+  if (!notification && id.is_null() && !req["id"].is_null()) {
+    reply(json_rpc_error(nullptr, -32600,
+                         "invalid request: 'id' must be a string, a number or null"));
+    return;
+  }
   const std::string method = req["method"].get<std::string>();
-  const json params = req.value("params", json::object());
+  const json params = req.contains("params") ? req["params"] : json::object();
   auto respond = [&](json r) {
     if (!notification) reply(r);
   };
@@ -84,11 +98,13 @@ void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::st
       return;
     }
     if (on && params.contains("interval_ms")) {
-      if (!params["interval_ms"].is_number()) {
+      const json& v = params["interval_ms"];
+      if (!v.is_number() || !std::isfinite(v.get<double>())) {
         respond(json_rpc_error(id, -32602, "'interval_ms' must be a number"));
         return;
       }
-      next.interval_ms = std::clamp(params["interval_ms"].get<int>(), 20, 60000);
+      // Clamped as a double first: a cast of 1e30 to int is undefined behaviour.
+      next.interval_ms = static_cast<int>(std::clamp(v.get<double>(), 20.0, 60000.0));
     }
     subscription = next;
     respond(result_of(id, {{"status", subscription.status},
@@ -102,8 +118,10 @@ void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::st
     backend.run_script(client, params["script"].get<std::string>(),
                        [reply, id, notification](json result, std::string error) {
                          if (notification) return;
-                         if (!error.empty()) reply(json_rpc_error(id, -32000, error));
-                         else reply(result_of(id, std::move(result)));
+                         if (!error.empty())
+                           reply(json_rpc_error(id, -32000, error));
+                         else
+                           reply(result_of(id, std::move(result)));
                        });
   } else if (method == "emergency_stop") {
     std::string reason = "requested over the JSON API";
@@ -111,9 +129,68 @@ void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::st
     backend.emergency_stop(reason);
     respond(result_of(id, {{"stopped", true}}));
   } else {
-    respond(json_rpc_error(id, -32601, "unknown method '" + method +
-                                           "' (known: info, status, subscribe, unsubscribe, "
-                                           "gcode, emergency_stop)"));
+    respond(json_rpc_error(id, -32601,
+                           "unknown method '" + valid_utf8(method) +
+                               "' (known: info, status, subscribe, unsubscribe, "
+                               "gcode, emergency_stop)"));
+  }
+}
+
+}  // namespace
+
+void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::string_view line,
+                         Subscription& subscription,
+                         const std::function<void(const json&)>& reply) {
+  // The outside-string boundary (core/utf8.hpp): a request must be UTF-8 (RFC 8259 Sect. 8.1).
+  // Checked here so the error can say where, and so no invalid byte reaches a reply.
+  {
+    size_t bad = 0;
+    for (size_t i = 0; i < line.size();) {
+      const size_t n = utf8_sequence_length(line, i, &bad);
+      if (n == 0) {
+        reply(json_rpc_error(
+            nullptr, -32700,
+            "parse error at column " + std::to_string(i + 1) +
+                ": the request is not valid UTF-8 (byte 0x" +
+                [&] {
+                  char hex[3];
+                  std::snprintf(hex, sizeof hex, "%02X",
+                                static_cast<unsigned>(static_cast<uint8_t>(line[i])));
+                  return std::string(hex);
+                }() +
+                ")"));
+        return;
+      }
+      i += n;
+    }
+  }
+  json req;
+  try {
+    req = json::parse(line);
+  } catch (const json::parse_error& e) {
+    // e.byte is the 1-based position of the error in the line; keep the library's reason only.
+    std::string why = e.what();
+    if (const size_t p = why.find("column "); p != std::string::npos) {
+      if (const size_t colon = why.find(": ", p); colon != std::string::npos)
+        why = why.substr(colon + 2);
+    }
+    reply(
+        json_rpc_error(nullptr, -32700,
+                       "parse error at column " + std::to_string(e.byte) + ": " + valid_utf8(why)));
+    return;
+  } catch (const json::exception& e) {
+    // out_of_range 406: a number the parser cannot hold ("id": 1e400).
+    std::string why = e.what();
+    if (const size_t p = why.find("] "); p != std::string::npos) why = why.substr(p + 2);
+    reply(json_rpc_error(nullptr, -32700, "parse error: " + valid_utf8(why)));
+    return;
+  }
+  try {
+    dispatch(backend, client, req, subscription, reply);
+  } catch (const std::exception& e) {
+    // A handler's failure is this request's error, never the daemon's end.
+    reply(json_rpc_error(request_id(req), -32603,
+                         std::string("internal error: ") + valid_utf8(e.what())));
   }
 }
 

@@ -13,7 +13,9 @@
 //                                response comes when every line has executed: {results:[...]}
 //   emergency_stop {reason}
 // Errors use JSON-RPC codes: -32700 parse error (with the column), -32600 invalid request,
-// -32601 unknown method, -32602 invalid params, -32000 machine error.
+// -32601 unknown method, -32602 invalid params, -32603 internal error, -32000 machine error.
+// No request can end the daemon: a line that is not valid UTF-8, a number out of range (an "id"
+// of 1e400), any exception a handler throws gets an error answer and the connection stays open.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -53,6 +55,11 @@ void handle_json_request(JsonApiBackend& backend, ClientSession& client, std::st
                          const std::function<void(const nlohmann::json&)>& reply);
 
 nlohmann::json json_rpc_error(const nlohmann::json& id, int code, const std::string& message);
+// The one way the daemon serialises JSON for the wire: never throws. A string that is not valid
+// UTF-8 (it should not reach here: core/utf8.hpp is applied where outside text enters) is sent
+// with U+FFFD in place of its invalid bytes instead of aborting the print (nlohmann's default
+// handler throws type_error 316 from dump()).
+std::string to_wire(const nlohmann::json& message);
 nlohmann::json json_rpc_notification(const std::string& method, nlohmann::json params);
 
 }  // namespace feedloop::daemon

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>     // open
 #include <pty.h>       // openpty
+#include <sys/socket.h>  // SO_PEERCRED
 #include <sys/stat.h>  // chmod
 #include <termios.h>   // cfmakeraw
 #include <unistd.h>    // unlink, symlink, close
@@ -9,6 +10,8 @@
 #include <cerrno>
 #include <cstring>  // strerror
 #include <filesystem>
+
+#include <spdlog/spdlog.h>
 
 namespace feedloop::daemon {
 
@@ -63,6 +66,13 @@ void UnixListener::accept_next() {
       return;
     }
     const uint64_t id = next_id_++;
+    // Who connected (SO_PEERCRED): every client in the log with its user and process.
+    ucred cred{};
+    socklen_t len = sizeof cred;
+    if (::getsockopt(sock.native_handle(), SOL_SOCKET, SO_PEERCRED, &cred, &len) == 0)
+      spdlog::info("{}#{} connected: uid {} gid {} pid {}", prefix_, id, cred.uid, cred.gid, cred.pid);
+    else
+      spdlog::info("{}#{} connected: peer unknown ({})", prefix_, id, std::strerror(errno));
     on_session_(std::make_shared<StreamSession<local_stream::socket>>(
         id, prefix_ + "#" + std::to_string(id), std::move(sock)));
     accept_next();

@@ -110,7 +110,8 @@ bool Machine::healthy() const {
 }
 
 bool Machine::idle() const {
-  return queue_.empty() && !executing_.load() && !executor_->motion_pending() && !executor_->settling();
+  if (!queue_.empty() || executing_.load()) return false;
+  return executor_->faulted() || (!executor_->motion_pending() && !executor_->settling());
 }
 
 void Machine::publish_status() {
@@ -119,6 +120,8 @@ void Machine::publish_status() {
     s.state = MachineState::kEmergencyStopped;
   } else if (stopping_.load()) {
     s.state = MachineState::kStopped;
+  } else if (executor_ && executor_->faulted()) {
+    s.state = MachineState::kError;  // not busy: the queued motion will not run
   } else {
     s.state = idle() ? MachineState::kIdle : MachineState::kBusy;
   }
@@ -143,11 +146,12 @@ void Machine::publish_status() {
 
 // Heater commands and waits are the machine's own; everything else goes to the executor.
 Status Machine::execute_machine_command(const gcode::Command& cmd) {
-  const bool hotend = cmd.is('M', 104) || cmd.is('M', 109);
+  // G10 P<tool> S<active> R<standby>: the temperature form (the active temperature is the target).
+  const bool hotend = cmd.is('M', 104) || cmd.is('M', 109) || cmd.is('G', 10);
   HeaterSim& h = hotend ? hotend_ : bed_;
   const bool wait = cmd.is('M', 109) || cmd.is('M', 190);
   if (cmd.has('S')) h.target_c = cmd.get('S');
-  else if (cmd.has('R')) h.target_c = cmd.get('R');
+  else if (cmd.has('R') && !cmd.is('G', 10)) h.target_c = cmd.get('R');
   if (!wait) return Status::Ok();
   if (clock_.is_virtual()) {  // no one advances time for a wait in virtual time: settle at once
     h.temp_c = h.target_c > 0 ? h.target_c : h.ambient_c;
@@ -194,7 +198,7 @@ void Machine::planner_main() {
     if (estop_.load()) {
       st = Error{"machine is emergency-stopped; restart the daemon (or send M999) to clear"};
     } else if (q.cmd.is('M', 104) || q.cmd.is('M', 109) || q.cmd.is('M', 140) ||
-               q.cmd.is('M', 190)) {
+               q.cmd.is('M', 190) || (q.cmd.is('G', 10) && q.cmd.has('P'))) {
       st = execute_machine_command(q.cmd);
     } else {
       st = executor_->execute(q.cmd, cancel_);

@@ -52,6 +52,8 @@ struct MachineStatus {
   uint64_t late_cycles = 0;         // sampled path: the plan paused for a late servo cycle
   double encoder_mm[4] = {0, 0, 0, 0};  // latest encoder reading per joint from the MCUs (NaN: none)
   uint64_t encoder_samples = 0;         // encoder samples received from the MCUs
+  int64_t step_count[4] = {0, 0, 0, 0};  // each joint's step counter (the executor steps them)
+  bool has_step_count = false;           // false: this executor makes no steps
   LinkTelemetrySet links;               // each MCU link (frames, retransmissions, round trips)
   char last_error[192] = {};
 };
@@ -89,6 +91,9 @@ class CommandExecutor {
   // (the flight recorder keeps its encoder samples). Not motion: M400 does not wait for it; the
   // machine is idle only after it. Any thread.
   virtual bool settling() const { return false; }
+  // True while a fault (an MCU gone, an implausible encoder) has stopped the motion: the motion
+  // still queued will not run, so the machine is not busy but in error. Any thread.
+  virtual bool faulted() const { return false; }
   // Virtual time only: may the servo thread advance time now? It must not run past the motion
   // the planner is still producing (that would cut the motion into pieces), but must advance
   // when the planner has nothing more to give. `planner_busy`: a command is queued or executing.

@@ -63,6 +63,10 @@ void MotionExecutor::idle_tick(const std::atomic<bool>& cancel) {
   planner_queued_.store(planner_.queued());
 }
 
+bool MotionExecutor::faulted() const {
+  return control_fault_.load() || (backend_ != nullptr && backend_->fault());
+}
+
 bool MotionExecutor::motion_pending() const {
   return planner_queued_.load() > 0 || pushed_.load() != popped_.load() ||
          telemetry_.anchored.load(std::memory_order_relaxed);
@@ -77,6 +81,8 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
   s.motion_starts = telemetry_.anchors.load(std::memory_order_relaxed);
   s.lost_step_events = lost_step_events_.load(std::memory_order_relaxed);
   s.late_cycles = late_cycles_.load(std::memory_order_relaxed);
+  for (size_t j = 0; j < 4; ++j) s.step_count[j] = step_count_[j].load(std::memory_order_relaxed);
+  s.has_step_count = true;
   if (backend_ != nullptr) {  // the MCUs: encoder positions, and a fault naming the MCU
     for (int j = 0; j < 4; ++j) s.encoder_mm[j] = backend_->encoder_mm(j);
     s.encoder_samples = backend_->encoder_samples();
@@ -170,6 +176,8 @@ void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   const bool was_anchored = telemetry_.anchored.load(std::memory_order_relaxed);
   run_cycle(now_s, cancel);
   publish_settling(now_s, was_anchored);
+  for (int j = 0; j < kJoints && j < 4; ++j)
+    step_count_[static_cast<size_t>(j)].store(steps_.position_steps(j), std::memory_order_relaxed);
 }
 
 // The motion has ended (anchored went false), but the carriage has not settled yet: an open-loop

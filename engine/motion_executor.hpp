@@ -25,6 +25,7 @@
 // has been executed, the anchor is released and the next motion re-anchors.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <memory>
@@ -78,6 +79,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void position(double out_mm[4]) const override;
   void idle_tick(const std::atomic<bool>& cancel) override;
   void servo_cycle(int64_t now_ns, bool cancel) override;
+  bool faulted() const override;
   bool motion_pending() const override;
   bool settling() const override { return settling_.load(std::memory_order_relaxed); }
   void motion_status(MachineStatus& s) const override;
@@ -145,6 +147,8 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
                       const control::JointArray& command_mm, const std::array<double, 3>& nozzle_mm);
   std::atomic<uint64_t> lost_step_events_{0};
   std::atomic<uint64_t> late_cycles_{0};  // sampled path: the plan paused for a late cycle
+  // Each joint's step counter as the servo thread left it (M114's Count), published per cycle.
+  std::array<std::atomic<int64_t>, 4> step_count_{};
   std::unique_ptr<ServoControl> control_;
   std::unique_ptr<planner::MoveTimeline> timeline_;
   struct Sample {  // one command sample, kept for the feedback comparison

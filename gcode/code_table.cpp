@@ -30,8 +30,12 @@ constexpr ParamRule kArc[] = {num('X'), num('Y'), num('Z'), num('E'), num('I'), 
                               num('R'), positive('F'), {'P', K::kNumber, 0.0, 1e6, false, true}};
 // G4 dwell: P milliseconds or S seconds (S wins when both are given, as in Marlin).
 constexpr ParamRule kDwell[] = {non_negative('P'), non_negative('S')};
-// G10 firmware retract: S1 = swap retract (tool change).
-constexpr ParamRule kRetract[] = {{'S', K::kFlagOrNumber, 0.0, 1.0, false, true}};
+// G10 firmware retract: S1 = swap retract (tool change); Marlin reads S as a bool and ignores
+// other words (Marlin/src/gcode/feature/fwretract/G10_G11.cpp). With P it is the temperature form
+// hosts send for RepRapFirmware: P tool, S active, R standby temperature (the heaters' business,
+// engine/machine.cpp).
+constexpr ParamRule kRetract[] = {{'S', K::kFlagOrNumber, 0.0, kMaxTempDegC, false, false}, index('P'),
+                                  temp('R')};
 // G28 home: axis letters are flags (a value is ignored), O = only if not homed, L = restore
 // levelling, R = raise before homing (mm).
 constexpr ParamRule kHome[] = {flag('X'), flag('Y'), flag('Z'), flag('O'), flag('L'),

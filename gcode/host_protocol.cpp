@@ -44,6 +44,20 @@ bool mentions_m110(std::string_view s) {
   return false;
 }
 
+// "...*<digits>" at the end of the text (blanks around the digits allowed): a checksum. A '*'
+// inside M117 text ("5*5 grid") is not one.
+bool has_checksum_tail(std::string_view s) {
+  const size_t star = s.rfind('*');
+  if (star == std::string_view::npos) return false;
+  size_t i = star + 1;
+  while (i < s.size() && is_blank(s[i])) ++i;
+  const size_t digits = i;
+  while (i < s.size() && is_digit(s[i])) ++i;
+  if (i == digits) return false;
+  while (i < s.size() && is_blank(s[i])) ++i;
+  return i == s.size();
+}
+
 }  // namespace
 
 HostProtocol::HostProtocol(std::string source_name) : HostProtocol(std::move(source_name), {}) {}
@@ -124,6 +138,18 @@ HostProtocol::Action HostProtocol::on_line(std::string_view raw, Reply& out, Com
     last_n_ = (m110 && parsed && command.has_value('N'))
                   ? static_cast<int64_t>(command.get('N'))
                   : leading_n;
+  } else if (has_checksum_tail(body)) {
+    // A checksum needs a line number to go with it (Marlin 1.0.x, Marlin_main.cpp get_command():
+    // "No Line Number with checksum"): nothing executes. Marlin then sends nothing more; here
+    // the line gets its ok like every other refused line, so hosts that count oks go on.
+    command.clear();
+    ++stats_.parse_errors;
+    out.text.append("Error:");
+    out.text.append(kErrNoLineNumber);
+    append_int(out.text, last_n_);
+    out.text.push_back('\n');
+    out.line(kOk);
+    return Action::kNone;
   }
 
   if (!parsed) {

@@ -9,6 +9,7 @@
 //                          ok
 //   N43 ... (expected 42) -> Error:Line Number is not Last Line Number+1, Last Line: 41 / Resend: 42 / ok
 //   N42 G1 X1  (no *)  ->  Error:No Checksum with line number, Last Line: 41 / Resend: 42 / ok
+//   G1 X1*75   (no N)  ->  Error:No Line Number with checksum, Last Line: 41 / ok   (nothing executed)
 //   M110 N100          ->  ok, and the next expected line is N101
 //   G1 X1 Q2 (invalid) ->  Error:<source>:<line>:<column>: <message> / ok   (nothing executed)
 //   M999 (unknown)     ->  echo:Unknown command: "M999" / ok   (still returned to the caller)
@@ -94,6 +95,7 @@ class HostProtocol {
       "Line Number is not Last Line Number+1, Last Line: ";
   static constexpr std::string_view kErrChecksumMismatch = "checksum mismatch, Last Line: ";
   static constexpr std::string_view kErrNoChecksum = "No Checksum with line number, Last Line: ";
+  static constexpr std::string_view kErrNoLineNumber = "No Line Number with checksum, Last Line: ";
   static constexpr std::string_view kResend = "Resend: ";
   static constexpr std::string_view kHalted = "Error:Printer halted. kill() called!";
 

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "gcode/code_table.hpp"
+#include "core/utf8.hpp"
 #include "gcode/number.hpp"
 
 namespace feedloop::gcode {
@@ -79,6 +80,7 @@ class LineParser {
   Status parse_command_code(size_t word, char letter);
   Status parse_parameter(size_t word, char letter, bool after_space);
   Status check_checksum_tail(size_t star) const;
+  Status reject_extended_command(size_t word) const;
   Status validate() const;
   Status check_parameter(const CodeRule& rule, const ParamRule& p, char letter) const;
   void keep_as_text();  // an unknown command whose argument is not G-code words
@@ -145,10 +147,11 @@ Status LineParser::parse_words() {
           const std::string_view rest =
               s_.substr(i_, semicolon == std::string_view::npos ? std::string_view::npos
                                                                 : semicolon - i_);
-          out_.text.assign(trim_text(rest));
+          assign_valid_utf8(out_.text, trim_text(rest));  // the outside-string boundary
           return Status::Ok();
         }
       } else {
+        if (Status st = reject_extended_command(word); !st) return st;
         return fail(word, std::string("parameter ") + letter +
                               " before any command (expected G, M or T first)");
       }
@@ -216,6 +219,18 @@ Status LineParser::parse_parameter(size_t word, char letter, bool after_space) {
   const int b = letter - 'A';
   if (out_.has(letter)) return fail(word, std::string(1, letter) + " given twice");
   column_[b] = static_cast<uint32_t>(word > UINT32_MAX ? UINT32_MAX : word);
+  // Marlin skips blanks between a parameter letter and its value ("G1 X 30" is X30;
+  // Marlin/src/gcode/parser.cpp, GCodeParser::parse); without a number after them the letter is
+  // a flag ("G28 X Y").
+  size_t value = i_;
+  while (value < n && (s_[value] == ' ' || s_[value] == '\t')) ++value;
+  if (value < n && value > i_) {
+    const char c = s_[value];
+    const bool numeric = is_digit(c) || (c == '.' && value + 1 < n && is_digit(s_[value + 1])) ||
+                         ((c == '+' || c == '-') && value + 1 < n &&
+                          (is_digit(s_[value + 1]) || s_[value + 1] == '.'));
+    if (numeric) i_ = value;
+  }
   if (i_ < n) {
     const char c = s_[i_];
     if (is_digit(c) || c == '.' || c == '+' || c == '-') {
@@ -231,6 +246,29 @@ Status LineParser::parse_parameter(size_t word, char letter, bool after_space) {
   }
   out_.set_flag(letter);
   return Status::Ok();
+}
+
+// Klipper's extended commands ("SET_VELOCITY_LIMIT VELOCITY=300") are not G-code: Marlin answers
+// them with "echo:Unknown command" (Marlin/src/gcode/gcode.cpp, process_parsed_command), which
+// hosts hide, and the parameter-before-command message would mislead. Name the dialect and the
+// Marlin codes that do the same.
+Status LineParser::reject_extended_command(size_t word) const {
+  size_t end = word;
+  while (end < s_.size() && (is_alpha(s_[end]) || is_digit(s_[end]) || s_[end] == '_')) ++end;
+  const std::string_view name = s_.substr(word, end - word);
+  size_t letters = 0;
+  while (letters < name.size() && (is_alpha(name[letters]) || name[letters] == '_')) ++letters;
+  if (letters < 4 && name.find('_') == std::string_view::npos) return Status::Ok();
+  std::string upper;
+  for (const char c : name) upper.push_back(to_upper(c));
+  std::string message = "'" + upper + "' is a Klipper extended command, not G-code; feedloop speaks Marlin G-code";
+  if (upper == "SET_VELOCITY_LIMIT")
+    message += " (limits: M203 max feed rate, M201/M204 acceleration, M205 junction deviation)";
+  else if (upper == "SET_HEATER_TEMPERATURE")
+    message += " (M104/M140 set temperatures)";
+  else if (upper == "PAUSE" || upper == "RESUME" || upper == "CANCEL_PRINT")
+    message += " (the host pauses or cancels by not sending; M112 stops at once)";
+  return fail(word, message);
 }
 
 Status LineParser::check_checksum_tail(size_t star) const {
@@ -257,9 +295,10 @@ void LineParser::keep_as_text() {
   out_.line_number = line_number;
   out_.unknown = true;
   const size_t semicolon = s_.find(';', code_end_);
-  out_.text.assign(trim_text(s_.substr(
-      code_end_, semicolon == std::string_view::npos ? std::string_view::npos
-                                                     : semicolon - code_end_)));
+  assign_valid_utf8(out_.text,
+                    trim_text(s_.substr(code_end_, semicolon == std::string_view::npos
+                                                       ? std::string_view::npos
+                                                       : semicolon - code_end_)));
 }
 
 Status LineParser::validate() const {

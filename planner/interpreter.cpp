@@ -206,7 +206,8 @@ Status Interpreter::home(const gcode::Command& c) {
 }
 
 Status Interpreter::retract(const gcode::Command& c, bool recover) {
-  if (c.has('L') || c.has('P')) return fail(c, "G10 L/P (tool/work offsets) is not supported; G10 alone retracts");
+  if (c.has('L')) return fail(c, "G10 L (tool/work offsets) is not supported; G10 alone retracts");
+  if (c.has('P')) return {};  // the temperature form (G10 P0 S210): the heaters', nothing moves
   if (!recover) {
     if (st_.retracted) return {};
     Vec4 e_to = st_.machine_mm;

@@ -65,7 +65,7 @@ int prune_logs(const std::string& directory, int keep_files, const std::string& 
 
 Status LogFile::create(const std::string& path) {
   close();
-  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0640);  // prints are not for every user
   if (fd_ < 0) return Error{std::string("cannot create log file: ") + std::strerror(errno), {path, 0, 0}};
   path_ = path;
   size_ = 0;

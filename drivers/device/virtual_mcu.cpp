@@ -1,9 +1,11 @@
 // Virtual MCU: see virtual_mcu.hpp. No heap, no exceptions, no standard library containers.
 #include "drivers/device/virtual_mcu.hpp"
 
+#include <chrono>   // steady_clock (the loop tick's cost in LOOP_REPORT)
 #include <cmath>    // floor
 #include <cstring>  // memcpy
 
+#include "drivers/protocol/loop_messages.hpp"
 #include "drivers/stepgen/run_codec.hpp"
 
 namespace feedloop::device {
@@ -26,6 +28,7 @@ VirtualMcu::VirtualMcu(const VirtualMcuParams& params, MotorPort* const* ports, 
   for (int i = 0; i < num_axes_; ++i) {
     axes_[i].port = ports[i];
     axes_[i].st.step_hash = kStepHashSeed;
+    axes_[i].loop.init(static_cast<float>(params_.clock_hz));
   }
   status_.num_axes = num_axes_;
   sync_status();
@@ -141,8 +144,11 @@ void VirtualMcu::stop(McuError code, int64_t detail) {
     Axis& a = axes_[i];
     a.run_head = a.run_count = 0;
     a.have_queued_end = false;
+    a.extra_left = 0;
+    a.loop.init(static_cast<float>(params_.clock_hz));
     if (status_.enabled && a.port != nullptr) a.port->set_enabled(true_time_at(now_clock_), false);
   }
+  loop_stopping_ = false;
   status_.enabled = false;
   status_.stopped = true;
   sync_status();
@@ -178,10 +184,14 @@ void VirtualMcu::do_step(Axis& a) {
 
 double VirtualMcu::next_event_time() const {
   int64_t e = kNever;
-  for (int i = 0; i < num_axes_; ++i)
-    if (axes_[i].run_count > 0 && axes_[i].next_step_clock < e) e = axes_[i].next_step_clock;
+  for (int i = 0; i < num_axes_; ++i) {
+    const Axis& a = axes_[i];
+    if (a.run_count > 0 && a.next_step_clock < e) e = a.next_step_clock;
+    if (a.extra_left != 0 && a.extra_next_clock < e) e = a.extra_next_clock;
+    if (a.loop.next_tick_clock() < e) e = a.loop.next_tick_clock();
+  }
   if (encoder_period_ticks_ > 0 && next_sample_clock_ < e) e = next_sample_clock_;
-  if (status_.enabled && watchdog_ticks_ > 0 && last_host_clock_ + watchdog_ticks_ < e)
+  if (status_.enabled && watchdog_ticks_ > 0 && !loop_stopping_ && last_host_clock_ + watchdog_ticks_ < e)
     e = last_host_clock_ + watchdog_ticks_;
   if (link_.in_flight() > 0) {
     const int64_t soon = now_clock_ + static_cast<int64_t>(params_.clock_hz * 0.005);
@@ -193,24 +203,42 @@ double VirtualMcu::next_event_time() const {
 void VirtualMcu::run_until(double t_s) {
   const int64_t target = clock_at(t_s);
   for (;;) {
+    // In clock order; at equal clocks: the host's steps, the loop's steps, encoder samples, loop
+    // ticks (which then see every step due at their instant), the watchdog.
     int64_t e = kNever;
     int what = 0;
-    Axis* step_axis = nullptr;
+    int axis = 0;
     for (int i = 0; i < num_axes_; ++i)
       if (axes_[i].run_count > 0 && axes_[i].next_step_clock < e) {
         e = axes_[i].next_step_clock;
         what = 1;
-        step_axis = &axes_[i];
+        axis = i;
+      }
+    for (int i = 0; i < num_axes_; ++i)
+      if (axes_[i].extra_left != 0 && axes_[i].extra_next_clock < e) {
+        e = axes_[i].extra_next_clock;
+        what = 5;
+        axis = i;
       }
     if (encoder_period_ticks_ > 0 && next_sample_clock_ < e) { e = next_sample_clock_; what = 2; }
-    if (status_.enabled && watchdog_ticks_ > 0 && last_host_clock_ + watchdog_ticks_ < e) {
+    for (int i = 0; i < num_axes_; ++i)
+      if (axes_[i].loop.next_tick_clock() < e) {
+        e = axes_[i].loop.next_tick_clock();
+        what = 4;
+        axis = i;
+      }
+    if (status_.enabled && watchdog_ticks_ > 0 && !loop_stopping_ && last_host_clock_ + watchdog_ticks_ < e) {
       e = last_host_clock_ + watchdog_ticks_;
       what = 3;
     }
     if (e > target) break;
     if (e > now_clock_) now_clock_ = e;
     if (what == 1) {
-      do_step(*step_axis);
+      do_step(axes_[axis]);
+    } else if (what == 5) {
+      do_extra_step(axes_[axis]);
+    } else if (what == 4) {
+      loop_tick(axis);
     } else if (what == 2) {
       for (int i = 0; i < num_axes_; ++i) {
         Axis& a = axes_[i];
@@ -224,7 +252,13 @@ void VirtualMcu::run_until(double t_s) {
         nsamples_ = 0;
       }
     } else {
-      stop(McuError::kWatchdog, now_clock_ - last_host_clock_);
+      bool any_loop = false;
+      for (int i = 0; i < num_axes_; ++i) any_loop = any_loop || axes_[i].loop.state() == LoopState::kRunning;
+      if (any_loop) {
+        begin_controlled_stop(StopReason::kHostSilent, McuError::kWatchdog, now_clock_ - last_host_clock_);
+      } else {
+        stop(McuError::kWatchdog, now_clock_ - last_host_clock_);
+      }
     }
   }
   if (target > now_clock_) now_clock_ = target;
@@ -237,6 +271,129 @@ void VirtualMcu::receive(const uint8_t* data, size_t n, double t_s) {
   run_until(t_s);
   link_.on_bytes(data, n, now_ns());
   flush_pending();
+}
+
+void VirtualMcu::do_extra_step(Axis& a) {
+  const int dir = a.extra_left > 0 ? 1 : -1;
+  if (a.port != nullptr) a.port->step(true_time_at(a.extra_next_clock), dir);
+  a.st.device_steps += dir;
+  ++a.st.device_steps_executed;
+  a.extra_left -= dir;
+  ++a.extra_k;
+  // Step k of n at start + (k + 1/2) span / n: evenly spread, the last one before the next tick.
+  a.extra_next_clock = a.extra_start + ((2 * static_cast<int64_t>(a.extra_k) + 1) * a.extra_span) / (2 * a.extra_n);
+}
+
+void VirtualMcu::send_loop_events(int axis) {
+  LoopEvent ev;
+  while (axes_[axis].loop.pop_event(ev)) {
+    uint8_t buf[48];
+    const size_t n = protocol::encode_loop_event({static_cast<uint8_t>(axis), ev}, buf, sizeof buf);
+    if (n > 0) send_msg(buf, n);
+  }
+}
+
+void VirtualMcu::begin_controlled_stop(StopReason why, McuError code, int64_t detail) {
+  if (loop_stopping_) return;
+  loop_stopping_ = true;
+  stop_code_ = code;
+  stop_detail_ = detail;
+  bool any = false;
+  for (int i = 0; i < num_axes_; ++i) {
+    Axis& a = axes_[i];
+    if (a.loop.state() == LoopState::kRunning) {
+      a.loop.request_stop(why);
+      any = true;
+    } else if (a.loop.state() == LoopState::kStopping) {
+      any = true;  // the axis that tripped: already braking
+    } else {
+      a.run_head = a.run_count = 0;  // no loop on this motor: it stops at once, as in protocol v1
+      a.have_queued_end = false;
+    }
+  }
+  if (!any) stop(code, detail);
+}
+
+void VirtualMcu::loop_tick(int axis) {
+  Axis& a = axes_[axis];
+  LoopTickIn in;
+  in.clock = now_clock_;
+  in.encoder_counts = a.port != nullptr ? a.port->read_encoder_counts(true_time_at(now_clock_)) : 0;
+  in.motor_steps = a.st.position_steps + a.st.device_steps;
+  in.device_steps = a.st.device_steps;
+  LoopTickOut out;
+  if (params_.measure_tick_cost) {
+    const auto t0 = std::chrono::steady_clock::now();
+    a.loop.tick(in, out);
+    const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
+    a.loop.note_tick_cost(static_cast<uint32_t>(ns));
+  } else {
+    a.loop.tick(in, out);
+  }
+  a.extra_left = out.extra_steps;
+  if (out.extra_steps != 0) {
+    a.extra_n = out.extra_steps > 0 ? out.extra_steps : -out.extra_steps;
+    a.extra_k = 0;
+    a.extra_start = now_clock_;
+    a.extra_span = out.over_ticks > 0 ? out.over_ticks : 1;
+    a.extra_next_clock = a.extra_start + a.extra_span / (2 * a.extra_n);
+  }
+  if (out.flush_host_steps) {
+    a.run_head = a.run_count = 0;
+    a.have_queued_end = false;
+    const StopReason why = a.loop.stop_reason();
+    if (why != StopReason::kPeer && why != StopReason::kHostSilent && why != StopReason::kHost) {
+      // This axis tripped: every other axis of the MCU stops too.
+      McuError code = McuError::kTargetUnderrun;
+      if (why == StopReason::kFollowingError) code = McuError::kFollowingError;
+      if (why == StopReason::kEncoderFault) code = McuError::kEncoderFault;
+      begin_controlled_stop(StopReason::kPeer, code, axis);
+    }
+  }
+  if (out.report_due) {
+    protocol::LoopReportMsg m;
+    m.axis = static_cast<uint8_t>(axis);
+    a.loop.take_report(m.report);
+    uint8_t buf[96];
+    const size_t n = protocol::encode_loop_report(m, buf, sizeof buf);
+    if (n > 0) send_msg(buf, n, /*droppable=*/true);
+  }
+  send_loop_events(axis);
+  if (out.stopped) {
+    bool all = true;
+    for (int i = 0; i < num_axes_; ++i) all = all && !(axes_[i].loop.active());
+    if (all) stop(stop_code_ == McuError::kNone ? McuError::kTargetUnderrun : stop_code_, stop_detail_);
+  }
+}
+
+void VirtualMcu::handle_configure_loop(const uint8_t* p, size_t n) {
+  protocol::ConfigureLoopMsg m;
+  if (negotiated_version_ < 2 || !protocol::decode_configure_loop(p, n, m) || m.axis >= num_axes_) {
+    send_error(McuError::kBadMessage, static_cast<int64_t>(MsgType::kConfigureLoop));
+    return;
+  }
+  const LoopParamError err = axes_[m.axis].loop.stage(m.params, m.activation_clock);
+  send_loop_events(m.axis);
+  if (err != LoopParamError::kOk) send_error(McuError::kBadLoopConfig, static_cast<int64_t>(err));
+}
+
+void VirtualMcu::handle_queue_target(const uint8_t* p, size_t n) {
+  protocol::QueueTargetReader r;
+  if (negotiated_version_ < 2 || !r.begin(p, n) || r.axis() >= num_axes_) {
+    send_error(McuError::kBadMessage, static_cast<int64_t>(MsgType::kQueueTarget));
+    return;
+  }
+  Axis& a = axes_[r.axis()];
+  TargetKnot k;
+  while (r.next(k)) {
+    if (!a.loop.push_target(k)) {
+      send_loop_events(r.axis());
+      send_error(McuError::kTargetOverflow, r.axis());
+      if (a.loop.state() == LoopState::kRunning) begin_controlled_stop(StopReason::kHost, McuError::kTargetOverflow, r.axis());
+      return;
+    }
+  }
+  if (!r.ok()) send_error(McuError::kBadMessage, static_cast<int64_t>(MsgType::kQueueTarget));
 }
 
 void VirtualMcu::handle_queue_steps(MsgReader& r) {
@@ -300,21 +457,33 @@ void VirtualMcu::on_payload(const uint8_t* p, size_t n) {
   last_host_clock_ = now_clock_;
   if (type == MsgType::kIdentify) {
     const uint16_t host_version = r.u16();
+    const uint16_t max_v = params_.protocol_version;
+    const uint16_t min_v = params_.min_protocol_version != 0 ? params_.min_protocol_version
+                           : max_v == protocol::kProtocolVersion ? protocol::kMinProtocolVersion
+                                                                 : max_v;
+    const bool agreed = r.ok() && host_version >= min_v && host_version <= max_v;
     uint8_t buf[64];
     MsgWriter w(buf, sizeof buf);
     const size_t name_len = ::strnlen(params_.name, sizeof params_.name);
     w.u8(static_cast<uint8_t>(MsgType::kIdentifyResponse))
-        .u16(params_.protocol_version)
+        .u16(agreed ? host_version : max_v)
         .var(static_cast<uint64_t>(params_.clock_hz))
         .u8(num_axes_ == 1 ? params_.axis : static_cast<uint8_t>(0x80 | num_axes_))
         .u8(static_cast<uint8_t>(name_len))
         .bytes(reinterpret_cast<const uint8_t*>(params_.name), name_len);
     send_msg(buf, w.size());
-    status_.identified = r.ok() && host_version == params_.protocol_version;
+    status_.identified = agreed;
+    negotiated_version_ = agreed ? host_version : 0;
+    status_.negotiated_version = negotiated_version_;
     if (!status_.identified) {
       send_error(McuError::kVersionMismatch, params_.protocol_version);
     } else {
       status_.stopped = false;
+      for (int i = 0; i < num_axes_; ++i) {  // a new session starts without a loop
+        axes_[i].loop.init(static_cast<float>(params_.clock_hz));
+        axes_[i].extra_left = 0;
+      }
+      loop_stopping_ = false;
     }
     return;
   }
@@ -365,6 +534,20 @@ void VirtualMcu::on_payload(const uint8_t* p, size_t n) {
       stop(McuError::kEmergencyStop, 0);
       return;
     case MsgType::kHeartbeat:
+      return;
+    case MsgType::kConfigureLoop:
+      if (status_.stopped) {
+        send_error(McuError::kNotIdentified, static_cast<int64_t>(type));
+        return;
+      }
+      handle_configure_loop(p, n);
+      return;
+    case MsgType::kQueueTarget:
+      if (status_.stopped) {
+        send_error(McuError::kNotIdentified, static_cast<int64_t>(type));
+        return;
+      }
+      handle_queue_target(p, n);
       return;
     case MsgType::kStatusQuery:
       send_status();

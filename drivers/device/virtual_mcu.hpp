@@ -18,6 +18,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "drivers/device/axis_loop.hpp"
 #include "drivers/device/motor_port.hpp"
 #include "drivers/protocol/messages.hpp"
 #include "drivers/protocol/reliable_link.hpp"
@@ -31,7 +32,15 @@ struct VirtualMcuParams {
   double offset_s = 0.0;      // clock(t) = (t + offset_s) * true rate
   uint8_t axis = 0;           // informational (reported in IDENTIFY_RESPONSE with one motor)
   char name[16] = "mcu";
-  uint16_t protocol_version = protocol::kProtocolVersion;  // tests set another to provoke a mismatch
+  // Versions the device accepts from a host: [min_protocol_version, protocol_version]. It answers
+  // IDENTIFY with the host's version when that is in range (so a v1 host works with this v2
+  // device), else with protocol_version and a version-mismatch error. min_protocol_version 0:
+  // protocol::kMinProtocolVersion for this build's version; a device set to another version (tests
+  // emulating other firmware) speaks only that one.
+  uint16_t protocol_version = protocol::kProtocolVersion;
+  uint16_t min_protocol_version = 0;
+  // LOOP_REPORT's per-tick cost: the host's steady clock around each loop tick (ns). false: 0.
+  bool measure_tick_cost = true;
   protocol::LinkParams link;
 };
 
@@ -40,6 +49,8 @@ struct AxisStatus {
   int64_t position_steps = 0;
   uint64_t step_hash = 0;            // FNV-1a over (clock, direction) of every executed step
   uint32_t queued_runs = 0;
+  int64_t device_steps = 0;          // net steps issued by the device loop (corrections, stop ramps)
+  uint64_t device_steps_executed = 0;
 };
 
 struct VirtualMcuStatus {
@@ -58,6 +69,7 @@ struct VirtualMcuStatus {
   uint64_t errors = 0;
   uint64_t reports_dropped = 0;
   uint64_t frames_dropped = 0;
+  uint16_t negotiated_version = 0;   // the version agreed at the last IDENTIFY (0: none)
 };
 
 // FNV-1a step hash, shared with the host side so it can check what the device executed.
@@ -98,6 +110,8 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
   const VirtualMcuStatus& status() const { return status_; }
   const VirtualMcuParams& params() const { return params_; }
   const protocol::LinkStats& link_stats() const { return link_.stats(); }
+  // The device loop of motor i (protocol v2; idle until CONFIGURE_LOOP).
+  const AxisLoop& loop(int i) const { return axes_[i].loop; }
   // True time of the next thing the device must do by itself (step, sample, watchdog,
   // retransmission); a large value when idle. Lets a real-time loop sleep until then.
   double next_event_time() const;
@@ -120,8 +134,19 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
     AxisStatus st;
     int64_t sample_first_clock = 0;
     int64_t samples[kMaxSamples] = {};
+    // Device loop (protocol v2) and its extra steps, spread evenly over a control period.
+    AxisLoop loop;
+    int32_t extra_left = 0, extra_n = 0, extra_k = 0;
+    int64_t extra_start = 0, extra_span = 0, extra_next_clock = 0;
   };
   void handle_queue_steps(protocol::MsgReader& r);
+  void handle_configure_loop(const uint8_t* p, size_t n);
+  void handle_queue_target(const uint8_t* p, size_t n);
+  void loop_tick(int axis);
+  void do_extra_step(Axis& a);
+  void send_loop_events(int axis);
+  // A controlled stop of every axis with an active loop (the others' queues are flushed now).
+  void begin_controlled_stop(StopReason why, protocol::McuError code, int64_t detail);
   void sync_status();
   // Sends now or queues behind the window; `droppable` messages (encoder reports) give way when
   // the queue is half full, so error reports and replies always find room.
@@ -154,6 +179,12 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
   // Watchdog.
   int64_t watchdog_ticks_ = 0;
   int64_t last_host_clock_ = 0;
+
+  // A controlled stop in progress: the error reported once every loop axis is at rest.
+  bool loop_stopping_ = false;
+  protocol::McuError stop_code_ = protocol::McuError::kNone;
+  int64_t stop_detail_ = 0;
+  uint16_t negotiated_version_ = 0;
 
   // Outgoing frames and messages waiting for window space.
   uint8_t out_frames_[kMaxOutFrames][protocol::kMaxFrame] = {};

@@ -65,6 +65,8 @@ Status McuSession::start(double now_s) {
   query_head_ = query_count_ = 0;
   state_ = McuState::kIdentifying;
   error_.reset();
+  identify_version_ = p_.protocol_version;
+  negotiated_version_ = 0;
   const uint8_t m[3] = {static_cast<uint8_t>(MsgType::kIdentify), static_cast<uint8_t>(p_.protocol_version & 0xFF),
                         static_cast<uint8_t>(p_.protocol_version >> 8)};
   enqueue(m, sizeof m);
@@ -103,6 +105,28 @@ void McuSession::queue_steps(const stepgen::StepBatch& b) {
   m[0] = static_cast<uint8_t>(MsgType::kQueueSteps);
   m[1] = b.axis;
   std::memcpy(m + 2, b.body, b.body_bytes);
+}
+
+void McuSession::queue_message(const uint8_t* msg, size_t n) { enqueue(msg, n); }
+
+size_t McuSession::take_loop_reports(protocol::LoopReportMsg* out, size_t cap) {
+  size_t k = 0;
+  while (k < cap && report_count_ > 0) {
+    out[k++] = loop_reports_[report_head_];
+    report_head_ = (report_head_ + 1) % kLoopMessages;
+    --report_count_;
+  }
+  return k;
+}
+
+size_t McuSession::take_loop_events(protocol::LoopEventMsg* out, size_t cap) {
+  size_t k = 0;
+  while (k < cap && event_count_ > 0) {
+    out[k++] = loop_events_[event_head_];
+    event_head_ = (event_head_ + 1) % kLoopMessages;
+    --event_count_;
+  }
+  return k;
 }
 
 void McuSession::set_enabled(bool on) {
@@ -230,7 +254,17 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
         fail("MCU '" + p_.name + "': malformed identify response");
         return;
       }
-      if (version != p_.protocol_version) {
+      if (version != identify_version_ && version >= protocol::kMinProtocolVersion &&
+          version < identify_version_) {
+        // An older device that does not speak our version: identify again with its version
+        // (its version-mismatch report for our first IDENTIFY is expected and ignored).
+        identify_version_ = version;
+        const uint8_t m[3] = {static_cast<uint8_t>(MsgType::kIdentify), static_cast<uint8_t>(version & 0xFF),
+                              static_cast<uint8_t>(version >> 8)};
+        enqueue(m, sizeof m, /*front=*/true);
+        return;
+      }
+      if (version != identify_version_) {
         fail("MCU '" + p_.name + "' (" + transport_.describe() + ", firmware '" +
              std::string(reinterpret_cast<const char*>(name), name_len) + "') speaks protocol version " +
              std::to_string(version) + " but this host speaks version " + std::to_string(p_.protocol_version) +
@@ -251,6 +285,7 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
         return;
       }
       mcu_axes_ = motors;
+      negotiated_version_ = version;
       mcu_clock_hz_ = static_cast<uint32_t>(hz);
       ClockSyncParams cp;
       cp.nominal_hz = static_cast<double>(hz);
@@ -310,6 +345,34 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       if (status_) *status_ = s; else status_ = s;
       return;
     }
+    case MsgType::kLoopReport: {
+      protocol::LoopReportMsg m;
+      if (!protocol::decode_loop_report(p, n, m)) {
+        events_.push_back("MCU '" + p_.name + "': malformed loop report");
+        return;
+      }
+      if (report_count_ == kLoopMessages) {  // nobody takes them: keep the newest
+        report_head_ = (report_head_ + 1) % kLoopMessages;
+        --report_count_;
+        ++loop_dropped_;
+      }
+      loop_reports_[(report_head_ + report_count_++) % kLoopMessages] = m;
+      return;
+    }
+    case MsgType::kLoopEvent: {
+      protocol::LoopEventMsg m;
+      if (!protocol::decode_loop_event(p, n, m)) {
+        events_.push_back("MCU '" + p_.name + "': malformed loop event");
+        return;
+      }
+      if (event_count_ == kLoopMessages) {
+        event_head_ = (event_head_ + 1) % kLoopMessages;
+        --event_count_;
+        ++loop_dropped_;
+      }
+      loop_events_[(event_head_ + event_count_++) % kLoopMessages] = m;
+      return;
+    }
     case MsgType::kEncoderReport: {
       const int axis = r.u8();
       const int64_t first = static_cast<int64_t>(r.var());
@@ -350,12 +413,17 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       std::string msg = "MCU '" + p_.name + "' (" + transport_.describe() + ") reports " +
                         protocol::mcu_error_name(code) + " at clock " + std::to_string(clock) +
                         " (detail " + std::to_string(detail) + ")";
+      if (code == McuError::kVersionMismatch && identify_version_ != p_.protocol_version &&
+          detail == identify_version_) {
+        return;  // the reply to our first IDENTIFY before we fell back to the device's version
+      }
       if (code == McuError::kVersionMismatch) {
         fail(msg + ": device speaks protocol version " + std::to_string(detail) + ", host speaks " +
              std::to_string(p_.protocol_version));
       } else if (code == McuError::kQueueUnderrun || code == McuError::kWatchdog ||
                  code == McuError::kEmergencyStop || code == McuError::kBatchOverlap ||
-                 code == McuError::kQueueOverflow) {
+                 code == McuError::kQueueOverflow || code == McuError::kFollowingError ||
+                 code == McuError::kEncoderFault || code == McuError::kTargetUnderrun) {
         fail(msg + "; the MCU stopped its motor");
       } else {
         events_.push_back(std::move(msg));

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "drivers/clock_sync.hpp"
+#include "drivers/protocol/loop_messages.hpp"
 #include "drivers/protocol/messages.hpp"
 #include "drivers/protocol/reliable_link.hpp"
 #include "drivers/stepgen/step_batcher.hpp"
@@ -111,6 +112,17 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   int frames_in_flight() const { return link_.in_flight(); }
   uint32_t mcu_clock_hz() const { return mcu_clock_hz_; }
   int mcu_axes() const { return mcu_axes_; }
+  // The protocol version agreed at identify (0 before): 2 when the device loop's messages
+  // (drivers/protocol/loop_messages.hpp) may be sent, 1 with an older device.
+  uint16_t negotiated_version() const { return negotiated_version_; }
+  // Queues an already encoded message (e.g. encode_configure_loop, encode_queue_target) behind the
+  // others; fails the session when the outbox is full, like queue_steps. RT-safe.
+  void queue_message(const uint8_t* msg, size_t n);
+  // Loop reports and events (protocol v2) since the last call, oldest first (fixed rings of
+  // kLoopMessages each; the oldest are dropped and counted when nobody takes them).
+  size_t take_loop_reports(protocol::LoopReportMsg* out, size_t cap);
+  size_t take_loop_events(protocol::LoopEventMsg* out, size_t cap);
+  uint64_t loop_messages_dropped() const { return loop_dropped_; }
 
  private:
   void write_frame(const uint8_t* frame, size_t n) override;
@@ -150,6 +162,14 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   int query_head_ = 0, query_count_ = 0;
   uint32_t mcu_clock_hz_ = 0;
   int mcu_axes_ = 1;
+  uint16_t identify_version_ = 0;
+  uint16_t negotiated_version_ = 0;
+  static constexpr size_t kLoopMessages = 256;
+  std::array<protocol::LoopReportMsg, kLoopMessages> loop_reports_{};
+  size_t report_head_ = 0, report_count_ = 0;
+  std::array<protocol::LoopEventMsg, kLoopMessages> loop_events_{};
+  size_t event_head_ = 0, event_count_ = 0;
+  uint64_t loop_dropped_ = 0;
   std::vector<EncoderSample> samples_;
   uint64_t samples_dropped_ = 0;
   std::vector<std::string> events_;

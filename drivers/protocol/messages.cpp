@@ -14,6 +14,11 @@ const char* mcu_error_name(McuError e) {
     case McuError::kEmergencyStop: return "emergency stop";
     case McuError::kNotIdentified: return "command before identify";
     case McuError::kBatchOverlap: return "step batch overlaps the previous one";
+    case McuError::kFollowingError: return "device loop: following error beyond the limit (controlled stop)";
+    case McuError::kEncoderFault: return "device loop: implausible encoder readings (controlled stop)";
+    case McuError::kTargetUnderrun: return "device loop: target trajectory ran out while moving (controlled stop)";
+    case McuError::kBadLoopConfig: return "device loop: configuration refused";
+    case McuError::kTargetOverflow: return "device loop: target queue full or clocks not increasing";
   }
   return "unknown error";
 }

@@ -11,8 +11,12 @@
 
 namespace feedloop::protocol {
 
-// Bumped on any incompatible change; host and device refuse to talk across versions.
-inline constexpr uint16_t kProtocolVersion = 1;
+// The newest version this code speaks, and the oldest it still accepts (docs/protocol.md,
+// "Versioning"): a device answers IDENTIFY with the version both speak (the host's, when it is in
+// [kMinProtocolVersion, kProtocolVersion]), so a v1 host still works with a v2 device.
+// Version 2 adds the device loop's messages (CONFIGURE_LOOP, QUEUE_TARGET, LOOP_REPORT, LOOP_EVENT).
+inline constexpr uint16_t kProtocolVersion = 2;
+inline constexpr uint16_t kMinProtocolVersion = 1;
 
 enum class MsgType : uint8_t {
   // host -> device
@@ -24,12 +28,16 @@ enum class MsgType : uint8_t {
   kEmergencyStop = 0x06, // -
   kHeartbeat = 0x07,     // -
   kStatusQuery = 0x08,   // -
+  kConfigureLoop = 0x09, // v2: u8 axis, activation_clock, loop parameters (loop_messages.hpp)
+  kQueueTarget = 0x0A,   // v2: u8 axis, n, first clock, zz first pos_nm, n-1 x (dclock, zz dpos_nm)
   // device -> host
   kIdentifyResponse = 0x81,  // u16 version, clock_hz, u8 axis, u8 name_len, name
   kClockResponse = 0x84,     // token, clock
   kStatus = 0x87,            // clock, steps_executed, zz position, queued_runs, step_hash, u8 flags
   kEncoderReport = 0x88,     // first_clock, period_ticks, n, zz counts[0], zz deltas...
   kErrorReport = 0x89,       // u8 code, clock, zz detail
+  kLoopReport = 0x8A,        // v2: u8 axis, telemetry of the device loop (loop_messages.hpp)
+  kLoopEvent = 0x8B,         // v2: u8 axis, u8 kind, clock, zz a, zz b
 };
 
 enum class McuError : uint8_t {
@@ -42,6 +50,12 @@ enum class McuError : uint8_t {
   kEmergencyStop = 6,
   kNotIdentified = 7,    // a command before a successful identify; detail: message type
   kBatchOverlap = 8,     // a batch starts before the previous one ended; detail: ticks
+  // v2 (the device loop); each ends a controlled stop (the axes decelerated to rest first).
+  kFollowingError = 9,   // |r - y| beyond the limit; detail: axis
+  kEncoderFault = 10,    // implausible encoder samples in a row; detail: axis
+  kTargetUnderrun = 11,  // r(t)'s queue ended while the axis moved; detail: axis
+  kBadLoopConfig = 12,   // CONFIGURE_LOOP refused; detail: device::LoopParamError
+  kTargetOverflow = 13,  // QUEUE_TARGET did not fit or its clocks did not increase; detail: axis
 };
 
 const char* mcu_error_name(McuError e);
@@ -65,6 +79,11 @@ class MsgWriter {
     return *this;
   }
   MsgWriter& zz(int64_t v) { return var(zigzag(v)); }
+  MsgWriter& f32(float v) {  // IEEE 754 binary32, little-endian
+    uint32_t u = 0;
+    __builtin_memcpy(&u, &v, 4);
+    return u8(u & 0xFF).u8((u >> 8) & 0xFF).u8((u >> 16) & 0xFF).u8(u >> 24);
+  }
   MsgWriter& bytes(const uint8_t* d, size_t n) {
     for (size_t i = 0; i < n; ++i) u8(d[i]);
     return *this;
@@ -96,6 +115,15 @@ class MsgReader {
     return v;
   }
   int64_t zz() { return unzigzag(var()); }
+  float f32() {
+    uint32_t u = u8();
+    u |= static_cast<uint32_t>(u8()) << 8;
+    u |= static_cast<uint32_t>(u8()) << 16;
+    u |= static_cast<uint32_t>(u8()) << 24;
+    float v = 0.0f;
+    __builtin_memcpy(&v, &u, 4);
+    return v;
+  }
   const uint8_t* rest(size_t& n) {
     n = len_ - pos_;
     return buf_ + pos_;

@@ -315,5 +315,32 @@ TEST(ConfigErrors, EmptyAndNonMappingDocuments) {
   EXPECT_NE(find_error(check_config_text("- a\n- b\n", "e.yaml"), "must be a mapping").message, "");
 }
 
+// Plausibility: values that are typing errors, and the step rate that steps/mm and speed imply
+// (steps_per_mm: 1e12 used to be accepted; the daemon's memory then grew without bound).
+TEST(ConfigErrors, ImplausibleStepsPerMmIsAnError) {
+  const std::string y = edit(kMinimal, "steps_per_mm: 400", "steps_per_mm: 1e12");
+  expect_error(y, "axes.z.steps_per_mm", pos_of(y, "1e12"));
+  const std::vector<Error> errors = check_config_text(y, "printer.yaml");
+  EXPECT_NE(find_error(errors, "axes.z.steps_per_mm").message.find("1e+06"), std::string::npos) << all(errors);
+}
+
+TEST(ConfigErrors, StepRateImpliedByStepsPerMmAndSpeedIsBounded) {
+  // 20000 steps/mm x 300 mm/s = 6e6 steps/s.
+  const std::string y = edit(kMinimal, "    steps_per_mm: 80\n    encoder", "    steps_per_mm: 20000\n    encoder");
+  expect_error(y, "axes.x: steps_per_mm 20000 x max_velocity_mm_s 300 = 6e+06 steps/s",
+               pos_of(y, "steps_per_mm: 20000"));
+  // The same steps/mm at a speed the pipeline follows is fine.
+  const std::string ok = edit(y, "max_velocity_mm_s: 300\n    max_accel_mm_s2: 3000\n  y:",
+                              "max_velocity_mm_s: 150\n    max_accel_mm_s2: 3000\n  y:");
+  EXPECT_TRUE(check_config_text(ok, "printer.yaml").empty()) << all(check_config_text(ok, "printer.yaml"));
+}
+
+TEST(ConfigErrors, ImplausibleRatesAreErrors) {
+  const std::string y = edit(kMinimal, "max_velocity_mm_s: 10", "max_velocity_mm_s: 50000");
+  expect_error(y, "axes.z.max_velocity_mm_s", pos_of(y, "50000"));
+  const std::string a = edit(kMinimal, "max_accel_mm_s2: 100", "max_accel_mm_s2: 1e9");
+  expect_error(a, "axes.z.max_accel_mm_s2", pos_of(a, "1e9"));
+}
+
 }  // namespace
 }  // namespace feedloop::config

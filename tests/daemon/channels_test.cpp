@@ -57,7 +57,7 @@ TEST_F(Channels, UnixSocketSpeaksTheMarlinHostProtocol) {
   ASSERT_TRUE(c.send_line("M114"));
   auto pos = c.read_line();
   ASSERT_TRUE(pos);
-  EXPECT_EQ(pos->rfind("X:12.500 Y:3.000 Z:0.300", 0), 0u) << *pos;
+  EXPECT_EQ(pos->rfind("X:12.50 Y:3.00 Z:0.30", 0), 0u) << *pos;
   EXPECT_EQ(c.read_line(), "ok");
   // A line that fails validation: an error with its location, and nothing executes.
   ASSERT_TRUE(c.send_line("G1 X5 Q7"));
@@ -69,7 +69,7 @@ TEST_F(Channels, UnixSocketSpeaksTheMarlinHostProtocol) {
   ASSERT_TRUE(c.send_line("M114"));
   pos = c.read_line();
   ASSERT_TRUE(pos);
-  EXPECT_EQ(pos->rfind("X:12.500", 0), 0u) << *pos;
+  EXPECT_EQ(pos->rfind("X:12.50 ", 0), 0u) << *pos;
 }
 
 // Per-link telemetry: every MCU of the simulated printer, with its frames, round trips and clock
@@ -123,7 +123,7 @@ TEST_F(Channels, PtyLooksLikeAMarlinSerialPort) {
   ASSERT_TRUE(again.send_line("M114"));
   auto pos = again.read_until("X:");
   ASSERT_TRUE(pos);
-  EXPECT_EQ(pos->rfind("X:4.000 Y:4.000", 0), 0u) << *pos;
+  EXPECT_EQ(pos->rfind("X:4.00 Y:4.00", 0), 0u) << *pos;
 }
 
 TEST_F(Channels, JsonApiAnswersStatusRunsGcodeAndStreamsSubscriptions) {
@@ -137,7 +137,7 @@ TEST_F(Channels, JsonApiAnswersStatusRunsGcodeAndStreamsSubscriptions) {
                         {"params", {{"script", "G91\nG1 X7 Y2\nG1 X1\nM114"}}}});
   ASSERT_TRUE(run.contains("result")) << run.dump();
   ASSERT_EQ(run["result"]["results"].size(), 4u);
-  EXPECT_EQ(run["result"]["results"][3]["reply"].get<std::string>().rfind("X:8.000 Y:2.000", 0), 0u);
+  EXPECT_EQ(run["result"]["results"][3]["reply"].get<std::string>().rfind("X:8.00 Y:2.00", 0), 0u);
 
   json st = call(api, {{"jsonrpc", "2.0"}, {"id", 3}, {"method", "status"}});
   EXPECT_DOUBLE_EQ(st["result"]["position_mm"]["x"].get<double>(), 8.0);
@@ -187,6 +187,78 @@ TEST_F(Channels, JsonApiAnswersStatusRunsGcodeAndStreamsSubscriptions) {
   EXPECT_GT(elapsed_s, 0.06);  // paced by the interval, not a flood
 }
 
+// The three one-line crashes of issue 14, replayed while a print runs: each got std::terminate
+// before (dump() of a non-UTF-8 string, the parse of invalid UTF-8, the parse of 1e400). Now each
+// gets an error answer; the connection, the other client and the print go on. Virtual time, so
+// the check is about input and not about the machine's load (issue 13).
+class HostileInput : public DaemonFixture {
+  bool virtual_time() const override { return true; }
+};
+
+TEST_F(HostileInput, HostileLinesGetAnErrorAndThePrintGoesOn) {
+  LineClient printer, api;
+  ASSERT_TRUE(printer.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  // A print in progress: 40 short moves, about 5 s of motion.
+  for (int i = 0; i < 40; ++i) {
+    ASSERT_TRUE(printer.send_line("G1 X" + std::to_string(10 + (i % 2) * 10) + " Y" +
+                                  std::to_string(10 + i / 2) + " F6000"));
+    ASSERT_EQ(printer.read_line(5000), "ok");
+  }
+  // 1. M117 with bytes that are not UTF-8 (Latin-1 "été", then a lone 0xFF), then a status request.
+  ASSERT_TRUE(printer.send_line("M117 \xE9t\xE9 \xFF"));
+  EXPECT_EQ(printer.read_line(), "ok");
+  json st = call(api, {{"jsonrpc", "2.0"}, {"id", 1}, {"method", "status"}});
+  ASSERT_TRUE(st.contains("result")) << st.dump();
+  EXPECT_EQ(st["result"]["message"], "\xEF\xBF\xBDt\xEF\xBF\xBD \xEF\xBF\xBD");
+  EXPECT_EQ(st["result"]["state"], "busy");  // still printing
+  // 2. A JSON-RPC message with invalid UTF-8 inside a string.
+  ASSERT_TRUE(api.send_line("{\"jsonrpc\":\"2.0\",\"id\":2,\"method\":\"st\xC3\x28tus\"}"));
+  auto line = api.read_line();
+  ASSERT_TRUE(line);
+  json r = json::parse(*line);
+  EXPECT_EQ(r["error"]["code"], -32700);
+  EXPECT_NE(r["error"]["message"].get<std::string>().find("column 37"), std::string::npos) << *line;
+  EXPECT_NE(r["error"]["message"].get<std::string>().find("not valid UTF-8"), std::string::npos);
+  // 3. An id out of the range of every number type.
+  ASSERT_TRUE(api.send_line("{\"jsonrpc\":\"2.0\",\"id\":1e400,\"method\":\"status\"}"));
+  line = api.read_line();
+  ASSERT_TRUE(line);
+  r = json::parse(*line);
+  EXPECT_EQ(r["error"]["code"], -32700);
+  EXPECT_TRUE(r["id"].is_null());
+  // Other out-of-range numbers and a G-code error that quotes non-UTF-8 bytes.
+  ASSERT_TRUE(api.send_line("{\"jsonrpc\":\"2.0\",\"id\":3,\"method\":\"subscribe\","
+                            "\"params\":{\"topics\":[\"status\"],\"interval_ms\":1e300}}"));
+  r = json::parse(*api.read_line());
+  EXPECT_EQ(r["result"]["interval_ms"], 60000);
+  r = call(api, {{"jsonrpc", "2.0"}, {"id", 4}, {"method", "unsubscribe"}, {"params", {{"topics", {"status"}}}}});
+  EXPECT_TRUE(r.contains("result"));
+  ASSERT_TRUE(api.send_line("{\"jsonrpc\":\"2.0\",\"id\":5,\"method\":\"gcode\","
+                            "\"params\":{\"script\":\"G1 X1 \\u00e9\"}}"));
+  r = json::parse(*api.read_line());
+  EXPECT_TRUE(r.contains("error") || r.contains("result")) << r.dump();
+  ASSERT_TRUE(printer.send_line("G1 X5 \xFE"));  // an invalid word: an error with its column
+  auto err = printer.read_line();
+  ASSERT_TRUE(err);
+  EXPECT_EQ(err->rfind("Error:", 0), 0u) << *err;
+  EXPECT_EQ(printer.read_line(), "ok");
+  st = call(api, {{"jsonrpc", "2.0"}, {"id", 6}, {"method", "status"}});
+  ASSERT_TRUE(st.contains("result")) << st.dump();
+  // The print goes on to its end where the moves put it, with no fault.
+  for (int i = 0; i < 3000 && st["result"]["state"] != "idle"; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    st = call(api, {{"jsonrpc", "2.0"}, {"id", 7}, {"method", "status"}});
+  }
+  EXPECT_EQ(st["result"]["state"], "idle") << st.dump();
+  EXPECT_EQ(st["result"]["commands"]["executed"], 40) << st.dump();  // every move, nothing lost
+  EXPECT_DOUBLE_EQ(st["result"]["position_mm"]["x"].get<double>(), 20.0);
+  EXPECT_DOUBLE_EQ(st["result"]["position_mm"]["y"].get<double>(), 29.0);
+  EXPECT_EQ(st["result"]["last_error"], "");
+  ASSERT_TRUE(printer.send_line("M114"));
+  EXPECT_EQ(printer.read_line()->rfind("X:20.000 Y:29.000", 0), 0u);
+}
+
 TEST_F(Channels, OneClientOwnsThePrintAtATime) {
   LineClient a, b;
   ASSERT_TRUE(a.connect_unix(daemon_->socket_path()));
@@ -211,7 +283,7 @@ TEST_F(Channels, OneClientOwnsThePrintAtATime) {
   }
   EXPECT_EQ(reply, "ok");
   ASSERT_TRUE(b.send_line("M114"));
-  EXPECT_EQ(b.read_line()->rfind("X:2.000", 0), 0u);
+  EXPECT_EQ(b.read_line()->rfind("X:2.00 ", 0), 0u);
 }
 
 // Marlin's keepalive: "echo:busy: processing" every 2 s of a blocking command, counted from the
@@ -263,7 +335,7 @@ TEST_F(Channels, OverlongLinesAreRejectedWithoutGrowingMemory) {
   EXPECT_EQ(c.read_line(), "ok");
   EXPECT_EQ(c.read_line(), "ok");  // G1 X3 still runs
   ASSERT_TRUE(c.send_line("M114"));
-  EXPECT_EQ(c.read_line()->rfind("X:3.000", 0), 0u);
+  EXPECT_EQ(c.read_line()->rfind("X:3.00 ", 0), 0u);
 }
 
 TEST_F(Channels, ShutdownUnderLoadStopsPromptlyAndCleansUp) {

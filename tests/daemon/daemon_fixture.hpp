@@ -25,6 +25,7 @@ class DaemonFixture : public ::testing::Test {
   void SetUp() override {
     dir_ = make_temp_dir("daemon");
     ASSERT_FALSE(dir_.empty());
+    ::setenv("RUNTIME_DIRECTORY", dir_.c_str(), 1);  // the sockets belong in the runtime directory
     config::MachineConfig cfg = config::default_config();
     cfg.sockets.unix_socket = dir_ + "/feedloop.sock";
     cfg.sockets.api_socket = dir_ + "/api.sock";

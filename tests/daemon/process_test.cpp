@@ -11,6 +11,7 @@
 #include <regex>
 
 #include "config/config.hpp"
+#include "recorder/log_reader.hpp"
 #include "tests/daemon/daemon_fixture.hpp"
 #include "tests/daemon/line_client.hpp"
 #include "tests/daemon/subprocess.hpp"
@@ -152,6 +153,97 @@ TEST_F(Process, SystemdUnitVerifies) {
   Subprocess v({"systemd-analyze", "verify", copy}, {}, dir_ + "/verify.txt");
   EXPECT_EQ(v.wait(60), 0) << v.output();
   EXPECT_EQ(v.output(), "") << "systemd-analyze printed warnings";
+}
+
+// SIGTERM ends the daemon within 2 s whatever it is doing, and the print's recording is closed
+// (every block readable, ending with the print_end event).
+TEST_F(Process, SigtermEndsWithinTwoSecondsInEveryStateWithTheRecordingClosed) {
+  struct State {
+    const char* name;
+    std::vector<std::string> lines;  // sent on the G-code socket before SIGTERM
+    bool read_replies;               // false: a client that never reads
+  };
+  // A long diagonal at 20 mm/s: ~10 s of motion. A 2000-line flood fills the machine's queue
+  // (the client is parked). M109 waits for a heater that takes ~5 s.
+  std::vector<std::string> flood = {"G28"};
+  for (int i = 0; i < 2000; ++i) flood.push_back("G1 X" + std::to_string(10 + (i % 2) * 100) + " F12000");
+  const std::vector<State> states = {
+      {"idle", {}, true},
+      {"moving", {"G28", "G1 X200 Y200 F1200"}, true},
+      {"heating (M109)", {"M109 S215"}, true},
+      {"queue full, client parked", flood, true},
+      {"client that never reads", flood, false},
+  };
+  for (const State& st : states) {
+    SCOPED_TRACE(st.name);
+    const std::string rec = dir_ + "/rec-" + std::to_string(&st - states.data());
+    fs::create_directories(rec);
+    const std::string yaml = config_text("sigterm");  // recordings go to ${STATE_DIR}/recordings = rec
+    const std::string path = dir_ + "/printer.yaml";
+    write_file(path, yaml);
+    Subprocess d({FEEDLOOPD_PATH, "--config", path}, {"RUNTIME_DIRECTORY=" + dir_, "STATE_DIRECTORY=" + rec},
+                 dir_ + "/daemon.log");
+    ASSERT_TRUE(d.wait_for_output("ready", 20)) << d.output();
+    LineClient c;
+    ASSERT_TRUE(c.connect_unix(dir_ + "/feedloop.sock"));
+    std::string all;
+    for (const std::string& l : st.lines) all += l + "\n";
+    std::thread writer([&] { c.send(all); });  // may block while the daemon is parked
+    if (st.read_replies && !st.lines.empty() && st.lines[0] == "G28") c.read_until("ok", 5000);  // homed
+    std::this_thread::sleep_for(std::chrono::milliseconds(700));
+    if (!st.lines.empty()) {
+      const json s = api_call("status");
+      EXPECT_EQ(s["result"]["state"], "busy") << s.dump();
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    d.signal(SIGTERM);
+    const int rc = d.wait(5);
+    const double took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    c.close();  // unblocks the writer
+    writer.join();
+    EXPECT_EQ(rc, 0) << d.output();
+    EXPECT_LT(took_s, 2.0) << d.output();
+    std::printf("SIGTERM while %s: exited after %.3f s\n", st.name, took_s);
+    if (st.lines.empty()) continue;  // no print, no recording
+    // The recording: readable to the end, closed with print_end.
+    std::vector<std::string> logs;
+    for (const auto& e : fs::recursive_directory_iterator(rec))
+      if (e.path().extension() == ".flrec") logs.push_back(e.path().string());
+    ASSERT_FALSE(logs.empty()) << d.output();
+    std::sort(logs.begin(), logs.end());
+    auto r = recorder::LogReader::open(logs.back());
+    ASSERT_TRUE(r) << r.error().to_string();
+    bool ended = false;
+    while (const recorder::DecodedRecord* rec_ = r->next())
+      if (const auto* ev = std::get_if<recorder::EventRecord>(&rec_->record))
+        ended = ended || ev->kind == recorder::EventKind::print_end;
+    EXPECT_FALSE(r->error().has_value()) << r->error()->to_string();
+    EXPECT_TRUE(ended) << logs.back();
+    EXPECT_EQ(fs::status(logs.back()).permissions() & fs::perms::others_all, fs::perms::none);
+  }
+}
+
+// Each peer is logged with its uid and pid (SO_PEERCRED); a world-writable runtime directory
+// without the sticky bit stops the start with a message.
+TEST_F(Process, PeersAreLoggedAndAnUnsafeRuntimeDirectoryIsRefused) {
+  {
+    Subprocess d({FEEDLOOPD_PATH}, env(), dir_ + "/daemon.log");
+    ASSERT_TRUE(d.wait_for_output("ready", 20)) << d.output();
+    LineClient c;
+    ASSERT_TRUE(c.connect_unix(dir_ + "/feedloop.sock"));
+    const std::string who = "uid " + std::to_string(::getuid()) + " gid " + std::to_string(::getgid()) +
+                            " pid " + std::to_string(::getpid());
+    EXPECT_TRUE(d.wait_for_output("socket#1 connected: " + who, 5)) << d.output();
+    d.signal(SIGTERM);
+    EXPECT_EQ(d.wait(10), 0);
+  }
+  const std::string run = dir_ + "/open";
+  fs::create_directories(run);
+  ASSERT_EQ(::chmod(run.c_str(), 0777), 0);
+  Subprocess d({FEEDLOOPD_PATH}, {"RUNTIME_DIRECTORY=" + run, "STATE_DIRECTORY=" + dir_}, dir_ + "/daemon2.log");
+  EXPECT_NE(d.wait(20), 0) << d.output();
+  EXPECT_NE(d.output().find("has no sticky bit"), std::string::npos) << d.output();
+  EXPECT_FALSE(fs::exists(run + "/feedloop.sock"));
 }
 
 // Printrun's pronsole (Debian package printrun) connects to the pty, sends a real sliced file

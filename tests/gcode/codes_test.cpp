@@ -131,7 +131,7 @@ TEST(Codes, ValidationRejectsWithColumn) {
       {"G2 X1 I1 P1.5", 10, "whole number"},
       {"G4 P-5", 4, ">= 0"},
       {"G4 X1", 4, "X is not allowed"},
-      {"G10 S2", 5, "between 0 and 1"},
+      {"G10 P0 S-5", 8, "between 0 and 1000"},  // S2 is accepted: Marlin reads S as a bool
       {"G11 S1", 5, "takes none"},
       {"G20 X1", 5, "takes none"},
       {"G21 Y", 5, "takes none"},

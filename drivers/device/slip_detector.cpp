@@ -1,0 +1,50 @@
+// Slip detection with a settle wait and whole-cycle rounding (see slip_detector.hpp).
+#include "drivers/device/slip_detector.hpp"
+
+namespace feedloop::device {
+
+void SlipDetector::configure(float threshold_nm, float cycle_nm, float settle_s) {
+  threshold_nm_ = threshold_nm;
+  cycle_nm_ = cycle_nm;
+  settle_s_ = settle_s;
+}
+
+void SlipDetector::reset() {
+  total_nm_ = d_nm_ = pending_s_ = 0.0f;
+  pending_ = false;
+  count_ = 0;
+}
+
+SlipEvent SlipDetector::update(float motor_minus_encoder_nm, float expected_deflection_nm, float dt_s) {
+  SlipEvent ev;
+  const float d = motor_minus_encoder_nm - expected_deflection_nm - total_nm_;
+  d_nm_ = d;
+  if (d <= threshold_nm_ && d >= -threshold_nm_) {
+    pending_ = false;  // back under the threshold: a transient deflection, not a slip
+    return ev;
+  }
+  if (!pending_) {
+    pending_ = true;
+    pending_s_ = 0.0f;
+    return ev;
+  }
+  pending_s_ += dt_s;
+  if (pending_s_ < settle_s_) return ev;
+  float size = d;
+  if (cycle_nm_ > 0.0f) {
+    const float c = d / cycle_nm_;
+    const int32_t cycles = static_cast<int32_t>(c >= 0.0f ? c + 0.5f : c - 0.5f);
+    if (cycles == 0) return ev;  // beyond the threshold but less than half a cycle: keep watching
+    size = static_cast<float>(cycles) * cycle_nm_;
+    ev.cycles = cycles;
+  }
+  pending_ = false;
+  total_nm_ += size;
+  ++count_;
+  d_nm_ = d - size;
+  ev.happened = true;
+  ev.size_nm = size;
+  return ev;
+}
+
+}  // namespace feedloop::device

@@ -1,0 +1,46 @@
+// Skipped-step detection on the device (control/lost_step_detector.hpp, closed-loop-gantry
+// thesis Sect. 5.3-5.4), per control tick:
+//   d[k] = motor[k] - y[k] - deflection_model[k] - S[k-1]
+// motor = every executed step (host's and the loop's) x nm/step, y = encoder, S = the slips
+// already reported. |d| beyond the threshold for settle_s of MCU time (not a count of ticks: the
+// carriage rings for the same time at 1 or 10 kHz) confirms a slip, sized from d then; when
+// the torque law's period (4 full steps) is known the size is rounded to whole cycles (a stepper
+// that slips falls into the next equilibrium, sim/gantry_axis.hpp). The size is the recovery: the
+// loop shifts its correction by it (LoopPi::shift), so the motor re-synchronises with the
+// carriage, and it is added to S so one slip is reported once.
+// Owner: the axis loop. No heap, no exceptions.
+#pragma once
+
+#include <cstdint>
+
+namespace feedloop::device {
+
+struct SlipEvent {
+  bool happened = false;
+  float size_nm = 0.0f;     // signed: + when the rotor fell behind moving + (steps to make up)
+  int32_t cycles = 0;       // size in torque-law cycles (0 when the cycle is unknown)
+};
+
+class SlipDetector {
+ public:
+  void configure(float threshold_nm, float cycle_nm, float settle_s);
+  void reset();
+  // dt_s: MCU time since the previous update.
+  SlipEvent update(float motor_minus_encoder_nm, float expected_deflection_nm, float dt_s);
+  // A slip is suspected (|d| beyond the threshold, waiting for the settle time).
+  bool pending() const { return pending_; }
+
+  float discrepancy_nm() const { return d_nm_; }
+  float total_nm() const { return total_nm_; }
+  uint32_t count() const { return count_; }
+
+ private:
+  float threshold_nm_ = 0.0f, cycle_nm_ = 0.0f;
+  float settle_s_ = 0.0f;
+  float total_nm_ = 0.0f, d_nm_ = 0.0f;
+  float pending_s_ = 0.0f;
+  bool pending_ = false;
+  uint32_t count_ = 0;
+};
+
+}  // namespace feedloop::device

@@ -1,0 +1,82 @@
+// Marlin behaviour a host sees through the daemon, each case naming the Marlin source it follows.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <regex>
+
+#include "tests/daemon/daemon_fixture.hpp"
+#include "tests/daemon/line_client.hpp"
+
+namespace feedloop::testing {
+namespace {
+
+class Conformance : public DaemonFixture {};
+
+// Marlin/src/gcode/host/M114.cpp + Marlin/src/module/stepper.cpp (Stepper::report_positions):
+// "X:.. Y:.. Z:.. E:.. Count X:<steps> Y:<steps> Z:<steps>", the counts being each stepper's
+// step counter (language.h: STR_COUNT_X " Count X:").
+TEST_F(Conformance, M114CountsAreTheSteppersStepCounters) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  for (const char* line : {"G28", "G1 X12.5 Y3 Z0.3 F6000", "M400"}) {
+    ASSERT_TRUE(c.send_line(line));
+    ASSERT_EQ(c.read_until("ok", 20000), "ok") << line;
+  }
+  ASSERT_TRUE(c.send_line("M114"));
+  auto pos = c.read_until("X:", 5000);
+  ASSERT_TRUE(pos);
+  std::smatch m;
+  ASSERT_TRUE(std::regex_match(*pos, m, std::regex(R"(X:12\.50 Y:3\.00 Z:0\.30 E:0\.00 Count X:(-?\d+) Y:(-?\d+) Z:(-?\d+))")))
+      << *pos;
+  const config::MachineConfig cfg = config::default_config();
+  const double spm[3] = {cfg.axis("x")->steps_per_mm, cfg.axis("y")->steps_per_mm, cfg.axis("z")->steps_per_mm};
+  const double mm[3] = {12.5, 3.0, 0.3};
+  // The simulated printer runs closed loop: the steppers' counts carry the PI correction that
+  // puts the carriage (its encoder) on the target, so they differ from mm x steps/mm by a little.
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_GT(std::stoll(m[a + 1]), 0) << *pos;
+    EXPECT_NEAR(static_cast<double>(std::stoll(m[a + 1])), mm[a] * spm[a], 0.03 * mm[a] * spm[a] + 2.0)
+        << "axis " << a << ": " << *pos;
+  }
+  EXPECT_EQ(c.read_line(), "ok");
+}
+
+// "G10 S210 P0": Marlin (Marlin/src/gcode/feature/fwretract/G10_G11.cpp) accepts the line; as
+// the temperature form it sets the hotend's target, as M104 S210 would, and moves nothing.
+TEST_F(Conformance, G10TemperatureFormSetsTheHotendTarget) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(c.send_line("G10 S210 P0"));
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("M105"));
+  auto t = c.read_line();
+  ASSERT_TRUE(t);
+  EXPECT_NE(t->find("/210.0"), std::string::npos) << *t;
+  ASSERT_TRUE(c.send_line("M114"));
+  auto pos = c.read_until("X:", 5000);
+  ASSERT_TRUE(pos);
+  EXPECT_EQ(pos->rfind("X:0.00 Y:0.00 Z:0.00 E:0.00", 0), 0u) << *pos;
+}
+
+// Marlin 1.0.x Marlin_main.cpp get_command(): a checksum without N is refused; and the Klipper
+// command gets its clear error, with the line's ok (the connection goes on).
+TEST_F(Conformance, RefusedLinesGetAnErrorAndTheirOk) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  std::string s = "G1 X5";
+  unsigned cs = 0;
+  for (char ch : s) cs ^= static_cast<unsigned char>(ch);
+  ASSERT_TRUE(c.send_line(s + "*" + std::to_string(cs)));
+  EXPECT_EQ(c.read_line(), "Error:No Line Number with checksum, Last Line: 0");
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("SET_VELOCITY_LIMIT VELOCITY=300"));
+  auto e = c.read_line();
+  ASSERT_TRUE(e);
+  EXPECT_NE(e->find("Klipper extended command"), std::string::npos) << *e;
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("G1 X 30 F3000"));  // Marlin/src/gcode/parser.cpp: blanks skipped
+  EXPECT_EQ(c.read_line(), "ok");
+}
+
+}  // namespace
+}  // namespace feedloop::testing

@@ -1,0 +1,30 @@
+# CTest script: the device-loop library (feedloop_axis_loop) must not reference the allocator,
+# exceptions or RTTI. Run as: cmake -DNM=<nm> -DLIB=<archive> -P check_device_symbols.cmake
+# It lists every undefined symbol of the archive's objects and fails on any that names
+# operator new/delete, malloc/calloc/realloc/free, __cxa_* (throw, exception allocation, guards
+# that may call the allocator), the personality routine or a typeinfo (_ZTI / _ZTS).
+execute_process(COMMAND ${NM} -u ${LIB} OUTPUT_VARIABLE undef RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "nm failed on ${LIB}")
+endif()
+execute_process(COMMAND ${NM} --defined-only ${LIB} OUTPUT_VARIABLE defined)
+string(REGEX MATCHALL "[^\n]+" lines "${undef}")
+set(bad "")
+set(count 0)
+foreach(l IN LISTS lines)
+  if(l MATCHES "^ +U +(.+)$")
+    set(sym "${CMAKE_MATCH_1}")
+    math(EXPR count "${count} + 1")
+    if(sym MATCHES "^(_Znw|_Zna|_Zdl|_Zda|malloc$|calloc$|realloc$|free$|__cxa_|__gxx_personality|_ZTI|_ZTS|_Unwind_)")
+      list(APPEND bad "${sym}")
+    endif()
+  endif()
+endforeach()
+if(defined MATCHES "(_ZTI|_ZTS|_ZTV)")
+  list(APPEND bad "a typeinfo/vtable is defined (RTTI or virtual functions in the loop library)")
+endif()
+if(bad)
+  list(JOIN bad "\n  " text)
+  message(FATAL_ERROR "${LIB} references forbidden symbols:\n  ${text}")
+endif()
+message(STATUS "${LIB}: ${count} undefined references, none to the allocator, exceptions or RTTI")
