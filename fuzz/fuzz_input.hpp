@@ -22,6 +22,14 @@ class FuzzInput {
     const uint16_t lo = u8();
     return static_cast<uint16_t>(lo | (u8() << 8));
   }
+  uint32_t u32() {
+    const uint32_t lo = u16();
+    return lo | (static_cast<uint32_t>(u16()) << 16);
+  }
+  uint64_t u64() {
+    const uint64_t lo = u32();
+    return lo | (static_cast<uint64_t>(u32()) << 32);
+  }
   // Up to n bytes (fewer at the end of the input); `got` says how many.
   const uint8_t* take(size_t n, size_t& got) {
     const size_t left = size_ - pos_;

@@ -4,10 +4,12 @@
 // with the real parser, queries (M105, M114, M115, M117, M73) answered, other lines complete
 // later with ok, a machine error or "busy" (decided by the line's length); `status` carries the
 // last M117 text and M73 progress, like Daemon::status().
-// Besides crashes, sanitizer reports and escaping exceptions, these trap: a reply that does not
-// serialise and parse back, that is not a JSON-RPC 2.0 response with exactly one of result and
-// error, a known error code and a message; a reply to a request with an id that carries another
-// id; more than one reply per request; a subscription interval outside 20..60000 ms.
+// Besides crashes, sanitizer reports and escaping exceptions, these trap: a reply that is not
+// valid UTF-8 before to_wire()'s safety net or does not parse back, that is not a JSON-RPC 2.0
+// response with exactly one of result and error, a known error code and a message; a reply to a
+// request with an id that carries another id (null when JSON-RPC does not allow the request's);
+// more than one reply per request, or none to a line that is not JSON; a subscription interval
+// outside 20..60000 ms.
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -16,6 +18,7 @@
 #include <string_view>
 #include <vector>
 
+#include "core/utf8.hpp"
 #include "daemon/client_session.hpp"
 #include "daemon/json_api.hpp"
 #include "fuzz/fuzz_input.hpp"
@@ -107,8 +110,25 @@ class FakeBackend final : public daemon::JsonApiBackend {
   std::vector<std::function<void()>> later_;
 };
 
+// What handle_json_request refuses before parsing (-32700): a NUL byte, where the JSON parser
+// would stop reading, or bytes that are not UTF-8.
+bool refused_before_parsing(std::string_view line) {
+  size_t bad = 0;
+  for (size_t i = 0; i < line.size();) {
+    if (line[i] == '\0') return true;
+    const size_t n = utf8_sequence_length(line, i, &bad);
+    if (n == 0) return true;
+    i += n;
+  }
+  return false;
+}
+
 void check_reply(const json& r, const json* request_id) {
-  const std::string wire = r.dump();  // the daemon's serialisation (Daemon::add_client)
+  // Outside text is made valid UTF-8 where it enters (core/utf8.hpp), so the strict dump()
+  // succeeds (it throws on invalid UTF-8) and the wire form (to_wire, the daemon's) equals it.
+  const std::string strict = r.dump();
+  const std::string wire = daemon::to_wire(r);
+  check(wire == strict);
   const json back = json::parse(wire, nullptr, /*allow_exceptions=*/false);
   check(!back.is_discarded() && back == r);
   check(r.is_object() && r.value("jsonrpc", "") == "2.0" && r.contains("id"));
@@ -134,19 +154,27 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   session->set_handlers(
       [&](daemon::ClientSession& s, std::string_view line, bool too_long) {
         if (too_long) {
-          s.send_line(daemon::json_rpc_error(nullptr, -32700, "request line too long").dump());
+          s.send_line(
+              daemon::to_wire(daemon::json_rpc_error(nullptr, -32700, "request line too long")));
           return;
         }
         // What the harness can tell about the request on its own.
-        const json req = json::parse(line, nullptr, /*allow_exceptions=*/false);
+        const bool refused = refused_before_parsing(line);
+        const json req = refused ? json(json::value_t::discarded)
+                                 : json::parse(line, nullptr, /*allow_exceptions=*/false);
         const bool has_id = !req.is_discarded() && req.is_object() && req.contains("id");
-        const json id = has_id ? req["id"] : json();
+        // JSON-RPC 2.0, Sect. 4: an id is a string, a number or null; an answer to any other
+        // "id" carries null.
+        json id = has_id ? req["id"] : json();
+        if (!id.is_string() && !id.is_number()) id = nullptr;
         auto replies = std::make_shared<int>(0);
         daemon::handle_json_request(backend, s, line, subscription,
-                                    [&s, replies, has_id, id](const json& r) {
+                                    [&s, replies, has_id, id, refused](const json& r) {
                                       check(++*replies == 1);
                                       check_reply(r, has_id ? &id : nullptr);
-                                      s.send_line(r.dump());
+                                      if (refused)
+                                        check(r["error"]["code"] == -32700 && r["id"].is_null());
+                                      s.send_line(daemon::to_wire(r));
                                     });
         backend.complete();
         check(subscription.interval_ms >= 20 && subscription.interval_ms <= 60000);

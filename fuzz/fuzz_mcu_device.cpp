@@ -14,9 +14,14 @@
 //                      R samples per report, watchdog W * 100 ticks)
 //   6 E                ENABLE E&1
 //   7                  the host's link polls (retransmits) and asks for STATUS
+//   8 A D D K (F V V V V)*K  protocol v2 CONFIGURE_LOOP for motor A, active from now + D ticks:
+//                      a working parameter set (1 kHz, the encoder of the fake motor) with K
+//                      fields F changed to the 32 bits V (floats as their bits: NaN, inf...)
+//   9 A D D K (C C P P)*K  protocol v2 QUEUE_TARGET for motor A: K knots, the first at now + D
+//                      ticks, then clock steps C and position steps P * 1000 nm (int16)
 // Invariants (trap): every frame the device sends is whole with a valid CRC and carries a
-// device-to-host message type; each motor's steps and enable changes never go back in time
-// (MotorPort's contract) and have direction +-1; no queue holds more runs than kMaxRuns.
+// device-to-host message type (v1 or v2); each motor's steps and enable changes never go back in
+// time (MotorPort's contract) and have direction +-1; no queue holds more runs than kMaxRuns.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -24,6 +29,7 @@
 #include <memory>
 
 #include "drivers/device/virtual_mcu.hpp"
+#include "drivers/protocol/loop_messages.hpp"
 #include "drivers/protocol/messages.hpp"
 #include "drivers/protocol/reliable_link.hpp"
 #include "drivers/stepgen/run_codec.hpp"
@@ -106,12 +112,95 @@ class FakeHost final : private protocol::FrameOutput, private protocol::PayloadH
     check(n >= 1);
     const auto t = static_cast<MsgType>(p[0]);
     check(t == MsgType::kIdentifyResponse || t == MsgType::kClockResponse ||
-          t == MsgType::kStatus || t == MsgType::kEncoderReport || t == MsgType::kErrorReport);
+          t == MsgType::kStatus || t == MsgType::kEncoderReport || t == MsgType::kErrorReport ||
+          t == MsgType::kLoopReport || t == MsgType::kLoopEvent);
   }
 
   device::VirtualMcu& mcu_;
   protocol::ReliableLink link_;
 };
+
+// A loop parameter set that works with Motor (3 encoder counts per step) at kClockHz, with
+// fields changed by the input.
+device::LoopParams loop_params(FuzzInput& in) {
+  device::LoopParams p;
+  p.enabled = true;
+  p.period_ticks = static_cast<uint32_t>(kClockHz / 1000);
+  p.nm_per_step_q16 = 10602u << 16;
+  p.nm_per_count_q16 = 3534u << 16;
+  for (int k = in.u8() % 4; k > 0; --k) {
+    const uint8_t field = in.u8() % 21;
+    const uint32_t v = in.u32();
+    float f = 0.0f;
+    std::memcpy(&f, &v, sizeof f);
+    switch (field) {
+      case 0:
+        p.enabled = v & 1;
+        break;
+      case 1:
+        p.period_ticks = v;
+        break;
+      case 2:
+        p.nm_per_count_q16 = v;
+        break;
+      case 3:
+        p.nm_per_step_q16 = v;
+        break;
+      case 4:
+        p.kp = f;
+        break;
+      case 5:
+        p.ki_per_s = f;
+        break;
+      case 6:
+        p.max_correction_nm = f;
+        break;
+      case 7:
+        p.max_correction_rate_nm_s = f;
+        break;
+      case 8:
+        p.max_following_error_nm = f;
+        break;
+      case 9:
+        p.max_speed_nm_s = f;
+        break;
+      case 10:
+        p.encoder_margin_nm = f;
+        break;
+      case 11:
+        p.encoder_reject_limit = v;
+        break;
+      case 12:
+        p.slip_threshold_nm = f;
+        break;
+      case 13:
+        p.slip_cycle_nm = f;
+        break;
+      case 14:
+        p.slip_settle_s = f;
+        break;
+      case 15:
+        p.deflection_s2 = f;
+        break;
+      case 16:
+        p.deflection_s = f;
+        break;
+      case 17:
+        p.accel_filter_s = f;
+        break;
+      case 18:
+        p.stop_decel_nm_s2 = f;
+        break;
+      case 19:
+        p.horizon_margin_ticks = v;
+        break;
+      default:
+        p.report_every_ticks = v;
+        break;
+    }
+  }
+  return p;
+}
 
 void send_msg(FakeHost& host, protocol::MsgWriter& w, const uint8_t* buf) {
   if (w.ok()) host.send(buf, w.size());
@@ -133,7 +222,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   uint8_t buf[protocol::kMaxPayload];
   while (!in.empty()) {
     size_t n = 0;
-    const uint8_t op = in.u8() % 8;
+    const uint8_t op = in.u8() % 10;
     if (op == 0) {
       const uint8_t* p = in.take(in.u8(), n);
       host.send(p, n);
@@ -179,10 +268,29 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       protocol::MsgWriter w(buf, sizeof buf);
       w.u8(static_cast<uint8_t>(MsgType::kEnable)).u8(in.u8() & 1);
       send_msg(host, w, buf);
-    } else {
+    } else if (op == 7) {
       host.poll();
       buf[0] = static_cast<uint8_t>(MsgType::kStatusQuery);
       host.send(buf, 1);
+    } else if (op == 8) {
+      protocol::ConfigureLoopMsg m;
+      m.axis = in.u8();
+      m.activation_clock = mcu->clock_at(host.now_s) + in.u16();
+      m.params = loop_params(in);
+      if (const size_t len = protocol::encode_configure_loop(m, buf, sizeof buf))
+        host.send(buf, len);
+    } else {
+      const uint8_t axis = in.u8();
+      device::TargetKnot knots[16];
+      int64_t clock = mcu->clock_at(host.now_s) + in.u16(), pos = 0;
+      const int count = 1 + in.u8() % 16;
+      for (int k = 0; k < count; ++k) {
+        knots[k] = {clock, pos};
+        clock += in.u16();
+        pos += 1000 * static_cast<int16_t>(in.u16());
+      }
+      if (const size_t len = protocol::encode_queue_target(axis, knots, count, buf, sizeof buf))
+        host.send(buf, len);
     }
     const device::VirtualMcuStatus& st = mcu->status();
     check(st.num_axes == motors);

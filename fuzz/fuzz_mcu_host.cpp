@@ -13,6 +13,10 @@
 //                      a small error C (int16), else with the 8 bytes C as the clock
 //   6 K                link maintenance: the device polls its link (retransmits)
 //   7 K                the link drops; K&1: re-opening fails until the next operation 7
+//   8 K ...            the device sends a protocol v2 LOOP_REPORT (K even) or LOOP_EVENT with
+//                      every field from the input (8 bytes per 64-bit field)
+//   9 K ...            the host calls: take_loop_reports / take_loop_events (K&1), or
+//                      queue_message(N, bytes[N]) (K&2)
 // Invariants (trap): every host write is one whole frame with a valid CRC; a failed session has an
 // error that names the MCU; a ready session has a clock rate > 0, 1 to kMaxAxes motors and a
 // finite clock estimate; no more than kSampleCapacity encoder samples are kept.
@@ -25,6 +29,7 @@
 
 #include "drivers/device/virtual_mcu.hpp"  // kMaxAxes
 #include "drivers/host/mcu_session.hpp"
+#include "drivers/protocol/loop_messages.hpp"
 #include "drivers/protocol/messages.hpp"
 #include "drivers/protocol/reliable_link.hpp"
 #include "fuzz/fuzz_input.hpp"
@@ -129,7 +134,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   (void)session.start(now_s);
   while (!in.empty()) {
     size_t n = 0;
-    const uint8_t op = in.u8() % 8;
+    const uint8_t op = in.u8() % 10;
     if (op == 0) {
       const uint8_t* p = in.take(in.u8(), n);
       dev.send(p, n);
@@ -189,9 +194,52 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       }
     } else if (op == 6) {
       dev.poll_link();
-    } else {
+    } else if (op == 7) {
       dev.close();
       dev.refuse_open = in.u8() & 1;
+    } else if (op == 8) {
+      uint8_t buf[protocol::kMaxPayload];
+      size_t len = 0;
+      if (in.u8() % 2 == 0) {
+        protocol::LoopReportMsg m;
+        m.axis = in.u8();
+        device::LoopReport& r = m.report;
+        r.clock = static_cast<int64_t>(in.u64());
+        r.state = static_cast<device::LoopState>(in.u8());
+        r.r_nm = static_cast<int64_t>(in.u64());
+        r.y_nm = static_cast<int64_t>(in.u64());
+        const uint32_t e = in.u32(), u = in.u32();
+        std::memcpy(&r.e_nm, &e, sizeof e);
+        std::memcpy(&r.u_nm, &u, sizeof u);
+        r.device_steps = static_cast<int64_t>(in.u64());
+        r.max_tick_cost = in.u32();
+        r.ticks = in.u64();
+        r.deadline_misses = in.u64();
+        r.encoder_rejects = in.u64();
+        r.slips = in.u64();
+        len = protocol::encode_loop_report(m, buf, sizeof buf);
+      } else {
+        protocol::LoopEventMsg m;
+        m.axis = in.u8();
+        m.event.kind = static_cast<device::LoopEventKind>(in.u8());
+        m.event.clock = static_cast<int64_t>(in.u64());
+        m.event.a = static_cast<int64_t>(in.u64());
+        m.event.b = static_cast<int64_t>(in.u64());
+        len = protocol::encode_loop_event(m, buf, sizeof buf);
+      }
+      if (len > 0) dev.send(buf, len);
+    } else {
+      const uint8_t k = in.u8();
+      if (k & 2) {
+        const uint8_t* p = in.take(in.u8(), n);
+        session.queue_message(p, n);
+      } else if (k & 1) {
+        protocol::LoopEventMsg events[8];
+        check(session.take_loop_events(events, 8) <= 8);
+      } else {
+        protocol::LoopReportMsg reports[8];
+        check(session.take_loop_reports(reports, 8) <= 8);
+      }
     }
     now_s += 1e-4;
     dev.now_ns = static_cast<int64_t>(now_s * 1e9);

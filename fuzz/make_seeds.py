@@ -106,6 +106,13 @@ def host_seeds():
     s['encoder_flood'] = op_msg(identify_response()) + b''.join(
         op_msg(encoder_report(0, 1000 + 400000 * i, 20000, list(range(0, 40, 2)))) for i in range(12))
     s['stall'] = op_time(255) * 12
+    # Protocol v2: loop reports and events (op 8: kind, axis, fields), then the host takes them (op 9).
+    report = (bytes([8, 0, 0]) + struct.pack('<qB', 123456, 1) + struct.pack('<qq', 5_000_000, 4_990_000) +
+              struct.pack('<ff', 10000.0, 2500.0) + struct.pack('<qI', 42, 1800) + struct.pack('<QQQQ', 10, 0, 1, 0))
+    event = bytes([8, 1, 0, 3]) + struct.pack('<qqq', 200000, 4, 1_000_000)
+    s['loop_v2'] = (op_msg(identify_response(version=2)) + op_time(20) + report + event + report +
+                    bytes([9, 0, 9, 1, 9, 2, 3, 1, 2, 3]) + op_time(40))
+    s['v1_device'] = op_msg(identify_response(version=1)) + op_time(10) + op_msg(identify_response(version=1)) + op_time(10)
     return s
 
 
@@ -126,6 +133,14 @@ def device_seeds():
                              bytes([5, 1, 0, 0, 0, 5, 0, 0]) + bytes([4, 0, 0xFF, 0xFF, 1, 0, 0x10, 0, 0]) +
                              bytes([4, 0, 0, 0, 1, 0, 0x10, 0, 0]))
     s['watchdog'] = bytes([0]) + bytes([5, 1, 0, 0, 0, 1, 1, 0]) + bytes([6, 1]) + op_time(255) + op_time(255)
+    ident2 = bytes([5, 2, 0, 0x10, 0x27, 10, 0x88, 0x13])  # as ident, protocol version 2
+    targets = bytes([9, 0, 0xD0, 0x07, 7]) + bytes([0xE8, 0x03, 5, 0]) * 8  # 8 knots, 1 ms and 5 um apart
+    s['loop_v2'] = (bytes([0]) + ident2 + bytes([6, 1]) + bytes([8, 0, 100, 0, 0]) + targets + op_time(30) +
+                    bytes([7]) + op_time(100) + bytes([7]) + op_time(255))
+    # Parameters that must be refused: period 0, kp NaN, report every tick.
+    s['loop_v2_bad_params'] = (bytes([0]) + ident2 + bytes([8, 0, 0, 0, 3, 1, 0, 0, 0, 0, 4, 0, 0, 0xC0, 0x7F,
+                                                          20, 1, 0, 0, 0]) + op_time(20) + bytes([7]))
+    s['loop_v1_host'] = bytes([0]) + ident + bytes([8, 0, 0, 0, 0]) + targets + op_time(10)
     s['noise'] = (bytes([2]) + op_raw(bytes(range(0x70, 0x90))) + op_frame(0x13, 0, 0, bytes([1, 1, 0])) +
                   op_frame(0x11, 5, 0, bytes([8])) + op_frame(0x04, 0, 3, b'') + op_time(10) + bytes([7]))
     return s

@@ -1,6 +1,8 @@
 // One axis's device loop: see axis_loop.hpp for the steps of a tick.
 #include "drivers/device/axis_loop.hpp"
 
+#include "drivers/device/saturate.hpp"
+
 namespace feedloop::device {
 
 namespace {
@@ -10,7 +12,9 @@ int64_t q16_mul(int64_t units, uint32_t nm_q16) { return (units * static_cast<in
 
 float absf(float x) { return x < 0.0f ? -x : x; }
 
-int64_t round_to_i64(float x) { return static_cast<int64_t>(x >= 0.0f ? x + 0.5f : x - 0.5f); }
+int64_t round_to_i64(float x) {
+  return round_saturate_i64(x);
+}
 
 }  // namespace
 
@@ -120,8 +124,19 @@ void AxisLoop::apply_staged(int64_t clock) {
   }
   step_nm_ = static_cast<float>(p.nm_per_step_q16) * (1.0f / 65536.0f);
   const float per_tick_nm = p.max_correction_rate_nm_s * static_cast<float>(p.period_ticks) * inv_hz_;
-  const int32_t n = static_cast<int32_t>(per_tick_nm / step_nm_);
-  max_steps_per_tick_ = n < 1 ? 1 : n;
+  // At most one step per MCU tick of the period (the owner spreads them over it): a valid but
+  // huge rate (1e30 nm/s) neither overflows the cast nor asks for billions of steps per tick.
+  const int32_t cap = p.period_ticks > static_cast<uint32_t>(INT32_MAX)
+                          ? INT32_MAX
+                          : static_cast<int32_t>(p.period_ticks);
+  max_stop_steps_per_tick_ = cap;
+  const float steps = per_tick_nm / step_nm_;
+  if (!(steps >= 1.0f))  // NaN too
+    max_steps_per_tick_ = 1;
+  else if (steps >= static_cast<float>(cap))
+    max_steps_per_tick_ = cap;
+  else
+    max_steps_per_tick_ = static_cast<int32_t>(steps);
   horizon_margin_ticks_ = p.horizon_margin_ticks != 0 ? static_cast<int64_t>(p.horizon_margin_ticks)
                                                       : static_cast<int64_t>(0.02f * clock_hz_);
   plaus_.configure(p.max_speed_nm_s, p.encoder_margin_nm, p.encoder_reject_limit, clock_hz_);
@@ -143,14 +158,19 @@ void AxisLoop::apply_staged(int64_t clock) {
 
 int32_t AxisLoop::steps_toward(int64_t want_nm, int64_t have_nm) const {
   const int64_t s = round_to_i64(static_cast<float>(want_nm - have_nm) / step_nm_);
-  return static_cast<int32_t>(s);
+  // Saturated, not wrapped: a wrapped count would step the other way.
+  return s > INT32_MAX ? INT32_MAX : s < -INT32_MAX ? -INT32_MAX : static_cast<int32_t>(s);
 }
 
 void AxisLoop::begin_stop(StopReason why, int64_t clock, int64_t motor_nm, LoopTickOut& out) {
   stop_reason_ = why;
   state_ = LoopState::kStopping;
-  // The speed to brake from: r's slope while r is defined, else the motor's own (filtered).
-  const float v0 = v_ref_nm_s_ != 0.0f ? v_ref_nm_s_ : v_motor_nm_s_;
+  // The speed to brake from: r's slope while r is defined, else the motor's own (filtered); no
+  // faster than the axis can move (the encoder plausibility's bound): knots with an absurd slope
+  // must not turn the stop into a sprint.
+  float v0 = v_ref_nm_s_ != 0.0f ? v_ref_nm_s_ : v_motor_nm_s_;
+  if (v0 > p_.max_speed_nm_s) v0 = p_.max_speed_nm_s;
+  if (v0 < -p_.max_speed_nm_s) v0 = -p_.max_speed_nm_s;
   ramp_.start(clock, motor_nm, v0, p_.stop_decel_nm_s2, clock_hz_);
   out.flush_host_steps = true;
   event(LoopEventKind::kStopStarted, clock, static_cast<int64_t>(why), static_cast<int64_t>(v0));
@@ -159,6 +179,8 @@ void AxisLoop::begin_stop(StopReason why, int64_t clock, int64_t motor_nm, LoopT
 void AxisLoop::stopping_tick(const LoopTickIn& in, int64_t motor_nm, LoopTickOut& out) {
   const int64_t want = ramp_.position_at(next_grid_clock_);
   int32_t n = steps_toward(want, motor_nm);
+  if (n > max_stop_steps_per_tick_) n = max_stop_steps_per_tick_;  // one per MCU tick at most
+  if (n < -max_stop_steps_per_tick_) n = -max_stop_steps_per_tick_;
   out.extra_steps = n;
   out.over_ticks = next_grid_clock_ - in.clock;
   if (ramp_.done_at(in.clock) && n == 0) {

@@ -1,6 +1,8 @@
 // Protocol v2 loop messages (see loop_messages.hpp and docs/protocol.md).
 #include "drivers/protocol/loop_messages.hpp"
 
+#include "drivers/device/saturate.hpp"
+
 namespace feedloop::protocol {
 
 using device::LoopEventKind;
@@ -142,8 +144,8 @@ size_t encode_loop_report(const LoopReportMsg& m, uint8_t* buf, size_t cap) {
       .u8(static_cast<uint8_t>(r.state))
       .zz(r.r_nm)
       .zz(r.y_nm)
-      .zz(static_cast<int64_t>(r.e_nm))
-      .zz(static_cast<int64_t>(r.u_nm))
+      .zz(device::saturate_i64(r.e_nm))  // saturated: NaN -> 0, beyond 2^63 -> the bounds
+      .zz(device::saturate_i64(r.u_nm))
       .zz(r.device_steps)
       .var(r.max_tick_cost)
       .var(r.ticks)

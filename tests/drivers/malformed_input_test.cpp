@@ -1,15 +1,22 @@
 // What the fuzz targets found on the MCU link (fuzz/corpus/mcu_host/regress_*,
 // fuzz/corpus/mcu_device/regress_*): malformed messages that pass the CRC are refused whole, with
-// a message, and never reach arithmetic that overflows or a motor that steps back in time.
+// a message, and never reach arithmetic that overflows or a motor that steps back in time; the
+// device loop's parameters and telemetry stay in range whatever the numbers.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <vector>
 
+#include "drivers/device/axis_loop.hpp"
+#include "drivers/device/stop_ramp.hpp"
 #include "drivers/device/virtual_mcu.hpp"
 #include "drivers/host/mcu_session.hpp"
+#include "drivers/protocol/loop_messages.hpp"
 #include "drivers/protocol/messages.hpp"
 #include "drivers/protocol/reliable_link.hpp"
 #include "drivers/stepgen/run_codec.hpp"
@@ -267,6 +274,106 @@ TEST(RunCodecInput, IntervalsBeyond64BitsAreMalformed) {
   ASSERT_TRUE(dec.next(r));
   EXPECT_EQ(r.interval_ticks, INT64_MAX - 1);
   EXPECT_FALSE(dec.next(r));
+}
+
+// ---- protocol v2 (the device loop)
+
+// fuzz/corpus/mcu_device/regress_loop_rate_overflow: a valid but huge correction rate overflowed
+// the float -> int32 cast of the steps allowed per tick. At most one step per MCU tick now.
+TEST(AxisLoopInput, AHugeCorrectionRateIsCappedAtOneStepPerMcuTick) {
+  device::AxisLoop loop;
+  loop.init(1e6f);
+  device::LoopParams p;
+  p.enabled = true;
+  p.period_ticks = 1000;
+  p.nm_per_step_q16 = 10000u << 16;
+  p.nm_per_count_q16 = 10000u << 16;
+  p.max_correction_rate_nm_s = 1e30f;
+  p.max_correction_nm = 1e12f;
+  p.max_following_error_nm = 1e12f;
+  ASSERT_EQ(loop.stage(p, 0), device::LoopParamError::kOk);
+  ASSERT_TRUE(loop.push_target({0, 1'000'000'000}));  // 1 m away from the encoder's 0
+  ASSERT_TRUE(loop.push_target({10'000'000, 1'000'000'000}));
+  device::LoopTickOut out;
+  for (int k = 0; k < 3; ++k) {
+    device::LoopTickIn in;
+    in.clock = loop.next_tick_clock();
+    loop.tick(in, out);
+  }
+  EXPECT_EQ(loop.state(), device::LoopState::kRunning);
+  EXPECT_EQ(out.extra_steps, 1000);  // the cap: the PI asks for ~5e4 steps
+}
+
+// fuzz/corpus/mcu_device/regress_stop_from_absurd_speed: knots 31 mm apart in 5 us, then a
+// following-error trip (here: 12 m in 2 ms): the controlled stop braked from r's slope (6e12 nm/s)
+// with no limit on the steps per tick, about 6e5 of them, and the virtual MCU took minutes for one
+// period. The stop now starts from at most max_speed_nm_s and takes at most one step per MCU tick.
+TEST(AxisLoopInput, AStopFromAnAbsurdTargetSlopeBrakesFromTheAxisMaximumSpeed) {
+  device::AxisLoop loop;
+  loop.init(1e6f);
+  device::LoopParams p;
+  p.enabled = true;
+  p.period_ticks = 1000;
+  p.nm_per_step_q16 = 10000u << 16;
+  p.nm_per_count_q16 = 10000u << 16;
+  p.max_speed_nm_s = 500e6f;  // 50 steps per 1 ms tick
+  ASSERT_EQ(loop.stage(p, 0), device::LoopParamError::kOk);
+  ASSERT_TRUE(loop.push_target({0, 0}));
+  ASSERT_TRUE(loop.push_target({2000, 12'000'000'000}));  // 12 m in 2 ms: 6e12 nm/s
+  ASSERT_TRUE(loop.push_target({10'000'000, 12'000'000'000}));
+  int64_t motor_steps = 0;
+  int32_t most = 0;
+  int ticks = 0;
+  device::LoopTickOut out;
+  for (; ticks < 1000 && loop.state() != device::LoopState::kStopped; ++ticks) {
+    device::LoopTickIn in;
+    in.clock = loop.next_tick_clock();
+    in.encoder_counts = motor_steps;  // the carriage follows the motor exactly
+    in.motor_steps = motor_steps;
+    in.device_steps = motor_steps;
+    loop.tick(in, out);
+    motor_steps += out.extra_steps;
+    most = std::max(most, std::abs(out.extra_steps));
+  }
+  EXPECT_EQ(loop.stop_reason(), device::StopReason::kFollowingError);
+  EXPECT_EQ(loop.state(), device::LoopState::kStopped);
+  EXPECT_LE(most, 51);  // 500e6 nm/s x 1 ms / 10000 nm, +1 for rounding
+  // Braking from 500 mm/s at 3000 mm/s^2 takes 167 ms: about 170 ticks, not 1.
+  EXPECT_GT(ticks, 150);
+  EXPECT_LT(ticks, 200);
+}
+
+// fuzz/corpus/mcu_device/regress_stop_ramp_inf: a valid but tiny stop deceleration made the
+// ramp's duration infinite, and the float -> int64 casts of its end clock and positions undefined.
+TEST(AxisLoopInput, AStopRampOfUnboundedLengthSaturates) {
+  device::StopRamp ramp;
+  ramp.start(1000, 5, 3e38f, 1e-30f, 1e6f);
+  EXPECT_EQ(ramp.end_clock(), INT64_MAX);
+  EXPECT_FALSE(ramp.done_at(INT64_MAX - 1));
+  EXPECT_EQ(ramp.position_at(1000), 5);
+  EXPECT_EQ(ramp.position_at(2000), INT64_MAX);  // 3e38 nm/s for 1 ms
+  device::StopRamp back;
+  back.start(0, -100, -3e38f, 1e-30f, 1e6f);
+  EXPECT_EQ(back.position_at(1000), INT64_MIN);
+  device::StopRamp normal;  // 500 mm/s at 3000 mm/s^2: 167 ms, 41.7 mm
+  normal.start(0, 0, 500e6f, 3e9f, 1e6f);
+  EXPECT_EQ(normal.end_clock(), 166'667);
+  EXPECT_NEAR(static_cast<double>(normal.position_at(1'000'000)), 41'666'667.0, 10.0);
+}
+
+// fuzz/corpus/mcu_host/regress_loop_report_nan: LOOP_REPORT's float error and correction went to
+// the wire through a float -> int64 cast, undefined for NaN and beyond 2^63. Saturated now.
+TEST(LoopProtocolInput, NonFiniteAndHugeTelemetryIsSaturatedOnTheWire) {
+  protocol::LoopReportMsg m;
+  m.report.e_nm = std::nanf("");
+  m.report.u_nm = -1e30f;
+  uint8_t buf[protocol::kMaxPayload];
+  const size_t n = protocol::encode_loop_report(m, buf, sizeof buf);
+  ASSERT_GT(n, 0u);
+  protocol::LoopReportMsg d;
+  ASSERT_TRUE(protocol::decode_loop_report(buf, n, d));
+  EXPECT_EQ(d.report.e_nm, 0.0f);
+  EXPECT_EQ(d.report.u_nm, static_cast<float>(INT64_MIN));
 }
 
 }  // namespace
