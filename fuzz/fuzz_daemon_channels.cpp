@@ -20,6 +20,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <string>
@@ -44,6 +45,7 @@ const config::MachineConfig& fuzz_config() {
     if (!std::filesystem::is_directory(base, ec)) base = std::filesystem::temp_directory_path();
     std::string dir = (base / "feedloop-fuzz-XXXXXX").string();
     check(::mkdtemp(dir.data()) != nullptr);
+    ::setenv("RUNTIME_DIRECTORY", dir.c_str(), 1);  // the channels belong in the runtime directory
     config::MachineConfig c = config::default_config();
     c.sockets.unix_socket = dir + "/feedloop.sock";
     c.sockets.api_socket = dir + "/api.sock";

@@ -8,7 +8,9 @@ namespace feedloop::device {
 namespace {
 
 // Q16.16 scale: units x (nm per unit x 65536) / 65536 (arithmetic shift: floor).
-int64_t q16_mul(int64_t units, uint32_t nm_q16) { return (units * static_cast<int64_t>(nm_q16)) >> 16; }
+int64_t q16_mul(int64_t units, uint32_t nm_q16) {
+  return mul_saturate_i64(units, static_cast<int64_t>(nm_q16)) >> 16;
+}
 
 float absf(float x) { return x < 0.0f ? -x : x; }
 
@@ -173,7 +175,7 @@ void AxisLoop::begin_stop(StopReason why, int64_t clock, int64_t motor_nm, LoopT
   if (v0 < -p_.max_speed_nm_s) v0 = -p_.max_speed_nm_s;
   ramp_.start(clock, motor_nm, v0, p_.stop_decel_nm_s2, clock_hz_);
   out.flush_host_steps = true;
-  event(LoopEventKind::kStopStarted, clock, static_cast<int64_t>(why), static_cast<int64_t>(v0));
+  event(LoopEventKind::kStopStarted, clock, static_cast<int64_t>(why), saturate_i64(v0));
 }
 
 void AxisLoop::stopping_tick(const LoopTickIn& in, int64_t motor_nm, LoopTickOut& out) {
@@ -272,8 +274,8 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
 
   if (!usable) {
     ++encoder_rejects_;
-    const int64_t jump = static_cast<int64_t>(plaus_.last_jump_nm());
-    const int64_t allowed = static_cast<int64_t>(plaus_.last_allowed_nm());
+    const int64_t jump = saturate_i64(plaus_.last_jump_nm());
+    const int64_t allowed = saturate_i64(plaus_.last_allowed_nm());
     if (verdict == EncoderVerdict::kFault) {
       event(LoopEventKind::kEncoderFault, in.clock, jump, allowed);
       begin_stop(StopReason::kEncoderFault, in.clock, motor_nm, out);
@@ -284,10 +286,10 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
     // Hold the correction: no PI update and no slip check on a sample that is not believed.
   } else {
     // 2'. Following error.
-    e_nm_ = static_cast<float>(r_nm_ - y_nm_);
+    e_nm_ = static_cast<float>(sub_saturate_i64(r_nm_, y_nm_));
     if (absf(e_nm_) > p_.max_following_error_nm) {
-      event(LoopEventKind::kFollowingError, in.clock, static_cast<int64_t>(e_nm_),
-            static_cast<int64_t>(p_.max_following_error_nm));
+      event(LoopEventKind::kFollowingError, in.clock, saturate_i64(e_nm_),
+            saturate_i64(p_.max_following_error_nm));
       begin_stop(StopReason::kFollowingError, in.clock, motor_nm, out);
       stopping_tick(in, motor_nm, out);
       return;
@@ -297,20 +299,21 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
     // 4. Skipped steps: motor - carriage against the deflection model.
     const float deflection = p_.deflection_s2 * a_ref_nm_s2_ + p_.deflection_s * v_ref_nm_s_;
     const bool was_pending = slip_.pending();
-    const SlipEvent s = slip_.update(static_cast<float>(motor_nm - y_nm_), deflection, dt_s);
+    const SlipEvent s =
+        slip_.update(static_cast<float>(sub_saturate_i64(motor_nm, y_nm_)), deflection, dt_s);
     if (slip_.pending() && !was_pending) integral_before_slip_nm_ = pi_.integral_nm();
     if (s.happened) {
       // Recovery: make up the lost steps at once (the shift) and drop what the integral gained
       // from the slip's error while it was being confirmed, so the two do not add up.
       pi_.set_integral(integral_before_slip_nm_);
       pi_.shift(s.size_nm);
-      event(LoopEventKind::kSlip, in.clock, s.cycles, static_cast<int64_t>(s.size_nm));
+      event(LoopEventKind::kSlip, in.clock, s.cycles, saturate_i64(s.size_nm));
     }
   }
 
   // 5. The correction as extra steps over the next period (rate-limited).
   const int64_t want_steps = round_to_i64(pi_.output_nm() / step_nm_);
-  int64_t n = want_steps - in.device_steps;
+  int64_t n = sub_saturate_i64(want_steps, in.device_steps);
   if (n > max_steps_per_tick_) n = max_steps_per_tick_;
   if (n < -max_steps_per_tick_) n = -max_steps_per_tick_;
   out.extra_steps = static_cast<int32_t>(n);

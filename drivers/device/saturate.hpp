@@ -17,9 +17,26 @@ inline int64_t saturate_i64(float x) {
 
 inline int64_t round_saturate_i64(float x) { return saturate_i64(x >= 0.0f ? x + 0.5f : x - 0.5f); }
 
+inline int32_t round_saturate_i32(float x) {
+  const int64_t r = round_saturate_i64(x);
+  return r > INT32_MAX ? INT32_MAX : r < INT32_MIN ? INT32_MIN : static_cast<int32_t>(r);
+}
+
 inline int64_t add_saturate_i64(int64_t a, int64_t b) {
   int64_t r = 0;
   if (__builtin_add_overflow(a, b, &r)) return b > 0 ? INT64_MAX : INT64_MIN;
+  return r;
+}
+
+inline int64_t sub_saturate_i64(int64_t a, int64_t b) {
+  int64_t r = 0;
+  if (__builtin_sub_overflow(a, b, &r)) return b < 0 ? INT64_MAX : INT64_MIN;
+  return r;
+}
+
+inline int64_t mul_saturate_i64(int64_t a, int64_t b) {
+  int64_t r = 0;
+  if (__builtin_mul_overflow(a, b, &r)) return (a < 0) != (b < 0) ? INT64_MIN : INT64_MAX;
   return r;
 }
 

@@ -119,16 +119,18 @@ bool QueueTargetReader::next(device::TargetKnot& k) {
     ok_ = false;
     return false;
   }
+  // Clocks and positions must fit int64 (and clocks be >= 0): anything else is malformed.
+  if (a > static_cast<uint64_t>(INT64_MAX)) {
+    ok_ = false;
+    return false;
+  }
   if (read_ == 0) {
     k.clock = static_cast<int64_t>(a);
     k.pos_nm = unzigzag(b);
-  } else {
-    if (a == 0) {
-      ok_ = false;
-      return false;
-    }
-    k.clock = last_.clock + static_cast<int64_t>(a);
-    k.pos_nm = last_.pos_nm + unzigzag(b);
+  } else if (a == 0 || __builtin_add_overflow(last_.clock, static_cast<int64_t>(a), &k.clock) ||
+             __builtin_add_overflow(last_.pos_nm, unzigzag(b), &k.pos_nm)) {
+    ok_ = false;
+    return false;
   }
   last_ = k;
   ++read_;

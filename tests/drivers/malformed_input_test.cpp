@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "drivers/device/axis_loop.hpp"
+#include "drivers/device/saturate.hpp"
 #include "drivers/device/stop_ramp.hpp"
 #include "drivers/device/virtual_mcu.hpp"
 #include "drivers/host/mcu_session.hpp"
@@ -359,6 +360,48 @@ TEST(AxisLoopInput, AStopRampOfUnboundedLengthSaturates) {
   normal.start(0, 0, 500e6f, 3e9f, 1e6f);
   EXPECT_EQ(normal.end_clock(), 166'667);
   EXPECT_NEAR(static_cast<double>(normal.position_at(1'000'000)), 41'666'667.0, 10.0);
+}
+
+// fuzz/corpus/mcu_device/regress_slip_event_inf: an absurd target slope made the deflection model
+// infinite and the slip event's size a float -> int64 cast of -inf. The device loop's conversions
+// of wire-derived numbers go through drivers/device/saturate.hpp.
+TEST(DeviceSaturation, ConversionsSaturateInsteadOfOverflowing) {
+  using namespace device;
+  EXPECT_EQ(saturate_i64(-INFINITY), INT64_MIN);
+  EXPECT_EQ(saturate_i64(INFINITY), INT64_MAX);
+  EXPECT_EQ(saturate_i64(std::nanf("")), 0);
+  EXPECT_EQ(saturate_i64(-1234.9f), -1234);
+  EXPECT_EQ(round_saturate_i64(-1234.5f), -1235);
+  EXPECT_EQ(round_saturate_i32(3e9f), INT32_MAX);
+  EXPECT_EQ(round_saturate_i32(-3e9f), INT32_MIN);
+  EXPECT_EQ(round_saturate_i32(2.5f), 3);
+  EXPECT_EQ(add_saturate_i64(INT64_MAX - 1, 5), INT64_MAX);
+  EXPECT_EQ(sub_saturate_i64(INT64_MIN + 1, 5), INT64_MIN);
+  EXPECT_EQ(sub_saturate_i64(5, INT64_MIN), INT64_MAX);
+  EXPECT_EQ(mul_saturate_i64(int64_t{1} << 40, -(int64_t{1} << 40)), INT64_MIN);
+  EXPECT_EQ(mul_saturate_i64(-(int64_t{1} << 40), -(int64_t{1} << 40)), INT64_MAX);
+  EXPECT_EQ(mul_saturate_i64(-3, 7), -21);
+}
+
+// fuzz/corpus/mcu_device/regress_target_overflow: QUEUE_TARGET's deltas summed beyond int64.
+TEST(LoopProtocolInput, TargetKnotsBeyondInt64AreMalformed) {
+  uint8_t b[64] = {static_cast<uint8_t>(MsgType::kQueueTarget), 0};
+  size_t n = protocol::put_varint(b, 2, sizeof b, 3);                         // 3 knots
+  n = protocol::put_varint(b, n, sizeof b, 100);                              // clock 100
+  n = protocol::put_varint(b, n, sizeof b, protocol::zigzag(INT64_MAX - 5));  // position
+  n = protocol::put_varint(b, n, sizeof b, 10);                               // +10 ticks
+  n = protocol::put_varint(b, n, sizeof b, protocol::zigzag(3));              // +3 nm: fits
+  n = protocol::put_varint(b, n, sizeof b, 10);
+  n = protocol::put_varint(b, n, sizeof b, protocol::zigzag(3));  // +3 nm: beyond
+  protocol::QueueTargetReader r;
+  ASSERT_TRUE(r.begin(b, n));
+  device::TargetKnot k;
+  ASSERT_TRUE(r.next(k));
+  ASSERT_TRUE(r.next(k));
+  EXPECT_EQ(k.pos_nm, INT64_MAX - 2);
+  EXPECT_EQ(k.clock, 110);
+  EXPECT_FALSE(r.next(k));
+  EXPECT_FALSE(r.ok());
 }
 
 // fuzz/corpus/mcu_host/regress_loop_report_nan: LOOP_REPORT's float error and correction went to
