@@ -4,12 +4,11 @@
 #include <algorithm>  // std::min
 #include <cmath>      // std::fabs, NAN
 #include <cstdio>     // snprintf
-#include <numbers>    // pi
 
 #include "drivers/stepgen/run_codec.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/usb_transport.hpp"
-#include "sim/gantry_params.hpp"
+#include "engine/simulated_printer.hpp"
 
 namespace feedloop::engine {
 namespace {
@@ -22,48 +21,7 @@ struct IdealMotor final : device::MotorPort {
   int64_t read_encoder_counts(double) override { return steps; }
 };
 
-// The config's simulator effects on one gantry axis (config/machine_config.hpp -> sim/).
-void apply_effects(const config::SimEffectsConfig& e, const std::string& axis, sim::GantryEffects& g) {
-  if (e.coulomb_friction && config::applies_to(*e.coulomb_friction, axis))
-    g.coulomb_friction = {true, e.coulomb_friction->force_n};
-  if (e.backlash && config::applies_to(*e.backlash, axis)) g.backlash = {true, e.backlash->width_um};
-  if (e.periodic_position && config::applies_to(*e.periodic_position, axis)) {
-    g.periodic_position.enabled = true;
-    g.periodic_position.period_mm = e.periodic_position->period_mm;
-    g.periodic_position.amplitude_um = e.periodic_position->amplitude_um;
-  }
-  if (e.extra_resonance && config::applies_to(*e.extra_resonance, axis)) {
-    g.extra_resonance.enabled = true;
-    g.extra_resonance.freq_hz = e.extra_resonance->freq_hz;
-    g.extra_resonance.damping = e.extra_resonance->damping;
-  }
-  if (e.time_delay && config::applies_to(*e.time_delay, axis)) g.time_delay = {true, e.time_delay->delay_ms};
-  if (e.scale_error && config::applies_to(*e.scale_error, axis)) g.scale_error = {true, e.scale_error->scale};
-}
-
 }  // namespace
-
-Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfig& cfg, int joint) {
-  const auto names = joint_names(cfg);
-  const auto spm = steps_per_mm(cfg);
-  const size_t js = static_cast<size_t>(joint);
-  if (joint < 0 || joint > 2) return Error{"simulated gantry: joint " + std::to_string(joint) + " is not x, y or z"};
-  sim::GantryAxisParams p = joint == 1 ? sim::thesis_y_axis() : sim::thesis_x_axis();
-  if (!(spm[js] > 0)) return Error{"axis " + names[js] + ": steps_per_mm must be > 0"};
-  // The pulley that gives the configured steps/mm (x, y: the thesis's 5.40 mm).
-  p.pulley_radius_mm = p.full_steps_per_rev * p.microsteps / (2.0 * std::numbers::pi * spm[js]);
-  p.encoder.noise_um = cfg.simulator.encoder_noise_um;
-  p.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
-  if (const config::AxisConfig* a = cfg.axis(names[js]); a && a->encoder) p.encoder.resolution_um = a->encoder->resolution_um;
-  p.seed = cfg.simulator.seed + 1000 * js;
-  apply_effects(cfg.simulator.effects, names[js], p.effects);
-  // direction_dependent_stiffness: the belt anchor offset x0 of Eq. 6 that gives K2(pulling +) /
-  // K2(pulling -) = ratio at x2 = 0, ratio = (L + x0) / (L - x0). The LPV feedforward's model has
-  // x0 = 0, so its direction dependence is off by as much.
-  if (const auto& d = cfg.simulator.effects.direction_dependent_stiffness; d && config::applies_to(*d, names[js]))
-    p.belt_x0_mm = p.belt_span_mm * (d->ratio - 1.0) / (d->ratio + 1.0);
-  return p;
-}
 
 struct McuBridge::Mcu {
   std::string name;
@@ -125,35 +83,15 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
   const auto names = joint_names(cfg);
   const auto spm = steps_per_mm(cfg);
   const bool delta = cfg.kinematics == config::Kinematics::delta;
-  gantries_.resize(kJoints);
 
   // Plants first (the ports point into them).
+  auto plant = make_simulated_printer(cfg);
+  if (!plant) return plant.error();
+  plant_ = std::move(plant.value());
   std::array<device::MotorPort*, kJoints> plant_port{};
-  if (delta) {
-    sim::DeltaPlantParams dp;
-    dp.mm_per_step = 1.0 / spm[0];
-    dp.initial_nozzle_mm = Eigen::Vector3d::Zero();  // where the planner starts
-    dp.seed = cfg.simulator.seed;
-    dp.encoder.noise_um = cfg.simulator.encoder_noise_um;
-    dp.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
-    auto d = sim::DeltaPlant::create(dp);
-    if (!d.ok()) return Error{"simulated delta: " + d.error().message};
-    delta_ = std::move(d.value());
-    for (int j = 0; j < 3; ++j) {
-      plant_port[static_cast<size_t>(j)] = &delta_->carriage_port(j);
-      encoder_mm_per_count_[static_cast<size_t>(j)] = dp.encoder.resolution_um * 1e-3;
-    }
-  } else {
-    for (int j = 0; j < 3; ++j) {
-      const size_t js = static_cast<size_t>(j);
-      auto p = simulated_gantry_params(cfg, j);
-      if (!p) return p.error();
-      auto g = sim::GantryAxis::create(p.value());
-      if (!g.ok()) return Error{"simulated axis " + names[js] + ": " + g.error().message};
-      gantries_[js] = std::make_unique<sim::GantryAxis>(std::move(g.value()));
-      plant_port[js] = gantries_[js].get();
-      encoder_mm_per_count_[js] = gantries_[js]->encoder_mm_per_count();
-    }
+  for (int j = 0; j < kJoints; ++j) {
+    plant_port[static_cast<size_t>(j)] = plant_->motor(j);
+    encoder_mm_per_count_[static_cast<size_t>(j)] = plant_->encoder_mm_per_count(j);
   }
 
   int index = 0;
@@ -411,9 +349,7 @@ void McuBridge::service(double host_s) {
   }
   poll_all(now_s);
   last_service_s_ = now_s;
-  for (auto& g : gantries_)
-    if (g) g->advance_to(now_s);
-  if (delta_) delta_->advance_to(now_s);
+  if (plant_) plant_->advance_to(now_s);
   collect(now_s);
   publish_links(now_s);
 
@@ -524,9 +460,6 @@ const std::string& McuBridge::mcu_name(int i) const { return mcus_[static_cast<s
 drivers::McuSession& McuBridge::session(int i) { return *mcus_[static_cast<size_t>(i)]->session; }
 drivers::MockTransport* McuBridge::mock(int i) { return mcus_[static_cast<size_t>(i)]->mock; }
 const device::VirtualMcu* McuBridge::virtual_mcu(int i) const { return mcus_[static_cast<size_t>(i)]->vmcu.get(); }
-sim::GantryAxis* McuBridge::gantry(int joint) {
-  return joint < 0 || joint >= kJoints ? nullptr : gantries_[static_cast<size_t>(joint)].get();
-}
 
 const JointTiming& McuBridge::timing(int joint) const {
   static const JointTiming kNone{};

@@ -1,7 +1,8 @@
 // The machine's MCUs behind the step pipeline (DESIGN.md "The microcontroller side"): for each
 // McuConfig one host McuSession on its transport; for `mock` transports also the VirtualMcu (with
-// a drifting clock) and the plant simulator it drives (sim::GantryAxis per Cartesian axis, one
-// sim::DeltaPlant for a delta's carriages, an ideal motor for the extruder).
+// a drifting clock) and the simulated plant it drives (engine/simulated_plant.hpp, built by the
+// simulated transport's factory engine/simulated_printer.hpp: a gantry axis per Cartesian joint or
+// one delta plant for the carriages; an ideal motor for the extruder).
 //
 //   StepPipeline --StepBatch--> McuBridge::on_batch --> McuSession --> Transport (mock: faults)
 //        --> VirtualMcu --MotorPort--> plant;   encoder reports, clock sync, errors flow back.
@@ -33,8 +34,7 @@
 #include "engine/config_mapping.hpp"
 #include "engine/seqlock.hpp"
 #include "engine/servo_backend.hpp"
-#include "sim/delta_plant.hpp"
-#include "sim/gantry_axis.hpp"
+#include "engine/simulated_plant.hpp"
 
 namespace feedloop::engine {
 
@@ -59,12 +59,6 @@ struct JointTiming {
   uint64_t unexpected_steps = 0;   // executed steps that were never sent (must stay 0)
   double max_time_err_us = 0.0;    // max |true step time - intended host time|
 };
-
-// The simulated plant of gantry joint `joint` (0 x, 1 y, 2 z) of a Cartesian / CoreXY config: the
-// thesis's axis with the configured steps/mm, encoder and simulator effects. What the bridge
-// builds; also what an identification run on the simulated machine excites (bench_control).
-// Errors: steps_per_mm not > 0.
-Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfig& cfg, int joint);
 
 class McuBridge final : public stepgen::BatchSink, public ServoBackend {
  public:
@@ -101,8 +95,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   const device::VirtualMcu* virtual_mcu(int i) const;  // nullptr for a real transport
   int mcu_of_joint(int joint) const { return joint_mcu_[static_cast<size_t>(joint)]; }
   int motor_of_joint(int joint) const { return joint_motor_[static_cast<size_t>(joint)]; }
-  sim::GantryAxis* gantry(int joint);           // Cartesian joints 0-2 in simulation
-  sim::DeltaPlant* delta() { return delta_.get(); }
+  SimulatedPlant* plant() { return plant_.get(); }  // the simulated machine (engine/simulated_printer.hpp)
   const JointTiming& timing(int joint) const;
   // Simulation fault injection (servo thread / tests): the next `steps` steps the MCU executes on
   // `joint` never reach the motor, as if the stepper had skipped them.
@@ -131,8 +124,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   std::array<int, kJoints> joint_motor_{{0, 0, 0, 0}};
   std::array<double, kJoints> encoder_mm_per_count_{};
   std::array<std::unique_ptr<JointPort>, kJoints> ports_;
-  std::vector<std::unique_ptr<sim::GantryAxis>> gantries_;  // by joint (nullptr: none)
-  std::unique_ptr<sim::DeltaPlant> delta_;
+  std::unique_ptr<SimulatedPlant> plant_;
   bool simulated_ = false;  // some MCU is a virtual one (mock transport)
   Seqlock<LinkTelemetrySet> links_;
   LinkTelemetrySet links_scratch_;  // servo thread: filled, then published

@@ -20,8 +20,8 @@ namespace {
 // advanced the plants to the cycle's time before the executor publishes).
 class Recorder final : public TelemetryTap {
  public:
-  Recorder(SimRunResult& out, McuBridge& bridge, bool keep, bool delta, std::vector<LostStepInjection> inject)
-      : out_(out), bridge_(bridge), keep_(keep), delta_(delta), inject_(std::move(inject)) {}
+  Recorder(SimRunResult& out, McuBridge& bridge, bool keep, std::vector<LostStepInjection> inject)
+      : out_(out), bridge_(bridge), keep_(keep), inject_(std::move(inject)) {}
   void on_servo_sample(const ServoSample& s) override {
     for (LostStepInjection& i : inject_)
       if (i.steps != 0 && s.print_time_s >= i.at_s) {
@@ -33,18 +33,9 @@ class Recorder final : public TelemetryTap {
     r.servo = s;
     r.actual_mm.fill(NAN);
     r.actual_nozzle_mm.fill(NAN);
-    if (delta_) {
-      if (sim::DeltaPlant* d = bridge_.delta()) {
-        for (int i = 0; i < 3; ++i) r.actual_mm[static_cast<size_t>(i)] = d->carriage_mm(i);
-        const Eigen::Vector3d n = d->nozzle_mm();
-        for (int i = 0; i < 3; ++i) r.actual_nozzle_mm[static_cast<size_t>(i)] = n[i];
-      }
-    } else {
-      for (int j = 0; j < 3; ++j)
-        if (sim::GantryAxis* g = bridge_.gantry(j)) {
-          r.actual_mm[static_cast<size_t>(j)] = g->carriage_mm();
-          r.actual_nozzle_mm[static_cast<size_t>(j)] = g->carriage_mm();
-        }
+    if (SimulatedPlant* plant = bridge_.plant()) {
+      for (int j = 0; j < 3; ++j) r.actual_mm[static_cast<size_t>(j)] = plant->carriage_mm(j);
+      r.actual_nozzle_mm = plant->nozzle_mm();
     }
     if (on_sample_) on_sample_(r);
     if (keep_) out_.samples.push_back(r);
@@ -55,7 +46,7 @@ class Recorder final : public TelemetryTap {
  private:
   SimRunResult& out_;
   McuBridge& bridge_;
-  bool keep_, delta_;
+  bool keep_;
   std::vector<LostStepInjection> inject_;
 };
 
@@ -75,7 +66,7 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
 
   SimRunResult out;
   if (options.keep_samples) out.samples.reserve(1 << 16);
-  Recorder rec(out, bridge, options.keep_samples, cfg.kinematics == config::Kinematics::delta, options.lose_steps);
+  Recorder rec(out, bridge, options.keep_samples, options.lose_steps);
   rec.on_sample_ = options.on_sample;
   ex.set_telemetry(&rec);
 
@@ -128,8 +119,8 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   out.motion_time_s = s.planned_until_s;
   if (out.error.empty() && s.last_error[0] != '\0') out.error = s.last_error;
   if (ex.motion_pending() && out.error.empty()) out.error = "motion did not finish within the timeout";
-  for (int j = 0; j < 3; ++j)
-    if (sim::GantryAxis* g = bridge.gantry(j)) out.lost_full_steps[static_cast<size_t>(j)] = g->lost_full_steps();
+  if (SimulatedPlant* plant = bridge.plant())
+    for (int j = 0; j < 3; ++j) out.lost_full_steps[static_cast<size_t>(j)] = plant->lost_full_steps(j);
   ex.set_telemetry(nullptr);
   return out;
 }
