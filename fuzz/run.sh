@@ -5,6 +5,9 @@
 #   BUILD_DIR was configured with -DCMAKE_CXX_COMPILER=clang++ -DFEEDLOOP_FUZZ=ON (see
 #   fuzz/CMakeLists.txt); the targets are built here if needed. Without --target: all of them.
 #   SECONDS is per target.
+#   FUZZ_TIMEOUT_S (default 10): libFuzzer's -timeout per input, in wall-clock seconds. Raise it
+#   for long runs on a shared machine under nice: a starved process times out on inputs that take
+#   milliseconds (check a timeout by running the reproducer alone: BUILD_DIR/fuzz/NAME FILE).
 # Exits non-zero on any finding (crash, sanitizer report, failed invariant, timeout, leak, memory
 # over 1 GB); the reproducer is left in the work folder that is printed.
 set -euo pipefail
@@ -57,7 +60,7 @@ for name in "${targets[@]}"; do
   "$build_dir/fuzz/$name" "$work/corpus" "${extra[@]}" \
     -max_total_time="$seconds" \
     -rss_limit_mb=1024 \
-    -timeout=10 \
+    -timeout="${FUZZ_TIMEOUT_S:-10}" \
     -print_final_stats=1 \
     -artifact_prefix="$work/artifacts/" > "$work/fuzz.log" 2>&1
   rc=$?
