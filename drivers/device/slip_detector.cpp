@@ -1,6 +1,8 @@
 // Slip detection with a settle wait and whole-cycle rounding (see slip_detector.hpp).
 #include "drivers/device/slip_detector.hpp"
 
+#include "drivers/device/saturate.hpp"
+
 namespace feedloop::device {
 
 void SlipDetector::configure(float threshold_nm, float cycle_nm, float settle_s, float baseline_s) {
@@ -36,7 +38,7 @@ SlipEvent SlipDetector::update(float motor_minus_encoder_nm, float expected_defl
   float size = d;
   if (cycle_nm_ > 0.0f) {
     const float c = d / cycle_nm_;
-    const int32_t cycles = static_cast<int32_t>(c >= 0.0f ? c + 0.5f : c - 0.5f);
+    const int32_t cycles = round_saturate_i32(c);
     if (cycles == 0) return ev;  // beyond the threshold but less than half a cycle: keep watching
     size = static_cast<float>(cycles) * cycle_nm_;
     ev.cycles = cycles;
