@@ -6,13 +6,14 @@
 //   - ASan/UBSan build: the sanitizer owns malloc, so the count comes from its allocation hook
 //     (__sanitizer_install_malloc_and_free_hooks, sanitizer/allocator_interface.h), which it calls
 //     for every allocation, operator new included.
-// FEEDLOOP_COUNT_MALLOC is defined where one of the two works.
+// FEEDLOOP_COUNT_MALLOC is defined where one of the two works. The sanitizer way is opt-in
+// (-DFEEDLOOP_SANITIZER_MALLOC_HOOK) until a sanitizer build has run every allocation test with it.
 #pragma once
 
 #include <atomic>
 #include <cstddef>
 
-#if defined(FEEDLOOP_SANITIZED)
+#if defined(FEEDLOOP_SANITIZED) && defined(FEEDLOOP_SANITIZER_MALLOC_HOOK)
 // sanitizer/allocator_interface.h ships with clang, not with GCC; GCC's libsanitizer exports the
 // same function.
 extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*, std::size_t),
@@ -28,7 +29,7 @@ void count_malloc_hook(const volatile void*, std::size_t) {
 [[maybe_unused]] const int g_malloc_hook_installed =
     __sanitizer_install_malloc_and_free_hooks(count_malloc_hook, nullptr);
 }  // namespace
-#elif defined(__GLIBC__)
+#elif defined(__GLIBC__) && !defined(FEEDLOOP_SANITIZED)
 #define FEEDLOOP_COUNT_MALLOC 1
 namespace {
 std::atomic<bool> g_counting{false};
