@@ -14,6 +14,7 @@
 #include "ident/frf.hpp"
 #include "ident/report.hpp"
 #include "ident/trace.hpp"
+#include "sim/experiments/gantry_recording.hpp"
 
 namespace feedloop::cli {
 namespace {
@@ -168,7 +169,7 @@ int excite(const std::vector<std::string>& args) {
   } else {
     cmd = ident::random_moves(ro);
   }
-  auto trace = ident::record_gantry_trace(p, cmd, ro.sample_rate_hz, axis);
+  auto trace = sim::record_gantry_trace(p, cmd, ro.sample_rate_hz, axis);
   if (!trace) {
     std::fprintf(stderr, "feedloop ident excite: %s\n", trace.error().to_string().c_str());
     return 1;

@@ -5,7 +5,7 @@
 #include <cstdlib>
 
 #include "config/config.hpp"
-#include "control/feedforward/model_feedforward.hpp"
+#include "engine/control_config.hpp"
 #include "model/delta_lpv.hpp"
 #include "model/frf_csv.hpp"
 
@@ -78,7 +78,7 @@ int frf(const std::vector<std::string>& args) {
   const model::ForceTransform form =
       virtual_work || lpv.force_transform == config::ForceTransform::virtual_work ? model::ForceTransform::VirtualWork
                                                                                   : model::ForceTransform::Paper;
-  auto m = model::DeltaLpvModel::create(control::delta_params_from_config(lpv, geo), form);
+  auto m = model::DeltaLpvModel::create(engine::delta_params_from_config(lpv, geo), form);
   if (!m) {
     std::fprintf(stderr, "feedloop model frf: %s\n", m.error().to_string().c_str());
     return 1;

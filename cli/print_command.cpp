@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <thread>
 #include <cstdio>
 #include <cerrno>
 #include <cstdlib>
@@ -301,11 +302,25 @@ int print_command(const std::vector<std::string>& args) {
   if (resume_from > 1) std::printf("  resumed from      line %lld\n", static_cast<long long>(resume_from));
   std::printf("  wall time         %.2f s (%.0f lines/s)\n", wall_s, lines_sent / std::max(wall_s, 1e-9));
   Connection api;
-  if (api.open(api_path) && api.send(R"({"jsonrpc":"2.0","id":1,"method":"status"})" "\n")) {
-    if (auto line = api.read_line(5000)) {
+  // The last ok comes when the last line is queued: the summary waits for the machine to finish
+  // its motion (and the loop to settle) so its figures cover the whole print.
+  nlohmann::json status;
+  if (api.open(api_path)) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(600);
+    while (api.send(R"({"jsonrpc":"2.0","id":1,"method":"status"})" "\n")) {
+      auto line = api.read_line(5000);
+      if (!line) break;
       const auto st = nlohmann::json::parse(*line, nullptr, false);
-      if (st.contains("result")) {
-        const auto& r = st["result"];
+      if (!st.is_object() || !st.contains("result")) break;
+      status = st["result"];
+      if (status.value("state", "") != "busy" || std::chrono::steady_clock::now() > deadline) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  }
+  if (status.is_object()) {
+    {
+      {
+        const auto& r = status;
         std::printf("  daemon            state %s, %llu commands executed, %llu rejected\n",
                     r["state"].get<std::string>().c_str(), r["commands"]["executed"].get<unsigned long long>(),
                     r["commands"]["rejected"].get<unsigned long long>());
@@ -317,6 +332,15 @@ int print_command(const std::vector<std::string>& args) {
                     r["servo"]["deadline_misses"].get<unsigned long long>(),
                     r["servo"]["latency_us"]["p50"].get<double>(), r["servo"]["latency_us"]["p99"].get<double>(),
                     r["servo"]["latency_us"]["max"].get<double>());
+        if (r.contains("motion") && r["motion"].contains("tracking_error_mm")) {
+          const auto& m = r["motion"];
+          std::printf("  tracking error    e_t from the encoders: mean %.4f mm, max %.4f mm (%llu samples)\n",
+                      m["tracking_error_mm"]["mean"].get<double>(), m["tracking_error_mm"]["max"].get<double>(),
+                      m["tracking_error_mm"]["samples"].get<unsigned long long>());
+          std::printf("  lost steps        %llu events\n", m["lost_step_events"].get<unsigned long long>());
+        }
+        if (!r.value("last_error", "").empty())
+          std::printf("  fault             %s\n", r["last_error"].get<std::string>().c_str());
         if (r.contains("motion")) std::printf("  motion            %s\n", r["motion"].dump().c_str());
       }
     }

@@ -46,6 +46,11 @@ inline const EnumNames<Profile>& profile_names() {
                                        {"scurve", Profile::scurve}};
   return n;
 }
+inline const EnumNames<ControlLoop>& control_loop_names() {
+  static const EnumNames<ControlLoop> n = {{"device", ControlLoop::device}, {"host", ControlLoop::host}};
+  return n;
+}
+
 inline const EnumNames<ControlMode>& control_mode_names() {
   static const EnumNames<ControlMode> n = {{"open_loop", ControlMode::open_loop},
                                            {"pi", ControlMode::pi},

@@ -101,6 +101,10 @@ struct ServoConfig {
 };
 
 enum class ControlMode { open_loop, pi, maneuver };
+// Where mode pi's loop runs (issue 13): on each axis's MCU at its control rate, on the MCU's
+// clock (device, the default: the thesis's IMC architecture), or on the host's servo thread
+// (host: for real-time kernels, the LinuxCNC way).
+enum class ControlLoop { device, host };
 
 // Output maneuvering (output-maneuvering-cartesian Sect. III-C/D, docs/maneuver.md) for
 // drive: dc_servo. Defaults: Table II, and the arc-length variant of the speed assignment.
@@ -135,6 +139,8 @@ struct AxisGainsConfig {
 
 struct ControlConfig {
   ControlMode mode = ControlMode::open_loop;  // pi needs encoders
+  ControlLoop loop = ControlLoop::device;      // mode pi: where the PI runs
+  double device_rate_hz = 1000.0;             // loop device: the MCU's control rate (thesis: 1 kHz)
   double kp = 0.5;                            // thesis Sect. 5: P = 0.5
   double ki_per_s = 20.0;                     // thesis Sect. 5: I = 20
   double max_correction_mm_s = 50.0;          // clamp of the PI correction (per period: / rate_hz)

@@ -15,15 +15,6 @@ const char* to_string(EncoderFault fault) {
   return "?";
 }
 
-EncoderGuardParams encoder_guard_params_from_config(const config::ControlConfig& control,
-                                                    const std::string& axis) {
-  EncoderGuardParams p;
-  p.axis = axis;
-  p.max_jump_mm = control.max_encoder_jump_mm;
-  p.max_following_error_mm = control.max_following_error_mm;
-  return p;
-}
-
 Status EncoderGuard::configure(const EncoderGuardParams& params) {
   auto bad = [](const char* what) { return Status(Error{std::string("encoder guard: ") + what, {}}); };
   if (!std::isfinite(params.max_jump_mm) || params.max_jump_mm <= 0.0) return bad("max_jump_mm must be > 0");

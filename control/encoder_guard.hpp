@@ -13,7 +13,6 @@
 #include <cstdint>
 #include <string>
 
-#include "config/machine_config.hpp"
 #include "core/result.hpp"
 
 namespace feedloop::control {
@@ -28,9 +27,6 @@ struct EncoderGuardParams {
   int stale_periods = 10;               // reports may be missing this long while moving
   double moving_eps_mm = 1e-6;          // the reference moved when it changes more per period
 };
-
-EncoderGuardParams encoder_guard_params_from_config(const config::ControlConfig& control,
-                                                    const std::string& axis);
 
 struct EncoderGuardInput {
   bool fresh = false;         // a new encoder report arrived this period

@@ -33,16 +33,16 @@ Impulses normalised(Impulses s) {
 
 }  // namespace
 
-const char* shaper_name(config::ShaperType type) {
+const char* shaper_name(ShaperType type) {
   switch (type) {
-    case config::ShaperType::zv: return "zv";
-    case config::ShaperType::mzv: return "mzv";
-    case config::ShaperType::ei: return "ei";
+    case ShaperType::zv: return "zv";
+    case ShaperType::mzv: return "mzv";
+    case ShaperType::ei: return "ei";
   }
   return "?";
 }
 
-Result<Impulses> make_impulses(config::ShaperType type, double freq_hz, double damping) {
+Result<Impulses> make_impulses(ShaperType type, double freq_hz, double damping) {
   if (!std::isfinite(freq_hz) || freq_hz <= 0.0)
     return shaper_error(std::string(shaper_name(type)) + ": freq_hz must be > 0");
   if (!std::isfinite(damping) || damping < 0.0 || damping >= 1.0)
@@ -51,7 +51,7 @@ Result<Impulses> make_impulses(config::ShaperType type, double freq_hz, double d
   const double t_d_s = 1.0 / (freq_hz * df);  // damped period of the mode
   Impulses s;
   switch (type) {
-    case config::ShaperType::zv: {
+    case ShaperType::zv: {
       // Zero vibration: two impulses half a damped period apart, the second scaled by the decay.
       const double k = std::exp(-damping * kPi / df);
       s.n = 2;
@@ -59,7 +59,7 @@ Result<Impulses> make_impulses(config::ShaperType type, double freq_hz, double d
       s.t_s = {0.0, 0.5 * t_d_s};
       break;
     }
-    case config::ShaperType::mzv: {
+    case ShaperType::mzv: {
       // Three equal spacings of 3/8 damped period; undamped amplitudes [a, b, a] with
       // b / (2a) = cos(3 pi / 4) magnitude so that the mode's phasors cancel: a = 1 - 1/sqrt2.
       const double k = std::exp(-0.75 * damping * kPi / df);
@@ -69,7 +69,7 @@ Result<Impulses> make_impulses(config::ShaperType type, double freq_hz, double d
       s.t_s = {0.0, 0.375 * t_d_s, 0.75 * t_d_s};
       break;
     }
-    case config::ShaperType::ei: {
+    case ShaperType::ei: {
       if (damping > 0.4)
         return shaper_error("ei: damping must be <= 0.4 (the range of the EI fit)");
       // Extra-insensitive shaper, curve fits in zeta (coefficients {p, q}: c = p + q V_tol).
@@ -120,34 +120,6 @@ double residual_vibration(const Impulses& s, double freq_hz, double damping) {
     sum_a += s.a[i];
   }
   return std::sqrt(c * c + sn * sn) / sum_a;
-}
-
-Result<InputShaperSetup> input_shaper_setup(const config::ShaperConfig& shaper,
-                                            const planner::Kinematics& kinematics, double period_s) {
-  InputShaperSetup setup;
-  setup.period_s = period_s;
-  auto impulses_of = [&](const std::string& axis) -> Result<Impulses> {
-    const config::AxisShaperConfig a = shaper.for_axis(axis);
-    auto r = make_impulses(a.type, a.freq_hz, a.damping);
-    if (!r.ok()) return Error{"axis " + axis + ": " + r.error().message, {}};
-    return r;
-  };
-  if (kinematics.is_linear()) {
-    setup.linear_map = kinematics.linear_map();
-    for (int j = 0; j < 2; ++j) {  // x and y; z passes through
-      auto r = impulses_of(j == 0 ? "x" : "y");
-      if (!r.ok()) return r.error();
-      setup.shapers[j] = *r;
-    }
-  } else {
-    static const std::array<std::string, 3> kCarriages = {"A", "B", "C"};
-    for (int j = 0; j < 3; ++j) {
-      auto r = impulses_of(kCarriages[j]);
-      if (!r.ok()) return r.error();
-      setup.shapers[j] = *r;
-    }
-  }
-  return setup;
 }
 
 Status InputShaper::configure(const InputShaperSetup& setup) {

@@ -28,14 +28,15 @@
 #include <optional>
 #include <vector>
 
-#include "config/machine_config.hpp"
 #include "control/feedforward.hpp"
 #include "core/result.hpp"
-#include "planner/kinematics.hpp"
 
 namespace feedloop::control {
 
 inline constexpr int kMaxImpulses = 5;
+
+// The shaper families (Klipper's names).
+enum class ShaperType { zv, mzv, ei };
 
 // An impulse sequence: amplitudes A_i (sum 1) at times t_i (s), t_0 = 0, increasing.
 struct Impulses {
@@ -46,8 +47,8 @@ struct Impulses {
 
 // Klipper's ZV / MZV / EI for natural frequency f and damping ratio zeta, normalised to sum 1.
 // Errors: f not > 0, zeta outside [0, 1) (EI: outside [0, 0.4], where Klipper's fit is valid).
-Result<Impulses> make_impulses(config::ShaperType type, double freq_hz, double damping);
-const char* shaper_name(config::ShaperType type);
+Result<Impulses> make_impulses(ShaperType type, double freq_hz, double damping);
+const char* shaper_name(ShaperType type);
 // t_c = sum A_i t_i / sum A_i.
 double centre_time_s(const Impulses& s);
 // V(f, zeta) above: residual vibration of a mode at freq_hz with damping ratio `damping` after a
@@ -62,11 +63,7 @@ struct InputShaperSetup {
   std::optional<std::array<std::array<double, 3>, 3>> linear_map;  // q = M x, rows = joints
 };
 
-// The setup the config asks for: X and Y shaped (ShaperConfig::for_axis("x"/"y")) through the
-// kinematics' linear map, Z passed through; delta: carriages A, B, C shaped in joint space
-// (for_axis("A"/"B"/"C"), falling back to the common values).
-Result<InputShaperSetup> input_shaper_setup(const config::ShaperConfig& shaper,
-                                            const planner::Kinematics& kinematics, double period_s);
+// The setup from the printer config: engine::input_shaper_setup (engine/control_config.hpp).
 
 class InputShaper final : public Feedforward {
  public:

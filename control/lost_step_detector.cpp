@@ -6,13 +6,6 @@
 
 namespace feedloop::control {
 
-LostStepParams lost_step_params_from_config(const config::ControlConfig& control, double full_step_mm) {
-  LostStepParams p;
-  p.threshold_mm = control.skipped_step_threshold_mm;
-  p.full_step_mm = full_step_mm;
-  return p;
-}
-
 Status LostStepDetector::configure(const LostStepParams& params) {
   auto bad = [](const char* what) { return Status(Error{std::string("lost-step detector: ") + what, {}}); };
   if (!std::isfinite(params.threshold_mm) || params.threshold_mm <= 0.0)

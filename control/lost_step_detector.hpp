@@ -18,7 +18,6 @@
 #include <cstdint>
 #include <optional>
 
-#include "config/machine_config.hpp"
 #include "core/result.hpp"
 
 namespace feedloop::control {
@@ -29,10 +28,6 @@ struct LostStepParams {
   int full_steps_per_cycle = 4; // the stepper's torque law repeats every 4 full steps
   int settle_periods = 5;       // wait after |d| crosses the threshold before reporting
 };
-
-// threshold from ControlConfig::skipped_step_threshold_mm; full_step_mm = 1 / steps_per_mm x
-// microsteps (the caller knows the driver's microstepping), 0 if unknown.
-LostStepParams lost_step_params_from_config(const config::ControlConfig& control, double full_step_mm);
 
 struct LostStepEvent {
   double size_mm = 0.0;          // signed; = the recovery shift of the motor command

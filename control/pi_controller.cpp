@@ -7,16 +7,6 @@
 
 namespace feedloop::control {
 
-PiParams pi_params_from_config(const config::ControlConfig& control, const std::string& axis, double period_s) {
-  const config::AxisGainsConfig gains = control.gains_for(axis);
-  PiParams p;
-  p.kp = gains.kp;
-  p.ki_per_s = gains.ki_per_s;
-  p.period_s = period_s;
-  p.max_correction_mm_s = control.max_correction_mm_s;
-  return p;
-}
-
 Status PiController::configure(const PiParams& params) {
   auto bad = [](const std::string& what) { return Status(Error{"PI controller: " + what, {}}); };
   if (!std::isfinite(params.kp) || params.kp < 0.0) return bad("kp must be finite and >= 0");

@@ -11,9 +11,7 @@
 #pragma once
 
 #include <cstdint>
-#include <string>
 
-#include "config/machine_config.hpp"
 #include "core/result.hpp"
 
 namespace feedloop::control {
@@ -26,10 +24,6 @@ struct PiParams {
   double integral_limit_mm = 5.0;      // |K_I sum e dt| <= this (a few mm: > any steps/mm error)
   bool anti_windup = true;             // conditional integration (false only to show the windup)
 };
-
-// The PI parameters of the config for one axis (joint) name: its control.axes gains, else the
-// common ones (ControlConfig has no integral limit: PiParams's default).
-PiParams pi_params_from_config(const config::ControlConfig& control, const std::string& axis, double period_s);
 
 class PiController {
  public:

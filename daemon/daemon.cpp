@@ -650,6 +650,8 @@ json Daemon::status() const {
             {"moves_planned", s.moves_planned},
             {"motion_starts", s.motion_starts},
             {"lost_step_events", s.lost_step_events},
+            {"tracking_error_mm",
+             {{"mean", s.tracking_error_mean_mm}, {"max", s.tracking_error_max_mm}, {"samples", s.tracking_error_samples}}},
             {"late_cycles", s.late_cycles},
             {"segments_queued", s.segments_queued}}},
           {"links", links_json(s.links)},

@@ -171,6 +171,14 @@ void handle_request(JsonApiBackend& backend, ClientSession& client, std::string_
   {
     size_t bad = 0;
     for (size_t i = 0; i < line.size();) {
+      if (line[i] == '\0') {
+        // The JSON parser would stop here and ignore the rest of the line (a second request
+        // behind it would get no answer): no JSON text has a NUL byte.
+        reply(json_rpc_error(
+            nullptr, -32700,
+            "parse error at column " + std::to_string(i + 1) + ": a NUL byte in the request"));
+        return;
+      }
       const size_t n = utf8_sequence_length(line, i, &bad);
       if (n == 0) {
         reply(json_rpc_error(

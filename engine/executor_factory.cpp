@@ -28,7 +28,10 @@ Result<std::unique_ptr<CommandExecutor>> make_executor(const config::MachineConf
 MotionOptions motion_options(const config::MachineConfig& cfg) {
   MotionOptions mo;
   mo.lead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
-  mo.control_lead_s = cfg.control.command_lead_ms * 1e-3;
+  // The PI on the MCU (control.loop: device): the host's commands and r(t) go out as far ahead as
+  // the steps, so a host stall shorter than that changes nothing. On the host: its loop delay.
+  const bool device_loop = cfg.control.mode == config::ControlMode::pi && cfg.control.loop == config::ControlLoop::device;
+  mo.control_lead_s = device_loop ? cfg.stepgen.queue_ahead_ms * 1e-3 : cfg.control.command_lead_ms * 1e-3;
   return mo;
 }
 

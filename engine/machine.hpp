@@ -49,6 +49,10 @@ struct MachineStatus {
   uint64_t segments_queued = 0;     // joint segments waiting for the servo thread
   uint64_t motion_starts = 0;       // times motion started from rest
   uint64_t lost_step_events = 0;    // closed loop: slips detected (and made up)
+  // Tracking error e_t measured from the encoders: |r - x_enc| over the joints with an encoder
+  // (x and y on the gantry: the thesis's e_t), at each fresh report while motion runs.
+  double tracking_error_mean_mm = 0.0, tracking_error_max_mm = 0.0;
+  uint64_t tracking_error_samples = 0;
   uint64_t late_cycles = 0;         // sampled path: the plan paused for a late servo cycle
   double encoder_mm[4] = {0, 0, 0, 0};  // latest encoder reading per joint from the MCUs (NaN: none)
   uint64_t encoder_samples = 0;         // encoder samples received from the MCUs

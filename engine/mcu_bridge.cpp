@@ -4,12 +4,11 @@
 #include <algorithm>  // std::min
 #include <cmath>      // std::fabs, NAN
 #include <cstdio>     // snprintf
-#include <numbers>    // pi
 
 #include "drivers/stepgen/run_codec.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/usb_transport.hpp"
-#include "sim/gantry_params.hpp"
+#include "engine/simulated_printer.hpp"
 
 namespace feedloop::engine {
 namespace {
@@ -22,48 +21,7 @@ struct IdealMotor final : device::MotorPort {
   int64_t read_encoder_counts(double) override { return steps; }
 };
 
-// The config's simulator effects on one gantry axis (config/machine_config.hpp -> sim/).
-void apply_effects(const config::SimEffectsConfig& e, const std::string& axis, sim::GantryEffects& g) {
-  if (e.coulomb_friction && config::applies_to(*e.coulomb_friction, axis))
-    g.coulomb_friction = {true, e.coulomb_friction->force_n};
-  if (e.backlash && config::applies_to(*e.backlash, axis)) g.backlash = {true, e.backlash->width_um};
-  if (e.periodic_position && config::applies_to(*e.periodic_position, axis)) {
-    g.periodic_position.enabled = true;
-    g.periodic_position.period_mm = e.periodic_position->period_mm;
-    g.periodic_position.amplitude_um = e.periodic_position->amplitude_um;
-  }
-  if (e.extra_resonance && config::applies_to(*e.extra_resonance, axis)) {
-    g.extra_resonance.enabled = true;
-    g.extra_resonance.freq_hz = e.extra_resonance->freq_hz;
-    g.extra_resonance.damping = e.extra_resonance->damping;
-  }
-  if (e.time_delay && config::applies_to(*e.time_delay, axis)) g.time_delay = {true, e.time_delay->delay_ms};
-  if (e.scale_error && config::applies_to(*e.scale_error, axis)) g.scale_error = {true, e.scale_error->scale};
-}
-
 }  // namespace
-
-Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfig& cfg, int joint) {
-  const auto names = joint_names(cfg);
-  const auto spm = steps_per_mm(cfg);
-  const size_t js = static_cast<size_t>(joint);
-  if (joint < 0 || joint > 2) return Error{"simulated gantry: joint " + std::to_string(joint) + " is not x, y or z"};
-  sim::GantryAxisParams p = joint == 1 ? sim::thesis_y_axis() : sim::thesis_x_axis();
-  if (!(spm[js] > 0)) return Error{"axis " + names[js] + ": steps_per_mm must be > 0"};
-  // The pulley that gives the configured steps/mm (x, y: the thesis's 5.40 mm).
-  p.pulley_radius_mm = p.full_steps_per_rev * p.microsteps / (2.0 * std::numbers::pi * spm[js]);
-  p.encoder.noise_um = cfg.simulator.encoder_noise_um;
-  p.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
-  if (const config::AxisConfig* a = cfg.axis(names[js]); a && a->encoder) p.encoder.resolution_um = a->encoder->resolution_um;
-  p.seed = cfg.simulator.seed + 1000 * js;
-  apply_effects(cfg.simulator.effects, names[js], p.effects);
-  // direction_dependent_stiffness: the belt anchor offset x0 of Eq. 6 that gives K2(pulling +) /
-  // K2(pulling -) = ratio at x2 = 0, ratio = (L + x0) / (L - x0). The LPV feedforward's model has
-  // x0 = 0, so its direction dependence is off by as much.
-  if (const auto& d = cfg.simulator.effects.direction_dependent_stiffness; d && config::applies_to(*d, names[js]))
-    p.belt_x0_mm = p.belt_span_mm * (d->ratio - 1.0) / (d->ratio + 1.0);
-  return p;
-}
 
 struct McuBridge::Mcu {
   std::string name;
@@ -102,6 +60,11 @@ struct McuBridge::JointPort final : device::MotorPort {
     }
     plant->step(t_s, direction);
   }
+  // The device loop's own steps: not the host's, so not matched against what was sent.
+  void device_step(double t_s, int direction) override {
+    ++timing.device_steps;
+    plant->step(t_s, direction);
+  }
   void set_enabled(double t_s, bool on) override { plant->set_enabled(t_s, on); }
   int64_t read_encoder_counts(double t_s) override { return plant->read_encoder_counts(t_s); }
 };
@@ -123,37 +86,18 @@ Result<std::unique_ptr<McuBridge>> McuBridge::create(const config::MachineConfig
 Status McuBridge::build(const config::MachineConfig& cfg) {
   sample_buffer_.reserve(drivers::McuSession::kSampleCapacity);
   const auto names = joint_names(cfg);
+  joint_names_ = names;
   const auto spm = steps_per_mm(cfg);
   const bool delta = cfg.kinematics == config::Kinematics::delta;
-  gantries_.resize(kJoints);
 
   // Plants first (the ports point into them).
+  auto plant = make_simulated_printer(cfg);
+  if (!plant) return plant.error();
+  plant_ = std::move(plant.value());
   std::array<device::MotorPort*, kJoints> plant_port{};
-  if (delta) {
-    sim::DeltaPlantParams dp;
-    dp.mm_per_step = 1.0 / spm[0];
-    dp.initial_nozzle_mm = Eigen::Vector3d::Zero();  // where the planner starts
-    dp.seed = cfg.simulator.seed;
-    dp.encoder.noise_um = cfg.simulator.encoder_noise_um;
-    dp.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
-    auto d = sim::DeltaPlant::create(dp);
-    if (!d.ok()) return Error{"simulated delta: " + d.error().message};
-    delta_ = std::move(d.value());
-    for (int j = 0; j < 3; ++j) {
-      plant_port[static_cast<size_t>(j)] = &delta_->carriage_port(j);
-      encoder_mm_per_count_[static_cast<size_t>(j)] = dp.encoder.resolution_um * 1e-3;
-    }
-  } else {
-    for (int j = 0; j < 3; ++j) {
-      const size_t js = static_cast<size_t>(j);
-      auto p = simulated_gantry_params(cfg, j);
-      if (!p) return p.error();
-      auto g = sim::GantryAxis::create(p.value());
-      if (!g.ok()) return Error{"simulated axis " + names[js] + ": " + g.error().message};
-      gantries_[js] = std::make_unique<sim::GantryAxis>(std::move(g.value()));
-      plant_port[js] = gantries_[js].get();
-      encoder_mm_per_count_[js] = gantries_[js]->encoder_mm_per_count();
-    }
+  for (int j = 0; j < kJoints; ++j) {
+    plant_port[static_cast<size_t>(j)] = plant_->motor(j);
+    encoder_mm_per_count_[static_cast<size_t>(j)] = plant_->encoder_mm_per_count(j);
   }
 
   int index = 0;
@@ -223,7 +167,9 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
     // One sample per servo period; closed loop needs each one at once (the PI's loop delay),
     // open loop batches ten per report (telemetry only).
     sp.encoder_period_s = has_encoder ? 1.0 / cfg.servo.rate_hz : 0.0;
-    sp.samples_per_report = cfg.control.mode == config::ControlMode::pi ? 1 : 10;
+    // Host loop: each sample at once (the PI's loop delay); device loop or open loop: telemetry.
+    sp.samples_per_report =
+        cfg.control.mode == config::ControlMode::pi && cfg.control.loop == config::ControlLoop::host ? 1 : 10;
     m->session = std::make_unique<drivers::McuSession>(sp, *m->transport);
     mcus_.push_back(std::move(m));
     ++index;
@@ -231,6 +177,19 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
   for (int j = 0; j < kJoints; ++j)
     if (joint_mcu_[static_cast<size_t>(j)] < 0 && spm[static_cast<size_t>(j)] > 0 && j < 3)
       return Error{"axis '" + names[static_cast<size_t>(j)] + "' is driven by no MCU (mcus: ... axes)"};
+  // The device loop of each joint with an encoder (control.loop: device).
+  for (int j = 0; j < kJoints; ++j) {
+    const size_t js = static_cast<size_t>(j);
+    if (joint_mcu_[js] < 0 || !(spm[js] > 0.0)) continue;
+    const config::McuConfig& mc = cfg.mcus[static_cast<size_t>(joint_mcu_[js])];
+    const device::LoopParams lp = DeviceLoopLink::params_from_config(
+        cfg, j, encoder_mm_per_count_[js], 1.0 / spm[js], static_cast<double>(mc.clock_hz));
+    if (lp.enabled) {
+      if (const device::LoopParamError e = device::validate_loop_params(lp); e != device::LoopParamError::kOk)
+        return Error{"control (device loop of '" + names[js] + "'): " + device::loop_param_error_name(e)};
+    }
+    loop_link_.set_joint(j, static_cast<uint8_t>(joint_motor_[js]), lp);
+  }
   return Status::Ok();
 }
 
@@ -262,6 +221,9 @@ Status McuBridge::start(double host_s) {
 }
 
 void McuBridge::log(std::string message) {
+  // FEEDLOOP_DEBUG_EVENTS=1: every link and device-loop event on stderr as it happens.
+  static const bool debug = std::getenv("FEEDLOOP_DEBUG_EVENTS") != nullptr;
+  if (debug) std::fprintf(stderr, "mcu: %s\n", message.c_str());
   std::lock_guard lock(events_mutex_);
   if (events_.size() < 1000) events_.push_back(std::move(message));
 }
@@ -347,6 +309,77 @@ void McuBridge::collect(double) {
       encoder_samples_.fetch_add(samples.size(), std::memory_order_relaxed);
     }
     for (std::string& e : s.take_events()) log(std::move(e));
+    if (loop_link_.any_enabled()) {
+      DeviceLoopLink::JointEvent ev[32];
+      const int mi = static_cast<int>(&m - &mcus_[0]);
+      const size_t n = loop_link_.collect(s, mi, joint_mcu_, joint_motor_, ev, 32);
+      for (size_t i = 0; i < n; ++i) {
+        const device::LoopEvent& e = ev[i].event;
+        if (e.kind == device::LoopEventKind::kSlip) device_slips_.fetch_add(1, std::memory_order_relaxed);
+        ServoEvent se;
+        se.joint = ev[i].joint;
+        bool record = true;
+        switch (e.kind) {
+          case device::LoopEventKind::kSlip:
+            se.kind = ServoEventKind::kLostSteps;
+            se.size_mm = static_cast<double>(e.b) * 1e-6;
+            break;
+          case device::LoopEventKind::kEncoderFault:
+            se.kind = ServoEventKind::kEncoderFault;
+            se.size_mm = static_cast<double>(e.a) * 1e-6;
+            break;
+          case device::LoopEventKind::kFollowingError:
+            se.kind = ServoEventKind::kFollowingError;
+            se.size_mm = static_cast<double>(e.a) * 1e-6;
+            break;
+          default: record = false;
+        }
+        if (record && device_event_count_ < device_events_.size()) {
+          const stepgen::TickMap map = tick_map(se.joint);
+          se.print_time_s = map.ticks_per_s > 0.0 ? (static_cast<double>(e.clock) - map.offset_ticks) / map.ticks_per_s : NAN;
+          device_events_[device_event_count_++] = se;
+        }
+        if (e.kind == device::LoopEventKind::kActivated || e.kind == device::LoopEventKind::kStopDone) continue;
+        log(describe_loop_event(joint_names_[static_cast<size_t>(ev[i].joint)], e));  // rare: allocates
+      }
+    }
+  }
+}
+
+// CONFIGURE_LOOP for every joint with a device loop, active 10 ms from now on its MCU's clock
+// (after every (re)identification: the MCU forgot its loop).
+void McuBridge::configure_device_loops(double host_s) {
+  for (int j = 0; j < kJoints; ++j) {
+    if (!loop_link_.enabled(j)) continue;
+    drivers::McuSession& s = *mcus_[static_cast<size_t>(joint_mcu_[static_cast<size_t>(j)])]->session;
+    const auto clock = static_cast<int64_t>(std::llround(tick_map(j).ticks(host_s + 0.01)));
+    loop_link_.configure(j, s, clock);
+  }
+}
+
+void McuBridge::queue_target(int joint, double host_time_s, double r_mm) {
+  if (phase_ != Phase::kRunning || !loop_link_.enabled(joint)) return;
+  if (!loops_configured_) {  // the loops start with the first motion that streams r(t)
+    configure_device_loops(last_service_s_ + epoch_s_);
+    loops_configured_ = true;
+  }
+  drivers::McuSession& s = *mcus_[static_cast<size_t>(joint_mcu_[static_cast<size_t>(joint)])]->session;
+  const auto clock = static_cast<int64_t>(std::llround(tick_map(joint).ticks(host_time_s)));
+  loop_link_.push_target(joint, s, clock, r_mm);
+}
+
+size_t McuBridge::take_device_events(ServoEvent* out, size_t cap) {
+  const size_t n = std::min(cap, device_event_count_);
+  for (size_t i = 0; i < n; ++i) out[i] = device_events_[i];
+  device_event_count_ = 0;
+  return n;
+}
+
+void McuBridge::flush_targets(bool end_of_motion) {
+  if (phase_ != Phase::kRunning) return;
+  for (int j = 0; j < kJoints; ++j) {
+    if (!loop_link_.enabled(j)) continue;
+    loop_link_.flush(j, *mcus_[static_cast<size_t>(joint_mcu_[static_cast<size_t>(j)])]->session, end_of_motion);
   }
 }
 
@@ -411,9 +444,7 @@ void McuBridge::service(double host_s) {
   }
   poll_all(now_s);
   last_service_s_ = now_s;
-  for (auto& g : gantries_)
-    if (g) g->advance_to(now_s);
-  if (delta_) delta_->advance_to(now_s);
+  if (plant_) plant_->advance_to(now_s);
   collect(now_s);
   publish_links(now_s);
 
@@ -442,6 +473,7 @@ void McuBridge::service(double host_s) {
       }
       if (now_s - ready_since_s_ >= options_.sync_settle_s) {
         phase_ = Phase::kRunning;
+        loops_configured_ = false;  // the MCUs forgot their loops: configured with the first target
         if (fault_.load()) {
           ++recoveries_;
           log("recovered: every MCU re-identified and its clock re-synchronised; position was lost, home before printing");
@@ -524,9 +556,6 @@ const std::string& McuBridge::mcu_name(int i) const { return mcus_[static_cast<s
 drivers::McuSession& McuBridge::session(int i) { return *mcus_[static_cast<size_t>(i)]->session; }
 drivers::MockTransport* McuBridge::mock(int i) { return mcus_[static_cast<size_t>(i)]->mock; }
 const device::VirtualMcu* McuBridge::virtual_mcu(int i) const { return mcus_[static_cast<size_t>(i)]->vmcu.get(); }
-sim::GantryAxis* McuBridge::gantry(int joint) {
-  return joint < 0 || joint >= kJoints ? nullptr : gantries_[static_cast<size_t>(joint)].get();
-}
 
 const JointTiming& McuBridge::timing(int joint) const {
   static const JointTiming kNone{};

@@ -1,7 +1,8 @@
 // The machine's MCUs behind the step pipeline (DESIGN.md "The microcontroller side"): for each
 // McuConfig one host McuSession on its transport; for `mock` transports also the VirtualMcu (with
-// a drifting clock) and the plant simulator it drives (sim::GantryAxis per Cartesian axis, one
-// sim::DeltaPlant for a delta's carriages, an ideal motor for the extruder).
+// a drifting clock) and the simulated plant it drives (engine/simulated_plant.hpp, built by the
+// simulated transport's factory engine/simulated_printer.hpp: a gantry axis per Cartesian joint or
+// one delta plant for the carriages; an ideal motor for the extruder).
 //
 //   StepPipeline --StepBatch--> McuBridge::on_batch --> McuSession --> Transport (mock: faults)
 //        --> VirtualMcu --MotorPort--> plant;   encoder reports, clock sync, errors flow back.
@@ -31,10 +32,10 @@
 #include "drivers/host/mcu_session.hpp"
 #include "drivers/transport/mock_transport.hpp"
 #include "engine/config_mapping.hpp"
+#include "engine/device_loop_link.hpp"
 #include "engine/seqlock.hpp"
 #include "engine/servo_backend.hpp"
-#include "sim/delta_plant.hpp"
-#include "sim/gantry_axis.hpp"
+#include "engine/simulated_plant.hpp"
 
 namespace feedloop::engine {
 
@@ -57,14 +58,9 @@ struct JointTiming {
   uint64_t hash_sent = device::kStepHashSeed;  // step_hash over what was sent
   uint64_t steps_executed = 0;     // steps the plant received
   uint64_t unexpected_steps = 0;   // executed steps that were never sent (must stay 0)
+  uint64_t device_steps = 0;       // steps the device loop added (corrections, stop ramps)
   double max_time_err_us = 0.0;    // max |true step time - intended host time|
 };
-
-// The simulated plant of gantry joint `joint` (0 x, 1 y, 2 z) of a Cartesian / CoreXY config: the
-// thesis's axis with the configured steps/mm, encoder and simulator effects. What the bridge
-// builds; also what an identification run on the simulated machine excites (bench_control).
-// Errors: steps_per_mm not > 0.
-Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfig& cfg, int joint);
 
 class McuBridge final : public stepgen::BatchSink, public ServoBackend {
  public:
@@ -89,6 +85,15 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   unsigned long long encoder_reports(int joint) const override;
   double encoder_time_s(int joint) const override;
   void links(LinkTelemetrySet& out) const override { out = links_.load(); }
+  bool device_loop(int joint) const override { return loop_link_.enabled(joint); }
+  void queue_target(int joint, double host_time_s, double r_mm) override;
+  void flush_targets(bool end_of_motion) override;
+  size_t take_device_events(ServoEvent* out, size_t cap) override;
+  unsigned long long device_lost_step_events() const override {
+    return device_slips_.load(std::memory_order_relaxed);
+  }
+  // The device loop's last report of `joint` (servo thread's data: read when it is not running).
+  const DeviceLoopTelemetry& device_loop_telemetry(int joint) const { return loop_link_.telemetry(joint); }
 
   // stepgen::BatchSink (servo thread): StepBatch::axis is the joint index.
   void on_batch(const stepgen::StepBatch& batch) override;
@@ -101,8 +106,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   const device::VirtualMcu* virtual_mcu(int i) const;  // nullptr for a real transport
   int mcu_of_joint(int joint) const { return joint_mcu_[static_cast<size_t>(joint)]; }
   int motor_of_joint(int joint) const { return joint_motor_[static_cast<size_t>(joint)]; }
-  sim::GantryAxis* gantry(int joint);           // Cartesian joints 0-2 in simulation
-  sim::DeltaPlant* delta() { return delta_.get(); }
+  SimulatedPlant* plant() { return plant_.get(); }  // the simulated machine (engine/simulated_printer.hpp)
   const JointTiming& timing(int joint) const;
   // Simulation fault injection (servo thread / tests): the next `steps` steps the MCU executes on
   // `joint` never reach the motor, as if the stepper had skipped them.
@@ -129,10 +133,10 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   std::vector<std::unique_ptr<Mcu>> mcus_;
   std::array<int, kJoints> joint_mcu_{{-1, -1, -1, -1}};
   std::array<int, kJoints> joint_motor_{{0, 0, 0, 0}};
+  std::array<std::string, kJoints> joint_names_;
   std::array<double, kJoints> encoder_mm_per_count_{};
   std::array<std::unique_ptr<JointPort>, kJoints> ports_;
-  std::vector<std::unique_ptr<sim::GantryAxis>> gantries_;  // by joint (nullptr: none)
-  std::unique_ptr<sim::DeltaPlant> delta_;
+  std::unique_ptr<SimulatedPlant> plant_;
   bool simulated_ = false;  // some MCU is a virtual one (mock transport)
   Seqlock<LinkTelemetrySet> links_;
   LinkTelemetrySet links_scratch_;  // servo thread: filled, then published
@@ -160,6 +164,12 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   std::array<std::atomic<unsigned long long>, kJoints> encoder_reports_{};
   std::array<std::atomic<double>, kJoints> encoder_time_s_{};
   std::vector<drivers::EncoderSample> sample_buffer_;  // servo thread (swapped with the sessions')
+  DeviceLoopLink loop_link_;                           // servo thread
+  std::atomic<unsigned long long> device_slips_{0};
+  void configure_device_loops(double host_s);
+  bool loops_configured_ = false;
+  std::array<ServoEvent, 32> device_events_{};  // since the last take_device_events()
+  size_t device_event_count_ = 0;
 
   mutable std::mutex events_mutex_;  // taken only when an event happens (rare, not steady state)
   std::vector<std::string> events_;

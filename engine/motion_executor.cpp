@@ -25,7 +25,7 @@ void MotionExecutor::set_control(std::unique_ptr<ServoControl> control) {
   control_ = std::move(control);
   // Samples between the feedback instant (now) and the newest command (control_lead_s ahead).
   const double period_s = pcfg_.servo_period_s;
-  history_.assign(static_cast<size_t>(options_.control_lead_s / period_s) + 16, Sample{});
+  history_.assign(static_cast<size_t>(std::max(options_.control_lead_s, options_.lead_s + kDeviceHorizonSlack_s) / period_s) + 16, Sample{});
 }
 
 Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) {
@@ -79,8 +79,13 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
   s.moves_planned = moves_emitted_.load(std::memory_order_relaxed);
   s.segments_queued = pushed_.load() - popped_.load();
   s.motion_starts = telemetry_.anchors.load(std::memory_order_relaxed);
-  s.lost_step_events = lost_step_events_.load(std::memory_order_relaxed);
+  s.lost_step_events = lost_step_events_.load(std::memory_order_relaxed) +
+                       (backend_ != nullptr ? backend_->device_lost_step_events() : 0);
   s.late_cycles = late_cycles_.load(std::memory_order_relaxed);
+  s.tracking_error_samples = e_t_samples_.load(std::memory_order_relaxed);
+  s.tracking_error_mean_mm =
+      s.tracking_error_samples > 0 ? e_t_sum_mm_.load(std::memory_order_relaxed) / static_cast<double>(s.tracking_error_samples) : 0.0;
+  s.tracking_error_max_mm = e_t_max_mm_.load(std::memory_order_relaxed);
   for (size_t j = 0; j < 4; ++j) s.step_count[j] = step_count_[j].load(std::memory_order_relaxed);
   s.has_step_count = true;
   if (backend_ != nullptr) {  // the MCUs: encoder positions, and a fault naming the MCU
@@ -207,6 +212,18 @@ void MotionExecutor::publish_settling(double now_s, bool was_anchored) {
 
 void MotionExecutor::run_cycle(double now_s, bool cancel) {
   bool anchored = telemetry_.anchored.load(std::memory_order_relaxed);
+  // Device loop: the MCUs hold r(t) and the steps for command_lead_s; a motion stage that woke
+  // later than that (less the device's 20 ms horizon margin and a knot's 10 ms) finds them
+  // braking. Named here, before the MCUs' stop reports arrive, so the message says why.
+  const double gap_s = now_s - last_cycle_s_;
+  last_cycle_s_ = now_s;
+  if (device_loop_ && anchored && gap_s > command_lead_s() - kDeviceHorizonSlack_s && !control_fault_.load()) {
+    std::snprintf(control_fault_text_, sizeof control_fault_text_,
+                  "host stalled: the motion stage woke %.0f ms late, more than the %.0f ms of motion the "
+                  "MCUs had queued; they stopped in a controlled stop",
+                  gap_s * 1e3, (command_lead_s() - kDeviceHorizonSlack_s) * 1e3);
+    control_fault_.store(true);
+  }
   if (backend_ != nullptr) {
     backend_->service(now_s);
     if (backend_->fault()) {  // an MCU is gone or stopped: stop everything, resync afterwards
@@ -325,7 +342,7 @@ void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now
     control_->reset_all(at);
   }
   next_sample_s_ = first.start_time_s + plan_shift_s_;  // servo time (monotonic across stops)
-  offset_s_ = now_s + options_.control_lead_s - next_sample_s_;
+  offset_s_ = now_s + command_lead_s() - next_sample_s_;
   steps_.set_time_offset_s(offset_s_);
   control_->reset_feedforward(at);
   prime_pending_ = true;  // the preview fills once the moves are on the timeline (sampled_cycle)
@@ -340,9 +357,11 @@ void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now
 }
 
 void MotionExecutor::sampled_cycle(double now_s) {
+  device_loop_ = false;
+  for (int j = 0; backend_ != nullptr && j < kJoints; ++j) device_loop_ = device_loop_ || backend_->device_loop(j);
   const double period_s = pcfg_.servo_period_s;
   const int preview = control_->preview_samples();
-  const double lead_s = options_.control_lead_s;
+  const double lead_s = command_lead_s();
   bool anchored = telemetry_.anchored.load(std::memory_order_relaxed);
   if (!anchored) {
     const planner::PlannedMove* front = queue_.front();
@@ -410,6 +429,23 @@ void MotionExecutor::sampled_cycle(double now_s) {
     fresh[i] = reports != encoder_reports_seen_[i];
     encoder_reports_seen_[i] = reports;
   }
+  {  // e_t: the encoders against the plan at the instant they were sampled
+    double sq = 0.0;
+    bool any = false;
+    for (int j = 0; j < kJoints; ++j) {
+      const size_t i = static_cast<size_t>(j);
+      if (!fresh[i] || !std::isfinite(enc[i]) || j == 3) continue;
+      const double e = at_enc.r_mm[i] - enc[i];
+      sq += e * e;
+      any = true;
+    }
+    if (any && sample_no_ > 0) {
+      const double e_t = std::sqrt(sq);
+      e_t_sum_mm_.store(e_t_sum_mm_.load(std::memory_order_relaxed) + e_t, std::memory_order_relaxed);
+      if (e_t > e_t_max_mm_.load(std::memory_order_relaxed)) e_t_max_mm_.store(e_t, std::memory_order_relaxed);
+      e_t_samples_.fetch_add(1, std::memory_order_relaxed);
+    }
+  }
   if (control_->closed_loop()) {
     // The lost-step detector's model has no friction or weight: it gets the commands without the
     // share those loads take up.
@@ -436,7 +472,12 @@ void MotionExecutor::sampled_cycle(double now_s) {
   // after the plan's end (and the feedforward's preview), the loop holds the position for
   // control_settle_s more (the PI removes what is left of the error), then stops.
   const bool plan_empty = queue_.empty() && planner_queued_.load() == 0;
-  const double hold_s = control_->closed_loop() ? options_.control_settle_s : 0.0;
+  // Closed loop, the loop holds the position for control_settle_s after the plan's end (thesis
+  // Sect. 5.1: the integrator needs ~400 ms) before the motion counts as done; on the device loop
+  // r(t) ends on that flat piece (longer than the device's 20 ms horizon margin, or the last
+  // decelerating knots would read as r running out while it moves).
+  const bool pi_loop = control_->closed_loop() || device_loop_;
+  const double hold_s = pi_loop ? options_.control_settle_s : 0.0;
   const double stop_s = executed_end_s_ + plan_shift_s_ + preview * period_s + hold_s;  // servo time
   // A late cycle (the thread woke more than the lead late, on a machine without real-time
   // scheduling): the samples still to come would be due in the past, and steps in the past stop
@@ -444,7 +485,20 @@ void MotionExecutor::sampled_cycle(double now_s) {
   // gap and the plan resumes a quarter of the lead from now. Counted in late_cycles.
   const double earliest_s = print_now_s + 0.25 * lead_s;
   const bool commanding = !(plan_empty && next_sample_s_ >= stop_s);
-  if (commanding && next_sample_s_ + period_s < earliest_s) {
+  if (device_loop_ && commanding && next_sample_s_ + period_s < print_now_s) {
+    // The PI runs on the MCUs, which had r(t) and the steps for lead_s: a stall shorter than that
+    // changed nothing. This one was longer: r ran out on the MCUs, which stopped in a controlled
+    // stop (LOOP_EVENT "target horizon"); nothing jumps, the recording keeps the run.
+    std::snprintf(control_fault_text_, sizeof control_fault_text_,
+                  "host stalled: the motion stage ran %.0f ms late, more than the %.0f ms the MCUs "
+                  "had queued; they stopped in a controlled stop",
+                  (print_now_s - next_sample_s_) * 1e3 + lead_s * 1e3, lead_s * 1e3);
+    control_fault_.store(true);
+    drop_queued_moves();
+    resync_ = true;
+    return;
+  }
+  if (!device_loop_ && commanding && next_sample_s_ + period_s < earliest_s) {
     const double gap_s = earliest_s - (next_sample_s_ + period_s);
     const Sample& last = history_[sample_no_ % cap];
     for (int j = 0; j < kJoints; ++j) {
@@ -493,6 +547,21 @@ void MotionExecutor::sampled_cycle(double now_s) {
     s.u_mm = u;
     last_command_mm_ = u;
     next_sample_s_ = t_s;
+    if (device_loop_) {  // r(t) to the MCUs' loops, in the encoders' frame, on the host clock
+      for (int j = 0; j < kJoints; ++j) {
+        const size_t i = static_cast<size_t>(j);
+        if (backend_->device_loop(j)) backend_->queue_target(j, t_s + offset_s_, s.r_mm[i] - encoder_offset_mm_[i]);
+      }
+    }
+  }
+  if (device_loop_) {
+    backend_->flush_targets(/*end_of_motion=*/plan_empty && next_sample_s_ >= stop_s);
+    ServoEvent events[8];
+    const size_t n = backend_->take_device_events(events, 8);
+    for (size_t k = 0; k < n && tap_ != nullptr; ++k) {
+      events[k].print_time_s -= offset_s_ + plan_shift_s_;  // host time -> print time
+      tap_->on_servo_event(events[k]);
+    }
   }
   steps_.flush_due(print_now_s + lead_s);
   // Print time as the planner counts it: it stands at the plan's end while the loop holds.

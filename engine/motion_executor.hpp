@@ -26,6 +26,7 @@
 #pragma once
 
 #include <array>
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <memory>
@@ -146,10 +147,24 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void publish_sample(double now_s, double print_time_s, const control::JointArray& desired_mm,
                       const control::JointArray& command_mm, const std::array<double, 3>& nozzle_mm);
   std::atomic<uint64_t> lost_step_events_{0};
-  std::atomic<uint64_t> late_cycles_{0};  // sampled path: the plan paused for a late cycle
+  std::atomic<uint64_t> late_cycles_{0};
+  // e_t from the encoders (servo thread writes; status reads relaxed).
+  std::atomic<double> e_t_sum_mm_{0.0}, e_t_max_mm_{0.0};
+  std::atomic<uint64_t> e_t_samples_{0};  // sampled path: the plan paused for a late cycle
   // Each joint's step counter as the servo thread left it (M114's Count), published per cycle.
   std::array<std::atomic<int64_t>, 4> step_count_{};
   std::unique_ptr<ServoControl> control_;
+  bool device_loop_ = false;  // some joint's PI runs on its MCU: r(t) is streamed to it
+  // How far ahead the sampled path commands: the host loop's delay, or with the device loop as
+  // far ahead as the steps (the MCUs must hold r(t) for a stall of that length).
+  // The device stops when r's queue ends within its 20 ms horizon margin, and a knot may wait 10 ms
+  // in the compressor: the lead covers that on top of lead_s, so a stall up to lead_s is harmless.
+  static constexpr double kDeviceHorizonSlack_s = 0.035;
+  double command_lead_s() const {
+    return device_loop_ ? std::max(options_.control_lead_s, options_.lead_s + kDeviceHorizonSlack_s)
+                        : options_.control_lead_s;
+  }
+  double last_cycle_s_ = 0.0;
   std::unique_ptr<planner::MoveTimeline> timeline_;
   struct Sample {  // one command sample, kept for the feedback comparison
     double t_s = 0.0;

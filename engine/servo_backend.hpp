@@ -9,6 +9,7 @@
 
 #include "drivers/stepgen/step_generator.hpp"
 #include "engine/link_telemetry.hpp"
+#include "engine/telemetry_tap.hpp"
 
 namespace feedloop::engine {
 
@@ -36,6 +37,20 @@ class ServoBackend {
   virtual double encoder_time_s(int /*joint*/) const { return NAN; }
   // Each MCU link as last seen by the servo thread (at most every 10 ms). Any thread.
   virtual void links(LinkTelemetrySet& out) const { out.count = 0; }
+
+  // The device loop (control.loop: device; engine/device_loop_link.hpp). Servo thread.
+  // True when `joint`'s PI runs on its MCU: the motion stage then streams r(t) to it.
+  virtual bool device_loop(int /*joint*/) const { return false; }
+  // One sample of the desired carriage position r (mm, the encoder's frame: encoder_mm()'s) at
+  // host time host_time_s; samples come in time order, queue_ahead_ms ahead.
+  virtual void queue_target(int /*joint*/, double /*host_time_s*/, double /*r_mm*/) {}
+  // Sends the targets pending; `end_of_motion`: the motion ended, r holds at its last sample.
+  virtual void flush_targets(bool /*end_of_motion*/) {}
+  // Lost-step events the device loops reported (each made up on the device). Any thread.
+  virtual unsigned long long device_lost_step_events() const { return 0; }
+  // The device loops' events since the last call (lost steps, encoder faults, following errors),
+  // with print_time_s holding the host time of the event. Servo thread.
+  virtual size_t take_device_events(ServoEvent* /*out*/, size_t /*cap*/) { return 0; }
 };
 
 }  // namespace feedloop::engine

@@ -6,9 +6,9 @@
 #include <cstdio>
 #include <numbers>
 
-#include "control/feedforward/model_feedforward.hpp"
 #include "control/input_shaper.hpp"
 #include "engine/config_mapping.hpp"
+#include "engine/control_config.hpp"
 #include "model/gantry_axis.hpp"
 #include "planner/kinematics.hpp"
 
@@ -21,15 +21,15 @@ Result<std::unique_ptr<ServoControl>> ServoControl::create(const ServoControlPar
   const char* names[4] = {"j0", "j1", "j2", "j3"};
   for (size_t j = 0; j < 4; ++j) {
     const std::string axis = p.joint_names[j].empty() ? names[j] : p.joint_names[j];
-    if (Status s = c->pi_[j].configure(control::pi_params_from_config(p.control, axis, p.period_s)); !s)
+    if (Status s = c->pi_[j].configure(pi_params_from_config(p.control, axis, p.period_s)); !s)
       return Error{"control: " + axis + ": " + s.error().message};
-    control::LostStepParams lp = control::lost_step_params_from_config(p.control, p.mm_per_full_step[j]);
+    control::LostStepParams lp = lost_step_params_from_config(p.control, p.mm_per_full_step[j]);
     // A slip is permanent, a transient of the model residual (a resonance the model has slightly
     // off) is not: the residual must stay beyond the threshold for lost_step_confirm_s.
     lp.settle_periods = std::max(lp.settle_periods, static_cast<int>(std::lround(p.lost_step_confirm_s / p.period_s)));
     if (Status s = c->lost_[j].configure(lp); !s)
       return Error{std::string("control: ") + s.error().message};
-    if (Status s = c->guard_[j].configure(control::encoder_guard_params_from_config(p.control, axis)); !s)
+    if (Status s = c->guard_[j].configure(encoder_guard_params_from_config(p.control, axis)); !s)
       return Error{std::string("control: ") + s.error().message};
     if (p.carriage_model[j]) {
       auto d = model::discretize_zoh(*p.carriage_model[j], p.period_s);
@@ -43,7 +43,9 @@ Result<std::unique_ptr<ServoControl>> ServoControl::create(const ServoControlPar
 }
 
 ServoControl::ServoControl(const ServoControlParams& p, std::unique_ptr<control::Feedforward> ff)
-    : p_(p), closed_loop_(p.control.mode == config::ControlMode::pi), ff_(std::move(ff)) {
+    : p_(p),
+      closed_loop_(p.control.mode == config::ControlMode::pi && p.control.loop == config::ControlLoop::host),
+      ff_(std::move(ff)) {
   ff_inverts_ = ff_->inverts_model();
 }
 
@@ -157,7 +159,7 @@ Result<std::unique_ptr<ServoControl>> make_servo_control(const config::MachineCo
     if (const config::GantryModelConfig* g = cfg.model.gantry_for(names[j]);
         g != nullptr && cfg.kinematics != config::Kinematics::delta) {
       p.mm_per_full_step[j] = 2.0 * std::numbers::pi * g->stepper.pulley_radius_mm / (4.0 * g->stepper.rotor_teeth);
-      p.carriage_model[j] = model::gantry_state_space(control::gantry_params_from_config(*g));
+      p.carriage_model[j] = model::gantry_state_space(gantry_params_from_config(*g));
     }
   }
   std::unique_ptr<control::Feedforward> ff;
@@ -165,7 +167,7 @@ Result<std::unique_ptr<ServoControl>> make_servo_control(const config::MachineCo
     case config::FeedforwardType::none: break;
     case config::FeedforwardType::shaper: {
       const auto kin = planner::make_kinematics(planner_config(cfg));
-      auto setup = control::input_shaper_setup(cfg.feedforward.shaper, *kin, period_s);
+      auto setup = input_shaper_setup(cfg.feedforward.shaper, *kin, period_s);
       if (!setup.ok()) return Error{"feedforward.shaper: " + setup.error().message};
       auto shaper = std::make_unique<control::InputShaper>();
       if (Status s = shaper->configure(setup.value()); !s) return Error{"feedforward.shaper: " + s.error().message};
@@ -173,7 +175,7 @@ Result<std::unique_ptr<ServoControl>> make_servo_control(const config::MachineCo
       break;
     }
     case config::FeedforwardType::lpv: {
-      auto m = control::make_model_feedforward(cfg, period_s, cfg.feedforward.lpv.freeze_at_centre);
+      auto m = make_model_feedforward(cfg, period_s, cfg.feedforward.lpv.freeze_at_centre);
       if (!m.ok()) return Error{"feedforward.lpv: " + m.error().message};
       ff = std::move(m.value());
       break;

@@ -20,8 +20,8 @@ namespace {
 // advanced the plants to the cycle's time before the executor publishes).
 class Recorder final : public TelemetryTap {
  public:
-  Recorder(SimRunResult& out, McuBridge& bridge, bool keep, bool delta, std::vector<LostStepInjection> inject)
-      : out_(out), bridge_(bridge), keep_(keep), delta_(delta), inject_(std::move(inject)) {}
+  Recorder(SimRunResult& out, McuBridge& bridge, bool keep, std::vector<LostStepInjection> inject)
+      : out_(out), bridge_(bridge), keep_(keep), inject_(std::move(inject)) {}
   void on_servo_sample(const ServoSample& s) override {
     for (LostStepInjection& i : inject_)
       if (i.steps != 0 && s.print_time_s >= i.at_s) {
@@ -33,18 +33,9 @@ class Recorder final : public TelemetryTap {
     r.servo = s;
     r.actual_mm.fill(NAN);
     r.actual_nozzle_mm.fill(NAN);
-    if (delta_) {
-      if (sim::DeltaPlant* d = bridge_.delta()) {
-        for (int i = 0; i < 3; ++i) r.actual_mm[static_cast<size_t>(i)] = d->carriage_mm(i);
-        const Eigen::Vector3d n = d->nozzle_mm();
-        for (int i = 0; i < 3; ++i) r.actual_nozzle_mm[static_cast<size_t>(i)] = n[i];
-      }
-    } else {
-      for (int j = 0; j < 3; ++j)
-        if (sim::GantryAxis* g = bridge_.gantry(j)) {
-          r.actual_mm[static_cast<size_t>(j)] = g->carriage_mm();
-          r.actual_nozzle_mm[static_cast<size_t>(j)] = g->carriage_mm();
-        }
+    if (SimulatedPlant* plant = bridge_.plant()) {
+      for (int j = 0; j < 3; ++j) r.actual_mm[static_cast<size_t>(j)] = plant->carriage_mm(j);
+      r.actual_nozzle_mm = plant->nozzle_mm();
     }
     if (on_sample_) on_sample_(r);
     if (keep_) out_.samples.push_back(r);
@@ -55,7 +46,7 @@ class Recorder final : public TelemetryTap {
  private:
   SimRunResult& out_;
   McuBridge& bridge_;
-  bool keep_, delta_;
+  bool keep_;
   std::vector<LostStepInjection> inject_;
 };
 
@@ -75,7 +66,7 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
 
   SimRunResult out;
   if (options.keep_samples) out.samples.reserve(1 << 16);
-  Recorder rec(out, bridge, options.keep_samples, cfg.kinematics == config::Kinematics::delta, options.lose_steps);
+  Recorder rec(out, bridge, options.keep_samples, options.lose_steps);
   rec.on_sample_ = options.on_sample;
   ex.set_telemetry(&rec);
 
@@ -84,12 +75,20 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   int64_t now_ns = 1'000'000'000;
   const int64_t end_ns = now_ns + static_cast<int64_t>(options.timeout_s * 1e9);
   std::atomic<bool> cancel{false};
+  size_t next_stall = 0;
+  int64_t ready_ns = -1;
   auto cycle = [&] {
     now_ns += period_ns;
+    if (ready_ns >= 0 && next_stall < options.stalls.size() &&
+        now_ns - ready_ns >= static_cast<int64_t>(options.stalls[next_stall].at_s * 1e9)) {
+      now_ns += static_cast<int64_t>(std::llround(options.stalls[next_stall].duration_s * 1e9));
+      ++next_stall;
+    }
     ex.servo_cycle(now_ns, false);
   };
   while (!bridge.ready() && now_ns < end_ns) cycle();
   if (!bridge.ready()) return Error{"run_simulated: the simulated MCUs did not become ready"};
+  ready_ns = now_ns;
 
   int line_no = 0;
   for (const std::string& line : gcode_lines) {
@@ -128,8 +127,8 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   out.motion_time_s = s.planned_until_s;
   if (out.error.empty() && s.last_error[0] != '\0') out.error = s.last_error;
   if (ex.motion_pending() && out.error.empty()) out.error = "motion did not finish within the timeout";
-  for (int j = 0; j < 3; ++j)
-    if (sim::GantryAxis* g = bridge.gantry(j)) out.lost_full_steps[static_cast<size_t>(j)] = g->lost_full_steps();
+  if (SimulatedPlant* plant = bridge.plant())
+    for (int j = 0; j < 3; ++j) out.lost_full_steps[static_cast<size_t>(j)] = plant->lost_full_steps(j);
   ex.set_telemetry(nullptr);
   return out;
 }

@@ -26,6 +26,14 @@ struct LostStepInjection {
   int64_t steps = 0;
 };
 
+// A host stall: at `at_s` of virtual time after the MCUs are ready, the planner and the motion
+// stage stop for `duration_s` (no servo cycle runs; the MCUs and the plant go on, and the link is
+// serviced through the gap when the stage wakes, as the bridge does after any late cycle).
+struct HostStall {
+  double at_s = 0.0;
+  double duration_s = 0.0;
+};
+
 struct SimRunOptions {
   double settle_s = 0.05;        // keep sampling this long after the motion's planned end
   double timeout_s = 600.0;      // of virtual time
@@ -33,6 +41,7 @@ struct SimRunOptions {
   // Called with every sample as it is produced (streaming, e.g. a trace export); may be empty.
   std::function<void(const SimRunSample&)> on_sample;
   std::vector<LostStepInjection> lose_steps;
+  std::vector<HostStall> stalls;  // in time order
 };
 
 // One servo period of the run: what the pipeline commanded and what the simulated machine did.

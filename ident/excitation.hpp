@@ -1,20 +1,18 @@
-// Excitation programs for identification and recording them on the simulated gantry axis.
+// Excitation programs for identification.
 //
 // - random_moves: the thesis's Appendix D.3 input, "a series of small, random, instantaneous
 //   moves designed to stay well within the maximum velocity limits of the motor", here on top of
 //   a slow back-and-forth drift across `travel_mm` so position-dependent effects are visible.
 // - sine_sweep: a logarithmic chirp (the delta paper measures FRFs with sine excitation).
-// - record_gantry_trace: runs a commanded-position program on sim::GantryAxis through the ideal
-//   sim::StepDriver and samples commanded steps and encoder at the program's rate (trace CSV v1).
+//
+// A program is run on a machine by whoever owns the machine: on the simulated gantry axis by
+// sim::record_gantry_trace (sim/experiments/gantry_recording.hpp), which ident does not depend on.
 #pragma once
 
 #include <cstdint>
-#include <string>
 #include <vector>
 
 #include "core/result.hpp"
-#include "ident/trace.hpp"
-#include "sim/gantry_params.hpp"
 
 namespace feedloop::ident {
 
@@ -40,12 +38,5 @@ struct SineSweepOptions {
 // Commanded positions (mm), one per sample, starting at 0.
 std::vector<double> random_moves(const RandomMovesOptions& o);
 std::vector<double> sine_sweep(const SineSweepOptions& o);
-
-// Runs the program on a GantryAxis built from `params` (steps at params' mm per step) and returns a
-// one-axis trace named `axis_name`: time_s = k / rate, cmd = steps sent x mm per step, meas =
-// encoder counts x mm per count (both relative to power-on). Metadata: sample_rate_hz, source=sim.
-// Errors: invalid parameters, a rate <= 0, an empty program.
-Result<Trace> record_gantry_trace(const sim::GantryAxisParams& params, const std::vector<double>& cmd_mm,
-                                  double sample_rate_hz, const std::string& axis_name);
 
 }  // namespace feedloop::ident

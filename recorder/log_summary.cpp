@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "drivers/stepgen/step_run.hpp"  // run_is_valid
 #include "recorder/log_reader.hpp"
 
 namespace feedloop::recorder {
@@ -45,7 +46,14 @@ struct Accumulate {
     ++j->step_runs;
     j->steps += r.run.count;
     j->net_steps += r.run.direction < 0 ? -static_cast<int64_t>(r.run.count) : static_cast<int64_t>(r.run.count);
-    if (r.run.count > 0) clock(*j, stepgen::run_step_clock(r.start_clock, r.run, 1), stepgen::run_end_clock(r.start_clock, r.run));
+    if (r.run.count == 0) return;
+    // A run with an interval below 1 tick or clocks beyond 2^63 has no step clocks to speak of.
+    if (!stepgen::run_is_valid(r.start_clock, r.run)) {
+      ++j->invalid_runs;
+      return;
+    }
+    clock(*j, stepgen::run_step_clock(r.start_clock, r.run, 1),
+          stepgen::run_end_clock(r.start_clock, r.run));
   }
   void operator()(const EncoderRecord& r) {
     JointSummary* j = joint(r.joint);
@@ -114,6 +122,9 @@ std::string format_summary(const LogSummary& s) {
                     std::to_string(js.steps) + " steps (net " + std::to_string(js.net_steps) + ") in " +
                     std::to_string(js.step_runs) + " runs, " + std::to_string(js.segments) + " segments, " +
                     std::to_string(js.encoder_samples) + " encoder samples";
+    if (js.invalid_runs)
+      l += ", " + std::to_string(js.invalid_runs) +
+           " runs breaking the step law (an interval below 1 tick or clocks beyond 2^63)";
     if (js.has_clock && ji.clock_hz > 0)
       l += ", MCU time " + fmt("%.3f", static_cast<double>(js.first_clock) / static_cast<double>(ji.clock_hz)) + ".." +
            fmt("%.3f", static_cast<double>(js.last_clock) / static_cast<double>(ji.clock_hz)) + " s";

@@ -19,6 +19,7 @@ struct JointSummary {
   int64_t net_steps = 0;      // + minus -
   uint64_t segments = 0;
   uint64_t encoder_samples = 0;
+  uint64_t invalid_runs = 0;  // runs that break the step law (damage): not in the clock span
   int64_t first_clock = 0, last_clock = 0;  // steps and encoder samples
   bool has_clock = false;
 };

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 
+#include "drivers/stepgen/step_run.hpp"  // run_is_valid
 #include "recorder/log_reader.hpp"
 
 namespace feedloop::recorder {
@@ -57,9 +58,16 @@ Result<StepStreams> read_step_streams(const std::vector<std::string>& logs) {
       s.joints = r->header().joints;
       s.runs.resize(s.joints.size());
     }
-    while (const DecodedRecord* d = r->next())
-      if (const auto* run = std::get_if<StepRunRecord>(&d->record))
-        if (static_cast<size_t>(run->joint) < s.runs.size()) s.runs[static_cast<size_t>(run->joint)].push_back(*run);
+    while (const DecodedRecord* d = r->next()) {
+      const auto* run = std::get_if<StepRunRecord>(&d->record);
+      if (!run || static_cast<size_t>(run->joint) >= s.runs.size()) continue;
+      // Expanding such a run step by step would overflow the clock arithmetic: no comparison.
+      if (run->run.count > 0 && !stepgen::run_is_valid(run->start_clock, run->run))
+        return Error{"step run at byte offset " + std::to_string(d->offset) +
+                         " breaks the step law (an interval below 1 tick, or clocks beyond 2^63)",
+                     {path, 0, 0}};
+      s.runs[static_cast<size_t>(run->joint)].push_back(*run);
+    }
     if (r->error()) return *r->error();
   }
   return s;

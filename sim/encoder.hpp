@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "core/result.hpp"
-#include "sim/rng.hpp"
+#include "core/rng.hpp"
 
 namespace feedloop::sim {
 

@@ -22,11 +22,13 @@
 #include "config/config.hpp"
 #include "config/machine_config.hpp"
 #include "engine/mcu_bridge.hpp"
+#include "engine/simulated_printer.hpp"
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
 #include "ident/trace.hpp"
 #include "model/gantry_axis.hpp"
 #include "model/lti.hpp"
+#include "sim/experiments/gantry_recording.hpp"
 #if FEEDLOOP_HAVE_SIM_RUN
 #include "engine/sim_run.hpp"
 #endif
@@ -253,7 +255,7 @@ IdentifiedFriction identify_friction(const config::MachineConfig& effects_cfg) {
       out.error = params.error().message;
       return out;
     }
-    auto trace = ident::record_gantry_trace(params.value(), program, excite.sample_rate_hz, name);
+    auto trace = sim::record_gantry_trace(params.value(), program, excite.sample_rate_hz, name);
     if (!trace) {
       out.error = trace.error().message;
       return out;

@@ -13,6 +13,7 @@
 
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
+#include "sim/experiments/gantry_recording.hpp"
 
 namespace {
 
@@ -72,7 +73,7 @@ int main(int argc, char** argv) {
     ident::RandomMovesOptions ro;
     ro.duration_s = duration_s;
     const auto t0 = std::chrono::steady_clock::now();
-    auto tr = ident::record_gantry_trace(p, ident::random_moves(ro), 1000.0, std::string(1, c.axis));
+    auto tr = sim::record_gantry_trace(p, ident::random_moves(ro), 1000.0, std::string(1, c.axis));
     if (!tr) {
       std::fprintf(stderr, "%s\n", tr.error().to_string().c_str());
       return 1;

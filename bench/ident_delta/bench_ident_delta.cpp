@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ident/delta/delta_ident.hpp"
+#include "sim/experiments/delta_measurements.hpp"
 
 namespace idd = feedloop::ident::delta;
 namespace fm = feedloop::model;
@@ -144,7 +145,7 @@ int main(int argc, char** argv) {
     idd::MeasurementPlan plan;
     plan.noise_rel = noise;
     auto t0 = Clock::now();
-    auto meas = idd::simulate_measurements(truth, plan);
+    auto meas = feedloop::sim::simulate_measurements(truth, plan);
     if (!meas) {
       std::fprintf(stderr, "measurements: %s\n", meas.error().message.c_str());
       return 1;

@@ -1,16 +1,22 @@
 // One axis's device loop: see axis_loop.hpp for the steps of a tick.
 #include "drivers/device/axis_loop.hpp"
 
+#include "drivers/device/saturate.hpp"
+
 namespace feedloop::device {
 
 namespace {
 
 // Q16.16 scale: units x (nm per unit x 65536) / 65536 (arithmetic shift: floor).
-int64_t q16_mul(int64_t units, uint32_t nm_q16) { return (units * static_cast<int64_t>(nm_q16)) >> 16; }
+int64_t q16_mul(int64_t units, uint32_t nm_q16) {
+  return mul_saturate_i64(units, static_cast<int64_t>(nm_q16)) >> 16;
+}
 
 float absf(float x) { return x < 0.0f ? -x : x; }
 
-int64_t round_to_i64(float x) { return static_cast<int64_t>(x >= 0.0f ? x + 0.5f : x - 0.5f); }
+int64_t round_to_i64(float x) {
+  return round_saturate_i64(x);
+}
 
 }  // namespace
 
@@ -120,8 +126,19 @@ void AxisLoop::apply_staged(int64_t clock) {
   }
   step_nm_ = static_cast<float>(p.nm_per_step_q16) * (1.0f / 65536.0f);
   const float per_tick_nm = p.max_correction_rate_nm_s * static_cast<float>(p.period_ticks) * inv_hz_;
-  const int32_t n = static_cast<int32_t>(per_tick_nm / step_nm_);
-  max_steps_per_tick_ = n < 1 ? 1 : n;
+  // At most one step per MCU tick of the period (the owner spreads them over it): a valid but
+  // huge rate (1e30 nm/s) neither overflows the cast nor asks for billions of steps per tick.
+  const int32_t cap = p.period_ticks > static_cast<uint32_t>(INT32_MAX)
+                          ? INT32_MAX
+                          : static_cast<int32_t>(p.period_ticks);
+  max_stop_steps_per_tick_ = cap;
+  const float steps = per_tick_nm / step_nm_;
+  if (!(steps >= 1.0f))  // NaN too
+    max_steps_per_tick_ = 1;
+  else if (steps >= static_cast<float>(cap))
+    max_steps_per_tick_ = cap;
+  else
+    max_steps_per_tick_ = static_cast<int32_t>(steps);
   horizon_margin_ticks_ = p.horizon_margin_ticks != 0 ? static_cast<int64_t>(p.horizon_margin_ticks)
                                                       : static_cast<int64_t>(0.02f * clock_hz_);
   plaus_.configure(p.max_speed_nm_s, p.encoder_margin_nm, p.encoder_reject_limit, clock_hz_);
@@ -143,22 +160,29 @@ void AxisLoop::apply_staged(int64_t clock) {
 
 int32_t AxisLoop::steps_toward(int64_t want_nm, int64_t have_nm) const {
   const int64_t s = round_to_i64(static_cast<float>(want_nm - have_nm) / step_nm_);
-  return static_cast<int32_t>(s);
+  // Saturated, not wrapped: a wrapped count would step the other way.
+  return s > INT32_MAX ? INT32_MAX : s < -INT32_MAX ? -INT32_MAX : static_cast<int32_t>(s);
 }
 
 void AxisLoop::begin_stop(StopReason why, int64_t clock, int64_t motor_nm, LoopTickOut& out) {
   stop_reason_ = why;
   state_ = LoopState::kStopping;
-  // The speed to brake from: r's slope while r is defined, else the motor's own (filtered).
-  const float v0 = v_ref_nm_s_ != 0.0f ? v_ref_nm_s_ : v_motor_nm_s_;
+  // The speed to brake from: r's slope while r is defined, else the motor's own (filtered); no
+  // faster than the axis can move (the encoder plausibility's bound): knots with an absurd slope
+  // must not turn the stop into a sprint.
+  float v0 = v_ref_nm_s_ != 0.0f ? v_ref_nm_s_ : v_motor_nm_s_;
+  if (v0 > p_.max_speed_nm_s) v0 = p_.max_speed_nm_s;
+  if (v0 < -p_.max_speed_nm_s) v0 = -p_.max_speed_nm_s;
   ramp_.start(clock, motor_nm, v0, p_.stop_decel_nm_s2, clock_hz_);
   out.flush_host_steps = true;
-  event(LoopEventKind::kStopStarted, clock, static_cast<int64_t>(why), static_cast<int64_t>(v0));
+  event(LoopEventKind::kStopStarted, clock, static_cast<int64_t>(why), saturate_i64(v0));
 }
 
 void AxisLoop::stopping_tick(const LoopTickIn& in, int64_t motor_nm, LoopTickOut& out) {
   const int64_t want = ramp_.position_at(next_grid_clock_);
   int32_t n = steps_toward(want, motor_nm);
+  if (n > max_stop_steps_per_tick_) n = max_stop_steps_per_tick_;  // one per MCU tick at most
+  if (n < -max_stop_steps_per_tick_) n = -max_stop_steps_per_tick_;
   out.extra_steps = n;
   out.over_ticks = next_grid_clock_ - in.clock;
   if (ramp_.done_at(in.clock) && n == 0) {
@@ -250,8 +274,8 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
 
   if (!usable) {
     ++encoder_rejects_;
-    const int64_t jump = static_cast<int64_t>(plaus_.last_jump_nm());
-    const int64_t allowed = static_cast<int64_t>(plaus_.last_allowed_nm());
+    const int64_t jump = saturate_i64(plaus_.last_jump_nm());
+    const int64_t allowed = saturate_i64(plaus_.last_allowed_nm());
     if (verdict == EncoderVerdict::kFault) {
       event(LoopEventKind::kEncoderFault, in.clock, jump, allowed);
       begin_stop(StopReason::kEncoderFault, in.clock, motor_nm, out);
@@ -262,10 +286,10 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
     // Hold the correction: no PI update and no slip check on a sample that is not believed.
   } else {
     // 2'. Following error.
-    e_nm_ = static_cast<float>(r_nm_ - y_nm_);
+    e_nm_ = static_cast<float>(sub_saturate_i64(r_nm_, y_nm_));
     if (absf(e_nm_) > p_.max_following_error_nm) {
-      event(LoopEventKind::kFollowingError, in.clock, static_cast<int64_t>(e_nm_),
-            static_cast<int64_t>(p_.max_following_error_nm));
+      event(LoopEventKind::kFollowingError, in.clock, saturate_i64(e_nm_),
+            saturate_i64(p_.max_following_error_nm));
       begin_stop(StopReason::kFollowingError, in.clock, motor_nm, out);
       stopping_tick(in, motor_nm, out);
       return;
@@ -275,20 +299,21 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
     // 4. Skipped steps: motor - carriage against the deflection model.
     const float deflection = p_.deflection_s2 * a_ref_nm_s2_ + p_.deflection_s * v_ref_nm_s_;
     const bool was_pending = slip_.pending();
-    const SlipEvent s = slip_.update(static_cast<float>(motor_nm - y_nm_), deflection, dt_s);
+    const SlipEvent s =
+        slip_.update(static_cast<float>(sub_saturate_i64(motor_nm, y_nm_)), deflection, dt_s);
     if (slip_.pending() && !was_pending) integral_before_slip_nm_ = pi_.integral_nm();
     if (s.happened) {
       // Recovery: make up the lost steps at once (the shift) and drop what the integral gained
       // from the slip's error while it was being confirmed, so the two do not add up.
       pi_.set_integral(integral_before_slip_nm_);
       pi_.shift(s.size_nm);
-      event(LoopEventKind::kSlip, in.clock, s.cycles, static_cast<int64_t>(s.size_nm));
+      event(LoopEventKind::kSlip, in.clock, s.cycles, saturate_i64(s.size_nm));
     }
   }
 
   // 5. The correction as extra steps over the next period (rate-limited).
   const int64_t want_steps = round_to_i64(pi_.output_nm() / step_nm_);
-  int64_t n = want_steps - in.device_steps;
+  int64_t n = sub_saturate_i64(want_steps, in.device_steps);
   if (n > max_steps_per_tick_) n = max_steps_per_tick_;
   if (n < -max_steps_per_tick_) n = -max_steps_per_tick_;
   out.extra_steps = static_cast<int32_t>(n);

@@ -159,7 +159,8 @@ class AxisLoop {
   int64_t last_tick_clock_ = 0;   // actual clock of the last tick
   int64_t next_grid_clock_ = 0;   // scheduled clock of the next tick
   // Derived from p_.
-  int32_t max_steps_per_tick_ = 1;
+  int32_t max_steps_per_tick_ = 1;       // correction steps per tick (the rate limit)
+  int32_t max_stop_steps_per_tick_ = 1;  // steps per tick of a controlled stop: one per MCU tick
   float step_nm_ = 1.0f;
   int64_t horizon_margin_ticks_ = 0;
   // Last tick's values.

@@ -15,6 +15,10 @@ class MotorPort {
   virtual ~MotorPort() = default;
   // One step pulse at t_s; direction +1 or -1 (in joint coordinates: +1 = towards +mm).
   virtual void step(double t_s, int direction) = 0;
+  // A step the device decided itself (the device loop's correction, a controlled stop's ramp), not
+  // one the host queued. The same pulse on the pins; an observer that checks the host's steps
+  // (engine/mcu_bridge.cpp) tells the two apart.
+  virtual void device_step(double t_s, int direction) { step(t_s, direction); }
   // Driver enable: a disabled motor holds no torque.
   virtual void set_enabled(double t_s, bool enabled) = 0;
   // Encoder reading at t_s, in counts of the encoder's resolution (signed, carriage side).

@@ -1,26 +1,31 @@
 // Slip detection with a settle wait and whole-cycle rounding (see slip_detector.hpp).
 #include "drivers/device/slip_detector.hpp"
 
+#include "drivers/device/saturate.hpp"
+
 namespace feedloop::device {
 
-void SlipDetector::configure(float threshold_nm, float cycle_nm, float settle_s) {
+void SlipDetector::configure(float threshold_nm, float cycle_nm, float settle_s, float baseline_s) {
+  baseline_s_ = baseline_s;
   threshold_nm_ = threshold_nm;
   cycle_nm_ = cycle_nm;
   settle_s_ = settle_s;
 }
 
 void SlipDetector::reset() {
-  total_nm_ = d_nm_ = pending_s_ = 0.0f;
+  total_nm_ = d_nm_ = pending_s_ = baseline_nm_ = 0.0f;
   pending_ = false;
   count_ = 0;
 }
 
 SlipEvent SlipDetector::update(float motor_minus_encoder_nm, float expected_deflection_nm, float dt_s) {
   SlipEvent ev;
-  const float d = motor_minus_encoder_nm - expected_deflection_nm - total_nm_;
+  const float d_raw = motor_minus_encoder_nm - expected_deflection_nm - total_nm_;
+  const float d = d_raw - baseline_nm_;
   d_nm_ = d;
   if (d <= threshold_nm_ && d >= -threshold_nm_) {
     pending_ = false;  // back under the threshold: a transient deflection, not a slip
+    if (baseline_s_ > 0.0f && dt_s > 0.0f) baseline_nm_ += dt_s / (baseline_s_ + dt_s) * (d_raw - baseline_nm_);
     return ev;
   }
   if (!pending_) {
@@ -33,7 +38,7 @@ SlipEvent SlipDetector::update(float motor_minus_encoder_nm, float expected_defl
   float size = d;
   if (cycle_nm_ > 0.0f) {
     const float c = d / cycle_nm_;
-    const int32_t cycles = static_cast<int32_t>(c >= 0.0f ? c + 0.5f : c - 0.5f);
+    const int32_t cycles = round_saturate_i32(c);
     if (cycles == 0) return ev;  // beyond the threshold but less than half a cycle: keep watching
     size = static_cast<float>(cycles) * cycle_nm_;
     ev.cycles = cycles;

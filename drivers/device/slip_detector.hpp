@@ -8,6 +8,10 @@
 // that slips falls into the next equilibrium, sim/gantry_axis.hpp). The size is the recovery: the
 // loop shifts its correction by it (LoopPi::shift), so the motor re-synchronises with the
 // carriage, and it is added to S so one slip is reported once.
+// A slow baseline (time constant baseline_s, frozen while a slip is pending) is taken off d
+// first: a slip is a sudden offset, while a steps/mm error, a belt that stretches with its length
+// or friction the model lacks make d drift slowly (the host-side detector's residual baseline,
+// control/lost_step_detector.hpp). Without it a 1 % scale error reads as a slip every 30 mm.
 // Owner: the axis loop. No heap, no exceptions.
 #pragma once
 
@@ -23,7 +27,7 @@ struct SlipEvent {
 
 class SlipDetector {
  public:
-  void configure(float threshold_nm, float cycle_nm, float settle_s);
+  void configure(float threshold_nm, float cycle_nm, float settle_s, float baseline_s = 0.1f);
   void reset();
   // dt_s: MCU time since the previous update.
   SlipEvent update(float motor_minus_encoder_nm, float expected_deflection_nm, float dt_s);
@@ -37,6 +41,7 @@ class SlipDetector {
  private:
   float threshold_nm_ = 0.0f, cycle_nm_ = 0.0f;
   float settle_s_ = 0.0f;
+  float baseline_s_ = 0.1f, baseline_nm_ = 0.0f;
   float total_nm_ = 0.0f, d_nm_ = 0.0f;
   float pending_s_ = 0.0f;
   bool pending_ = false;

@@ -1,6 +1,8 @@
 // r(t) from a ring of knots (see target_queue.hpp).
 #include "drivers/device/target_queue.hpp"
 
+#include "drivers/device/saturate.hpp"
+
 namespace feedloop::device {
 
 void TargetQueue::reset() {
@@ -45,7 +47,7 @@ TargetSample TargetQueue::at(int64_t clock, float clock_hz) {
   }
   if (!piece_valid_) cache_piece();
   const float frac = static_cast<float>(clock - a.clock) * inv_duration_;
-  s.pos_nm = a.pos_nm + static_cast<int64_t>(frac * delta_nm_);
+  s.pos_nm = add_saturate_i64(a.pos_nm, saturate_i64(frac * delta_nm_));
   s.velocity_nm_s = delta_nm_ * inv_duration_ * clock_hz;
   return s;
 }

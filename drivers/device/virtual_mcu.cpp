@@ -275,7 +275,7 @@ void VirtualMcu::receive(const uint8_t* data, size_t n, double t_s) {
 
 void VirtualMcu::do_extra_step(Axis& a) {
   const int dir = a.extra_left > 0 ? 1 : -1;
-  if (a.port != nullptr) a.port->step(true_time_at(a.extra_next_clock), dir);
+  if (a.port != nullptr) a.port->device_step(true_time_at(a.extra_next_clock), dir);
   a.st.device_steps += dir;
   ++a.st.device_steps_executed;
   a.extra_left -= dir;
@@ -405,35 +405,42 @@ void VirtualMcu::handle_queue_steps(MsgReader& r) {
   Axis& a = axes_[axis];
   size_t n = 0;
   const uint8_t* body = r.rest(n);
+  // The whole batch is checked before any of its runs is queued: nothing half-done.
   stepgen::RunDecoder dec;
-  if (!dec.begin(body, n)) {
+  if (!dec.begin(body, n) || dec.first_clock() < 0) {  // a clock above INT64_MAX is no clock
     send_error(McuError::kBadMessage, static_cast<int64_t>(MsgType::kQueueSteps));
     return;
   }
   int64_t p = dec.first_clock();
-  if (a.have_queued_end && p < a.queued_end_clock) {
-    stop(McuError::kBatchOverlap, a.queued_end_clock - p);
-    return;
-  }
-  bool first = true;
+  int64_t first_step = 0;
+  int runs = 0;
   while (!dec.done()) {
     stepgen::StepRun run;
-    if (!dec.next(run)) {
+    // A run that steps back in time or overflows the clock is as malformed as a truncated one.
+    if (!dec.next(run) || !stepgen::run_is_valid(p, run)) {
       send_error(McuError::kBadMessage, static_cast<int64_t>(MsgType::kQueueSteps));
       return;
     }
-    if (first) {
-      const int64_t first_step = p + run.interval_ticks;
-      if (first_step < now_clock_) {
-        stop(McuError::kQueueUnderrun, now_clock_ - first_step);
-        return;
-      }
-      first = false;
-    }
-    if (a.run_count == kMaxRuns) {
-      stop(McuError::kQueueOverflow, axis);
-      return;
-    }
+    if (runs++ == 0) first_step = p + run.interval_ticks;
+    p = stepgen::run_end_clock(p, run);
+  }
+  if (a.have_queued_end && dec.first_clock() < a.queued_end_clock) {
+    stop(McuError::kBatchOverlap, a.queued_end_clock - dec.first_clock());
+    return;
+  }
+  if (runs > 0 && first_step < now_clock_) {
+    stop(McuError::kQueueUnderrun, now_clock_ - first_step);
+    return;
+  }
+  if (a.run_count + runs > kMaxRuns) {
+    stop(McuError::kQueueOverflow, axis);
+    return;
+  }
+  dec.begin(body, n);
+  p = dec.first_clock();
+  while (!dec.done()) {
+    stepgen::StepRun run;
+    dec.next(run);  // decoded above
     const int idx = (a.run_head + a.run_count) % kMaxRuns;
     a.runs[idx] = {p, run};
     if (++a.run_count == 1) activate_head(a);

@@ -4,6 +4,7 @@
 #include "drivers/device/virtual_mcu.hpp"  // kMaxAxes
 
 #include <cmath>
+#include <cstdint>  // UINT32_MAX
 #include <cstring>  // memcpy
 
 namespace feedloop::drivers {
@@ -246,7 +247,7 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       const uint16_t version = r.u16();
       const uint64_t hz = r.var();
       const uint8_t axis_byte = r.u8();  // the axis, or 0x80 | motor count for a board
-      mcu_axes_ = (axis_byte & 0x80) ? (axis_byte & 0x7F) : 1;
+      const int motors = (axis_byte & 0x80) ? (axis_byte & 0x7F) : 1;
       const size_t name_len = r.u8();
       const uint8_t* name = r.take(name_len);
       if (!r.ok()) {
@@ -270,6 +271,20 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
              ": flash firmware that matches this host (or run the matching host)");
         return;
       }
+      // A rate of 0 would make every clock conversion divide by zero; the host keeps 32 bits.
+      if (hz == 0 || hz > UINT32_MAX) {
+        fail("MCU '" + p_.name + "' (" + transport_.describe() +
+             "): its identify response reports a clock of " + std::to_string(hz) +
+             " Hz (expected 1 to 4294967295 Hz)");
+        return;
+      }
+      if (motors < 1 || motors > device::VirtualMcu::kMaxAxes) {
+        fail("MCU '" + p_.name + "' (" + transport_.describe() +
+             "): its identify response reports " + std::to_string(motors) +
+             " motors (expected 1 to " + std::to_string(device::VirtualMcu::kMaxAxes) + ")");
+        return;
+      }
+      mcu_axes_ = motors;
       negotiated_version_ = version;
       mcu_clock_hz_ = static_cast<uint32_t>(hz);
       ClockSyncParams cp;
@@ -291,6 +306,10 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       const uint64_t token = r.var();
       const int64_t clock = static_cast<int64_t>(r.var());
       if (!r.ok()) return;
+      if (clock < 0) {  // beyond 2^63 ticks: no clock (the clock sync subtracts clocks)
+        events_.push_back("MCU '" + p_.name + "': clock response with an impossible clock ignored");
+        return;
+      }
       for (int i = 0; i < query_count_; ++i) {
         Query& q = queries_[static_cast<size_t>((query_head_ + i) % kMaxQueries)];
         if (q.token != token) continue;
@@ -359,10 +378,26 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       const int64_t first = static_cast<int64_t>(r.var());
       const int64_t period = static_cast<int64_t>(r.var());
       const uint64_t count = r.var();
+      // Checked in full before any sample is kept: every clock and count must fit 64 bits.
+      const MsgReader deltas = r;
       int64_t counts = r.zz();
-      for (uint64_t i = 0; i < count && r.ok(); ++i) {
+      bool valid = r.ok() && first >= 0 && period >= 0 && count <= n;  // a sample takes >= 1 byte
+      for (uint64_t i = 1; valid && i < count; ++i) {
+        const int64_t d = r.zz();
+        int64_t clock = 0;
+        valid = r.ok() && !__builtin_add_overflow(counts, d, &counts) &&
+                !__builtin_mul_overflow(static_cast<int64_t>(i), period, &clock) &&
+                !__builtin_add_overflow(first, clock, &clock);
+      }
+      if (!valid) {
+        events_.push_back("MCU '" + p_.name + "': malformed encoder report (" + std::to_string(n) +
+                          " bytes) ignored");
+        return;
+      }
+      r = deltas;
+      counts = r.zz();
+      for (uint64_t i = 0; i < count; ++i) {
         if (i > 0) counts += r.zz();
-        if (!r.ok()) break;
         if (samples_.size() >= kSampleCapacity) {
           ++samples_dropped_;
           continue;

@@ -1,6 +1,8 @@
 // Protocol v2 loop messages (see loop_messages.hpp and docs/protocol.md).
 #include "drivers/protocol/loop_messages.hpp"
 
+#include "drivers/device/saturate.hpp"
+
 namespace feedloop::protocol {
 
 using device::LoopEventKind;
@@ -117,16 +119,18 @@ bool QueueTargetReader::next(device::TargetKnot& k) {
     ok_ = false;
     return false;
   }
+  // Clocks and positions must fit int64 (and clocks be >= 0): anything else is malformed.
+  if (a > static_cast<uint64_t>(INT64_MAX)) {
+    ok_ = false;
+    return false;
+  }
   if (read_ == 0) {
     k.clock = static_cast<int64_t>(a);
     k.pos_nm = unzigzag(b);
-  } else {
-    if (a == 0) {
-      ok_ = false;
-      return false;
-    }
-    k.clock = last_.clock + static_cast<int64_t>(a);
-    k.pos_nm = last_.pos_nm + unzigzag(b);
+  } else if (a == 0 || __builtin_add_overflow(last_.clock, static_cast<int64_t>(a), &k.clock) ||
+             __builtin_add_overflow(last_.pos_nm, unzigzag(b), &k.pos_nm)) {
+    ok_ = false;
+    return false;
   }
   last_ = k;
   ++read_;
@@ -142,8 +146,8 @@ size_t encode_loop_report(const LoopReportMsg& m, uint8_t* buf, size_t cap) {
       .u8(static_cast<uint8_t>(r.state))
       .zz(r.r_nm)
       .zz(r.y_nm)
-      .zz(static_cast<int64_t>(r.e_nm))
-      .zz(static_cast<int64_t>(r.u_nm))
+      .zz(device::saturate_i64(r.e_nm))  // saturated: NaN -> 0, beyond 2^63 -> the bounds
+      .zz(device::saturate_i64(r.u_nm))
       .zz(r.device_steps)
       .var(r.max_tick_cost)
       .var(r.ticks)

@@ -79,11 +79,15 @@ class RunDecoder {
     if ((c >> 1) == 0 || (c >> 1) > 0xFFFFFFFFu) return false;
     r.count = static_cast<uint32_t>(c >> 1);
     r.direction = (c & 1) ? -1 : 1;
-    r.interval_ticks = prev_interval_ + protocol::unzigzag(di);
     const int64_t add = protocol::unzigzag(a);
     if (add < INT32_MIN || add > INT32_MAX) return false;
     r.add_ticks = static_cast<int32_t>(add);
-    prev_interval_ = r.interval_ticks + static_cast<int64_t>(r.count - 1) * r.add_ticks;
+    // Intervals that do not fit 64 bits are malformed (checked: the input is untrusted).
+    int64_t growth = 0;
+    if (__builtin_add_overflow(prev_interval_, protocol::unzigzag(di), &r.interval_ticks) ||
+        __builtin_mul_overflow(static_cast<int64_t>(r.count - 1), add, &growth) ||
+        __builtin_add_overflow(r.interval_ticks, growth, &prev_interval_))
+      return false;
     return true;
   }
 

@@ -1,9 +1,10 @@
 // The delta paper's identification procedure (delta-lpv-receptance-coupling.txt, Sect. IV,
-// Eq. 30-72) run on measurements simulated with sim::DeltaPlant (rigid-body physics, not either
-// force formula of the paper). docs/ident_delta.md has the whole story.
+// Eq. 30-72) on a set of measurements; sim::simulate_measurements
+// (sim/experiments/delta_measurements.hpp) simulates them with sim::DeltaPlant (rigid-body physics,
+// not either force formula of the paper). docs/ident_delta.md has the whole story.
 //
-// Measurements (simulate_measurements; all small-signal FRFs of the simulator, i.e. the response
-// a sine dwell converges to, on exact frequency grids):
+// Measurements (simulated: all small-signal FRFs of the simulator, i.e. the response a sine dwell
+// converges to, on exact frequency grids):
 //   Sect. IV-A  carriage A with the effector detached (one forearm left on: m = m_c + m_f/2,
 //               Eq. 30), then again with m_add on the carriage (Eq. 37-41);
 //   Sect. IV-B  impact test on the isolated effector (force to acceleration of m1, Eq. 45);
@@ -43,7 +44,6 @@
 #include "model/frequency_grid.hpp"
 #include "model/frf_set.hpp"
 #include "model/lti.hpp"
-#include "sim/delta_plant.hpp"
 
 namespace feedloop::ident::delta {
 
@@ -80,23 +80,6 @@ struct DeltaMeasurements {
   double m_tot_kg = 0.0;  // m1 + m2
   model::DeltaParams cad;  // delta_*, D_e, geometry, forearm_half_mass_on_m1 (other fields unused)
 };
-
-// Runs the simulated experiments on plants built from `truth` (positions from plan). Error when a
-// plant cannot be built (bad parameters, unreachable position) or a grid is invalid.
-Result<DeltaMeasurements> simulate_measurements(const sim::DeltaPlantParams& truth, const MeasurementPlan& plan);
-
-// The Sect. IV-A carriage experiment in the time domain instead: a random-phase multisine with a
-// line at every carriage_grid frequency (period 1 / grid step) commanded to carriage A through
-// step pulses (one update per simulator substep, so each step lands on an update instant), the
-// true carriage position sampled at the same rate, H1 (ident/frf.hpp: rectangular window,
-// one period per segment, no overlap, the first period discarded) divided by the zero-order hold
-// of the step staircase, (1 - e^{-jwT}) / (jwT). added_mass: with plan.m_add_kg on the carriage.
-struct SweepSpec {
-  double rms_mm = 0.05;  // of the commanded multisine
-  int periods = 8;       // averaged (one more is run first to settle)
-};
-Result<std::vector<Complex>> measure_carriage_h1(const sim::DeltaPlantParams& truth, const MeasurementPlan& plan,
-                                                 bool added_mass, const SweepSpec& sweep = {});
 
 struct CarriageFit {
   model::TransferFunction g_qd;        // Eq. 42 rational fit (before the structured fit)

@@ -121,6 +121,23 @@ TEST(ConfigErrors, UnknownUnit) {
   expect_error(y, "axes.x.encoder.resolution_um: unknown unit 'furlongs'", pos_of(y, "0.49 furlongs"));
 }
 
+// fuzz/corpus/config/regress_name_not_utf8: a name with bytes that are not UTF-8 was accepted,
+// reached the status JSON and M115 as is, and to_yaml() wrote it back as U+FFFD.
+TEST(ConfigErrors, TextThatIsNotUtf8IsRefusedAtItsFirstBadByte) {
+  const std::string y = edit(kMinimal, "kinematics: cartesian",
+                             "kinematics: cartesian\nname: \"printer \xD2\xD2 one\"");
+  const std::vector<Error> errors = check_config_text(y, "printer.yaml");
+  ASSERT_EQ(errors.size(), 1u) << all(errors);
+  expect_error(y, "not valid UTF-8 (byte 0xD2)", pos_of(y, "\xD2"));
+  // Valid UTF-8 is fine, and survives the round trip.
+  const std::string ok =
+      edit(kMinimal, "kinematics: cartesian", "kinematics: cartesian\nname: \"Drucker \u00fc\"");
+  const auto cfg = load_config_text(ok, "printer.yaml");
+  ASSERT_TRUE(cfg.ok()) << cfg.error().to_string();
+  EXPECT_EQ(cfg->name, "Drucker \u00fc");
+  EXPECT_EQ(load_config_text(to_yaml(*cfg), "again.yaml")->name, "Drucker \u00fc");
+}
+
 TEST(ConfigErrors, YamlSyntaxErrorHasLineAndColumn) {
   const std::string y = edit(kMinimal, "axes: [x, y]", "axes: [x, y");
   const std::vector<Error> errors = check_config_text(y, "printer.yaml");

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "control/encoder_guard.hpp"
+#include "engine/control_config.hpp"
 
 namespace fc = feedloop::control;
 using fc::EncoderFault;
@@ -17,7 +18,7 @@ namespace {
 fc::EncoderGuard make_guard() {
   feedloop::config::ControlConfig c;  // jump 1 mm, following error 2 mm
   fc::EncoderGuard g;
-  EXPECT_TRUE(g.configure(fc::encoder_guard_params_from_config(c, "x")).ok());
+  EXPECT_TRUE(g.configure(feedloop::engine::encoder_guard_params_from_config(c, "x")).ok());
   return g;
 }
 

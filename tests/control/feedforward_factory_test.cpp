@@ -1,4 +1,4 @@
-// make_model_feedforward (control/feedforward/model_feedforward.hpp): from a printer config to
+// engine::make_model_feedforward (engine/control_config.hpp): from a printer config to
 // the gantry or delta feedforward, with clear errors for configs that lack the model it needs.
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 #include <cstdio>
 
 #include "config/config.hpp"
-#include "control/feedforward/model_feedforward.hpp"
+#include "engine/control_config.hpp"
 
 namespace feedloop::control {
 namespace {
@@ -50,17 +50,17 @@ config::MachineConfig delta() {
 
 TEST(MakeModelFeedforward, GantryPreviewFromConfig) {
   config::MachineConfig c = cartesian();
-  auto ff = make_model_feedforward(c, 1e-3);
+  auto ff = engine::make_model_feedforward(c, 1e-3);
   ASSERT_TRUE(ff.ok()) << ff.error().message;
   // 20 ms at 1 kHz, and the velocity-jump window in front of it: 31 ms, 2 h + 1 = 31 periods.
   EXPECT_EQ((*ff)->preview_samples(), 20 + 31);
   EXPECT_STREQ((*ff)->name(), "lpv");
   c.feedforward.lpv.preview_ms = 10.0;
-  auto ff2 = make_model_feedforward(c, 0.25e-3);  // 4 kHz: 40 + (2 * 61 + 1)
+  auto ff2 = engine::make_model_feedforward(c, 0.25e-3);  // 4 kHz: 40 + (2 * 61 + 1)
   ASSERT_TRUE(ff2.ok()) << ff2.error().message;
   EXPECT_EQ((*ff2)->preview_samples(), 40 + 123);
   c.feedforward.lpv.jump_accel_mm_s2 = 0.0;  // no smoothing: the inverse's preview alone
-  auto ff3 = make_model_feedforward(c, 0.25e-3);
+  auto ff3 = engine::make_model_feedforward(c, 0.25e-3);
   ASSERT_TRUE(ff3.ok()) << ff3.error().message;
   EXPECT_EQ((*ff3)->preview_samples(), 40);
   // At rest it commands the reference.
@@ -75,43 +75,43 @@ TEST(MakeModelFeedforward, GantryPreviewFromConfig) {
 TEST(MakeModelFeedforward, ClearErrors) {
   config::MachineConfig c = cartesian();
   c.model.gantry.pop_back();
-  auto e1 = make_model_feedforward(c, 1e-3);
+  auto e1 = engine::make_model_feedforward(c, 1e-3);
   ASSERT_FALSE(e1.ok());
   EXPECT_NE(e1.error().message.find("model.gantry.y"), std::string::npos) << e1.error().message;
 
   c = cartesian();
   c.feedforward.lpv.preview_ms = 1.0;
-  auto e2 = make_model_feedforward(c, 1e-3);
+  auto e2 = engine::make_model_feedforward(c, 1e-3);
   ASSERT_FALSE(e2.ok());
   EXPECT_NE(e2.error().message.find("preview_ms"), std::string::npos) << e2.error().message;
 
   c = cartesian();
   c.model.gantry[0].m2_kg = -1.0;
-  auto e3 = make_model_feedforward(c, 1e-3);
+  auto e3 = engine::make_model_feedforward(c, 1e-3);
   ASSERT_FALSE(e3.ok());
   EXPECT_NE(e3.error().message.find("joint 0"), std::string::npos) << e3.error().message;
 
   config::MachineConfig d = delta();
   d.model.delta_lpv.reset();
-  auto e4 = make_model_feedforward(d, 1e-3);
+  auto e4 = engine::make_model_feedforward(d, 1e-3);
   ASSERT_FALSE(e4.ok());
   EXPECT_NE(e4.error().message.find("model.delta_lpv"), std::string::npos) << e4.error().message;
 
   d = delta();
   d.delta.reset();
-  auto e5 = make_model_feedforward(d, 1e-3);
+  auto e5 = engine::make_model_feedforward(d, 1e-3);
   ASSERT_FALSE(e5.ok());
   EXPECT_NE(e5.error().message.find("delta"), std::string::npos) << e5.error().message;
 
-  auto e6 = make_model_feedforward(cartesian(), 0.0);
+  auto e6 = engine::make_model_feedforward(cartesian(), 0.0);
   EXPECT_FALSE(e6.ok());
 }
 
 TEST(MakeModelFeedforward, DeltaLpvAndFrozenCentre) {
   const auto t0 = std::chrono::steady_clock::now();
-  auto lpv = make_model_feedforward(delta(), 1e-3);
+  auto lpv = engine::make_model_feedforward(delta(), 1e-3);
   const auto t1 = std::chrono::steady_clock::now();
-  auto centre = make_model_feedforward(delta(), 1e-3, /*freeze_at_centre=*/true);
+  auto centre = engine::make_model_feedforward(delta(), 1e-3, /*freeze_at_centre=*/true);
   ASSERT_TRUE(lpv.ok()) << lpv.error().message;
   ASSERT_TRUE(centre.ok()) << centre.error().message;
   const double ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
@@ -144,7 +144,7 @@ TEST(MakeModelFeedforward, ExampleConfigs) {
     auto cfg = config::load_config_file(std::string(FEEDLOOP_SOURCE_DIR) + "/config/examples/" + name);
     ASSERT_TRUE(cfg.ok()) << cfg.error().to_string();
     const auto t0 = std::chrono::steady_clock::now();
-    auto ff = make_model_feedforward(cfg.value(), 1.0 / cfg->servo.rate_hz);
+    auto ff = engine::make_model_feedforward(cfg.value(), 1.0 / cfg->servo.rate_hz);
     const auto t1 = std::chrono::steady_clock::now();
     ASSERT_TRUE(ff.ok()) << name << ": " << ff.error().message;
     std::printf("%s: feedforward '%s' designed in %.0f ms, P = %d\n", name, (*ff)->name(),

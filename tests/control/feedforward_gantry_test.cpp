@@ -10,7 +10,6 @@
 #include <vector>
 
 #include "control/feedforward/gantry_lpv.hpp"
-#include "control/feedforward/model_feedforward.hpp"
 #include "feedforward_test_support.hpp"
 
 namespace feedloop::control {

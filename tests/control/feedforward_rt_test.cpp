@@ -18,7 +18,7 @@
 namespace feedloop::control {
 namespace {
 
-// As the factory builds it: behind the velocity-jump smoother (control/feedforward/model_feedforward.hpp).
+// As the factory builds it: behind the velocity-jump smoother (engine/control_config.hpp).
 std::unique_ptr<Feedforward> with_jump_smoothing(std::unique_ptr<Feedforward> inner) {
   VelocityJumpSmoothing p;
   p.max_half_width = 15;

@@ -14,10 +14,12 @@
 #include <vector>
 
 #include "control/input_shaper.hpp"
+#include "engine/control_config.hpp"
 #include "planner/kinematics.hpp"
 
 namespace fc = feedloop::control;
-using feedloop::config::ShaperType;
+using fc::ShaperType;
+using CfgShaper = feedloop::config::ShaperType;
 
 namespace {
 
@@ -217,10 +219,10 @@ TEST(InputShaper, CorexyShapesCartesianAxesSeparately) {
   cfg.kinematics = feedloop::planner::KinematicsKind::corexy;
   auto kin = feedloop::planner::make_kinematics(cfg);
   feedloop::config::ShaperConfig sc;
-  sc.type = ShaperType::zv;
+  sc.type = CfgShaper::zv;
   sc.freq_hz = 50.0;
-  sc.axes.push_back({"x", ShaperType::mzv, 35.0, 0.1});
-  auto setup = fc::input_shaper_setup(sc, *kin, kPeriodS);
+  sc.axes.push_back({"x", CfgShaper::mzv, 35.0, 0.1});
+  auto setup = feedloop::engine::input_shaper_setup(sc, *kin, kPeriodS);
   ASSERT_TRUE(setup.ok()) << setup.error().message;
   ASSERT_TRUE(setup->linear_map.has_value());
   EXPECT_FALSE(setup->shapers[2].has_value());  // z passes through
@@ -268,10 +270,10 @@ TEST(InputShaper, DeltaShapesEachCarriage) {
   cfg.kinematics = feedloop::planner::KinematicsKind::delta;
   auto kin = feedloop::planner::make_kinematics(cfg);
   feedloop::config::ShaperConfig sc;
-  sc.type = ShaperType::ei;
+  sc.type = CfgShaper::ei;
   sc.freq_hz = 45.0;
-  sc.axes.push_back({"B", ShaperType::zv, 30.0, 0.05});
-  auto setup = fc::input_shaper_setup(sc, *kin, kPeriodS);
+  sc.axes.push_back({"B", CfgShaper::zv, 30.0, 0.05});
+  auto setup = feedloop::engine::input_shaper_setup(sc, *kin, kPeriodS);
   ASSERT_TRUE(setup.ok()) << setup.error().message;
   EXPECT_FALSE(setup->linear_map.has_value());
   ASSERT_TRUE(setup->shapers[0] && setup->shapers[1] && setup->shapers[2]);
@@ -293,8 +295,8 @@ TEST(InputShaper, RejectsBadParameters) {
   feedloop::planner::PlannerConfig cfg;
   auto kin = feedloop::planner::make_kinematics(cfg);
   feedloop::config::ShaperConfig sc;
-  sc.axes.push_back({"y", ShaperType::zv, -3.0, 0.1});
-  auto setup = fc::input_shaper_setup(sc, *kin, kPeriodS);
+  sc.axes.push_back({"y", CfgShaper::zv, -3.0, 0.1});
+  auto setup = feedloop::engine::input_shaper_setup(sc, *kin, kPeriodS);
   ASSERT_FALSE(setup.ok());
   EXPECT_NE(setup.error().message.find("axis y"), std::string::npos);
 

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "control/lost_step_detector.hpp"
+#include "engine/control_config.hpp"
 
 namespace fc = feedloop::control;
 
@@ -161,7 +162,7 @@ TEST(LostStepDetector, RejectsBadParameters) {
   EXPECT_FALSE(det.configure(p).ok());
   feedloop::config::ControlConfig c;
   c.skipped_step_threshold_mm = 0.25;
-  const fc::LostStepParams q = fc::lost_step_params_from_config(c, 0.2);
+  const fc::LostStepParams q = feedloop::engine::lost_step_params_from_config(c, 0.2);
   EXPECT_EQ(q.threshold_mm, 0.25);
   EXPECT_EQ(q.full_step_mm, 0.2);
 }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "control/pi_controller.hpp"
+#include "engine/control_config.hpp"
 
 namespace fc = feedloop::control;
 
@@ -172,13 +173,13 @@ TEST(PiController, ParamsFromConfig) {
   c.ki_per_s = 30.0;
   c.max_correction_mm_s = 40.0;
   c.axes = {{"y", 0.25, 5.0}};
-  const fc::PiParams p = fc::pi_params_from_config(c, "x", 0.5e-3);
+  const fc::PiParams p = feedloop::engine::pi_params_from_config(c, "x", 0.5e-3);
   EXPECT_EQ(p.kp, 0.7);
   EXPECT_EQ(p.ki_per_s, 30.0);
   EXPECT_EQ(p.max_correction_mm_s, 40.0);
   EXPECT_EQ(p.period_s, 0.5e-3);
   // An axis with its own gains gets them, and the common clamp.
-  const fc::PiParams py = fc::pi_params_from_config(c, "y", 0.5e-3);
+  const fc::PiParams py = feedloop::engine::pi_params_from_config(c, "y", 0.5e-3);
   EXPECT_EQ(py.kp, 0.25);
   EXPECT_EQ(py.ki_per_s, 5.0);
   EXPECT_EQ(py.max_correction_mm_s, 40.0);

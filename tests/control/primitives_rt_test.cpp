@@ -10,6 +10,7 @@
 #include "control/input_shaper.hpp"
 #include "control/lost_step_detector.hpp"
 #include "control/pi_controller.hpp"
+#include "engine/control_config.hpp"
 #include "planner/kinematics.hpp"
 
 #include "tests/common/malloc_counter.hpp"
@@ -35,8 +36,8 @@ TEST(ControlPrimitivesRt, PerPeriodCallsDoNotAllocate) {
   auto delta = feedloop::planner::make_kinematics(pc);
   feedloop::config::ShaperConfig sc;
   sc.type = feedloop::config::ShaperType::ei;
-  auto setup_xy = fc::input_shaper_setup(sc, *corexy, 1e-3);
-  auto setup_delta = fc::input_shaper_setup(sc, *delta, 1e-3);
+  auto setup_xy = feedloop::engine::input_shaper_setup(sc, *corexy, 1e-3);
+  auto setup_delta = feedloop::engine::input_shaper_setup(sc, *delta, 1e-3);
   ASSERT_TRUE(setup_xy.ok() && setup_delta.ok());
   fc::InputShaper shaper_xy, shaper_delta;
   ASSERT_TRUE(shaper_xy.configure(*setup_xy).ok());

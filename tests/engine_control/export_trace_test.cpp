@@ -43,7 +43,11 @@ TEST(ExportTrace, SimulatedPrintAsTraceCsvV1) {
   std::printf("x: max commanded %.3f mm, max |encoder - command| %.4f mm, %zu/%zu whole steps\n", max_x_mm,
               max_dev_mm, whole, t.samples());
   EXPECT_GT(max_x_mm, 100.0);   // the cube sits in the middle of the 220 mm bed
-  EXPECT_LT(max_dev_mm, 2.0);   // the loop's correction and the belt's stretch, never a lost axis
+  // The belt's stretch and the loop's correction, never a lost axis. With the device loop the
+  // command is the host's feedforward steps; the loop's correction (up to max_following_error_mm,
+  // 2 mm) is added on the MCU and is not in cmd_mm (docs/decisions.md, "the device loop's
+  // corrections in recordings").
+  EXPECT_LT(max_dev_mm, 2.5);
   EXPECT_GT(whole, t.samples() * 99 / 100);
   std::filesystem::remove(out);
 }

@@ -15,6 +15,9 @@
 #include "core/clock.hpp"
 #include "engine/executor_factory.hpp"
 #include "engine/machine.hpp"
+#include "engine/simulated_printer.hpp"
+#include "sim/delta_plant.hpp"
+#include "sim/gantry_axis.hpp"
 #include "sim_rig.hpp"
 
 namespace feedloop::engine {
@@ -61,7 +64,7 @@ void expect_exactly_once(SimRig& rig, const char* what) {
 
 void expect_at_commanded_end(SimRig& rig, double x_mm, double y_mm, const char* what) {
   for (int j = 0; j < 2; ++j) {
-    sim::GantryAxis& g = *rig.bridge->gantry(j);
+    sim::GantryAxis& g = *simulated_gantry(*rig.bridge->plant(), j);
     const double target = j == 0 ? x_mm : y_mm;
     std::printf("%s %c: carriage %.5f mm, commanded (steps) %.5f, target %.3f, encoder %.5f mm, lost %lld full steps\n",
                 what, "XY"[j], g.carriage_mm(), g.commanded_mm(), target, rig.bridge->encoder_mm(j),
@@ -156,8 +159,8 @@ TEST(SimMachine, DisconnectStopsNamesTheMcuAndRecoversAfterReplug) {
   ASSERT_TRUE(rig.wait_ready());
   ASSERT_EQ(rig.execute("G90\nG1 X200 Y150 F6000\n"), "");
   rig.run_for(0.8);  // mid-move
-  sim::GantryAxis& x = *rig.bridge->gantry(0);
-  sim::GantryAxis& y = *rig.bridge->gantry(1);
+  sim::GantryAxis& x = *simulated_gantry(*rig.bridge->plant(), 0);
+  sim::GantryAxis& y = *simulated_gantry(*rig.bridge->plant(), 1);
   EXPECT_GT(x.carriage_mm(), 5.0);
   const int mcu_y = rig.bridge->mcu_of_joint(1);
   rig.bridge->mock(mcu_y)->unplug();
@@ -222,7 +225,7 @@ TEST(SimMachine, HighAccelerationLosesStepsOpenLoopGentleDoesNot) {
     ASSERT_TRUE(rig.wait_ready());
     ASSERT_EQ(rig.execute("G90\nG1 Y60 F9000\nG1 Y30\nG1 Y60\n"), "");
     ASSERT_TRUE(rig.run_until_idle(30.0, 0.6));
-    sim::GantryAxis& y = *rig.bridge->gantry(1);
+    sim::GantryAxis& y = *simulated_gantry(*rig.bridge->plant(), 1);
     const double enc_err_mm = rig.bridge->encoder_mm(1) - y.commanded_mm();
     std::printf("a=%5.0f jd=%g: %lld slips, %lld lost full steps, encoder - commanded %.4f mm, max speed %.0f mm/s\n",
                 c.accel_mm_s2, c.junction_deviation_mm, static_cast<long long>(y.slip_events()),
@@ -295,13 +298,13 @@ TEST(SimMachine, DeltaRunsExactlyOnceAndTheNozzleFollows) {
   auto cfg = config::load_config_file(FEEDLOOP_SOURCE_DIR "/config/examples/delta_sim.yaml");
   ASSERT_TRUE(cfg.ok()) << cfg.error().message;
   SimRig rig(cfg.value());
-  ASSERT_TRUE(rig.bridge->delta() != nullptr);
+  ASSERT_TRUE(simulated_delta(*rig.bridge->plant()) != nullptr);
   ASSERT_TRUE(rig.wait_ready());
   ASSERT_EQ(rig.execute("G90\nG1 X10 Y5 Z20 F3000\nG1 X-20 Y0 Z10\nG1 X15 Y-12 Z15\n"), "");
   ASSERT_TRUE(rig.run_until_idle(30.0, 0.5));
   for (int i = 0; i < rig.bridge->mcu_count(); ++i) rig.bridge->session(i).request_status();
   rig.run_for(0.2);
-  sim::DeltaPlant& d = *rig.bridge->delta();
+  sim::DeltaPlant& d = *simulated_delta(*rig.bridge->plant());
   for (int j = 0; j < 3; ++j) {
     const JointTiming& t = rig.bridge->timing(j);
     const device::AxisStatus& ax = rig.bridge->virtual_mcu(rig.bridge->mcu_of_joint(j))->status().axes[0];

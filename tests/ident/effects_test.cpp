@@ -10,6 +10,7 @@
 
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
+#include "sim/experiments/gantry_recording.hpp"
 
 namespace feedloop::ident {
 namespace {
@@ -92,7 +93,7 @@ TEST_P(EffectCase, FindsExactlyTheEffectsThatArePresent) {
   ro.duration_s = 30.0;
   ro.seed = 11;
   if (c.belt_direction) ro.travel_mm = 0.0;
-  auto trace = record_gantry_trace(plant_for(c), random_moves(ro), 1000.0, std::string(1, c.axis));
+  auto trace = sim::record_gantry_trace(plant_for(c), random_moves(ro), 1000.0, std::string(1, c.axis));
   ASSERT_TRUE(trace.ok()) << trace.error().to_string();
   const AxisTrace& a = trace.value().axes[0];
   auto r = identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(), FitOptions{});

@@ -7,11 +7,12 @@
 #include <complex>
 #include <cstdio>
 
+#include "core/rng.hpp"
 #include "ident/excitation.hpp"
 #include "ident/frf.hpp"
 #include "model/gantry_axis.hpp"
 #include "sim/gantry_params.hpp"
-#include "sim/rng.hpp"
+#include "sim/experiments/gantry_recording.hpp"
 
 namespace feedloop::ident {
 namespace {
@@ -45,7 +46,7 @@ double h1_random_error(double coherence, int segments) {
 TEST(IdentFrf, H1MatchesAKnownFilterAndCoherenceFollowsTheNoise) {
   const double fs = 1000.0;
   const size_t n = 60000;  // 60 s: 59 half-overlapping 2 s segments
-  sim::Rng rng(7);
+  Rng rng(7);
   // Input: white noise low-passed at ~60 Hz (one-pole pairs), so there is almost no input power
   // near 125 Hz and the output noise dominates there.
   std::vector<double> u(n), y(n);
@@ -176,7 +177,7 @@ SimFrf sim_against_model(const std::vector<double>& cmd_mm, const char* what, in
   sim::GantryAxisParams sp = sim::thesis_x_axis();
   sp.belt_span_mm = 1e6;
   sp.microsteps = microsteps;
-  auto tr = record_gantry_trace(sp, cmd_mm, 1000.0, "x");
+  auto tr = sim::record_gantry_trace(sp, cmd_mm, 1000.0, "x");
   EXPECT_TRUE(tr.ok()) << tr.error().to_string();
   if (!tr.ok()) return out;
   const AxisTrace& ax = tr.value().axes[0];

@@ -16,6 +16,7 @@
 #include "cli/ident_command.hpp"
 #include "ident/excitation.hpp"
 #include "ident/trace.hpp"
+#include "sim/experiments/gantry_recording.hpp"
 
 namespace feedloop::ident {
 namespace {
@@ -37,7 +38,7 @@ TEST(IdentSpeed, FitOf100sTraceAt1kHzUnder20s) {
   p.effects.backlash = {true, 30.0};
   RandomMovesOptions ro;
   ro.duration_s = 100.0;
-  auto tr = record_gantry_trace(p, random_moves(ro), 1000.0, "x");
+  auto tr = sim::record_gantry_trace(p, random_moves(ro), 1000.0, "x");
   ASSERT_TRUE(tr.ok()) << tr.error().to_string();
   ASSERT_EQ(tr.value().samples(), 100000u);
   const auto trace = dir / "trace.csv";

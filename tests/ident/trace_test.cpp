@@ -5,6 +5,7 @@
 
 #include "ident/excitation.hpp"
 #include "ident/trace.hpp"
+#include "sim/experiments/gantry_recording.hpp"
 
 namespace feedloop::ident {
 namespace {
@@ -69,7 +70,7 @@ TEST(Excitation, RandomMovesStayNearTheDriftAndRecordFollowsTheCommand) {
   }
   EXPECT_GT(moves, 4.0 / 0.15);
   EXPECT_LT(max_jump, o.step_max_mm + 0.01);
-  auto trace = record_gantry_trace(sim::thesis_x_axis(), u, 1000.0, "x");
+  auto trace = sim::record_gantry_trace(sim::thesis_x_axis(), u, 1000.0, "x");
   ASSERT_TRUE(trace.ok()) << trace.error().to_string();
   const AxisTrace& a = trace.value().axes[0];
   // The carriage follows the command within a fraction of a mm and the step quantisation holds.

@@ -9,6 +9,7 @@
 
 #include "ident/delta/delta_ident.hpp"
 #include "ident/delta/rational_fit.hpp"
+#include "sim/experiments/delta_measurements.hpp"
 
 namespace feedloop::ident::delta {
 namespace {
@@ -20,7 +21,7 @@ double rel_err(double got, double want) { return std::abs(got / want - 1.0); }
 // One simulated campaign shared by the tests (the plant linearisations are the costly part).
 const DeltaMeasurements& measurements() {
   static const DeltaMeasurements m = [] {
-    auto r = simulate_measurements(sim::DeltaPlantParams{}, MeasurementPlan{});
+    auto r = sim::simulate_measurements(sim::DeltaPlantParams{}, MeasurementPlan{});
     EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.error().message);
     return r.ok() ? *r : DeltaMeasurements{};
   }();
@@ -51,10 +52,10 @@ TEST(RationalFit, RejectsBadInput) {
 TEST(DeltaIdent, MeasurementPlanIsValidated) {
   MeasurementPlan plan;
   plan.m_add_kg = 0.0;
-  EXPECT_FALSE(simulate_measurements(sim::DeltaPlantParams{}, plan).ok());
+  EXPECT_FALSE(sim::simulate_measurements(sim::DeltaPlantParams{}, plan).ok());
   plan = MeasurementPlan{};
   plan.validation_mm[0] = {400.0, 0.0, 30.0};  // out of reach
-  EXPECT_FALSE(simulate_measurements(sim::DeltaPlantParams{}, plan).ok());
+  EXPECT_FALSE(sim::simulate_measurements(sim::DeltaPlantParams{}, plan).ok());
 }
 
 TEST(DeltaIdent, CarriageAndEffectorParametersMatchTheSimulator) {
@@ -142,7 +143,7 @@ TEST(DeltaIdent, TwoPercentNoiseStillBeatsThePaper) {
   MeasurementPlan plan;
   plan.noise_rel = 0.02;
   plan.seed = 7;
-  auto meas = simulate_measurements(sim::DeltaPlantParams{}, plan);
+  auto meas = sim::simulate_measurements(sim::DeltaPlantParams{}, plan);
   ASSERT_TRUE(meas.ok()) << meas.error().message;
   auto id = identify(*meas, ForceTransform::VirtualWork);
   ASSERT_TRUE(id.ok()) << id.error().message;
@@ -181,7 +182,7 @@ TEST(DeltaIdent, AnotherMachineIsIdentifiedToo) {
   t.b_y_n_s_m = 25.0;
   t.b_z_n_s_m = 40.0;
   other.arm_stiffness_n_m = 1e9;  // the virtual-work structure exactly: b_j, k_j must come back
-  auto meas = simulate_measurements(other, MeasurementPlan{});
+  auto meas = sim::simulate_measurements(other, MeasurementPlan{});
   ASSERT_TRUE(meas.ok()) << meas.error().message;
   auto id = identify(*meas, ForceTransform::VirtualWork);
   ASSERT_TRUE(id.ok()) << id.error().message;
@@ -210,7 +211,7 @@ TEST(DeltaIdent, AnotherMachineIsIdentifiedToo) {
 TEST(DeltaIdent, StiffArmsGiveBackTheCouplingParameters) {
   sim::DeltaPlantParams stiff;
   stiff.arm_stiffness_n_m = 1e9;
-  auto meas = simulate_measurements(stiff, MeasurementPlan{});
+  auto meas = sim::simulate_measurements(stiff, MeasurementPlan{});
   ASSERT_TRUE(meas.ok()) << meas.error().message;
   auto id = identify(*meas, ForceTransform::VirtualWork);
   ASSERT_TRUE(id.ok()) << id.error().message;

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "ident/delta/delta_ident.hpp"
+#include "sim/experiments/delta_measurements.hpp"
 
 namespace feedloop::ident::delta {
 namespace {
@@ -15,10 +16,10 @@ double rel_err(double got, double want) { return std::abs(got / want - 1.0); }
 
 TEST(DeltaIdentSweep, CarriageFromH1OfAMultisine) {
   const sim::DeltaPlantParams truth;
-  auto small_signal = simulate_measurements(truth, MeasurementPlan{});
+  auto small_signal = sim::simulate_measurements(truth, MeasurementPlan{});
   ASSERT_TRUE(small_signal.ok()) << small_signal.error().message;
-  auto h = measure_carriage_h1(truth, MeasurementPlan{}, false);
-  auto h_added = measure_carriage_h1(truth, MeasurementPlan{}, true);
+  auto h = sim::measure_carriage_h1(truth, MeasurementPlan{}, false);
+  auto h_added = sim::measure_carriage_h1(truth, MeasurementPlan{}, true);
   ASSERT_TRUE(h.ok()) << h.error().message;
   ASSERT_TRUE(h_added.ok()) << h_added.error().message;
   double worst = 0.0, sum = 0.0;

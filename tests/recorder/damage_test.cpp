@@ -10,6 +10,7 @@
 #include "recorder/log_reader.hpp"
 #include "recorder/log_summary.hpp"
 #include "recorder/recorder.hpp"
+#include "recorder/step_stream.hpp"
 #include "recorder_test_util.hpp"
 
 namespace feedloop::recorder {
@@ -167,6 +168,43 @@ TEST(RecorderDamage, NotALogAndTruncatedHeaderFailToOpen) {
   auto d = LogReader::open(dir.file("hdr.flrec"));
   ASSERT_FALSE(d.ok());
   EXPECT_NE(d.error().message.find("file header CRC mismatch"), std::string::npos);
+}
+
+// A step run that breaks the step law (found by fuzz/fuzz_recording_reader.cpp: a run of
+// 4016029694 steps made the summary's step-clock arithmetic overflow; the reproducer is
+// fuzz/corpus/recording/regress_step_run_overflow). The format keeps any run bit for bit, so the
+// reader returns it; the summary counts it without computing its clocks, and the step streams a
+// replay compares refuse it with its offset.
+TEST(RecorderDamage, StepRunsThatBreakTheStepLawAreCountedButNotExpanded) {
+  ScratchDir dir("steplaw");
+  auto rec = Recorder::create(testing::test_options(dir.str()));
+  ASSERT_TRUE(rec.ok());
+  ASSERT_TRUE((*rec)->start_print("steplaw").ok());
+  RecordWriter& w = (*rec)->writer(Stream::servo);
+  w.step_run(0, 1000, stepgen::StepRun{500, -2, 100, 1});  // clocks 1500 .. 41100
+  w.step_run(0, 60000, stepgen::StepRun{300, 0, 10, -1});  // .. 63000
+  w.step_run(0, 70000, stepgen::StepRun{3, -1, 5, 1});     // intervals 3, 2, 1, 0, -1
+  w.step_run(0, 80000, stepgen::StepRun{int64_t{1} << 40, 0, 4'000'000'000u, 1});  // beyond 2^63
+  ASSERT_TRUE((*rec)->end_print().ok());
+  const std::string path = dir.logs().at(0);
+
+  const ReadBack rb = read_back(path);
+  EXPECT_FALSE(rb.error.has_value());
+  auto sum = summarize_log(path);
+  ASSERT_TRUE(sum.ok());
+  const JointSummary& j = sum->joints.at(0);
+  EXPECT_EQ(j.step_runs, 4u);
+  EXPECT_EQ(j.invalid_runs, 2u);
+  EXPECT_EQ(j.first_clock, 1500);
+  EXPECT_EQ(j.last_clock, 63000);
+  EXPECT_NE(format_summary(*sum).find("2 runs breaking the step law"), std::string::npos)
+      << format_summary(*sum);
+
+  auto streams = read_step_streams({path});
+  ASSERT_FALSE(streams.ok());
+  EXPECT_NE(streams.error().message.find("breaks the step law"), std::string::npos)
+      << streams.error().message;
+  EXPECT_NE(streams.error().message.find("at byte offset "), std::string::npos);
 }
 
 // Random damage anywhere (a flipped byte or a cut): never a crash, always either a clean read or

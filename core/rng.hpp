@@ -1,13 +1,13 @@
-// Seeded random numbers for the plant simulator: SplitMix64 plus a Box-Muller Gaussian.
-// Written out here (instead of std::normal_distribution, whose output is implementation-defined)
-// so that a given seed gives the same noise on every standard library: simulations are
-// reproducible bit for bit across machines.
+// Seeded random numbers (the plant simulator's noise, identification's excitation programs):
+// SplitMix64 plus a Box-Muller Gaussian. Written out here (instead of std::normal_distribution,
+// whose output is implementation-defined) so that a given seed gives the same numbers on every
+// standard library: simulations and excitations are reproducible bit for bit across machines.
 #pragma once
 
 #include <cmath>    // sqrt, log, cos, sin
 #include <cstdint>  // uint64_t
 
-namespace feedloop::sim {
+namespace feedloop {
 
 class Rng {
  public:
@@ -45,4 +45,4 @@ class Rng {
   bool has_spare_ = false;
 };
 
-}  // namespace feedloop::sim
+}  // namespace feedloop

@@ -1,0 +1,152 @@
+// The simulated transport's factory (see simulated_printer.hpp): the one file of engine/ that
+// includes the plant simulator.
+#include "engine/simulated_printer.hpp"
+
+#include <cmath>    // NAN
+#include <numbers>  // pi
+#include <string>
+#include <vector>
+
+#include "engine/config_mapping.hpp"
+#include "sim/delta_plant.hpp"
+#include "sim/gantry_axis.hpp"
+#include "sim/gantry_params.hpp"
+
+namespace feedloop::engine {
+namespace {
+
+// The config's simulator effects on one gantry axis (config/machine_config.hpp -> sim/).
+void apply_effects(const config::SimEffectsConfig& e, const std::string& axis,
+                   sim::GantryEffects& g) {
+  if (e.coulomb_friction && config::applies_to(*e.coulomb_friction, axis))
+    g.coulomb_friction = {true, e.coulomb_friction->force_n};
+  if (e.backlash && config::applies_to(*e.backlash, axis))
+    g.backlash = {true, e.backlash->width_um};
+  if (e.periodic_position && config::applies_to(*e.periodic_position, axis)) {
+    g.periodic_position.enabled = true;
+    g.periodic_position.period_mm = e.periodic_position->period_mm;
+    g.periodic_position.amplitude_um = e.periodic_position->amplitude_um;
+  }
+  if (e.extra_resonance && config::applies_to(*e.extra_resonance, axis)) {
+    g.extra_resonance.enabled = true;
+    g.extra_resonance.freq_hz = e.extra_resonance->freq_hz;
+    g.extra_resonance.damping = e.extra_resonance->damping;
+  }
+  if (e.time_delay && config::applies_to(*e.time_delay, axis))
+    g.time_delay = {true, e.time_delay->delay_ms};
+  if (e.scale_error && config::applies_to(*e.scale_error, axis))
+    g.scale_error = {true, e.scale_error->scale};
+}
+
+// The plants of one machine: a GantryAxis per Cartesian joint, or one DeltaPlant.
+class SimulatedPrinter final : public SimulatedPlant {
+ public:
+  device::MotorPort* motor(int joint) override {
+    if (joint < 0 || joint >= kJoints) return nullptr;
+    if (delta_) return joint < 3 ? &delta_->carriage_port(joint) : nullptr;
+    return gantries_[static_cast<size_t>(joint)].get();
+  }
+  double encoder_mm_per_count(int joint) const override {
+    return joint < 0 || joint >= kJoints ? 0.0 : encoder_mm_per_count_[static_cast<size_t>(joint)];
+  }
+  void advance_to(double t_s) override {
+    for (auto& g : gantries_)
+      if (g) g->advance_to(t_s);
+    if (delta_) delta_->advance_to(t_s);
+  }
+  double carriage_mm(int joint) const override {
+    if (joint < 0 || joint >= kJoints) return NAN;
+    if (delta_) return joint < 3 ? delta_->carriage_mm(joint) : NAN;
+    const auto& g = gantries_[static_cast<size_t>(joint)];
+    return g ? g->carriage_mm() : NAN;
+  }
+  std::array<double, 3> nozzle_mm() const override {
+    if (delta_) {
+      const Eigen::Vector3d n = delta_->nozzle_mm();
+      return {n[0], n[1], n[2]};
+    }
+    return {carriage_mm(0), carriage_mm(1), carriage_mm(2)};
+  }
+  int64_t lost_full_steps(int joint) const override {
+    const sim::GantryAxis* g = gantry(joint);
+    return g ? g->lost_full_steps() : 0;
+  }
+
+  sim::GantryAxis* gantry(int joint) const {
+    return joint < 0 || joint >= kJoints ? nullptr : gantries_[static_cast<size_t>(joint)].get();
+  }
+  sim::DeltaPlant* delta() const { return delta_.get(); }
+
+  std::array<std::unique_ptr<sim::GantryAxis>, kJoints> gantries_;  // by joint (nullptr: none)
+  std::unique_ptr<sim::DeltaPlant> delta_;
+  std::array<double, kJoints> encoder_mm_per_count_{};
+};
+
+}  // namespace
+
+Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfig& cfg, int joint) {
+  const auto names = joint_names(cfg);
+  const auto spm = steps_per_mm(cfg);
+  const size_t js = static_cast<size_t>(joint);
+  if (joint < 0 || joint > 2)
+    return Error{"simulated gantry: joint " + std::to_string(joint) + " is not x, y or z"};
+  sim::GantryAxisParams p = joint == 1 ? sim::thesis_y_axis() : sim::thesis_x_axis();
+  if (!(spm[js] > 0)) return Error{"axis " + names[js] + ": steps_per_mm must be > 0"};
+  // The pulley that gives the configured steps/mm (x, y: the thesis's 5.40 mm).
+  p.pulley_radius_mm = p.full_steps_per_rev * p.microsteps / (2.0 * std::numbers::pi * spm[js]);
+  p.encoder.noise_um = cfg.simulator.encoder_noise_um;
+  p.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
+  if (const config::AxisConfig* a = cfg.axis(names[js]); a && a->encoder)
+    p.encoder.resolution_um = a->encoder->resolution_um;
+  p.seed = cfg.simulator.seed + 1000 * js;
+  apply_effects(cfg.simulator.effects, names[js], p.effects);
+  // direction_dependent_stiffness: the belt anchor offset x0 of Eq. 6 that gives K2(pulling +) /
+  // K2(pulling -) = ratio at x2 = 0, ratio = (L + x0) / (L - x0). The LPV feedforward's model has
+  // x0 = 0, so its direction dependence is off by as much.
+  if (const auto& d = cfg.simulator.effects.direction_dependent_stiffness;
+      d && config::applies_to(*d, names[js]))
+    p.belt_x0_mm = p.belt_span_mm * (d->ratio - 1.0) / (d->ratio + 1.0);
+  return p;
+}
+
+Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::MachineConfig& cfg) {
+  const auto names = joint_names(cfg);
+  const auto spm = steps_per_mm(cfg);
+  auto out = std::make_unique<SimulatedPrinter>();
+  if (cfg.kinematics == config::Kinematics::delta) {
+    sim::DeltaPlantParams dp;
+    dp.mm_per_step = 1.0 / spm[0];
+    dp.initial_nozzle_mm = Eigen::Vector3d::Zero();  // where the planner starts
+    dp.seed = cfg.simulator.seed;
+    dp.encoder.noise_um = cfg.simulator.encoder_noise_um;
+    dp.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
+    auto d = sim::DeltaPlant::create(dp);
+    if (!d.ok()) return Error{"simulated delta: " + d.error().message};
+    out->delta_ = std::move(d.value());
+    for (int j = 0; j < 3; ++j)
+      out->encoder_mm_per_count_[static_cast<size_t>(j)] = dp.encoder.resolution_um * 1e-3;
+  } else {
+    for (int j = 0; j < 3; ++j) {
+      const size_t js = static_cast<size_t>(j);
+      auto p = simulated_gantry_params(cfg, j);
+      if (!p) return p.error();
+      auto g = sim::GantryAxis::create(p.value());
+      if (!g.ok()) return Error{"simulated axis " + names[js] + ": " + g.error().message};
+      out->gantries_[js] = std::make_unique<sim::GantryAxis>(std::move(g.value()));
+      out->encoder_mm_per_count_[js] = out->gantries_[js]->encoder_mm_per_count();
+    }
+  }
+  return std::unique_ptr<SimulatedPlant>(std::move(out));
+}
+
+sim::GantryAxis* simulated_gantry(SimulatedPlant& plant, int joint) {
+  auto* p = dynamic_cast<SimulatedPrinter*>(&plant);
+  return p ? p->gantry(joint) : nullptr;
+}
+
+sim::DeltaPlant* simulated_delta(SimulatedPlant& plant) {
+  auto* p = dynamic_cast<SimulatedPrinter*>(&plant);
+  return p ? p->delta() : nullptr;
+}
+
+}  // namespace feedloop::engine

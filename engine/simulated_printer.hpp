@@ -1,0 +1,37 @@
+// The simulated transport's factory: from the printer config to the plants behind the mock
+// transport's virtual MCUs (sim::GantryAxis per Cartesian axis with the configured steps/mm,
+// encoder and simulator effects; one sim::DeltaPlant for a delta's carriages). The only place in
+// engine/ that includes the plant simulator (sim/, in simulated_printer.cpp; this header only
+// names its types); everything else in engine/ uses the SimulatedPlant interface.
+#pragma once
+
+#include <memory>
+
+#include "config/machine_config.hpp"
+#include "core/result.hpp"
+#include "engine/simulated_plant.hpp"
+
+namespace feedloop::sim {
+class DeltaPlant;
+class GantryAxis;
+struct GantryAxisParams;
+}  // namespace feedloop::sim
+
+namespace feedloop::engine {
+
+// The plants of the config's machine. Errors: a plant the simulator cannot build (bad steps/mm,
+// an unreachable delta start), named after the axis.
+Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::MachineConfig& cfg);
+
+// The simulated plant of gantry joint `joint` (0 x, 1 y, 2 z) of a Cartesian / CoreXY config: the
+// thesis's axis with the configured steps/mm, encoder and simulator effects. What the factory
+// builds; also what an identification run on the simulated machine excites (bench_control).
+// Errors: steps_per_mm not > 0. (Include sim/gantry_params.hpp to use the result.)
+Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfig& cfg, int joint);
+
+// The concrete plants behind a plant built by make_simulated_printer, for tests and benchmarks
+// (include sim/gantry_axis.hpp, sim/delta_plant.hpp to use them). nullptr: no such plant.
+sim::GantryAxis* simulated_gantry(SimulatedPlant& plant, int joint);
+sim::DeltaPlant* simulated_delta(SimulatedPlant& plant);
+
+}  // namespace feedloop::engine
