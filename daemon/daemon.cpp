@@ -434,10 +434,12 @@ bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply) {
       return true;
     case 117:
       display_message_ = cmd.text;
+      snapshot_.stale = true;
       reply = "ok";
       return true;
     case 73:
       if (cmd.has('P')) progress_percent_ = static_cast<int>(cmd.get('P'));
+      snapshot_.stale = true;
       reply = "ok";
       return true;
     default:
@@ -499,6 +501,9 @@ void Daemon::retry_parked() {
 }
 
 void Daemon::on_command_done(engine::CommandDone d) {
+  // A status asked after this command's answer shows it (and the snapshot's rate stays bounded
+  // by the machine's own pace).
+  snapshot_.stale = true;
   auto it = pending_.find(d.ticket);
   if (it == pending_.end()) return;
   Pending p = std::move(it->second);
@@ -530,11 +535,7 @@ void Daemon::run_script(ClientSession& client, std::string script,
     s->lines.push_back(script.substr(b, e - b));
     b = e + 1;
   }
-  // The client's next status shows what its script did: the snapshot is renewed after it.
-  s->done = [this, done = std::move(done)](json result, std::string error) {
-    snapshot_.stale = true;
-    done(std::move(result), std::move(error));
-  };
+  s->done = std::move(done);
   run_script_step(s);
 }
 

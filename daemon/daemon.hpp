@@ -183,8 +183,10 @@ class Daemon final : public JsonApiBackend {
   RepeatFilter rejected_log_;     // "command rejected" warnings: one line plus a count
   std::string display_message_;  // M117
   int progress_percent_ = -1;    // M73 P
-  // The status snapshot: serialised at most every status_period_ms, shared by every reply and
-  // notification until the next (a JSON gcode request's end and an emergency stop renew it).
+  // The status snapshot, shared by every reply and notification until the next. Renewed when
+  // asked for and older than status_period_ms, or stale: a command has completed (or M117/M73, an
+  // emergency stop) since, so a status asked after an `ok` shows that command. Builds per second
+  // are at most 1000 / status_period_ms plus the machine's command completions.
   struct StatusSnapshot {
     std::shared_ptr<const std::string> text;
     std::string notification;  // the "status" notification around `text`

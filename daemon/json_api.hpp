@@ -13,8 +13,8 @@
 //                                response comes when every line has executed: {results:[...]}
 //   emergency_stop {reason}
 // `status` is served from a snapshot (JsonApiBackend::status_text): the daemon serialises the
-// status at most once per period and every client gets that same text, spliced into its reply;
-// the snapshot carries {"snapshot": {"seq", "period_ms"}}.
+// status at most once per period (and after each completed command) and every client gets that
+// same text, spliced into its reply; the snapshot carries {"snapshot": {"seq", "period_ms"}}.
 // Errors use JSON-RPC codes: -32700 parse error (with the column), -32600 invalid request,
 // -32601 unknown method, -32602 invalid params, -32603 internal error, -32000 machine error.
 // No request can end the daemon: a line that is not valid UTF-8, a number out of range (an "id"
