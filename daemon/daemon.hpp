@@ -6,7 +6,8 @@
 // or has been idle (nothing queued, machine idle) for `ownership_idle_s`. Machine commands from
 // other clients get "Error:busy" while someone owns it; queries (M105, M114, M115, JSON status)
 // are answered for everyone. A client that does not read its replies is disconnected; nothing
-// it does can stall motion.
+// it does can stall motion. Client work is bounded (client_session.hpp: input queue, lines per
+// turn, a rate limit with throttling and then a drop) and `status` comes from a snapshot.
 //
 // Flight recorder (docs/recorder.md): with `recorder.enabled` every print is recorded. A print
 // starts when a client takes ownership and ends when the ownership is released and the machine is
