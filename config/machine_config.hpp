@@ -371,11 +371,21 @@ struct SimEffectsConfig {
   bool operator==(const SimEffectsConfig&) const = default;
 };
 
+// DESIGN.md "External plant v1": the listed axes are driven by a plant in another process
+// (sim/external_plant.hpp); the others stay on the built-in simulator.
+struct ExternalPlantConfig {
+  std::string command;            // run with /bin/sh -c
+  std::vector<std::string> axes;  // config axis names, in the order of the plant's columns
+  double period_us = 100.0;       // one exchange per period
+  bool operator==(const ExternalPlantConfig&) const = default;
+};
+
 struct SimulatorConfig {
   std::uint64_t seed = 1;
   double encoder_noise_um = 0.0;   // rms, added before quantisation to the encoder resolution
   double sample_delay_us = 0.0;    // encoder sample to report latency
   SimEffectsConfig effects;
+  std::optional<ExternalPlantConfig> external_plant;
   bool operator==(const SimulatorConfig&) const = default;
 };
 

@@ -444,7 +444,14 @@ void McuBridge::service(double host_s) {
   }
   poll_all(now_s);
   last_service_s_ = now_s;
-  if (plant_) plant_->advance_to(now_s);
+  if (plant_) {
+    plant_->advance_to(now_s);
+    // An external plant that failed is gone for good: the machine stops and does not restart.
+    if (const char* why = plant_->fault()) {
+      latch_fault(why);
+      return;
+    }
+  }
   collect(now_s);
   publish_links(now_s);
 

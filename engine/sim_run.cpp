@@ -87,7 +87,11 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
     ex.servo_cycle(now_ns, false);
   };
   while (!bridge.ready() && now_ns < end_ns) cycle();
-  if (!bridge.ready()) return Error{"run_simulated: the simulated MCUs did not become ready"};
+  if (!bridge.ready()) {
+    char why[256] = "";
+    if (bridge.fault()) bridge.fault_message(why, sizeof why);
+    return Error{std::string("run_simulated: the simulated MCUs did not become ready") + (why[0] ? ": " : "") + why};
+  }
   ready_ns = now_ns;
 
   int line_no = 0;
