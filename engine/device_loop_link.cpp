@@ -66,6 +66,10 @@ device::LoopParams DeviceLoopLink::params_from_config(const config::MachineConfi
     p.deflection_s =
         static_cast<float>(gm->c1_ns_per_m / gm->k1_n_per_m + gm->c2_ns_per_m / gm->k2_n_per_m);
   }
+  // Behind the model inverse the host's steps already lead r by the deflection a better model
+  // expects (the belt's position and direction dependence, the identified friction): the slip
+  // check takes that lead (the host loop's detector does the same, engine/servo_control.cpp).
+  p.deflection_from_host_steps = cfg.feedforward.type == config::FeedforwardType::lpv;
   p.report_every_ticks =
       static_cast<uint32_t>(std::max(1.0, std::round(c.device_rate_hz / 100.0)));  // 100 Hz
   return p;
