@@ -146,7 +146,8 @@ struct ControlConfig {
   double max_correction_mm_s = 50.0;          // clamp of the PI correction (per period: / rate_hz)
   double skipped_step_threshold_mm = 0.3;     // following error that counts as lost steps
   double max_following_error_mm = 2.0;        // beyond this: fault, stop motion
-  double max_encoder_jump_mm = 1.0;           // a sample-to-sample jump beyond this is implausible
+  double max_encoder_jump_mm = 0.05;          // an encoder sample beyond the travel possible since the
+                                              // last good one (2 x max velocity x dt) plus this is implausible
   double command_lead_ms = 4.0;               // closed loop / feedforward: motor commands are computed
                                               // this far ahead of execution (the PI's loop delay)
   ManeuverControlConfig maneuver;             // mode maneuver (drive: dc_servo)

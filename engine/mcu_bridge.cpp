@@ -40,6 +40,7 @@ struct McuBridge::JointPort final : device::MotorPort {
   size_t head = 0, count = 0;
   JointTiming timing;
   int64_t swallow = 0;  // steps still to be lost (inject_lost_steps)
+  int64_t encoder_offset_counts = 0;  // added to every encoder reading (inject_encoder_offset)
   void push(double t_s) {
     if (count == intended_s.size()) return;  // more in flight than tracked: timing not checked
     intended_s[(head + count) % intended_s.size()] = t_s;
@@ -66,7 +67,9 @@ struct McuBridge::JointPort final : device::MotorPort {
     plant->step(t_s, direction);
   }
   void set_enabled(double t_s, bool on) override { plant->set_enabled(t_s, on); }
-  int64_t read_encoder_counts(double t_s) override { return plant->read_encoder_counts(t_s); }
+  int64_t read_encoder_counts(double t_s) override {
+    return plant->read_encoder_counts(t_s) + encoder_offset_counts;
+  }
 };
 
 McuBridge::McuBridge(const config::MachineConfig&, const McuBridgeOptions& options) : options_(options) {
@@ -272,6 +275,13 @@ stepgen::TickMap McuBridge::tick_map(int joint) const {
 void McuBridge::inject_lost_steps(int joint, int64_t steps) {
   if (joint < 0 || joint >= kJoints || !ports_[static_cast<size_t>(joint)]) return;
   ports_[static_cast<size_t>(joint)]->swallow += steps;
+}
+
+void McuBridge::inject_encoder_offset(int joint, double offset_mm) {
+  if (joint < 0 || joint >= kJoints || !ports_[static_cast<size_t>(joint)]) return;
+  const double per_count = encoder_mm_per_count_[static_cast<size_t>(joint)];
+  if (!(per_count > 0.0) || !std::isfinite(offset_mm)) return;
+  ports_[static_cast<size_t>(joint)]->encoder_offset_counts += std::llround(offset_mm / per_count);
 }
 
 double McuBridge::encoder_time_s(int joint) const {

@@ -80,6 +80,10 @@ class SimulatedPrinter final : public SimulatedPlant {
     const sim::GantryAxis* g = gantry(joint);
     return g ? g->lost_full_steps() : 0;
   }
+  int64_t slip_events(int joint) const override {
+    const sim::GantryAxis* g = gantry(joint);
+    return g ? g->slip_events() : 0;
+  }
 
   sim::GantryAxis* gantry(int joint) const {
     return joint < 0 || joint >= kJoints ? nullptr : gantries_[static_cast<size_t>(joint)].get();
