@@ -3,6 +3,7 @@
 #include "drivers/stepgen/step_compressor.hpp"
 
 #include <algorithm>  // std::min, std::max, std::clamp
+#include <cmath>      // std::abs
 #include <cstdlib>    // malloc
 #include <utility>    // std::pair
 
@@ -78,6 +79,22 @@ void StepCompressor::start_run_with_first_point() {
   }
   I_ = I;
   A_ = last_add_;  // the previous run's curvature: often right for the next steps too
+  // With the next steps at hand: the mean-interval line (run_hulls.hpp (1)) through the mean
+  // intervals at half and at all of the last run's length, the run these steps are likely to
+  // end on (a candidate only: the hulls decide).
+  const size_t m = std::min<size_t>(std::clamp<uint32_t>(last_count_, 4, 256), ahead_n_ + 1);
+  if (m >= 4 && lo_i <= hi_i) {
+    const size_t k1 = m / 2, k2 = m;
+    const double m1 = (k1 == 1 ? T_[1] : ahead_[k1 - 2]) - p, m2 = ahead_[k2 - 2] - p;
+    const double c1 = m1 / static_cast<double>(k1), c2 = m2 / static_cast<double>(k2);
+    const double a = 2.0 * (c2 - c1) / static_cast<double>(k2 - k1);
+    if (std::abs(a) < 1e9) {
+      A_ = round_i(a);
+      I_ = std::clamp<int64_t>(
+          round_i(c1 - 0.5 * static_cast<double>(k1 - 1) * static_cast<double>(A_)), lo_i, hi_i);
+      I = I_;
+    }
+  }
   pos_ = P_ + I;
   iv_ = I + A_;
   n_ = 1;
@@ -200,6 +217,7 @@ void StepCompressor::emit() {
   stats_.steps += n_;
   P_ = pos_;
   last_add_ = A_;
+  last_count_ = n_;
   n_ = 0;
 }
 

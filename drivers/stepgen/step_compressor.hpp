@@ -16,7 +16,10 @@
 //    then, if that leaves no integer I, Newton steps on the convex F of run_hulls.hpp to the
 //    nearest adds that do; I continues the newest interval, within the range the hulls give.
 //    Each trial add costs two hull look-ups; no step is looked at again;
-//  - when there is none, the run is emitted and the next one starts from its last step.
+//  - when there is none, the run is emitted and the next one starts from its last step. Its first
+//    candidate, when on_steps() has the next steps at hand, is the line through the mean
+//    intervals at half and at all of the previous run's length (a run about as long as the last
+//    one), clamped to the first step's window; otherwise the previous run's add.
 // Every step enters each hull once and leaves it at most once: O(1) amortised per step. Before a
 // run is handed to the sink it is expanded with the MCU step law and checked against every
 // window (as Klipper's check_line does); a run that fails is counted in check_failures (never
@@ -93,7 +96,10 @@ class StepCompressor final : public StepSink {
     while (i < n) {
       i = extend_run(ticks, directions, i, n);
       if (i < n) {
+        ahead_ = ticks + i + 1;
+        ahead_n_ = n - i - 1;
         push(ticks[i], directions[i]);
+        ahead_n_ = 0;
         ++i;
       }
     }
@@ -181,6 +187,11 @@ class StepCompressor final : public StepSink {
   int64_t I_ = 0, A_ = 0;      // candidate
   int64_t pos_ = 0, iv_ = 0;   // candidate's clock of step n_ and its next interval
   int64_t last_add_ = 0;
+  uint32_t last_count_ = 0;  // steps of the last run
+  // Steps after the one being pushed, when on_steps() has them: a new run's first candidate
+  // aims at where the run will likely end.
+  const double* ahead_ = nullptr;
+  size_t ahead_n_ = 0;
 };
 
 }  // namespace feedloop::stepgen
