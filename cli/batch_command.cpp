@@ -22,10 +22,12 @@ namespace {
 
 void usage() {
   std::fputs(
-      "usage: feedloop batch FILE.gcode [--config CFG.yaml] [--json OUT.json] [--quiet]\n"
+      "usage: feedloop batch FILE.gcode [--config CFG.yaml] [--json OUT.json] [--quiet] [--threads "
+      "1|2]\n"
       "       feedloop batch FILE.gcode [--config CFG.yaml] --export-trace TRACE.csv\n"
       "  Translates FILE through the whole pipeline in virtual time (no hardware) and prints a\n"
-      "  summary. Without --config the embedded simulated Cartesian printer is used.\n"
+      "  summary. Without --config the embedded simulated Cartesian printer is used. --threads 2\n"
+      "  (default) steps half the joints on a second thread; the output is the same with 1.\n"
       "  --export-trace runs FILE on the simulated printer of the config (its mock MCUs, the\n"
       "  control law it configures) and writes every servo period's commanded motor positions and\n"
       "  encoder readings as trace CSV v1 (DESIGN.md), for replay on another simulator or ident.\n",
@@ -175,9 +177,18 @@ int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bo
 int batch_command(const std::vector<std::string>& args) {
   std::string file, config_path, json_path, trace_path;
   bool quiet = false;
+  int threads = 2;
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--config" && i + 1 < args.size()) config_path = args[++i];
-    else if (args[i] == "--json" && i + 1 < args.size()) json_path = args[++i];
+    else if (args[i] == "--threads" && i + 1 < args.size()) {
+      const std::string& v = args[++i];
+      if (v != "1" && v != "2") {
+        std::fprintf(stderr, "feedloop batch: --threads must be 1 or 2, not '%s'\n", v.c_str());
+        return 2;
+      }
+      threads = v == "1" ? 1 : 2;
+    } else if (args[i] == "--json" && i + 1 < args.size())
+      json_path = args[++i];
     else if (args[i] == "--quiet") quiet = true;
     else if (args[i] == "--export-trace" && i + 1 < args.size()) trace_path = args[++i];
     else if (args[i] == "--help") { usage(); return 0; }
@@ -195,6 +206,7 @@ int batch_command(const std::vector<std::string>& args) {
   if (!trace_path.empty()) return export_trace(file, *cfg, trace_path, quiet);
   Progress progress("batch");
   engine::BatchOptions opt;
+  opt.threads = threads;
   if (!quiet) opt.on_progress = [&](double f) { progress.update(f); };
   auto sum = engine::run_batch(file, *cfg, opt);
   if (!quiet) progress.finish();
