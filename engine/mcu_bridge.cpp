@@ -5,6 +5,7 @@
 #include <cmath>      // std::fabs, NAN
 #include <cstdio>     // snprintf
 
+#include "core/clock.hpp"  // ns_from_seconds
 #include "drivers/stepgen/run_codec.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/usb_transport.hpp"
@@ -199,6 +200,9 @@ double McuBridge::sim_time(double host_s) {
   if (!have_epoch_) {
     epoch_s_ = host_s;
     have_epoch_ = true;
+    // Real transports stamp their bytes with CLOCK_MONOTONIC, the real-time host clock
+    // (core/clock.hpp MonotonicClock); the sessions' time line starts at the epoch.
+    for (auto& m : mcus_) m->transport->set_time_base_ns(ns_from_seconds(epoch_s_));
   }
   return host_s - epoch_s_;
 }
@@ -418,7 +422,13 @@ void McuBridge::publish_links(double now_s) {
     l.crc_errors = s.decoder_stats().crc_errors;
     l.bytes_written = s.bytes_written();
     l.in_flight = s.frames_in_flight();
-    const drivers::ClockSync& c = s.clock();
+    const drivers::TransportStats io = m.transport->io_stats();
+    l.tx_queue_full = io.tx_full;
+    l.tx_blocked = io.tx_blocked;
+    l.rx_queue_full = io.rx_queue_full;
+    l.io_errors = io.io_errors;
+    l.clock_fit_async = s.clock_fit_async();
+    const drivers::ClockEstimate& c = s.clock();
     l.clock_samples = c.samples();
     l.rtt_last_us = c.last_rtt_s() * 1e6;
     l.rtt_min_us = c.min_rtt_s() * 1e6;
@@ -534,7 +544,7 @@ void McuBridge::on_batch(const stepgen::StepBatch& b) {
   JointTiming* t = ports_[joint] ? &ports_[joint]->timing : nullptr;
   stepgen::RunDecoder d;
   if (t != nullptr && d.begin(b.body, b.body_bytes)) {
-    const drivers::ClockSync& clock = m.session->clock();
+    const drivers::ClockEstimate& clock = m.session->clock();
     int64_t p = d.first_clock();
     stepgen::StepRun r;
     while (!d.done() && d.next(r)) {

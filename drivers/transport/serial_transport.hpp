@@ -1,36 +1,42 @@
-// Serial transport with Boost.Asio (USB CDC-ACM MCUs appear as /dev/ttyACM*; feedloop-vmcu
-// offers a pseudo-terminal): raw mode (termios cfmakeraw), 8N1, no flow control. Writes block
-// until the frame is handed to the kernel; reads never block (poll() waits with a timeout).
-// Owner: the I/O thread.
+// Serial transport (USB CDC-ACM MCUs appear as /dev/ttyACM*; feedloop-vmcu offers a
+// pseudo-terminal): Boost.Asio opens the port and sets the baud rate, termios raw mode
+// (cfmakeraw), 8N1, no flow control, non-blocking. The bytes move on the transport's I/O thread
+// (queued_transport.hpp): it writes the queued frames (what the kernel does not take waits for
+// POLLOUT; counted as tx_blocked), reads what arrives in chunks stamped with their arrival, and
+// sleeps in ppoll() between. A hang-up or an I/O error takes the link down with the reason.
+// Owner: the caller's side one thread (the servo thread); the port itself the I/O thread.
 #pragma once
 
 #include <memory>
 #include <string>
 
-#include "drivers/transport.hpp"
+#include "drivers/transport/queued_transport.hpp"
 
 namespace feedloop::drivers {
 
-class SerialTransport final : public Transport {
+class SerialTransport final : public QueuedTransport {
  public:
-  explicit SerialTransport(std::string path, unsigned baud = 250000);
+  explicit SerialTransport(std::string path, unsigned baud = 250000, QueuedTransportParams io = serial_io_params());
   ~SerialTransport() override;
-  SerialTransport(const SerialTransport&) = delete;
-  SerialTransport& operator=(const SerialTransport&) = delete;
 
-  Status open() override;
-  void close() override;
-  bool connected() const override;
-  Status write(const uint8_t* data, size_t n) override;
-  Result<size_t> read(uint8_t* buf, size_t cap) override;
-  void poll(double now_s, double max_wait_s) override;
   std::string describe() const override { return "serial " + path_; }
+  static QueuedTransportParams serial_io_params() {
+    QueuedTransportParams p;
+    p.thread_name = "fl-io-serial";
+    return p;
+  }
+
+ protected:
+  Status device_open() override;
+  void device_close() override;
+  void device_io(double max_wait_s) override;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::string path_;
   unsigned baud_;
+  size_t tx_offset_ = 0;  // I/O thread: bytes of the front frame already written
 };
 
 }  // namespace feedloop::drivers

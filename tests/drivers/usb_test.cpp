@@ -118,32 +118,62 @@ class FakeUsb final : public UsbBackend {
   }
   int claim_interface(UsbHandle h, int) override { return handle(h)->dev->claim_error; }
   void close(UsbHandle h, int) override { handle(h)->closed = true; }
-  int bulk_transfer(UsbHandle h, uint8_t ep, uint8_t* data, int len, int* transferred, unsigned) override {
+  // Asynchronous transfers: queued here, completed (done() called) by handle_events() in
+  // submission order, as a host controller completes them: OUT at once (the device reads) unless
+  // out_stalled (a device that stops reading: NAKs forever); IN when the device has sent bytes.
+  int submit(UsbHandle h, UsbTransfer& t) override {
     Handle* hd = handle(h);
-    *transferred = 0;
     if (hd->closed) return LIBUSB_ERROR_INVALID_PARAM;
     FakeDevice& d = *hd->dev;
     if (!d.present || hd->generation != d.generation) {
       ++transfers_after_unplug;
       return LIBUSB_ERROR_NO_DEVICE;
     }
-    if ((ep & 0x80) == 0) {  // OUT: a frame to the MCU
-      d.mcu->receive(data, static_cast<size_t>(len), now);
-      *transferred = len;
-      return 0;
-    }
-    d.mcu->run_until(now);
-    uint8_t frame[protocol::kMaxFrame];
-    size_t n = 0;
-    while (d.mcu->pop_frame(frame, n)) d.in.insert(d.in.end(), frame, frame + n);
-    if (d.in.empty()) return LIBUSB_ERROR_TIMEOUT;
-    const size_t take = std::min(d.in.size(), static_cast<size_t>(len));
-    std::memcpy(data, d.in.data(), take);
-    d.in.erase(d.in.begin(), d.in.begin() + static_cast<std::ptrdiff_t>(take));
-    *transferred = static_cast<int>(take);
+    pending_.push_back({&t, hd, false});
+    ++submitted;
     return 0;
   }
-  void handle_events(double) override {}
+  void cancel(UsbTransfer& t) override {
+    for (Pending& p : pending_)
+      if (p.t == &t) p.cancelled = true;
+  }
+  void handle_events(double) override {
+    std::vector<Pending> list;
+    list.swap(pending_);
+    for (Pending& p : list) {
+      UsbTransfer& t = *p.t;
+      FakeDevice& d = *p.h->dev;
+      if (p.cancelled) {
+        complete(t, UsbTransferStatus::kCancelled, 0);
+      } else if (!d.present || p.h->generation != d.generation) {
+        ++transfers_after_unplug;
+        complete(t, UsbTransferStatus::kNoDevice, 0);
+      } else if ((t.endpoint & 0x80) == 0) {  // OUT: frames to the MCU
+        if (out_stalled) {
+          pending_.push_back(p);
+          continue;
+        }
+        d.mcu->receive(t.buffer, static_cast<size_t>(t.length), now);
+        complete(t, UsbTransferStatus::kCompleted, t.length);
+      } else {  // IN: what the MCU sent
+        d.mcu->run_until(now);
+        uint8_t frame[protocol::kMaxFrame];
+        size_t n = 0;
+        while (d.mcu->pop_frame(frame, n)) d.in.insert(d.in.end(), frame, frame + n);
+        if (d.in.empty()) {
+          pending_.push_back(p);
+          continue;
+        }
+        const size_t take = std::min(d.in.size(), static_cast<size_t>(t.length));
+        std::memcpy(t.buffer, d.in.data(), take);
+        d.in.erase(d.in.begin(), d.in.begin() + static_cast<std::ptrdiff_t>(take));
+        complete(t, UsbTransferStatus::kCompleted, static_cast<int>(take));
+      }
+    }
+  }
+  size_t in_flight() const { return pending_.size(); }
+  bool out_stalled = false;
+  uint64_t submitted = 0;
   std::string error_text(int rc) const override { return std::string(libusb_error_name(rc)); }
 
  private:
@@ -152,6 +182,17 @@ class FakeUsb final : public UsbBackend {
     int generation;
     bool closed;
   };
+  struct Pending {
+    UsbTransfer* t;
+    Handle* h;
+    bool cancelled;
+  };
+  static void complete(UsbTransfer& t, UsbTransferStatus status, int transferred) {
+    t.status = status;
+    t.transferred = transferred;
+    t.done(t);
+  }
+  std::vector<Pending> pending_;
   static Handle* handle(UsbHandle h) { return reinterpret_cast<Handle*>(h); }
   std::vector<FakeDevice*> listed_;
   std::vector<std::unique_ptr<Handle>> handles_;
@@ -163,9 +204,12 @@ FakeDevice other_device(uint16_t vid, uint16_t pid, int address) {
   return d;
 }
 
+// Virtual time: the transport does its I/O in poll() on the test's thread (no I/O thread), so
+// the fake bus and its VirtualMcu run deterministically at the test's `now`.
 UsbParams mcu_params_usb() {
   UsbParams p;  // 1d50:614e
   p.serial = "FL-1";
+  p.io.io_thread = false;
   return p;
 }
 
