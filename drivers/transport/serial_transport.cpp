@@ -99,6 +99,7 @@ void SerialTransport::device_io(double max_wait_s) {
     if (!can_receive) (void)rx_claim();  // counts the full queue
     return;
   }
+  const bool hung_up = (p.revents & (POLLERR | POLLHUP | POLLNVAL)) != 0;
   if (p.revents & POLLIN) {
     while (uint8_t* chunk = rx_claim()) {
       const ssize_t r = ::read(fd, chunk, kRxChunkBytes);
@@ -106,13 +107,14 @@ void SerialTransport::device_io(double max_wait_s) {
         rx_commit(static_cast<size_t>(r), mono_ns());
         continue;
       }
-      if (r == 0 || errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) break;  // drained
+      if (r == 0 && hung_up) break;  // end of file after a hang-up: below
+      if (r == 0 || errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return;  // drained
       link_failed("read from " + path_ + " failed: " + std::strerror(errno));
       return;
     }
-  } else if (p.revents & (POLLERR | POLLHUP | POLLNVAL)) {
-    link_failed("serial port " + path_ + " hung up (device gone)");
   }
+  // A hang-up (the other end closed, the device unplugged) once what it sent has been read.
+  if (hung_up) link_failed("serial port " + path_ + " hung up (device gone)");
 }
 
 }  // namespace feedloop::drivers
