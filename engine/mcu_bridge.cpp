@@ -101,6 +101,9 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
     encoder_mm_per_count_[static_cast<size_t>(j)] = plant_->encoder_mm_per_count(j);
   }
 
+  // The transports' I/O threads run just below the servo thread (SCHED_FIFO when it is): frames
+  // the servo thread queues must not wait for a CPU behind every other process.
+  const int io_priority = cfg.servo.realtime_priority > 1 ? cfg.servo.realtime_priority - 1 : 0;
   int index = 0;
   for (const config::McuConfig& mc : cfg.mcus) {
     auto m = std::make_unique<Mcu>();
@@ -144,12 +147,16 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
       simulated_ = true;
       m->transport = std::move(t);
     } else if (mc.transport == config::TransportType::serial) {
-      m->transport = std::make_unique<drivers::SerialTransport>(mc.serial.device, static_cast<unsigned>(mc.serial.baud));
+      drivers::QueuedTransportParams io = drivers::SerialTransport::serial_io_params();
+      io.rt_priority = io_priority;
+      m->transport =
+          std::make_unique<drivers::SerialTransport>(mc.serial.device, static_cast<unsigned>(mc.serial.baud), io);
     } else {
       drivers::UsbParams up;
       up.vendor_id = static_cast<uint16_t>(mc.usb.vid);
       up.product_id = static_cast<uint16_t>(mc.usb.pid);
       up.serial = mc.usb.serial;
+      up.io.rt_priority = io_priority;
       m->transport = std::make_unique<drivers::UsbTransport>(up);
     }
     drivers::McuSessionParams sp;

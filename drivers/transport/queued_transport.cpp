@@ -1,7 +1,8 @@
 // Transport queues and the I/O thread: see queued_transport.hpp.
 #include "drivers/transport/queued_transport.hpp"
 
-#include <pthread.h>  // pthread_setname_np
+#include <pthread.h>  // pthread_setname_np, pthread_setschedparam
+#include <sched.h>    // SCHED_FIFO
 #include <time.h>     // clock_gettime, nanosleep
 
 #include <algorithm>  // std::min
@@ -82,12 +83,23 @@ void QueuedTransport::io_turn(double max_wait_s) {
 
 void QueuedTransport::io_main() {
   pthread_setname_np(pthread_self(), params_.thread_name);
+  if (params_.rt_priority > 0) {  // refused (no CAP_SYS_NICE / LimitRTPRIO): the default policy
+    sched_param sp{};
+    sp.sched_priority = params_.rt_priority;
+    io_realtime_.store(pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0);
+  }
   uint64_t served = opens_done_.load();
+  int64_t last_turn_ns = mono_ns();
   while (!stop_.load(std::memory_order_acquire)) {
     try {
+      const int64_t turn_ns = mono_ns();
+      if (turn_ns - last_turn_ns > io_max_gap_ns_.load(std::memory_order_relaxed))
+        io_max_gap_ns_.store(turn_ns - last_turn_ns, std::memory_order_relaxed);
+      last_turn_ns = turn_ns;
       if (const int64_t p = pause_ns_.exchange(0); p > 0) {
         sleep_s(static_cast<double>(p) * 1e-9);
         io_pauses_.fetch_add(1, std::memory_order_relaxed);
+        last_turn_ns = mono_ns();
       }
       if (const uint64_t want = open_requests_.load(std::memory_order_acquire); want != served) {
         served = want;
@@ -299,6 +311,8 @@ TransportStats QueuedTransport::io_stats() const {
   s.io_errors = io_errors_.load(std::memory_order_relaxed);
   s.io_turns = io_turns_.load(std::memory_order_relaxed);
   s.io_pauses = io_pauses_.load(std::memory_order_relaxed);
+  s.io_max_gap_us = static_cast<double>(io_max_gap_ns_.load(std::memory_order_relaxed)) * 1e-3;
+  s.io_realtime = io_realtime_.load(std::memory_order_relaxed);
   return s;
 }
 

@@ -45,6 +45,10 @@ struct QueuedTransportParams {
   double io_period_s = 500e-6;   // the I/O thread's longest sleep: a queued frame waits at most this
   double open_wait_s = 5.0;      // the first open() waits this long for the I/O thread's attempt
   bool io_thread = true;         // false: poll() does the I/O on the caller's thread (tests)
+  // SCHED_FIFO priority of the I/O thread (0: the default policy). It must not be starved while a
+  // real-time servo thread fills its queue: the machine gives it the servo's priority - 1. When
+  // the system refuses, the thread runs at the default policy and io_stats().io_realtime is false.
+  int rt_priority = 0;
   const char* thread_name = "fl-io";  // pthread name (at most 15 characters)
 };
 
@@ -158,6 +162,8 @@ class QueuedTransport : public Transport {
   std::atomic<bool> in_task_{false};
   std::atomic<uint64_t> tx_frames_{0}, tx_full_{0}, tx_blocked_{0}, rx_chunks_{0}, rx_bytes_{0}, rx_queue_full_{0},
       io_errors_{0}, io_turns_{0}, io_pauses_{0};
+  std::atomic<int64_t> io_max_gap_ns_{0};
+  std::atomic<bool> io_realtime_{false};
 };
 
 }  // namespace feedloop::drivers

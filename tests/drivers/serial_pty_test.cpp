@@ -52,6 +52,14 @@ struct Collect final : stepgen::BatchSink {
 
 using Clock = MonotonicClock;
 
+// The I/O thread as the machine runs it: SCHED_FIFO below the servo thread (when permitted), so
+// that a busy machine does not starve it while the test's thread queues frames.
+QueuedTransportParams pty_io() {
+  QueuedTransportParams p = SerialTransport::serial_io_params();
+  p.rt_priority = 10;
+  return p;
+}
+
 // Real-time driver of one session over a SerialTransport. The session's time line starts at t0;
 // the transport's arrival and departure stamps are put on it.
 struct PtyHost {
@@ -247,7 +255,7 @@ TEST_P(SerialPtyMotion, EveryStepExactlyOnce) {
   args.insert(args.end(), GetParam().args.begin(), GetParam().args.end());
   const std::string log = temp_path(std::string("feedloop-vmcu-") + GetParam().name + ".log");
   ASSERT_TRUE(vmcu.start(kVmcu, args, log)) << vmcu.error();
-  SerialTransport transport(vmcu.pty());
+  SerialTransport transport(vmcu.pty(), 250000, pty_io());
   McuSessionParams sp;
   sp.name = "pty-x";
   McuSession session(sp, transport);
@@ -262,6 +270,10 @@ TEST_P(SerialPtyMotion, EveryStepExactlyOnce) {
   session.request_status();
   h.pump_until([&] { return session.last_status().has_value(); }, 1.0);
   for (const auto& e : session.take_events()) std::printf("event: %s\n", e.c_str());
+  std::printf("I/O thread (%s): longest gap between turns %.0f us, %llu turns; clock rtt min %.0f us, mean %.0f us\n",
+              transport.io_stats().io_realtime ? "SCHED_FIFO" : "default policy", transport.io_stats().io_max_gap_us,
+              (unsigned long long)transport.io_stats().io_turns,
+              session.clock().min_rtt_s() * 1e6, session.clock().mean_rtt_s() * 1e6);
   vmcu.stop();
   const InjectedFaults inj = read_injected(log);
   std::remove(log.c_str());
@@ -311,7 +323,7 @@ TEST(SerialPty, DeviceRestartIsReportedAndRecovered) {
   const std::string link = temp_path("feedloop-vmcu-link");
   testing::VmcuProcess first;
   ASSERT_TRUE(first.start(kVmcu, {"--name", "pty-x", "--link", link})) << first.error();
-  SerialTransport transport(link);
+  SerialTransport transport(link, 250000, pty_io());
   McuSessionParams sp;
   sp.name = "pty-x";
   McuSession session(sp, transport);
@@ -379,7 +391,7 @@ TEST(SerialPty, DeviceRestartIsReportedAndRecovered) {
 TEST(SerialPty, StalledIoThreadDoesNotDelayTheTimingThread) {
   testing::VmcuProcess vmcu;
   ASSERT_TRUE(vmcu.start(kVmcu, {"--name", "pty-x", "--drift-ppm", "50"})) << vmcu.error();
-  SerialTransport transport(vmcu.pty());
+  SerialTransport transport(vmcu.pty(), 250000, pty_io());
   McuSessionParams sp;
   sp.name = "pty-x";
   McuSession session(sp, transport);
@@ -428,7 +440,7 @@ TEST(SerialPty, StalledIoThreadDoesNotDelayTheTimingThread) {
 TEST(SerialPty, FullSendQueueIsCountedAndLosesNoStep) {
   testing::VmcuProcess vmcu;
   ASSERT_TRUE(vmcu.start(kVmcu, {"--name", "pty-x"})) << vmcu.error();
-  QueuedTransportParams io = SerialTransport::serial_io_params();
+  QueuedTransportParams io = pty_io();
   io.tx_frames = 15;  // a little more than the link's window of 12 frames
   SerialTransport transport(vmcu.pty(), 250000, io);
   McuSessionParams sp;
@@ -463,7 +475,7 @@ TEST(SerialPty, FullSendQueueIsCountedAndLosesNoStep) {
 TEST(SerialPty, VersionMismatchRefused) {
   testing::VmcuProcess vmcu;
   ASSERT_TRUE(vmcu.start(kVmcu, {"--protocol-version", "9"})) << vmcu.error();
-  SerialTransport transport(vmcu.pty());
+  SerialTransport transport(vmcu.pty(), 250000, pty_io());
   McuSession session({}, transport);
   MonotonicClock clock;
   const int64_t t0 = clock.now_ns();
