@@ -68,6 +68,7 @@ Status McuSession::start(double now_s) {
   link_.reset();
   out_head_ = out_count_ = 0;
   query_head_ = query_count_ = 0;
+  io_gap_at_start_ms_ = transport_.io_stats().io_max_gap_us * 1e-3;
   state_ = McuState::kIdentifying;
   error_.reset();
   identify_version_ = p_.protocol_version;
@@ -76,6 +77,14 @@ Status McuSession::start(double now_s) {
                         static_cast<uint8_t>(p_.protocol_version >> 8)};
   enqueue(m, sizeof m);
   return {};
+}
+
+// A stalled I/O thread on this side explains an underrun, a watchdog or a silent link: " (this
+// link's I/O thread did not run for up to N ms)" when it stalled >= 20 ms since start(), else "".
+std::string McuSession::io_stall_note() const {
+  const double gap_ms = transport_.io_stats().io_max_gap_us * 1e-3;
+  if (gap_ms <= io_gap_at_start_ms_ || gap_ms < 20.0) return {};
+  return " (this link's I/O thread did not run for up to " + std::to_string(static_cast<int>(gap_ms)) + " ms)";
 }
 
 void McuSession::fail(std::string message) {
@@ -243,7 +252,10 @@ void McuSession::poll(double now_s) {
   if (p_.link_stall_s > 0 && link_.in_flight() > 0 && ns(now_s) - link_.last_progress_ns() > ns(p_.link_stall_s)) {
     const std::string silent = std::to_string(static_cast<int>(p_.link_stall_s * 1000.0)) + " ms with " +
                                std::to_string(link_.in_flight()) + " frame(s) in flight";
-    if (now_s - last_refused_s_ < p_.link_stall_s)
+    if (const std::string note = io_stall_note(); !note.empty())
+      fail("MCU '" + p_.name + "' (" + transport_.describe() + ") acknowledged nothing for " + silent + note +
+           "; motion stopped");
+    else if (now_s - last_refused_s_ < p_.link_stall_s)
       fail("MCU '" + p_.name + "' (" + transport_.describe() + ") acknowledged nothing for " + silent +
            " while the transport's send queue refused frames (" + std::to_string(frames_refused_) +
            " so far): its I/O thread is stalled or the device does not read; motion stopped");
@@ -462,7 +474,7 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
                  code == McuError::kEmergencyStop || code == McuError::kBatchOverlap ||
                  code == McuError::kQueueOverflow || code == McuError::kFollowingError ||
                  code == McuError::kEncoderFault || code == McuError::kTargetUnderrun) {
-        fail(msg + "; the MCU stopped its motor");
+        fail(msg + io_stall_note() + "; the MCU stopped its motor");
       } else {
         events_.push_back(std::move(msg));
       }

@@ -146,6 +146,7 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   void enqueue(const uint8_t* msg, size_t n, bool front = false);
   void send_clock_query();
   void fail(std::string message);
+  std::string io_stall_note() const;
   void mark_disconnected(const std::string& why);
   int64_t ns(double s) const { return static_cast<int64_t>(s * 1e9); }
 
@@ -195,6 +196,7 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   DeviceStatus status_scratch_;
   uint64_t bytes_written_ = 0, frames_written_ = 0, frames_refused_ = 0;
   double last_refused_s_ = -1e300;
+  double io_gap_at_start_ms_ = 0.0;  // the transport's longest I/O thread gap when start() ran
 };
 
 }  // namespace feedloop::drivers

@@ -98,8 +98,7 @@ void QueuedTransport::io_main() {
       last_turn_ns = turn_ns;
       if (const int64_t p = pause_ns_.exchange(0); p > 0) {
         sleep_s(static_cast<double>(p) * 1e-9);
-        io_pauses_.fetch_add(1, std::memory_order_relaxed);
-        last_turn_ns = mono_ns();
+        io_pauses_.fetch_add(1, std::memory_order_relaxed);  // counted as a gap, like any stall
       }
       if (const uint64_t want = open_requests_.load(std::memory_order_acquire); want != served) {
         served = want;
@@ -294,6 +293,15 @@ bool QueuedTransport::run_on_io_thread(IoTask* task) {
     while (in_task_.load()) sleep_s(50e-6);
   }
   return true;
+}
+
+double QueuedTransport::io_thread_cpu_s() {
+  if (!thread_.joinable()) return 0.0;
+  clockid_t cid{};
+  if (pthread_getcpuclockid(thread_.native_handle(), &cid) != 0) return 0.0;
+  timespec ts{};
+  if (clock_gettime(cid, &ts) != 0) return 0.0;
+  return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;
 }
 
 void QueuedTransport::pause_io(double seconds) {

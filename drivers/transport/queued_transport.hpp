@@ -82,6 +82,8 @@ class QueuedTransport : public Transport {
   // lateness injection). No effect without an I/O thread.
   void pause_io(double seconds);
   bool has_io_thread() const { return params_.io_thread; }
+  // CPU time the I/O thread has used (s; 0 without one). A syscall: for tests and benchmarks.
+  double io_thread_cpu_s();
 
  protected:
   explicit QueuedTransport(const QueuedTransportParams& params);

@@ -400,7 +400,9 @@ TEST(SerialPty, StalledIoThreadDoesNotDelayTheTimingThread) {
   ASSERT_TRUE(session.start(h.now()).ok()) << session.error()->message;
   ASSERT_TRUE(h.pump_until([&] { return session.ready(); }, 2.0));
   h.pump(h.now() + 0.6);
+  const double cpu0 = transport.io_thread_cpu_s(), t_stream0 = h.now();
   const TimedStream r = stream_1khz(h, 12, 5, 0.5, 0.05);
+  const double io_cpu_s = transport.io_thread_cpu_s() - cpu0, stream_s = h.now() - t_stream0;
   session.request_status();
   h.pump_until([&] { return session.last_status().has_value() && session.last_status()->steps_executed == r.sent.steps; },
                1.0);
@@ -414,6 +416,10 @@ TEST(SerialPty, StalledIoThreadDoesNotDelayTheTimingThread) {
               (unsigned long long)r.outside.cycles, r.outside.max_work_us, r.outside.max_late_us, r.outside.blocked,
               (unsigned long long)io.tx_full, (unsigned long long)session.link_stats().retransmitted,
               session.clock().min_rtt_s() * 1e6, session.clock().mean_rtt_s() * 1e6, session.clock().samples());
+  std::printf("I/O thread while streaming: %.1f ms of CPU in %.2f s (%.2f %% of a core), %llu frames sent, %llu "
+              "chunks received\n",
+              io_cpu_s * 1e3, stream_s, io_cpu_s * 100.0 / stream_s, (unsigned long long)io.tx_frames,
+              (unsigned long long)io.rx_chunks);
   vmcu.stop();
   EXPECT_EQ(io.io_pauses, 1u);
   // It kept cycling through the pause (periods lost to the machine's load are not caught up).
@@ -470,6 +476,32 @@ TEST(SerialPty, FullSendQueueIsCountedAndLosesNoStep) {
   EXPECT_EQ(session.last_status()->steps_executed, r.sent.steps);
   EXPECT_EQ(session.last_status()->step_hash, r.sent.hash);
   EXPECT_EQ(session.state(), McuState::kReady);
+}
+
+// A stall of the I/O thread longer than the MCU's watchdog (0.5 s) and the steps' lead: the MCU
+// stops its motor (watchdog or underrun), and the session's failure (the MCU's report, or the link
+// silent for 1 s) names the stalled I/O thread.
+TEST(SerialPty, IoThreadStalledBeyondTheLeadIsNamed) {
+  testing::VmcuProcess vmcu;
+  ASSERT_TRUE(vmcu.start(kVmcu, {"--name", "pty-x"})) << vmcu.error();
+  SerialTransport transport(vmcu.pty(), 250000, pty_io());
+  McuSessionParams sp;
+  sp.name = "pty-x";
+  McuSession session(sp, transport);
+  PtyHost h{transport, session};
+  ASSERT_TRUE(session.start(h.now()).ok()) << session.error()->message;
+  ASSERT_TRUE(h.pump_until([&] { return session.ready(); }, 2.0));
+  h.pump(h.now() + 0.6);
+  const TimedStream r = stream_1khz(h, 12, 5, 0.3, 0.7);
+  h.pump_until([&] { return session.state() == McuState::kFailed; }, 1.0);
+  for (const auto& e : session.take_events()) std::printf("event: %s\n", e.c_str());
+  vmcu.stop();
+  ASSERT_EQ(session.state(), McuState::kFailed);
+  const std::string msg = session.error()->message;
+  std::printf("I/O thread paused 700 ms: %s\n", msg.c_str());
+  EXPECT_NE(msg.find("MCU 'pty-x'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("I/O thread did not run for up to"), std::string::npos) << msg;
+  EXPECT_EQ(r.during.blocked, 0);
 }
 
 TEST(SerialPty, VersionMismatchRefused) {

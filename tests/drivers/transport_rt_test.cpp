@@ -141,6 +141,25 @@ TEST(SerialRealTime, FullPtyGivesBackPressureWithoutBlockingOrAllocating) {
   EXPECT_NE(st.error().message.find("serial " + pty.slave), std::string::npos) << st.error().message;
 }
 
+// What an I/O thread costs while the link is idle: it wakes every io_period_s (500 us) to look at
+// its send queue, so the timing thread never has to wake it (no syscall on the timing side).
+TEST(SerialRealTime, IdleIoThreadCost) {
+  DeafPty pty;
+  ASSERT_FALSE(pty.slave.empty()) << "no pseudo-terminal here";
+  SerialTransport t(pty.slave);
+  ASSERT_TRUE(t.open().ok()) << t.error_text();
+  const double cpu0 = t.io_thread_cpu_s();
+  const uint64_t turns0 = t.io_stats().io_turns;
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  const double cpu_s = t.io_thread_cpu_s() - cpu0;
+  const uint64_t turns = t.io_stats().io_turns - turns0;
+  std::printf("idle I/O thread over 1 s: %llu turns, %.2f ms of CPU (%.2f %% of a core, %.1f us per turn)\n",
+              (unsigned long long)turns, cpu_s * 1e3, cpu_s * 100.0, turns > 0 ? cpu_s * 1e6 / static_cast<double>(turns) : 0.0);
+  EXPECT_GT(turns, 100u);    // it does turn (at most 2000/s; fewer when the machine is busy)
+  EXPECT_LE(turns, 2100u);   // and sleeps between turns
+  EXPECT_LT(cpu_s, 0.05);    // under 5 % of a core
+}
+
 // The device hangs up: the I/O thread takes the link down with the reason; the caller's side sees
 // kDown and an error naming the port, without blocking.
 TEST(SerialRealTime, HangUpIsReportedOnTheCallersSide) {
