@@ -270,6 +270,7 @@ TEST_P(SerialPtyMotion, EveryStepExactlyOnce) {
   session.request_status();
   h.pump_until([&] { return session.last_status().has_value(); }, 1.0);
   for (const auto& e : session.take_events()) std::printf("event: %s\n", e.c_str());
+  std::printf("clock rate %+.2f ppm (device: +50)\n", (session.clock().freq_hz() / session.mcu_clock_hz() - 1.0) * 1e6);
   std::printf("I/O thread (%s): longest gap between turns %.0f us, %llu turns; clock rtt min %.0f us, mean %.0f us\n",
               transport.io_stats().io_realtime ? "SCHED_FIFO" : "default policy", transport.io_stats().io_max_gap_us,
               (unsigned long long)transport.io_stats().io_turns,
