@@ -46,7 +46,7 @@ struct TransportStats {
   uint64_t rx_queue_full = 0;   // I/O thread: the receive queue was full, reading paused (nothing lost)
   uint64_t io_errors = 0;       // the link went down (read/write/transfer errors, hang-ups)
   uint64_t io_turns = 0;        // I/O thread loop iterations
-  uint64_t io_pauses = 0;       // pause_io() requests served (tests, lateness injection)
+  uint64_t io_pauses = 0;       // pause_io() requests (tests, lateness injection)
   double io_max_gap_us = 0.0;   // the longest time between two I/O thread turns (a stall; pauses too)
   bool io_realtime = false;     // the I/O thread runs with the SCHED_FIFO priority it asked for
 };

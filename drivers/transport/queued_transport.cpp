@@ -12,15 +12,13 @@
 
 namespace feedloop::drivers {
 
-namespace {
-void sleep_s(double s) {
+void QueuedTransport::sleep_s(double s) {
   if (s <= 0.0) return;
   const auto ns = static_cast<long long>(s * 1e9);
   timespec ts{static_cast<time_t>(ns / 1'000'000'000), static_cast<long>(ns % 1'000'000'000)};
   while (::nanosleep(&ts, &ts) != 0) {
   }
 }
-}  // namespace
 
 QueuedTransport::QueuedTransport(const QueuedTransportParams& params)
     : params_(params), tx_(params.tx_frames), rx_(params.rx_chunks) {}
@@ -50,10 +48,23 @@ std::string QueuedTransport::error_text() const {
 }
 
 void QueuedTransport::link_failed(const std::string& why) {
-  if (!up_.load(std::memory_order_relaxed)) return;
+  if (!up_.load(std::memory_order_acquire) || failing_.exchange(true)) return;  // one reason, once
   set_error(why);
   io_errors_.fetch_add(1, std::memory_order_relaxed);
   up_.store(false, std::memory_order_release);
+}
+
+void QueuedTransport::begin_turn(int64_t& last_turn_ns) {
+  const int64_t until = pause_until_ns_.load(std::memory_order_acquire);
+  if (until > 0) {
+    const int64_t left = until - mono_ns();
+    if (left > 0) sleep_s(static_cast<double>(left) * 1e-9);  // counted as a gap, like any stall
+  }
+  const int64_t now = mono_ns();
+  int64_t gap = now - last_turn_ns, seen = io_max_gap_ns_.load(std::memory_order_relaxed);
+  while (gap > seen && !io_max_gap_ns_.compare_exchange_weak(seen, gap, std::memory_order_relaxed)) {
+  }
+  last_turn_ns = now;
 }
 
 // ---- Device side ----------------------------------------------------------------------------
@@ -67,6 +78,7 @@ void QueuedTransport::try_device_open() {
   if (s.ok()) {
     device_is_open_ = true;
     error_.store(ErrorText{});
+    failing_.store(false);
     up_.store(true, std::memory_order_release);
   } else {
     set_error(s.error().message);
@@ -92,14 +104,7 @@ void QueuedTransport::io_main() {
   int64_t last_turn_ns = mono_ns();
   while (!stop_.load(std::memory_order_acquire)) {
     try {
-      const int64_t turn_ns = mono_ns();
-      if (turn_ns - last_turn_ns > io_max_gap_ns_.load(std::memory_order_relaxed))
-        io_max_gap_ns_.store(turn_ns - last_turn_ns, std::memory_order_relaxed);
-      last_turn_ns = turn_ns;
-      if (const int64_t p = pause_ns_.exchange(0); p > 0) {
-        sleep_s(static_cast<double>(p) * 1e-9);
-        io_pauses_.fetch_add(1, std::memory_order_relaxed);  // counted as a gap, like any stall
-      }
+      begin_turn(last_turn_ns);
       if (const uint64_t want = open_requests_.load(std::memory_order_acquire); want != served) {
         served = want;
         if (!up_.load(std::memory_order_acquire)) try_device_open();
@@ -305,7 +310,9 @@ double QueuedTransport::io_thread_cpu_s() {
 }
 
 void QueuedTransport::pause_io(double seconds) {
-  if (seconds > 0.0) pause_ns_.store(static_cast<int64_t>(seconds * 1e9), std::memory_order_release);
+  if (!(seconds > 0.0) || !params_.io_thread) return;
+  pause_until_ns_.store(mono_ns() + static_cast<int64_t>(seconds * 1e9), std::memory_order_release);
+  io_pauses_.fetch_add(1, std::memory_order_relaxed);
 }
 
 TransportStats QueuedTransport::io_stats() const {

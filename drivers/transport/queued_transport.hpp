@@ -78,8 +78,8 @@ class QueuedTransport : public Transport {
   bool run_on_io_thread(IoTask* task) final;
   TransportStats io_stats() const final;
 
-  // The I/O thread sleeps `seconds` at the start of its next turn (a stalled I/O thread: tests,
-  // lateness injection). No effect without an I/O thread.
+  // The I/O side (every device-side thread) stops for `seconds` from its next turn (a stalled I/O
+  // thread: tests, lateness injection). No effect without an I/O thread.
   void pause_io(double seconds);
   bool has_io_thread() const { return params_.io_thread; }
   // CPU time the I/O thread has used (s; 0 without one). A syscall: for tests and benchmarks.
@@ -115,9 +115,16 @@ class QueuedTransport : public Transport {
   void rx_commit(size_t n, int64_t mono_ns);
   bool rx_full() const { return rx_.size() >= rx_.capacity(); }
   void note_tx_blocked() { tx_blocked_.fetch_add(1, std::memory_order_relaxed); }
-  // The link is lost: connected() turns false, error_text() is `why`. Allocates (rare).
+  // The link is lost: connected() turns false, error_text() is `why` (the first reason when two
+  // device-side threads fail at once). Allocates (rare).
   void link_failed(const std::string& why);
   static int64_t mono_ns();
+  static void sleep_s(double s);
+  // For a device-side thread of a derived class (serial's writer): the turn bookkeeping the I/O
+  // thread does, i.e. sleeps out a pause_io() and records the gap since `last_turn_ns`.
+  void begin_turn(int64_t& last_turn_ns);
+  bool stopping() const { return stop_.load(std::memory_order_acquire); }
+  const QueuedTransportParams& io_params() const { return params_; }
 
  private:
   struct RxChunk {
@@ -159,7 +166,8 @@ class QueuedTransport : public Transport {
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<uint64_t> open_requests_{0}, opens_done_{0};
-  std::atomic<int64_t> pause_ns_{0};
+  std::atomic<int64_t> pause_until_ns_{0};
+  std::atomic<bool> failing_{false};  // a device-side thread is taking the link down
   std::atomic<IoTask*> task_{nullptr};
   std::atomic<bool> in_task_{false};
   std::atomic<uint64_t> tx_frames_{0}, tx_full_{0}, tx_blocked_{0}, rx_chunks_{0}, rx_bytes_{0}, rx_queue_full_{0},

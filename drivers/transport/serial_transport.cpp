@@ -3,6 +3,8 @@
 
 #include <fcntl.h>    // fcntl, O_NONBLOCK
 #include <poll.h>     // ppoll
+#include <pthread.h>  // pthread_setname_np, pthread_setschedparam
+#include <sched.h>    // SCHED_FIFO
 #include <termios.h>  // cfmakeraw, tcsetattr
 #include <unistd.h>   // read, write
 
@@ -56,19 +58,39 @@ Status SerialTransport::device_open() {
     return Error{"cannot make serial port " + path_ + " non-blocking: " + why, {}};
   }
   tx_offset_ = 0;
+  fd_ = fd;
+  if (has_io_thread()) {  // the writer (its start is part of opening: may allocate)
+    writer_stop_.store(false);
+    writer_ = std::thread([this] { writer_main(); });
+  }
   return {};
 }
 
 void SerialTransport::device_close() {
+  writer_stop_.store(true, std::memory_order_release);
+  if (writer_.joinable()) writer_.join();
   boost::system::error_code ec;
   if (impl_->port.is_open()) impl_->port.close(ec);
+  fd_ = -1;
   tx_offset_ = 0;
 }
 
-void SerialTransport::device_io(double max_wait_s) {
-  const int fd = impl_->port.native_handle();
-  // Send: every queued frame the kernel takes now.
-  bool tx_waiting = false;
+void SerialTransport::writer_main() {
+  pthread_setname_np(pthread_self(), "fl-io-ser-tx");
+  if (io_params().rt_priority > 0) {
+    sched_param sp{};
+    sp.sched_priority = io_params().rt_priority;
+    pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);  // refused: the default policy
+  }
+  int64_t last_turn_ns = mono_ns();
+  while (!writer_stop_.load(std::memory_order_acquire)) {
+    begin_turn(last_turn_ns);
+    if (connected() && write_queued(fd_) == TxState::kFailed) continue;  // the I/O thread closes
+    sleep_s(io_params().io_period_s);
+  }
+}
+
+SerialTransport::TxState SerialTransport::write_queued(int fd) {
   while (const TxFrame* f = tx_front()) {
     if (tx_offset_ == 0) tx_departs(f->ticket);
     const ssize_t w = ::write(fd, f->bytes + tx_offset_, f->n - tx_offset_);
@@ -83,16 +105,19 @@ void SerialTransport::device_io(double max_wait_s) {
     if (w < 0 && errno == EINTR) continue;
     if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {  // the device does not keep up
       note_tx_blocked();
-      tx_waiting = true;
-      break;
+      return TxState::kBlocked;
     }
     link_failed("write to " + path_ + " failed: " + std::strerror(errno));
-    return;
+    return TxState::kFailed;
   }
-  // Wait for input (or room for output), at most max_wait_s; a full receive queue stops reading
-  // (the bytes wait in the kernel) until the caller has taken some.
+  return TxState::kIdle;
+}
+
+// Waits up to max_wait_s for input and reads it; a full receive queue stops reading (the bytes
+// wait in the kernel) until the caller has taken some.
+void SerialTransport::receive(int fd, double max_wait_s) {
   const bool can_receive = !rx_full();
-  pollfd p{fd, static_cast<short>((can_receive ? POLLIN : 0) | (tx_waiting ? POLLOUT : 0)), 0};
+  pollfd p{fd, static_cast<short>(can_receive ? POLLIN : 0), 0};
   const auto ns = static_cast<long>(max_wait_s * 1e9);
   timespec ts{ns / 1'000'000'000, ns % 1'000'000'000};
   if (::ppoll(&p, 1, &ts, nullptr) <= 0) {
@@ -115,6 +140,11 @@ void SerialTransport::device_io(double max_wait_s) {
   }
   // A hang-up (the other end closed, the device unplugged) once what it sent has been read.
   if (hung_up) link_failed("serial port " + path_ + " hung up (device gone)");
+}
+
+void SerialTransport::device_io(double max_wait_s) {
+  if (!has_io_thread() && write_queued(fd_) == TxState::kFailed) return;  // else: the writer's job
+  receive(fd_, max_wait_s);
 }
 
 }  // namespace feedloop::drivers
