@@ -300,10 +300,12 @@ bool QueuedTransport::run_on_io_thread(IoTask* task) {
   return true;
 }
 
-double QueuedTransport::io_thread_cpu_s() {
-  if (!thread_.joinable()) return 0.0;
+double QueuedTransport::io_thread_cpu_s() { return thread_cpu_s(thread_); }
+
+double QueuedTransport::thread_cpu_s(std::thread& t) {
+  if (!t.joinable()) return 0.0;
   clockid_t cid{};
-  if (pthread_getcpuclockid(thread_.native_handle(), &cid) != 0) return 0.0;
+  if (pthread_getcpuclockid(t.native_handle(), &cid) != 0) return 0.0;
   timespec ts{};
   if (clock_gettime(cid, &ts) != 0) return 0.0;
   return static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec) * 1e-9;

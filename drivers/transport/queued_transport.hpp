@@ -82,8 +82,9 @@ class QueuedTransport : public Transport {
   // thread: tests, lateness injection). No effect without an I/O thread.
   void pause_io(double seconds);
   bool has_io_thread() const { return params_.io_thread; }
-  // CPU time the I/O thread has used (s; 0 without one). A syscall: for tests and benchmarks.
-  double io_thread_cpu_s();
+  // CPU time the device-side threads have used (s; 0 without them). Syscalls: for tests and
+  // benchmarks.
+  virtual double io_thread_cpu_s();
 
  protected:
   explicit QueuedTransport(const QueuedTransportParams& params);
@@ -120,6 +121,7 @@ class QueuedTransport : public Transport {
   void link_failed(const std::string& why);
   static int64_t mono_ns();
   static void sleep_s(double s);
+  static double thread_cpu_s(std::thread& t);
   // For a device-side thread of a derived class (serial's writer): the turn bookkeeping the I/O
   // thread does, i.e. sleeps out a pause_io() and records the gap since `last_turn_ns`.
   void begin_turn(int64_t& last_turn_ns);

@@ -10,6 +10,7 @@
 
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/serial_port.hpp>
+#include <algorithm>  // std::max
 #include <cerrno>
 #include <cstring>  // strerror
 
@@ -143,7 +144,13 @@ void SerialTransport::receive(int fd, double max_wait_s) {
 }
 
 void SerialTransport::device_io(double max_wait_s) {
-  if (!has_io_thread() && write_queued(fd_) == TxState::kFailed) return;  // else: the writer's job
+  if (has_io_thread()) {
+    // The writer sends; input wakes this thread at once, so it need not turn every 0.5 ms: 5 ms
+    // bounds how late it serves the clock fit, a pause or a stop (and halves the idle cost).
+    receive(fd_, std::max(max_wait_s, 5e-3));
+    return;
+  }
+  if (write_queued(fd_) == TxState::kFailed) return;
   receive(fd_, max_wait_s);
 }
 

@@ -27,6 +27,7 @@ class SerialTransport final : public QueuedTransport {
   ~SerialTransport() override;
 
   std::string describe() const override { return "serial " + path_; }
+  double io_thread_cpu_s() override { return QueuedTransport::io_thread_cpu_s() + thread_cpu_s(writer_); }
   static QueuedTransportParams serial_io_params() {
     QueuedTransportParams p;
     p.thread_name = "fl-io-serial";
