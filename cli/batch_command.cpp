@@ -2,11 +2,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <fstream>
 #include <string>
 #include <vector>
-#include <fstream>
 
 #include "cli/progress.hpp"
 #include "config/config.hpp"
@@ -111,7 +113,20 @@ int export_trace(const std::string& file, const config::MachineConfig& cfg, cons
 
 // A DC-servo machine (drive: dc_servo): the G-code through engine::Machine with the maneuvering
 // executor in virtual time, and the path-following figures.
-int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bool quiet) {
+// Writes `j` to `path`; false (with a message) when the file cannot be written.
+bool write_json_file(const std::string& path, const nlohmann::json& j) {
+  std::ofstream out(path);
+  out << j.dump(2) << "\n";
+  out.flush();
+  if (!out) {
+    std::fprintf(stderr, "feedloop batch: cannot write %s: %s\n", path.c_str(), std::strerror(errno));
+    return false;
+  }
+  return true;
+}
+
+int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bool quiet,
+                   const std::string& json_path) {
   std::vector<std::string> lines;
   if (!read_lines(file, lines)) return 1;
   auto r = engine::run_maneuver_virtual(cfg, lines, 1e7);
@@ -132,6 +147,25 @@ int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bo
     std::printf("  max error         %.2f um, max voltage %.1f V\n", r->max_error_mm * 1e3, r->max_voltage_v);
     std::printf("  end position      X %.3f Y %.3f Z %.3f mm%s\n", r->end_mm[0], r->end_mm[1], r->end_mm[2],
                 r->faulted ? " (stopped on a tracking fault)" : "");
+  }
+  if (!json_path.empty()) {
+    const nlohmann::json j{{"file", file},
+                           {"drive", "dc_servo"},
+                           {"commands", r->commands},
+                           {"rejected", r->rejected},
+                           {"first_error", r->first_error},
+                           {"moves", r->moves},
+                           {"segments_entered", r->segments_entered},
+                           {"machine_time_s", r->virtual_s},
+                           {"path_time_s", r->path_time_s},
+                           {"path_mm", r->path_mm},
+                           {"max_cross_track_mm", r->max_cross_track_mm},
+                           {"iae_cross_track_mm_s", r->iae_cross_track_mm_s},
+                           {"max_error_mm", r->max_error_mm},
+                           {"max_voltage_v", r->max_voltage_v},
+                           {"end_mm", {r->end_mm[0], r->end_mm[1], r->end_mm[2]}},
+                           {"faulted", r->faulted}};
+    if (!write_json_file(json_path, j)) return 1;
   }
   return r->faulted ? 1 : 0;
 }
@@ -157,7 +191,7 @@ int batch_command(const std::vector<std::string>& args) {
     std::fprintf(stderr, "feedloop batch: invalid config:\n%s\n", cfg.error().to_string().c_str());
     return 1;
   }
-  if (cfg->drive == config::Drive::dc_servo) return maneuver_batch(file, *cfg, quiet);
+  if (cfg->drive == config::Drive::dc_servo) return maneuver_batch(file, *cfg, quiet, json_path);
   if (!trace_path.empty()) return export_trace(file, *cfg, trace_path, quiet);
   Progress progress("batch");
   engine::BatchOptions opt;
@@ -204,7 +238,7 @@ int batch_command(const std::vector<std::string>& args) {
       j["joints"][s.joint_names[static_cast<size_t>(k)]] = {{"steps", js.steps}, {"runs", js.runs},
           {"batches", js.batches}, {"max_step_rate_hz", js.max_step_rate_hz}};
     }
-    std::ofstream(json_path) << j.dump(2) << "\n";
+    if (!write_json_file(json_path, j)) return 1;
   }
   return s.check_failures == 0 ? 0 : 1;
 }

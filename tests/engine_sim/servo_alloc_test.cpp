@@ -21,7 +21,7 @@ struct CountingSink final : stepgen::BatchSink {
   void on_batch(const stepgen::StepBatch& b) override { steps += b.steps; }
 };
 
-constexpr const char* kLongMove = "G90\nG1 X200 Y150 F6000\n";
+[[maybe_unused]] constexpr const char* kLongMove = "G90\nG1 X200 Y150 F6000\n";
 
 TEST(ServoAlloc, ExecutorAndPipelineAllocateNothingBridgeIsMeasured) {
 #ifndef FEEDLOOP_COUNT_MALLOC
