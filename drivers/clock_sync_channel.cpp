@@ -11,17 +11,32 @@ void ClockSyncChannel::configure(const ClockSyncParams& p) {
     return;
   }
   est_ = ClockSync::nominal(p);  // until the I/O thread's first fit
+  reset_params_ = p;
+  reset_pending_ = true;
+  push_reset();
+}
+
+// The reset must reach the I/O thread before any sample of its generation (a full queue: the
+// I/O thread has not run for seconds; retried with the next sample or refresh).
+bool ClockSyncChannel::push_reset() {
+  if (!reset_pending_) return true;
   Item it;
   it.reset = true;
   it.generation = generation_;
-  it.params = p;
-  if (!pending_.try_push(it)) ++dropped_;  // cannot happen unless the I/O thread is gone
+  it.params = reset_params_;
+  if (!pending_.try_push(it)) return false;
+  reset_pending_ = false;
+  return true;
 }
 
 void ClockSyncChannel::add_sample(double send_s, double recv_s, int64_t mcu_clock) {
   if (!async_) {
     sync_.add_sample(send_s, recv_s, mcu_clock);
     est_ = sync_.estimate();
+    return;
+  }
+  if (!push_reset()) {
+    ++dropped_;
     return;
   }
   Item it;
@@ -34,6 +49,7 @@ void ClockSyncChannel::add_sample(double send_s, double recv_s, int64_t mcu_cloc
 
 void ClockSyncChannel::refresh() {
   if (!async_) return;
+  push_reset();
   const Published p = published_.load();
   if (p.generation == generation_ && p.estimate.samples() > 0) est_ = p.estimate;
 }

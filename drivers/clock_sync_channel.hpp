@@ -3,7 +3,7 @@
 // each clock query's sample in and reads the latest ClockEstimate; the fit (ClockSync, tens of
 // microseconds per sample) runs on the transport's I/O thread when the transport has one:
 //
-//   servo thread: add_sample() --SPSC (64)--> I/O thread: on_io_thread(): ClockSync::add_sample (fit)
+//   servo thread: add_sample() --SPSC (63)--> I/O thread: on_io_thread(): ClockSync::add_sample (fit)
 //   servo thread: refresh(), estimate() <--Seqlock<ClockEstimate>--
 //
 // Without an I/O thread (the mock transport, virtual time) the fit runs inline in add_sample():
@@ -24,7 +24,7 @@ namespace feedloop::drivers {
 
 class ClockSyncChannel final : public IoTask {
  public:
-  static constexpr size_t kPending = 64;  // samples waiting for the I/O thread (6 s at 10/s)
+  static constexpr size_t kPending = 63;  // samples waiting for the I/O thread (6 s at 10/s)
 
   ClockSyncChannel() : pending_(kPending) {}
   // true: the fit runs on_io_thread() (the transport took this task); false: inline.
@@ -55,8 +55,12 @@ class ClockSyncChannel final : public IoTask {
     uint32_t generation = 0;
     ClockEstimate estimate;
   };
+  bool push_reset();
+
   bool async_ = false;
   uint32_t generation_ = 0;  // session's thread
+  bool reset_pending_ = false;
+  ClockSyncParams reset_params_;
   ClockEstimate est_;
   uint64_t dropped_ = 0;
   SpscQueue<Item> pending_;

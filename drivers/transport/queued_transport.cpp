@@ -283,8 +283,9 @@ void QueuedTransport::poll(double /*now_s*/, double max_wait_s) {
     return;
   }
   // Nothing to do here: the I/O thread moves the bytes. Test loops may wait for input.
+  if (!(max_wait_s > 0.0)) return;
   const int64_t end = mono_ns() + static_cast<int64_t>(max_wait_s * 1e9);
-  while (max_wait_s > 0.0 && rx_.front() == nullptr && up_.load(std::memory_order_acquire)) {
+  while (rx_.front() == nullptr && up_.load(std::memory_order_acquire)) {
     const int64_t left = end - mono_ns();
     if (left <= 0) break;
     sleep_s(std::min(100e-6, static_cast<double>(left) * 1e-9));
