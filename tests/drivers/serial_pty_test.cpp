@@ -28,6 +28,7 @@
 #include "drivers/stepgen/step_generator.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "segment_streams.hpp"
+#include "tests/common/malloc_counter.hpp"
 #include "vmcu_process.hpp"
 
 namespace feedloop::drivers {
@@ -131,6 +132,7 @@ struct CycleStats {
   double max_work_us = 0.0;  // the cycle's work: step generation and the session's poll
   double max_late_us = 0.0;  // its wake-up after the deadline
   long blocked = 0;          // voluntary context switches inside the work: a call that blocked
+  long mallocs = -1;         // allocations (any thread) while the session polled; -1: not counted
   void add(double work_us, double late_us, long vcsw) {
     ++cycles;
     max_work_us = std::max(max_work_us, work_us);
@@ -219,10 +221,22 @@ TimedStream stream_1khz(PtyHost& h, int moves, uint64_t seed, double pause_at_s,
       comp.flush();
       batcher.flush();
     }
+#ifdef FEEDLOOP_COUNT_MALLOC
+    const long m0 = g_mallocs.load();
+    g_counting.store(true);
+#endif
     h.session.poll(now);
+#ifdef FEEDLOOP_COUNT_MALLOC
+    g_counting.store(false);
+    const long polled_mallocs = g_mallocs.load() - m0;
+#else
+    const long polled_mallocs = -1;
+#endif
     const double work_us = static_cast<double>(h.clock.now_ns() - w0) * 1e-3;
     const long vcsw = voluntary_switches() - vcsw0;
-    (paused && now < pause_end_s ? out.during : out.outside).add(work_us, late_us, vcsw);
+    CycleStats& c = paused && now < pause_end_s ? out.during : out.outside;
+    c.add(work_us, late_us, vcsw);
+    if (polled_mallocs >= 0) c.mallocs = std::max(c.mallocs, 0L) + polled_mallocs;
   }
   out.sent = {col.steps, col.hash};
   return out;
@@ -438,13 +452,19 @@ TEST(SerialPty, StalledIoThreadDoesNotDelayTheTimingThread) {
               (unsigned long long)io.tx_full, (unsigned long long)session.link_stats().retransmitted,
               session.clock().min_rtt_s() * 1e6, session.clock().mean_rtt_s() * 1e6, session.clock().samples());
   std::printf("I/O thread while streaming: %.1f ms of CPU in %.2f s (%.2f %% of a core), %llu frames sent, %llu "
-              "chunks received\n",
+              "chunks received; allocations while the session polled: %ld (pause), %ld (outside)\n",
               io_cpu_s * 1e3, stream_s, io_cpu_s * 100.0 / stream_s, (unsigned long long)io.tx_frames,
-              (unsigned long long)io.rx_chunks);
+              (unsigned long long)io.rx_chunks, r.during.mallocs, r.outside.mallocs);
   vmcu.stop();
   EXPECT_EQ(io.io_pauses, 1u);
   EXPECT_EQ(r.during.blocked, 0);
   EXPECT_EQ(r.outside.blocked, 0);
+#ifdef FEEDLOOP_COUNT_MALLOC
+  // The session's steady streaming (frames out, bytes in, clock samples to the I/O thread's fit)
+  // allocates nothing, in either thread, during the pause or outside it.
+  EXPECT_EQ(r.during.mallocs, 0);
+  EXPECT_EQ(r.outside.mallocs, 0);
+#endif
   // A timing thread that waited for the I/O thread would show the 50 ms in one cycle's work.
   EXPECT_LT(r.during.max_work_us, 5000.0);
   if (r.realtime) {  // it kept cycling through the pause, on time
