@@ -41,6 +41,7 @@ struct McuBridge::JointPort final : device::MotorPort {
   size_t head = 0, count = 0;
   JointTiming timing;
   int64_t swallow = 0;  // steps still to be lost (inject_lost_steps)
+  int64_t encoder_offset_counts = 0;  // added to every encoder reading (inject_encoder_offset)
   void push(double t_s) {
     if (count == intended_s.size()) return;  // more in flight than tracked: timing not checked
     intended_s[(head + count) % intended_s.size()] = t_s;
@@ -67,7 +68,9 @@ struct McuBridge::JointPort final : device::MotorPort {
     plant->step(t_s, direction);
   }
   void set_enabled(double t_s, bool on) override { plant->set_enabled(t_s, on); }
-  int64_t read_encoder_counts(double t_s) override { return plant->read_encoder_counts(t_s); }
+  int64_t read_encoder_counts(double t_s) override {
+    return plant->read_encoder_counts(t_s) + encoder_offset_counts;
+  }
 };
 
 McuBridge::McuBridge(const config::MachineConfig&, const McuBridgeOptions& options) : options_(options) {
@@ -285,6 +288,13 @@ void McuBridge::inject_lost_steps(int joint, int64_t steps) {
   ports_[static_cast<size_t>(joint)]->swallow += steps;
 }
 
+void McuBridge::inject_encoder_offset(int joint, double offset_mm) {
+  if (joint < 0 || joint >= kJoints || !ports_[static_cast<size_t>(joint)]) return;
+  const double per_count = encoder_mm_per_count_[static_cast<size_t>(joint)];
+  if (!(per_count > 0.0) || !std::isfinite(offset_mm)) return;
+  ports_[static_cast<size_t>(joint)]->encoder_offset_counts += std::llround(offset_mm / per_count);
+}
+
 double McuBridge::encoder_time_s(int joint) const {
   return encoder_time_s_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
 }
@@ -461,7 +471,14 @@ void McuBridge::service(double host_s) {
   }
   poll_all(now_s);
   last_service_s_ = now_s;
-  if (plant_) plant_->advance_to(now_s);
+  if (plant_) {
+    plant_->advance_to(now_s);
+    // An external plant that failed is gone for good: the machine stops and does not restart.
+    if (const char* why = plant_->fault()) {
+      latch_fault(why);
+      return;
+    }
+  }
   collect(now_s);
   publish_links(now_s);
 

@@ -116,6 +116,9 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   // Simulation fault injection (servo thread / tests): the next `steps` steps the MCU executes on
   // `joint` never reach the motor, as if the stepper had skipped them.
   void inject_lost_steps(int joint, int64_t steps);
+  // From now on `joint`'s encoder reads offset_mm more than the carriage (a glitch that stays: a
+  // slipped read head, a count lost by the interface), rounded to whole counts.
+  void inject_encoder_offset(int joint, double offset_mm);
   uint64_t batches_dropped() const { return batches_dropped_; }  // arrived while faulted
   uint64_t faults() const { return faults_total_; }
   uint64_t recoveries() const { return recoveries_; }
