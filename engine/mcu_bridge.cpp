@@ -5,6 +5,7 @@
 #include <cmath>      // std::fabs, NAN
 #include <cstdio>     // snprintf
 
+#include "core/clock.hpp"  // ns_from_seconds
 #include "drivers/stepgen/run_codec.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/usb_transport.hpp"
@@ -103,6 +104,9 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
     encoder_mm_per_count_[static_cast<size_t>(j)] = plant_->encoder_mm_per_count(j);
   }
 
+  // The transports' I/O threads run just below the servo thread (SCHED_FIFO when it is): frames
+  // the servo thread queues must not wait for a CPU behind every other process.
+  const int io_priority = cfg.servo.realtime_priority > 1 ? cfg.servo.realtime_priority - 1 : 0;
   int index = 0;
   for (const config::McuConfig& mc : cfg.mcus) {
     auto m = std::make_unique<Mcu>();
@@ -146,12 +150,16 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
       simulated_ = true;
       m->transport = std::move(t);
     } else if (mc.transport == config::TransportType::serial) {
-      m->transport = std::make_unique<drivers::SerialTransport>(mc.serial.device, static_cast<unsigned>(mc.serial.baud));
+      drivers::QueuedTransportParams io = drivers::SerialTransport::serial_io_params();
+      io.rt_priority = io_priority;
+      m->transport =
+          std::make_unique<drivers::SerialTransport>(mc.serial.device, static_cast<unsigned>(mc.serial.baud), io);
     } else {
       drivers::UsbParams up;
       up.vendor_id = static_cast<uint16_t>(mc.usb.vid);
       up.product_id = static_cast<uint16_t>(mc.usb.pid);
       up.serial = mc.usb.serial;
+      up.io.rt_priority = io_priority;
       m->transport = std::make_unique<drivers::UsbTransport>(up);
     }
     drivers::McuSessionParams sp;
@@ -202,6 +210,9 @@ double McuBridge::sim_time(double host_s) {
   if (!have_epoch_) {
     epoch_s_ = host_s;
     have_epoch_ = true;
+    // Real transports stamp their bytes with CLOCK_MONOTONIC, the real-time host clock
+    // (core/clock.hpp MonotonicClock); the sessions' time line starts at the epoch.
+    for (auto& m : mcus_) m->transport->set_time_base_ns(ns_from_seconds(epoch_s_));
   }
   return host_s - epoch_s_;
 }
@@ -428,7 +439,13 @@ void McuBridge::publish_links(double now_s) {
     l.crc_errors = s.decoder_stats().crc_errors;
     l.bytes_written = s.bytes_written();
     l.in_flight = s.frames_in_flight();
-    const drivers::ClockSync& c = s.clock();
+    const drivers::TransportStats io = m.transport->io_stats();
+    l.tx_queue_full = io.tx_full;
+    l.tx_blocked = io.tx_blocked;
+    l.rx_queue_full = io.rx_queue_full;
+    l.io_errors = io.io_errors;
+    l.clock_fit_async = s.clock_fit_async();
+    const drivers::ClockEstimate& c = s.clock();
     l.clock_samples = c.samples();
     l.rtt_last_us = c.last_rtt_s() * 1e6;
     l.rtt_min_us = c.min_rtt_s() * 1e6;
@@ -551,7 +568,7 @@ void McuBridge::on_batch(const stepgen::StepBatch& b) {
   JointTiming* t = ports_[joint] ? &ports_[joint]->timing : nullptr;
   stepgen::RunDecoder d;
   if (t != nullptr && d.begin(b.body, b.body_bytes)) {
-    const drivers::ClockSync& clock = m.session->clock();
+    const drivers::ClockEstimate& clock = m.session->clock();
     int64_t p = d.first_clock();
     stepgen::StepRun r;
     while (!d.done() && d.next(r)) {
