@@ -92,6 +92,7 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
     for (int j = 0; j < 4; ++j) s.encoder_mm[j] = backend_->encoder_mm(j);
     s.encoder_samples = backend_->encoder_samples();
     backend_->links(s.links);
+    backend_->device_loops(s.device_loops);
     if (backend_->fault()) backend_->fault_message(s.last_error, sizeof s.last_error);
   }
   if (control_fault_.load()) std::snprintf(s.last_error, sizeof s.last_error, "%s", control_fault_text_);
@@ -181,6 +182,11 @@ void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   const bool was_anchored = telemetry_.anchored.load(std::memory_order_relaxed);
   run_cycle(now_s, cancel);
   publish_settling(now_s, was_anchored);
+  if (backend_ != nullptr) {  // the device loops' reports, whether motion runs or not
+    DeviceLoopReport reports[16];
+    for (size_t n; (n = backend_->take_device_reports(reports, 16)) > 0;)
+      for (size_t k = 0; k < n && tap_ != nullptr; ++k) tap_->on_device_loop_report(reports[k]);
+  }
   for (int j = 0; j < kJoints && j < 4; ++j)
     step_count_[static_cast<size_t>(j)].store(steps_.position_steps(j), std::memory_order_relaxed);
 }
