@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -22,10 +23,16 @@ namespace {
 
 void usage() {
   std::fputs(
-      "usage: feedloop batch FILE.gcode [--config CFG.yaml] [--json OUT.json] [--quiet]\n"
+      "usage: feedloop batch FILE.gcode [--config CFG.yaml] [--json OUT.json] [--quiet] [--threads "
+      "1|2]\n"
+      "       feedloop batch FILE.gcode [--config CFG.yaml] --simulate [--json OUT.json]\n"
       "       feedloop batch FILE.gcode [--config CFG.yaml] --export-trace TRACE.csv\n"
       "  Translates FILE through the whole pipeline in virtual time (no hardware) and prints a\n"
-      "  summary. Without --config the embedded simulated Cartesian printer is used.\n"
+      "  summary. Without --config the embedded simulated Cartesian printer is used. --threads 2\n"
+      "  (default) steps half the joints on a second thread; the output is the same with 1.\n"
+      "  --simulate runs FILE on the simulated printer of the config (its mock MCUs, plants and\n"
+      "  control law) and prints what the machine did: lost-step events, the tracking error e_t\n"
+      "  from the encoders, faults, steps the plant lost (ground truth). Exit 1 on any of them.\n"
       "  --export-trace runs FILE on the simulated printer of the config (its mock MCUs, the\n"
       "  control law it configures) and writes every servo period's commanded motor positions and\n"
       "  encoder readings as trace CSV v1 (DESIGN.md), for replay on another simulator or ident.\n",
@@ -111,8 +118,6 @@ int export_trace(const std::string& file, const config::MachineConfig& cfg, cons
   return r->error.empty() ? 0 : 1;
 }
 
-// A DC-servo machine (drive: dc_servo): the G-code through engine::Machine with the maneuvering
-// executor in virtual time, and the path-following figures.
 // Writes `j` to `path`; false (with a message) when the file cannot be written.
 bool write_json_file(const std::string& path, const nlohmann::json& j) {
   std::ofstream out(path);
@@ -125,6 +130,57 @@ bool write_json_file(const std::string& path, const nlohmann::json& j) {
   return true;
 }
 
+// The file on the config's simulated printer, in virtual time: the machine's own figures (what
+// the daemon's status shows at the end of a print) and the plant's ground truth.
+int simulate(const std::string& file, const config::MachineConfig& cfg, const std::string& config_name,
+             const std::string& json_path, bool quiet) {
+  std::vector<std::string> lines;
+  if (!read_lines(file, lines)) return 1;
+  Progress progress("simulate");
+  engine::SimRunOptions o;
+  o.keep_samples = false;
+  o.timeout_s = 1e7;
+  if (!quiet) o.on_progress = [&](double f) { progress.update(f); };
+  const auto t0 = std::chrono::steady_clock::now();
+  auto r = engine::run_simulated(cfg, lines, o);
+  if (!quiet) progress.finish();
+  if (!r) {
+    std::fprintf(stderr, "feedloop batch: %s\n", r.error().to_string().c_str());
+    return 1;
+  }
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  int64_t lost_full_steps = 0;
+  for (int64_t n : r->lost_full_steps) lost_full_steps += n;
+  std::printf("simulated print: %s (config: %s)\n", file.c_str(), config_name.c_str());
+  std::printf("  lines             %zu (%llu commands, %llu rejected)\n", lines.size(),
+              static_cast<unsigned long long>(r->commands), static_cast<unsigned long long>(r->rejected));
+  std::printf("  print time        %s (%.1f s), simulated in %.1f s\n", format_duration(r->motion_time_s).c_str(),
+              r->motion_time_s, wall_s);
+  std::printf("  tracking error    e_t from the encoders: mean %.4f mm, max %.4f mm (%llu samples)\n",
+              r->tracking_error_mean_mm, r->tracking_error_max_mm,
+              static_cast<unsigned long long>(r->tracking_error_samples));
+  std::printf("  lost steps        %llu events (plant: %lld full steps lost)\n",
+              static_cast<unsigned long long>(r->lost_step_events), static_cast<long long>(lost_full_steps));
+  std::printf("  faults            %llu%s%s\n", static_cast<unsigned long long>(r->faults),
+              r->error.empty() ? "" : ", first error: ", r->error.c_str());
+  if (!json_path.empty()) {
+    nlohmann::json j{{"file", file}, {"config", config_name}, {"lines", lines.size()},
+                     {"commands", r->commands}, {"rejected", r->rejected},
+                     {"print_time_s", r->motion_time_s}, {"wall_s", wall_s},
+                     {"lost_step_events", r->lost_step_events}, {"lost_full_steps", lost_full_steps},
+                     {"tracking_error_mm", {{"mean", r->tracking_error_mean_mm},
+                                            {"max", r->tracking_error_max_mm},
+                                            {"samples", r->tracking_error_samples}}},
+                     {"faults", r->faults}, {"error", r->error}};
+    if (!write_json_file(json_path, j)) return 1;
+  }
+  const bool clean = r->error.empty() && r->rejected == 0 && r->faults == 0 && r->lost_step_events == 0 &&
+                     lost_full_steps == 0;
+  return clean ? 0 : 1;
+}
+
+// A DC-servo machine (drive: dc_servo): the G-code through engine::Machine with the maneuvering
+// executor in virtual time, and the path-following figures.
 int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bool quiet,
                    const std::string& json_path) {
   std::vector<std::string> lines;
@@ -174,11 +230,21 @@ int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bo
 
 int batch_command(const std::vector<std::string>& args) {
   std::string file, config_path, json_path, trace_path;
-  bool quiet = false;
+  bool quiet = false, sim = false;
+  int threads = 2;
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--config" && i + 1 < args.size()) config_path = args[++i];
-    else if (args[i] == "--json" && i + 1 < args.size()) json_path = args[++i];
+    else if (args[i] == "--threads" && i + 1 < args.size()) {
+      const std::string& v = args[++i];
+      if (v != "1" && v != "2") {
+        std::fprintf(stderr, "feedloop batch: --threads must be 1 or 2, not '%s'\n", v.c_str());
+        return 2;
+      }
+      threads = v == "1" ? 1 : 2;
+    } else if (args[i] == "--json" && i + 1 < args.size())
+      json_path = args[++i];
     else if (args[i] == "--quiet") quiet = true;
+    else if (args[i] == "--simulate") sim = true;
     else if (args[i] == "--export-trace" && i + 1 < args.size()) trace_path = args[++i];
     else if (args[i] == "--help") { usage(); return 0; }
     else if (file.empty() && args[i].rfind("--", 0) != 0) file = args[i];
@@ -193,8 +259,10 @@ int batch_command(const std::vector<std::string>& args) {
   }
   if (cfg->drive == config::Drive::dc_servo) return maneuver_batch(file, *cfg, quiet, json_path);
   if (!trace_path.empty()) return export_trace(file, *cfg, trace_path, quiet);
+  if (sim) return simulate(file, *cfg, config_path.empty() ? "embedded default" : config_path, json_path, quiet);
   Progress progress("batch");
   engine::BatchOptions opt;
+  opt.threads = threads;
   if (!quiet) opt.on_progress = [&](double f) { progress.update(f); };
   auto sum = engine::run_batch(file, *cfg, opt);
   if (!quiet) progress.finish();

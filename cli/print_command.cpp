@@ -339,6 +339,14 @@ int print_command(const std::vector<std::string>& args) {
                       m["tracking_error_mm"]["samples"].get<unsigned long long>());
           std::printf("  lost steps        %llu events\n", m["lost_step_events"].get<unsigned long long>());
         }
+        if (r.contains("motion") && r["motion"].contains("device_loops")) {
+          // The PI on each axis's MCU, as its reports (100 Hz) told it.
+          for (const auto& [name, l] : r["motion"]["device_loops"].items())
+            std::printf("  device loop %-5s |e| mean %.4f mm, max %.4f mm; tick %.2f us mean, %.1f us max; %llu slips\n",
+                        name.c_str(), l["abs_e_mm"]["mean"].get<double>(), l["abs_e_mm"]["max"].get<double>(),
+                        l["tick_cost_us"]["mean"].get<double>(), l["tick_cost_us"]["max"].get<double>(),
+                        l["slips"].get<unsigned long long>());
+        }
         if (!r.value("last_error", "").empty())
           std::printf("  fault             %s\n", r["last_error"].get<std::string>().c_str());
         if (r.contains("motion")) std::printf("  motion            %s\n", r["motion"].dump().c_str());

@@ -630,6 +630,29 @@ json links_json(const engine::LinkTelemetrySet& set) {
   }
   return out;
 }
+
+// Each joint's device loop (control.loop: device) as its LOOP_REPORTs told it: state, the last
+// e = r - y, y and correction u, |e| over the reports while running, the cost of one tick.
+json device_loops_json(const engine::DeviceLoopTelemetrySet& set, const std::array<std::string, engine::kJoints>& names) {
+  json out = json::object();
+  for (size_t j = 0; j < set.size() && j < names.size(); ++j) {
+    const engine::DeviceLoopTelemetry& t = set[j];
+    if (!t.enabled) continue;
+    out[names[j]] = {{"state", engine::device_loop_state_name(t.state)},
+                     {"reports", t.reports},
+                     {"e_mm", t.e_mm},
+                     {"y_mm", t.y_mm},
+                     {"correction_mm", t.correction_mm},
+                     {"abs_e_mm", {{"mean", t.mean_abs_e_mm()}, {"max", t.max_abs_e_mm}, {"samples", t.running_reports}}},
+                     {"max_abs_correction_mm", t.max_abs_correction_mm},
+                     {"tick_cost_us", {{"last", t.tick_cost_us}, {"mean", t.mean_tick_cost_us()}, {"max", t.max_tick_cost_us}}},
+                     {"ticks", t.ticks},
+                     {"deadline_misses", t.deadline_misses},
+                     {"encoder_rejects", t.encoder_rejects},
+                     {"slips", t.slips}};
+  }
+  return out;
+}
 }  // namespace
 
 json Daemon::status() const {
@@ -660,7 +683,8 @@ json Daemon::status() const {
             {"tracking_error_mm",
              {{"mean", s.tracking_error_mean_mm}, {"max", s.tracking_error_max_mm}, {"samples", s.tracking_error_samples}}},
             {"late_cycles", s.late_cycles},
-            {"segments_queued", s.segments_queued}}},
+            {"segments_queued", s.segments_queued},
+            {"device_loops", device_loops_json(s.device_loops, engine::joint_names(cfg_))}}},
           {"links", links_json(s.links)},
           {"clients", clients_.size()},
           {"owner", o ? json(o->session->name()) : json(nullptr)},

@@ -106,6 +106,8 @@ void DeviceLoopLink::configure(int joint, drivers::McuSession& session, int64_t 
   j.compressor.configure(500.0, static_cast<int64_t>(10.0 * ticks_per_ms));
   j.pending_count = 0;
   j.last_clock = INT64_MIN;
+  j.telemetry = DeviceLoopTelemetry{};  // the MCU's loop starts afresh (its counters too)
+  j.telemetry.enabled = true;
 }
 
 void DeviceLoopLink::push_target(int joint, drivers::McuSession& session, int64_t clock,
@@ -142,29 +144,38 @@ void DeviceLoopLink::send_pending(Joint& j, drivers::McuSession& session) {
 size_t DeviceLoopLink::collect(drivers::McuSession& session, int mcu,
                                const std::array<int, kJoints>& joint_mcu,
                                const std::array<int, kJoints>& joint_motor, JointEvent* out,
-                               size_t cap) {
+                               size_t cap, DeviceLoopReport* reports, size_t reports_cap,
+                               size_t* n_reports) {
   auto joint_of = [&](uint8_t motor) {
     for (int j = 0; j < kJoints; ++j)
       if (joint_mcu[static_cast<size_t>(j)] == mcu && joint_motor[static_cast<size_t>(j)] == motor)
         return j;
     return -1;
   };
-  protocol::LoopReportMsg reports[16];
-  for (size_t n; (n = session.take_loop_reports(reports, 16)) > 0;) {
+  protocol::LoopReportMsg msgs[16];
+  for (size_t n; (n = session.take_loop_reports(msgs, 16)) > 0;) {
     for (size_t i = 0; i < n; ++i) {
-      const int joint = joint_of(reports[i].axis);
+      const int joint = joint_of(msgs[i].axis);
       if (joint < 0) continue;
-      const device::LoopReport& r = reports[i].report;
-      DeviceLoopTelemetry& t = j_[static_cast<size_t>(joint)].telemetry;
-      t.state = static_cast<int>(r.state);
-      t.e_mm = r.e_nm * 1e-6;
-      t.y_mm = static_cast<double>(r.y_nm) * 1e-6;
-      t.correction_mm = r.u_nm * 1e-6;
-      t.max_tick_cost_us = std::max(t.max_tick_cost_us, r.max_tick_cost * 1e-3);
-      t.ticks = r.ticks;
-      t.deadline_misses = r.deadline_misses;
-      t.encoder_rejects = r.encoder_rejects;
-      t.slips = r.slips;
+      const device::LoopReport& r = msgs[i].report;
+      DeviceLoopReport d;
+      d.joint = joint;
+      d.clock = r.clock;
+      d.state = static_cast<uint8_t>(r.state);
+      d.e_mm = static_cast<double>(r.e_nm) * 1e-6;
+      d.y_mm = static_cast<double>(r.y_nm) * 1e-6;
+      d.correction_mm = static_cast<double>(r.u_nm) * 1e-6;
+      d.tick_cost = r.max_tick_cost;
+      d.tick_cost_us = r.max_tick_cost * 1e-3;  // the virtual MCU measures ns
+      d.ticks = r.ticks;
+      d.deadline_misses = r.deadline_misses;
+      d.encoder_rejects = r.encoder_rejects;
+      d.slips = r.slips;
+      j_[static_cast<size_t>(joint)].telemetry.add(d);
+      if (reports != nullptr && n_reports != nullptr && *n_reports < reports_cap)
+        reports[(*n_reports)++] = d;
+      else
+        ++reports_overflow_;
     }
   }
   size_t k = 0;

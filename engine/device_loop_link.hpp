@@ -26,19 +26,9 @@
 #include "drivers/protocol/loop_messages.hpp"
 #include "drivers/protocol/target_codec.hpp"
 #include "engine/config_mapping.hpp"
+#include "engine/device_loop_telemetry.hpp"
 
 namespace feedloop::engine {
-
-// What one joint's device loop reported last (telemetry; any thread through McuBridge's copy).
-struct DeviceLoopTelemetry {
-  bool enabled = false;
-  int state = 0;                  // device::LoopState
-  double e_mm = 0.0;              // r - y at the last report
-  double y_mm = 0.0;              // encoder (MCU frame)
-  double correction_mm = 0.0;     // the PI's output u
-  double max_tick_cost_us = 0.0;  // per tick, as the device measured it (ns on the virtual MCU)
-  uint64_t ticks = 0, deadline_misses = 0, encoder_rejects = 0, slips = 0;
-};
 
 class DeviceLoopLink {
  public:
@@ -67,18 +57,23 @@ class DeviceLoopLink {
   void flush(int joint, drivers::McuSession& session, bool end_of_motion);
 
   // Drains `session`'s loop reports and events (the session of MCU `mcu`): telemetry updated for
-  // the joints it drives, events copied to out[0..cap) with their joint. Returns the count.
+  // the joints it drives, events copied to out[0..cap) with their joint (returns their count),
+  // reports appended to reports[*n_reports..reports_cap) (clock set, host_time_s left to the
+  // caller; reports beyond the capacity only update the telemetry).
   struct JointEvent {
     int joint = -1;
     device::LoopEvent event;
   };
   size_t collect(drivers::McuSession& session, int mcu, const std::array<int, kJoints>& joint_mcu,
-                 const std::array<int, kJoints>& joint_motor, JointEvent* out, size_t cap);
+                 const std::array<int, kJoints>& joint_motor, JointEvent* out, size_t cap,
+                 DeviceLoopReport* reports, size_t reports_cap, size_t* n_reports);
 
   const DeviceLoopTelemetry& telemetry(int joint) const {
     return j_[static_cast<size_t>(joint)].telemetry;
   }
   double mm_per_count(int joint) const { return j_[static_cast<size_t>(joint)].mm_per_count; }
+  // Reports collect() could not hand out (its buffer was full); they updated the telemetry only.
+  uint64_t reports_overflow() const { return reports_overflow_; }
 
  private:
   struct Joint {
@@ -93,6 +88,7 @@ class DeviceLoopLink {
   };
   void send_pending(Joint& j, drivers::McuSession& session);
   std::array<Joint, kJoints> j_{};
+  uint64_t reports_overflow_ = 0;
 };
 
 // "x: slip of 1 cycle(s) (0.679 mm) at MCU clock 123" etc.: one event as a log line.

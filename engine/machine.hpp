@@ -21,6 +21,7 @@
 #include "core/clock.hpp"
 #include "core/result.hpp"
 #include "core/spsc_queue.hpp"
+#include "engine/device_loop_telemetry.hpp"
 #include "engine/heater_sim.hpp"
 #include "engine/latency_histogram.hpp"
 #include "engine/link_telemetry.hpp"
@@ -59,6 +60,7 @@ struct MachineStatus {
   int64_t step_count[4] = {0, 0, 0, 0};  // each joint's step counter (the executor steps them)
   bool has_step_count = false;           // false: this executor makes no steps
   LinkTelemetrySet links;               // each MCU link (frames, retransmissions, round trips)
+  DeviceLoopTelemetrySet device_loops{};  // each joint's device loop (e, y, correction, tick cost)
   char last_error[192] = {};
 };
 

@@ -201,6 +201,7 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
     }
     loop_link_.set_joint(j, static_cast<uint8_t>(joint_motor_[js]), lp);
   }
+  publish_loop_telemetry();  // which joints have a device loop, before any report
   return Status::Ok();
 }
 
@@ -333,7 +334,17 @@ void McuBridge::collect(double) {
     if (loop_link_.any_enabled()) {
       DeviceLoopLink::JointEvent ev[32];
       const int mi = static_cast<int>(&m - &mcus_[0]);
-      const size_t n = loop_link_.collect(s, mi, joint_mcu_, joint_motor_, ev, 32);
+      const size_t first_report = device_report_count_;
+      const size_t n = loop_link_.collect(s, mi, joint_mcu_, joint_motor_, ev, 32, device_reports_.data(),
+                                          device_reports_.size(), &device_report_count_);
+      if (device_report_count_ > first_report || n > 0) {
+        for (size_t i = first_report; i < device_report_count_; ++i) {  // their host time
+          DeviceLoopReport& r = device_reports_[i];
+          const stepgen::TickMap map = tick_map(r.joint);
+          r.host_time_s = map.ticks_per_s > 0.0 ? (static_cast<double>(r.clock) - map.offset_ticks) / map.ticks_per_s : NAN;
+        }
+        publish_loop_telemetry();
+      }
       for (size_t i = 0; i < n; ++i) {
         const device::LoopEvent& e = ev[i].event;
         if (e.kind == device::LoopEventKind::kSlip) device_slips_.fetch_add(1, std::memory_order_relaxed);
@@ -387,6 +398,21 @@ void McuBridge::queue_target(int joint, double host_time_s, double r_mm) {
   drivers::McuSession& s = *mcus_[static_cast<size_t>(joint_mcu_[static_cast<size_t>(joint)])]->session;
   const auto clock = static_cast<int64_t>(std::llround(tick_map(joint).ticks(host_time_s)));
   loop_link_.push_target(joint, s, clock, r_mm);
+}
+
+size_t McuBridge::take_device_reports(DeviceLoopReport* out, size_t cap) {
+  const size_t n = std::min(cap, device_report_count_);
+  for (size_t i = 0; i < n; ++i) out[i] = device_reports_[i];
+  // Whatever did not fit stays for the next call, in order.
+  for (size_t i = n; i < device_report_count_; ++i) device_reports_[i - n] = device_reports_[i];
+  device_report_count_ -= n;
+  return n;
+}
+
+void McuBridge::publish_loop_telemetry() {
+  DeviceLoopTelemetrySet set{};
+  for (int j = 0; j < kJoints && j < kDeviceLoopJoints; ++j) set[static_cast<size_t>(j)] = loop_link_.telemetry(j);
+  loop_telemetry_.store(set);
 }
 
 size_t McuBridge::take_device_events(ServoEvent* out, size_t cap) {

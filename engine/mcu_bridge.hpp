@@ -97,8 +97,12 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   unsigned long long device_lost_step_events() const override {
     return device_slips_.load(std::memory_order_relaxed);
   }
+  void device_loops(DeviceLoopTelemetrySet& out) const override { out = loop_telemetry_.load(); }
+  size_t take_device_reports(DeviceLoopReport* out, size_t cap) override;
   // The device loop's last report of `joint` (servo thread's data: read when it is not running).
   const DeviceLoopTelemetry& device_loop_telemetry(int joint) const { return loop_link_.telemetry(joint); }
+  // Reports that arrived while the buffer for take_device_reports() was full (not taken in time).
+  uint64_t device_reports_dropped() const { return loop_link_.reports_overflow(); }
 
   // stepgen::BatchSink (servo thread): StepBatch::axis is the joint index.
   void on_batch(const stepgen::StepBatch& batch) override;
@@ -178,6 +182,11 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   bool loops_configured_ = false;
   std::array<ServoEvent, 32> device_events_{};  // since the last take_device_events()
   size_t device_event_count_ = 0;
+  // LOOP_REPORTs since the last take_device_reports() (100 Hz per joint: a few per servo cycle).
+  std::array<DeviceLoopReport, 64> device_reports_{};
+  size_t device_report_count_ = 0;
+  void publish_loop_telemetry();
+  Seqlock<DeviceLoopTelemetrySet> loop_telemetry_;  // published when reports arrive
 
   mutable std::mutex events_mutex_;  // taken only when an event happens (rare, not steady state)
   std::vector<std::string> events_;

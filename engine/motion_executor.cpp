@@ -92,6 +92,7 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
     for (int j = 0; j < 4; ++j) s.encoder_mm[j] = backend_->encoder_mm(j);
     s.encoder_samples = backend_->encoder_samples();
     backend_->links(s.links);
+    backend_->device_loops(s.device_loops);
     if (backend_->fault()) backend_->fault_message(s.last_error, sizeof s.last_error);
   }
   if (control_fault_.load()) std::snprintf(s.last_error, sizeof s.last_error, "%s", control_fault_text_);
@@ -181,6 +182,11 @@ void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
   const bool was_anchored = telemetry_.anchored.load(std::memory_order_relaxed);
   run_cycle(now_s, cancel);
   publish_settling(now_s, was_anchored);
+  if (backend_ != nullptr) {  // the device loops' reports, whether motion runs or not
+    DeviceLoopReport reports[16];
+    for (size_t n; (n = backend_->take_device_reports(reports, 16)) > 0;)
+      for (size_t k = 0; k < n && tap_ != nullptr; ++k) tap_->on_device_loop_report(reports[k]);
+  }
   for (int j = 0; j < kJoints && j < 4; ++j)
     step_count_[static_cast<size_t>(j)].store(steps_.position_steps(j), std::memory_order_relaxed);
 }
@@ -345,6 +351,7 @@ void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now
   offset_s_ = now_s + command_lead_s() - next_sample_s_;
   steps_.set_time_offset_s(offset_s_);
   control_->reset_feedforward(at);
+  has_e_ = {};  // e_t restarts from this motion's encoder reports
   prime_pending_ = true;  // the preview fills once the moves are on the timeline (sampled_cycle)
   // The motor is where the steps put it; the correction the PI holds is part of that.
   sample_no_ = 0;
@@ -500,17 +507,28 @@ void MotionExecutor::sampled_cycle(double now_s) {
     fresh[i] = reports != encoder_reports_seen_[i];
     encoder_reports_seen_[i] = reports;
   }
-  {  // e_t: the encoders against the plan at the instant they were sampled
-    double sq = 0.0;
+  {  // e_t: each joint's encoder against the plan at the instant that joint was sampled (joints
+     // on different MCUs report at different instants: one instant for all would bias a joint
+     // read 10 ms earlier by 10 ms of its motion, 1.5 mm at 150 mm/s), combined over the joints'
+     // latest errors (thesis: e_t = |r - y| over x and y).
     bool any = false;
     for (int j = 0; j < kJoints; ++j) {
       const size_t i = static_cast<size_t>(j);
       if (!fresh[i] || !std::isfinite(enc[i]) || j == 3) continue;
-      const double e = at_enc.r_mm[i] - enc[i];
-      sq += e * e;
+      uint64_t n = n_now;
+      const double t = backend_ != nullptr ? backend_->encoder_time_s(j) : NAN;
+      if (std::isfinite(t)) {
+        const double print_enc_s = t - offset_s_;
+        while (n > 0 && history_[n % cap].t_s > print_enc_s + 0.5 * period_s && sample_no_ - n + 2 < cap) --n;
+      }
+      last_e_mm_[i] = history_[n % cap].r_mm[i] - enc[i];
+      has_e_[i] = true;
       any = true;
     }
     if (any && sample_no_ > 0) {
+      double sq = 0.0;
+      for (size_t i = 0; i < 3; ++i)
+        if (has_e_[i]) sq += last_e_mm_[i] * last_e_mm_[i];
       const double e_t = std::sqrt(sq);
       e_t_sum_mm_.store(e_t_sum_mm_.load(std::memory_order_relaxed) + e_t, std::memory_order_relaxed);
       if (e_t > e_t_max_mm_.load(std::memory_order_relaxed)) e_t_max_mm_.store(e_t, std::memory_order_relaxed);

@@ -150,7 +150,9 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   std::atomic<uint64_t> late_cycles_{0};
   // e_t from the encoders (servo thread writes; status reads relaxed).
   std::atomic<double> e_t_sum_mm_{0.0}, e_t_max_mm_{0.0};
-  std::atomic<uint64_t> e_t_samples_{0};  // sampled path: the plan paused for a late cycle
+  std::atomic<uint64_t> e_t_samples_{0};
+  std::array<double, 4> last_e_mm_{};  // servo thread: each joint's latest r - y (e_t's terms)
+  std::array<bool, 4> has_e_{};
   // Each joint's step counter as the servo thread left it (M114's Count), published per cycle.
   std::array<std::atomic<int64_t>, 4> step_count_{};
   std::unique_ptr<ServoControl> control_;

@@ -8,6 +8,7 @@
 #include <cstddef>
 
 #include "drivers/stepgen/step_generator.hpp"
+#include "engine/device_loop_telemetry.hpp"
 #include "engine/link_telemetry.hpp"
 #include "engine/telemetry_tap.hpp"
 
@@ -51,6 +52,11 @@ class ServoBackend {
   // The device loops' events since the last call (lost steps, encoder faults, following errors),
   // with print_time_s holding the host time of the event. Servo thread.
   virtual size_t take_device_events(ServoEvent* /*out*/, size_t /*cap*/) { return 0; }
+  // What each joint's device loop reported so far (e, y, correction, tick cost, counters; all
+  // disabled without device loops). Any thread.
+  virtual void device_loops(DeviceLoopTelemetrySet& out) const { out = DeviceLoopTelemetrySet{}; }
+  // The device loops' reports (LOOP_REPORT) since the last call, in arrival order. Servo thread.
+  virtual size_t take_device_reports(DeviceLoopReport* /*out*/, size_t /*cap*/) { return 0; }
 };
 
 }  // namespace feedloop::engine

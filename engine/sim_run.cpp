@@ -47,7 +47,12 @@ class Recorder final : public TelemetryTap {
     if (keep_) out_.samples.push_back(r);
   }
   std::function<void(const SimRunSample&)> on_sample_;
-  void on_servo_event(const ServoEvent& e) override { out_.events.push_back(e); }
+  void on_servo_event(const ServoEvent& e) override {
+    out_.events.push_back(e);
+    if (e.kind == ServoEventKind::kEncoderFault || e.kind == ServoEventKind::kFollowingError ||
+        e.kind == ServoEventKind::kMcuFault)
+      ++out_.faults;
+  }
 
  private:
   SimRunResult& out_;
@@ -104,6 +109,8 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   int line_no = 0;
   for (const std::string& line : gcode_lines) {
     ++line_no;
+    if (options.on_progress && line_no % 1000 == 0)
+      options.on_progress(static_cast<double>(line_no) / static_cast<double>(gcode_lines.size()));
     auto cmd = gcode::parse_line(line, SourceLocation{"sim_run", line_no, 0});
     if (!cmd.ok()) {
       ++out.rejected;
@@ -136,6 +143,11 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   MachineStatus s;
   ex.motion_status(s);
   out.motion_time_s = s.planned_until_s;
+  out.lost_step_events = s.lost_step_events;
+  out.tracking_error_mean_mm = s.tracking_error_mean_mm;
+  out.tracking_error_max_mm = s.tracking_error_max_mm;
+  out.tracking_error_samples = s.tracking_error_samples;
+  out.device_loops = s.device_loops;
   if (out.error.empty() && s.last_error[0] != '\0') out.error = s.last_error;
   if (ex.motion_pending() && out.error.empty()) out.error = "motion did not finish within the timeout";
   if (SimulatedPlant* plant = bridge.plant())

@@ -12,6 +12,7 @@
 
 #include "config/machine_config.hpp"
 #include "core/result.hpp"
+#include "engine/device_loop_telemetry.hpp"
 #include "engine/telemetry_tap.hpp"
 
 namespace feedloop::engine {
@@ -48,6 +49,8 @@ struct SimRunOptions {
   bool keep_samples = true;      // false: only the summary figures
   // Called with every sample as it is produced (streaming, e.g. a trace export); may be empty.
   std::function<void(const SimRunSample&)> on_sample;
+  // Called now and then with the fraction of the lines executed (0..1); may be empty.
+  std::function<void(double fraction)> on_progress;
   std::vector<LostStepInjection> lose_steps;
   std::vector<EncoderGlitchInjection> encoder_glitches;
   std::vector<HostStall> stalls;  // in time order
@@ -70,6 +73,13 @@ struct SimRunResult {
   uint64_t rejected = 0;                 // lines rejected (with the first error in `error`)
   double motion_time_s = 0.0;            // planned print time from first move start to last end
   uint64_t deadline_misses = 0;
+  // The machine's own figures at the end (what the daemon's status shows): lost-step events
+  // detected (host detector or device loops), e_t from the encoders (mean, max over the reports).
+  uint64_t lost_step_events = 0;
+  double tracking_error_mean_mm = 0.0, tracking_error_max_mm = 0.0;
+  uint64_t tracking_error_samples = 0;
+  uint64_t faults = 0;                   // encoder faults, following-error trips, MCU faults
+  DeviceLoopTelemetrySet device_loops{}; // each joint's device loop as its reports told it
   std::string error;                     // first rejected line or fault (empty: none)
 };
 

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 
+#include "engine/device_loop_telemetry.hpp"
 #include "planner/move.hpp"
 
 namespace feedloop::engine {
@@ -44,6 +45,8 @@ class TelemetryTap {
   virtual void on_planned_move(const planner::PlannedMove& /*m*/) {}  // planner thread
   virtual void on_servo_sample(const ServoSample& /*s*/) {}           // servo thread, RT-safe
   virtual void on_servo_event(const ServoEvent& /*e*/) {}             // servo thread, RT-safe
+  // Each device loop's LOOP_REPORT (control.loop: device; 100 Hz per joint), as it arrives.
+  virtual void on_device_loop_report(const DeviceLoopReport& /*r*/) {}  // servo thread, RT-safe
 };
 
 inline const char* to_string(ServoEventKind k) {

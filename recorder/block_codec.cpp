@@ -130,6 +130,34 @@ void BlockEncoder::origin(const OriginRecord& o) {
   ++records_;
 }
 
+void BlockEncoder::loop_report(const LoopReportRecord& r) {
+  CodecState::Joint& j = state_.joints[static_cast<size_t>(r.joint & 7)];
+  ByteWriter w(body_);
+  w.u8(tag(RecordType::loop_report, r.joint));
+  const int64_t dt = wsub(r.clock, j.lr_clock);
+  w.svarint(wsub(dt, j.lr_dt));  // delta of delta: reports every N ticks cost 1 byte
+  w.u8(r.state);
+  w.svarint(r.e_nm);
+  w.svarint(wsub(r.y_nm, j.lr_y));
+  w.svarint(wsub(r.correction_nm, j.lr_u));
+  w.varint(r.tick_cost);
+  // Counters: their increase since the joint's previous report (wrapping: a reconfigured loop
+  // starts again from 0).
+  w.varint(r.ticks - j.lr_ticks);
+  w.varint(r.deadline_misses - j.lr_misses);
+  w.varint(r.encoder_rejects - j.lr_rejects);
+  w.varint(r.slips - j.lr_slips);
+  j.lr_dt = dt;
+  j.lr_clock = r.clock;
+  j.lr_y = r.y_nm;
+  j.lr_u = r.correction_nm;
+  j.lr_ticks = r.ticks;
+  j.lr_misses = r.deadline_misses;
+  j.lr_rejects = r.encoder_rejects;
+  j.lr_slips = r.slips;
+  ++records_;
+}
+
 void BlockEncoder::event(EventKind kind, int64_t time_ns, int32_t joint, double value, std::string_view text) {
   ByteWriter w(body_);
   w.u8(tag(RecordType::event));
@@ -172,6 +200,7 @@ void BlockEncoder::any(const Record& r) {
         else if constexpr (std::is_same_v<T, OriginRecord>) origin(v);
         else if constexpr (std::is_same_v<T, EventRecord>) event(v.kind, v.time_ns, v.joint, v.value, v.text);
         else if constexpr (std::is_same_v<T, DropRecord>) drops(v);
+        else if constexpr (std::is_same_v<T, LoopReportRecord>) loop_report(v);
         else time_sync(v);
       },
       r);
@@ -287,6 +316,35 @@ Status decode_block(const uint8_t* body, size_t size, uint64_t body_offset, uint
         o.position_steps = r.svarint();
         j.step_clock = o.clock;
         rec = o;
+        break;
+      }
+      case RecordType::loop_report: {
+        CodecState::Joint& j = s.joints[static_cast<size_t>(joint)];
+        LoopReportRecord l;
+        l.joint = joint;
+        const int64_t dt = wadd(j.lr_dt, r.svarint());
+        l.clock = wadd(j.lr_clock, dt);
+        l.state = r.u8();
+        l.e_nm = r.svarint();
+        l.y_nm = wadd(j.lr_y, r.svarint());
+        l.correction_nm = wadd(j.lr_u, r.svarint());
+        const uint64_t cost = r.varint();
+        l.tick_cost = cost > UINT32_MAX ? UINT32_MAX : static_cast<uint32_t>(cost);
+        l.ticks = j.lr_ticks + r.varint();
+        l.deadline_misses = j.lr_misses + r.varint();
+        l.encoder_rejects = j.lr_rejects + r.varint();
+        l.slips = j.lr_slips + r.varint();
+        j.lr_dt = dt;
+        j.lr_clock = l.clock;
+        j.lr_y = l.y_nm;
+        j.lr_u = l.correction_nm;
+        j.lr_ticks = l.ticks;
+        j.lr_misses = l.deadline_misses;
+        j.lr_rejects = l.encoder_rejects;
+        j.lr_slips = l.slips;
+        if (l.state > 3)
+          return Error{"unknown device loop state " + std::to_string(l.state) + " at byte offset " + std::to_string(offset), {}};
+        rec = l;
         break;
       }
       case RecordType::event: {

@@ -33,6 +33,8 @@ struct CodecState {
     int64_t step_interval = 0;  // predicted first interval of the next run
     int64_t step_add = 0;
     int64_t enc_clock = 0, enc_dt = 0, enc_counts = 0;
+    int64_t lr_clock = 0, lr_dt = 0, lr_y = 0, lr_u = 0;  // loop reports
+    uint64_t lr_ticks = 0, lr_misses = 0, lr_rejects = 0, lr_slips = 0;
   };
   std::array<Joint, kMaxJoints> joints{};
 };
@@ -51,6 +53,7 @@ class BlockEncoder {
   void step_run(const StepRunRecord& r);
   void encoder(const EncoderRecord& e);
   void origin(const OriginRecord& o);
+  void loop_report(const LoopReportRecord& r);
   void event(EventKind kind, int64_t time_ns, int32_t joint, double value, std::string_view text);
   void drops(const DropRecord& d);
   void time_sync(const TimeSyncRecord& t);

@@ -65,3 +65,25 @@ void EngineRecording::on_servo_event(const engine::ServoEvent& e) {
 }
 
 }  // namespace feedloop::recorder
+
+namespace feedloop::recorder {
+
+void EngineRecording::on_device_loop_report(const engine::DeviceLoopReport& r) {
+  if (!options_.record_loop_reports || r.joint < 0 || r.joint >= joints_) return;
+  LoopReportRecord l;
+  l.joint = r.joint;
+  l.clock = r.clock;
+  l.state = r.state;
+  l.e_nm = std::llround(r.e_mm * 1e6);
+  l.y_nm = std::llround(r.y_mm * 1e6);
+  l.correction_nm = std::llround(r.correction_mm * 1e6);
+  l.tick_cost = r.tick_cost;
+  l.ticks = r.ticks;
+  l.deadline_misses = r.deadline_misses;
+  l.encoder_rejects = r.encoder_rejects;
+  l.slips = r.slips;
+  rec_.writer(Stream::servo).loop_report(l);
+  ++loop_reports_;
+}
+
+}  // namespace feedloop::recorder

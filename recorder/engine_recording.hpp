@@ -27,6 +27,8 @@ struct EngineRecordingOptions {
   // Encoder samples: one per servo period and joint with an encoder, only when the reading
   // changed (a carriage at rest costs nothing).
   bool record_encoders = true;
+  // The device loops' reports (100 Hz per joint with a device loop, about 10 B each).
+  bool record_loop_reports = true;
 };
 
 class EngineRecording final : public engine::StepObserver, public engine::TelemetryTap {
@@ -44,9 +46,11 @@ class EngineRecording final : public engine::StepObserver, public engine::Teleme
   void on_planned_move(const planner::PlannedMove& m) override;  // planner thread
   void on_servo_sample(const engine::ServoSample& s) override;   // servo thread
   void on_servo_event(const engine::ServoEvent& e) override;     // servo thread
+  void on_device_loop_report(const engine::DeviceLoopReport& r) override;  // servo thread
 
   uint64_t encoder_samples() const { return encoder_samples_; }
   uint64_t anchors() const { return anchors_; }
+  uint64_t loop_reports() const { return loop_reports_; }
 
  private:
   Recorder& rec_;
@@ -60,6 +64,7 @@ class EngineRecording final : public engine::StepObserver, public engine::Teleme
   std::array<bool, engine::kJoints> have_counts_{};
   uint64_t encoder_samples_ = 0;
   uint64_t anchors_ = 0;
+  uint64_t loop_reports_ = 0;
 };
 
 }  // namespace feedloop::recorder

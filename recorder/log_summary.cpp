@@ -62,6 +62,20 @@ struct Accumulate {
     clock(*j, r.clock, r.clock);
   }
   void operator()(const OriginRecord&) {}
+  void operator()(const LoopReportRecord& r) {
+    JointSummary* j = joint(r.joint);
+    if (!j) return;
+    ++j->loop_reports;
+    if (r.state == 1) {  // running
+      const double e_mm = static_cast<double>(r.e_nm < 0 ? -r.e_nm : r.e_nm) * 1e-6;
+      j->loop_max_abs_e_mm = std::max(j->loop_max_abs_e_mm, e_mm);
+      j->loop_sum_abs_e_mm += e_mm;
+      ++j->loop_running_reports;
+    }
+    j->loop_max_tick_cost = std::max(j->loop_max_tick_cost, r.tick_cost);
+    j->loop_slips = std::max(j->loop_slips, r.slips);
+    j->loop_deadline_misses = std::max(j->loop_deadline_misses, r.deadline_misses);
+  }
   void operator()(const EventRecord& r) {
     if (static_cast<int>(r.kind) < kEventKinds) ++s.events[static_cast<size_t>(r.kind)];
     host(r.time_ns);
@@ -129,6 +143,14 @@ std::string format_summary(const LogSummary& s) {
       l += ", MCU time " + fmt("%.3f", static_cast<double>(js.first_clock) / static_cast<double>(ji.clock_hz)) + ".." +
            fmt("%.3f", static_cast<double>(js.last_clock) / static_cast<double>(ji.clock_hz)) + " s";
     line(l);
+    if (js.loop_reports > 0) {
+      const double mean_e_mm =
+          js.loop_running_reports > 0 ? js.loop_sum_abs_e_mm / static_cast<double>(js.loop_running_reports) : 0.0;
+      line("  device loop: " + std::to_string(js.loop_reports) + " reports, |e| mean " + fmt("%.4f", mean_e_mm) +
+           " mm, max " + fmt("%.4f", js.loop_max_abs_e_mm) + " mm (while running), max tick cost " +
+           std::to_string(js.loop_max_tick_cost) + " (ns on the virtual MCU), " + std::to_string(js.loop_slips) +
+           " slips, " + std::to_string(js.loop_deadline_misses) + " deadline misses");
+    }
   }
   std::string ev;
   for (int k = 0; k < kEventKinds; ++k)

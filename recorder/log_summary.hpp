@@ -20,6 +20,11 @@ struct JointSummary {
   uint64_t segments = 0;
   uint64_t encoder_samples = 0;
   uint64_t invalid_runs = 0;  // runs that break the step law (damage): not in the clock span
+  // Device loop reports (loop_report records): |e| while running, the largest tick cost.
+  uint64_t loop_reports = 0, loop_running_reports = 0;
+  double loop_max_abs_e_mm = 0.0, loop_sum_abs_e_mm = 0.0;
+  uint32_t loop_max_tick_cost = 0;
+  uint64_t loop_slips = 0, loop_deadline_misses = 0;
   int64_t first_clock = 0, last_clock = 0;  // steps and encoder samples
   bool has_clock = false;
 };

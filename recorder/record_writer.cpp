@@ -65,6 +65,11 @@ void RecordWriter::origin(int joint, int64_t clock, int64_t position_steps) {
   push(RecordType::origin, &r, sizeof r);
 }
 
+void RecordWriter::loop_report(const LoopReportRecord& r) {
+  if (!on() || !joint_ok(r.joint)) return;
+  push(RecordType::loop_report, &r, sizeof r);
+}
+
 void RecordWriter::event(EventKind kind, int64_t time_ns, int joint, double value, std::string_view text) {
   if (!on()) return;
   EventHead h;

@@ -51,6 +51,8 @@ class RecordWriter {
   void encoder_sample(int joint, int64_t clock, int64_t counts);
   // From `clock` on the joint's step counter is `position_steps` (stream start, homing, G92).
   void origin(int joint, int64_t clock, int64_t position_steps);
+  // Servo thread: a device loop's report (LOOP_REPORT).
+  void loop_report(const LoopReportRecord& r);
   // Any thread that owns this writer: errors, lost steps, deadline misses, time anchors.
   void event(EventKind kind, int64_t time_ns, int joint, double value, std::string_view text = {});
 

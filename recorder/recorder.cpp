@@ -178,6 +178,7 @@ void Recorder::drain_locked() {
         case RecordType::step_run: enc_.step_run(load<StepRunRecord>(p)); break;
         case RecordType::encoder: enc_.encoder(load<EncoderRecord>(p)); break;
         case RecordType::origin: enc_.origin(load<OriginRecord>(p)); break;
+        case RecordType::loop_report: enc_.loop_report(load<LoopReportRecord>(p)); break;
         case RecordType::event: {
           const auto h = load<EventHead>(p);
           enc_.event(static_cast<EventKind>(h.kind), h.time_ns, h.joint, h.value,

@@ -1,6 +1,8 @@
 // Names of the enums in records.hpp (for `feedloop log info` and messages).
 #include "recorder/records.hpp"
 
+#include <iterator>  // std::size
+
 namespace feedloop::recorder {
 
 const char* stream_name(Stream s) {
@@ -48,6 +50,7 @@ const char* record_type_name(RecordType t) {
     case RecordType::event: return "event";
     case RecordType::drops: return "drops";
     case RecordType::time_sync: return "time_sync";
+    case RecordType::loop_report: return "loop_report";
   }
   return "unknown";
 }
@@ -55,7 +58,9 @@ const char* record_type_name(RecordType t) {
 RecordType record_type(const Record& r) {
   static constexpr RecordType kByIndex[] = {RecordType::gcode_line, RecordType::move,   RecordType::segment,
                                             RecordType::step_run,   RecordType::encoder, RecordType::origin,
-                                            RecordType::event,      RecordType::drops,   RecordType::time_sync};
+                                            RecordType::event,      RecordType::drops,   RecordType::time_sync,
+                                            RecordType::loop_report};
+  static_assert(std::size(kByIndex) == std::variant_size_v<Record>);
   return kByIndex[r.index()];
 }
 

@@ -16,7 +16,7 @@
 
 namespace feedloop::recorder {
 
-inline constexpr uint16_t kFormatVersion = 1;
+inline constexpr uint16_t kFormatVersion = 2;  // 2: loop_report records (1 has none)
 inline constexpr int kMaxJoints = 8;  // joint index lives in 3 bits of a record tag
 
 // The three producer threads; each owns one ring (RecordWriter).
@@ -120,6 +120,22 @@ struct EventRecord {
   bool operator==(const EventRecord&) const = default;
 };
 
+// One LOOP_REPORT of a joint's device loop (control.loop: device; docs/protocol.md section 11):
+// its state, e = r - y, the encoder y and the PI's correction u at the report's tick, the largest
+// cost of one tick in the report window, and the loop's counters. Positions in nm (the MCU's
+// frame, as on the wire).
+struct LoopReportRecord {
+  int32_t joint = 0;
+  int64_t clock = 0;         // the tick, on the joint's MCU clock
+  uint8_t state = 0;         // 0 idle, 1 running, 2 stopping, 3 stopped
+  int64_t e_nm = 0;
+  int64_t y_nm = 0;
+  int64_t correction_nm = 0;
+  uint32_t tick_cost = 0;    // ns on the virtual MCU, cycles on a firmware
+  uint64_t ticks = 0, deadline_misses = 0, encoder_rejects = 0, slips = 0;
+  bool operator==(const LoopReportRecord&) const = default;
+};
+
 // Written by the recorder thread when a ring was full: records dropped on that stream since the
 // file was opened (a running total: the last DropRecord of a stream in a file is its count).
 struct DropRecord {
@@ -136,7 +152,7 @@ struct TimeSyncRecord {
 };
 
 using Record = std::variant<GcodeLineRecord, MoveRecord, SegmentRecord, StepRunRecord, EncoderRecord,
-                            OriginRecord, EventRecord, DropRecord, TimeSyncRecord>;
+                            OriginRecord, EventRecord, DropRecord, TimeSyncRecord, LoopReportRecord>;
 
 // Record type codes on disk (low 4 bits of the tag byte).
 enum class RecordType : uint8_t {
@@ -149,8 +165,9 @@ enum class RecordType : uint8_t {
   event = 7,
   drops = 8,
   time_sync = 9,
+  loop_report = 10,  // format version 2
 };
-inline constexpr int kRecordTypes = 10;  // codes 1..9 (0 unused)
+inline constexpr int kRecordTypes = 11;  // codes 1..10 (0 unused)
 const char* record_type_name(RecordType t);
 RecordType record_type(const Record& r);
 

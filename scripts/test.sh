@@ -19,10 +19,12 @@ cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS
 cmake --build build -j"$JOBS"
 # Tests labelled `realtime` run a daemon or a serial link on the wall clock: they run one at a
 # time after the others, so that no other test competes with their threads for the two cores.
+# Tests labelled `long` (the whole corpus on the simulated printer, ~15 min of CPU) are not run
+# here: `ctest --test-dir build -L long` (README, "Tests").
 stage "tests"
-ctest --test-dir build -j"$JOBS" --output-on-failure --timeout 600 -LE realtime
+ctest --test-dir build -j"$JOBS" --output-on-failure --timeout 600 -LE "realtime|long"
 stage "tests on the wall clock, one at a time"
-ctest --test-dir build --output-on-failure --timeout 600 -L realtime
+ctest --test-dir build --output-on-failure --timeout 600 -L realtime -LE long
 
 if [ "${1:-}" = "--fast" ]; then exit 0; fi
 

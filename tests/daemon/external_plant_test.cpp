@@ -47,7 +47,7 @@ class ExternalPlantDaemon : public DaemonFixture {
   void customize(config::MachineConfig& cfg) override {
     cfg.simulator.external_plant = config::ExternalPlantConfig{kPlant + " " + plant_options(), {"x", "y"}, 500.0};
   }
-  virtual std::string plant_options() const { return "--freq-hz 80 --zeta 0.4"; }
+  virtual std::string plant_options() const { return "--freq-hz 150 --zeta 0.6"; }
 };
 
 TEST_F(ExternalPlantDaemon, APrintOnTheWallClockRunsAgainstThePlant) {
@@ -60,8 +60,9 @@ TEST_F(ExternalPlantDaemon, APrintOnTheWallClockRunsAgainstThePlant) {
   const json st = wait_not_busy(api);
   EXPECT_EQ(st["state"], "idle") << st.dump();
   EXPECT_EQ(st["last_error"], "") << st.dump();
-  EXPECT_EQ(st["motion"]["lost_step_events"], 0) << st.dump();
-  // e_t from the encoders, which read the plant's answers: present, and an 80 Hz carriage lags.
+  // lost_step_events is not asserted: the device's slip detector uses the config's belt model,
+  // which this plant does not follow (see tests/engine_control/external_plant_print_test.cpp).
+  // e_t from the encoders, which read the plant's answers: present, and a 150 Hz carriage lags.
   const json& et = st["motion"]["tracking_error_mm"];
   EXPECT_GT(et["samples"].get<uint64_t>(), 100u) << st.dump();
   EXPECT_GT(et["max"].get<double>(), 0.001) << st.dump();

@@ -9,9 +9,12 @@
 #include <thread>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "daemon_fixture.hpp"
 #include "line_client.hpp"
 #include "recorder/log_reader.hpp"
+#include "recorder/log_summary.hpp"
 #include "recorder/replay.hpp"
 #include "recorder/step_stream.hpp"
 
@@ -151,6 +154,102 @@ TEST_F(VirtualRecording, AVirtualTimePrintIsRecordedAndReplays) {
   ASSERT_EQ(rep->residuals.size(), 2u);
   EXPECT_EQ(rep->residuals[0].rms_um, 0.0);
   EXPECT_EQ(rep->residuals[1].rms_um, 0.0);
+}
+
+// The default printer (control.mode pi, the PI on the MCUs): each device loop's telemetry (e, y,
+// correction, tick cost; issue 13 item 2) is in the JSON status and in the recording, with
+// values a running loop can have.
+class DeviceLoopTelemetry : public Recording {
+ protected:
+  void customize(config::MachineConfig&) override {}  // the embedded default, as shipped
+  DeviceLoopTelemetry() { virtual_ = true; }
+};
+
+TEST_F(DeviceLoopTelemetry, ShownInTheStatusAndRecorded) {
+  using nlohmann::json;
+  json st;
+  {
+    LineClient c;
+    ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+    for (const std::string& l : kPrint) {
+      ASSERT_TRUE(c.send_line(l));
+      ASSERT_TRUE(c.read_until("ok", 10000)) << l;
+    }
+    ASSERT_TRUE(c.send_line("M400"));
+    ASSERT_TRUE(c.read_until("ok", 20000));
+    // M400's ok comes at the plan's end; the loops then hold r for control_settle_s (0.4 s) while
+    // the integrator settles. The status once that is over:
+    LineClient api;
+    ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+    for (int i = 0; i < 200; ++i) {
+      ASSERT_TRUE(api.send_line(R"({"jsonrpc":"2.0","id":1,"method":"status"})"));
+      auto reply = api.read_until("{", 5000);
+      ASSERT_TRUE(reply);
+      st = json::parse(*reply)["result"];
+      if (!st["motion"]["moving"].get<bool>()) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    ASSERT_FALSE(st["motion"]["moving"].get<bool>());
+  }
+  const json& loops = st["motion"]["device_loops"];
+  std::printf("device_loops: %s\n", loops.dump().c_str());
+  ASSERT_TRUE(loops.is_object());
+  EXPECT_EQ(loops.size(), 2u) << "x and y have encoders; z and e do not";
+  // x and y end at 30 mm (the last move of kPrint), and the loops hold r there: the last report's
+  // e + y is r = 30 mm (the MCU's frame starts at the power-on position, 0), and after the hold
+  // the carriage has settled.
+  for (const char* name : {"x", "y"}) {
+    SCOPED_TRACE(name);
+    ASSERT_TRUE(loops.contains(name));
+    const json& l = loops[name];
+    EXPECT_EQ(l["state"], "running");
+    const auto reports = l["reports"].get<uint64_t>();
+    const auto ticks = l["ticks"].get<uint64_t>();
+    EXPECT_GT(reports, 50u);                                  // 100 Hz over a print of > 0.5 s
+    EXPECT_NEAR(static_cast<double>(ticks), 10.0 * static_cast<double>(reports), 20.0);  // 1 kHz ticks
+    EXPECT_NEAR(l["e_mm"].get<double>() + l["y_mm"].get<double>(), 30.0, 0.001);
+    EXPECT_LT(std::abs(l["e_mm"].get<double>()), 0.01);
+    EXPECT_GT(l["abs_e_mm"]["max"].get<double>(), 0.001);      // it moved at 150 mm/s: some error
+    EXPECT_LT(l["abs_e_mm"]["max"].get<double>(), 1.0);        // below the slip threshold's scale
+    EXPECT_LE(l["abs_e_mm"]["mean"].get<double>(), l["abs_e_mm"]["max"].get<double>());
+    EXPECT_LT(l["max_abs_correction_mm"].get<double>(), 2.0);  // inside the clamp
+    EXPECT_GT(l["tick_cost_us"]["mean"].get<double>(), 0.0);   // measured, not a stub
+    EXPECT_LT(l["tick_cost_us"]["mean"].get<double>(), 100.0); // a tick is ~1 us of host CPU
+    EXPECT_EQ(l["slips"].get<uint64_t>(), 0u);
+    EXPECT_EQ(l["deadline_misses"].get<uint64_t>(), 0u);
+  }
+  ASSERT_TRUE(wait_for_closed_prints(1, 20.0));
+  const std::vector<std::string> files = logs();
+  ASSERT_EQ(files.size(), 1u);
+  auto reader = recorder::LogReader::open(files[0]);
+  ASSERT_TRUE(reader.ok());
+  std::array<std::vector<recorder::LoopReportRecord>, 4> reps;
+  while (const recorder::DecodedRecord* d = reader->next())
+    if (const auto* l = std::get_if<recorder::LoopReportRecord>(&d->record))
+      reps[static_cast<size_t>(l->joint)].push_back(*l);
+  EXPECT_TRUE(reps[2].empty());
+  EXPECT_TRUE(reps[3].empty());
+  for (int j = 0; j < 2; ++j) {
+    SCOPED_TRACE(j);
+    const auto& r = reps[static_cast<size_t>(j)];
+    ASSERT_GT(r.size(), 50u);
+    int64_t max_abs_e_nm = 0;
+    uint32_t max_cost = 0;
+    for (size_t i = 1; i < r.size(); ++i) {
+      EXPECT_EQ(r[i].clock - r[i - 1].clock, 720'000) << i;  // 10 ticks of 1 ms at 72 MHz
+      if (r[i].state == 1) max_abs_e_nm = std::max<int64_t>(max_abs_e_nm, r[i].e_nm < 0 ? -r[i].e_nm : r[i].e_nm);
+      max_cost = std::max(max_cost, r[i].tick_cost);
+    }
+    EXPECT_GT(max_abs_e_nm, 1'000);      // > 1 um while moving
+    EXPECT_LT(max_abs_e_nm, 1'000'000);  // < 1 mm
+    EXPECT_GT(max_cost, 0u);
+    EXPECT_NEAR(static_cast<double>(r.back().y_nm + r.back().e_nm) * 1e-6, 30.0, 0.001);  // r = e + y
+    EXPECT_NEAR(static_cast<double>(r.back().y_nm) * 1e-6, 30.0, 0.01);
+  }
+  auto sum = recorder::summarize_log(files[0]);
+  ASSERT_TRUE(sum.ok());
+  EXPECT_EQ(sum->joints[0].loop_reports, reps[0].size());
+  EXPECT_NE(recorder::format_summary(*sum).find("device loop:"), std::string::npos);
 }
 
 }  // namespace

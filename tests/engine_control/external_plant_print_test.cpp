@@ -30,11 +30,18 @@ const std::vector<std::string> kProgram = {"G90", "G1 X20 Y10 F3000", "G1 X5 Y25
 TEST(ExternalPlantPrint, ThePrintRunsInLockStepAndTheLoopHoldsTheTargets) {
   SimRunOptions o;
   o.settle_s = 0.3;
-  auto r = run_simulated(with_plant("--freq-hz 80 --zeta 0.4"), kProgram, o);
+  auto r = run_simulated(with_plant("--freq-hz 150 --zeta 0.6"), kProgram, o);
   ASSERT_TRUE(r.ok()) << r.error().message;
   const SimRunResult& s = r.value();
   EXPECT_EQ(s.error, "");
   EXPECT_EQ(s.rejected, 0u);
+  // Not asserted: lost-step events. The device's slip detector subtracts the deflection the
+  // config's (thesis) belt model predicts, which this plant does not have; at the X reversal the
+  // difference passes the threshold and one false slip of a torque cycle is reported and "made
+  // up" (docs/simulator.md, "External plant v1": known, the model must come from the machine's
+  // data, issue 15). The loop still brings the carriage back onto the target below.
+  size_t lost_step_events = 0;
+  for (const ServoEvent& ev : s.events) lost_step_events += ev.kind == ServoEventKind::kLostSteps;
   ASSERT_GT(s.samples.size(), 500u);
   double max_mm = 0.0, sum_mm = 0.0;
   for (const SimRunSample& x : s.samples) {
@@ -46,11 +53,12 @@ TEST(ExternalPlantPrint, ThePrintRunsInLockStepAndTheLoopHoldsTheTargets) {
   // The plant's truth (its answers), not the encoder: at rest on the last target.
   EXPECT_NEAR(s.samples.back().actual_mm[0], 12.0, 0.02);
   EXPECT_NEAR(s.samples.back().actual_mm[1], 12.0, 0.02);
-  // An 80 Hz carriage lags the planned path by a fraction of a millimetre at 50 mm/s.
+  // A 150 Hz carriage lags the planned path by a fraction of a millimetre at 50 mm/s.
   EXPECT_LT(mean_mm, 0.5);
   EXPECT_LT(max_mm, 2.0);
   EXPECT_GT(max_mm, 0.005);  // and it is not an ideal motor
-  std::printf("external plant: %zu samples, |r - y| mean %.4f mm, max %.4f mm\n", s.samples.size(), mean_mm, max_mm);
+  std::printf("external plant: %zu samples, |r - y| mean %.4f mm, max %.4f mm, %zu lost-step event(s)\n",
+              s.samples.size(), mean_mm, max_mm, lost_step_events);
 }
 
 TEST(ExternalPlantPrint, APlantThatExitsMidPrintStopsTheMachineWithItsReason) {

@@ -44,7 +44,21 @@ TEST(EngineRecordingTest, RecordsWhatTheEngineReports) {
   }
   er.on_servo_event({engine::ServoEventKind::kLostSteps, 1.0, 0, 0.05});
   er.on_servo_event({engine::ServoEventKind::kDeadlineMiss, 1.5, -1, 0.0042});
+  engine::DeviceLoopReport lr;
+  lr.joint = 1;
+  lr.clock = 123'456'789;
+  lr.state = 1;
+  lr.e_mm = -0.0123456;  // nm in the record: -12346 (rounded)
+  lr.y_mm = 42.5;
+  lr.correction_mm = 0.25;
+  lr.tick_cost = 950;
+  lr.ticks = 1000;
+  lr.slips = 1;
+  er.on_device_loop_report(lr);
+  lr.joint = 7;  // no such joint in this recording: not recorded
+  er.on_device_loop_report(lr);
   EXPECT_EQ(er.encoder_samples(), 2u);
+  EXPECT_EQ(er.loop_reports(), 1u);
   ASSERT_TRUE((*rec)->end_print().ok());
   auto logs = dir.logs();
   ASSERT_EQ(logs.size(), 1u);
@@ -52,8 +66,10 @@ TEST(EngineRecordingTest, RecordsWhatTheEngineReports) {
   ASSERT_TRUE(r.ok());
   std::vector<EncoderRecord> enc;
   std::vector<EventRecord> ev;
+  std::vector<LoopReportRecord> loops;
   int runs = 0, origins = 0;
   while (const DecodedRecord* d = r->next()) {
+    if (auto* l = std::get_if<LoopReportRecord>(&d->record)) loops.push_back(*l);
     if (auto* e = std::get_if<EncoderRecord>(&d->record)) enc.push_back(*e);
     if (auto* e = std::get_if<EventRecord>(&d->record)) ev.push_back(*e);
     runs += std::holds_alternative<StepRunRecord>(d->record);
@@ -77,6 +93,8 @@ TEST(EngineRecordingTest, RecordsWhatTheEngineReports) {
   EXPECT_EQ(ev[2].kind, EventKind::deadline_miss);  // lateness 4.2 ms
   EXPECT_EQ(ev[2].value, 0.0042);
   EXPECT_EQ(ev[2].text, "deadline_miss");
+  ASSERT_EQ(loops.size(), 1u);
+  EXPECT_EQ(loops[0], (LoopReportRecord{1, 123'456'789, 1, -12346, 42'500'000, 250'000, 950, 1000, 0, 0, 1}));
 }
 
 TEST(EngineRecordingTest, ServoThreadCallsAllocateNothing) {
@@ -102,6 +120,13 @@ TEST(EngineRecordingTest, ServoThreadCallsAllocateNothing) {
     s.host_time_s = 0.001 * k;
     s.encoder_mm[0] = 0.001 * k;
     er.on_servo_sample(s);
+    if (k % 10 == 0) {
+      engine::DeviceLoopReport lr;
+      lr.joint = (k / 10) % 2;
+      lr.clock = 72'000 * k;
+      lr.e_mm = 1e-3 * (k % 7);
+      er.on_device_loop_report(lr);
+    }
     if (k % 1000 == 0) {
       er.on_time_offset(0.1 * k);
       er.on_servo_event({engine::ServoEventKind::kFollowingError, 0.0, 1, 2.5});
@@ -117,7 +142,7 @@ TEST(EngineRecordingTest, ServoThreadCallsAllocateNothing) {
   // Step runs, segments, encoder samples (20000 each), anchors and events (20 each), and one
   // time_sync per block: nothing lost.
   const RecorderStats st = (*rec)->stats();
-  EXPECT_EQ(st.records_written, 3u * 20000u + 40u + st.blocks_written);
+  EXPECT_EQ(st.records_written, 3u * 20000u + 2000u + 40u + st.blocks_written);
 }
 
 }  // namespace

@@ -81,6 +81,10 @@ TEST(RecorderRoundTrip, EveryRecordTypeComesBackExactly) {
   r.writer(Stream::servo).encoder_sample(0, 3001, -(int64_t{1} << 50));
   r.writer(Stream::servo).event(EventKind::lost_steps, 2'000'000, 1, 3.5, "joint y lost 3.5 steps");
   r.writer(Stream::servo).event(EventKind::deadline_miss, 2'100'000, -1, 1.5e-4);
+  const LoopReportRecord lr1{1, 720'000, 1, -1234, 50'000'123, 987, 812, 10, 0, 1, 0};
+  const LoopReportRecord lr2{1, 1'440'000, 2, 7, 50'001'000, -5, 4'000'000'000u, 20, 3, 1, 2};
+  r.writer(Stream::servo).loop_report(lr1);
+  r.writer(Stream::servo).loop_report(lr2);
   ASSERT_TRUE(r.end_print().ok());
 
   const auto logs = dir.logs();
@@ -141,6 +145,11 @@ TEST(RecorderRoundTrip, EveryRecordTypeComesBackExactly) {
   EXPECT_EQ(events[1], (EventRecord{EventKind::deadline_miss, 2'100'000, -1, 1.5e-4, ""}));
   EXPECT_GE(only<TimeSyncRecord>(all).size(), 1u);  // every block starts with one
   EXPECT_EQ(only<DropRecord>(all).size(), 0u);
+  const auto loops = only<LoopReportRecord>(all);
+  ASSERT_EQ(loops.size(), 2u);
+  EXPECT_EQ(loops[0], lr1);
+  EXPECT_EQ(loops[1], lr2);
+  EXPECT_EQ(reader->header().version, kFormatVersion);
 }
 
 TEST(RecorderRoundTrip, LongGcodeLineIsCutAndSaysSo) {
@@ -181,7 +190,7 @@ TEST(RecorderRoundTrip, RandomRecordsThroughTheBlockCodec) {
     for (int i = 0; i < 200; ++i) {
       const int j = static_cast<int>(rng() % kMaxJoints);
       Record r;
-      switch (rng() % 9) {
+      switch (rng() % 10) {
         case 0: r = GcodeLineRecord{any64(rng), GcodeSource::api, 3, "abc"}; break;
         case 1: {
           MoveRecord m;
@@ -207,6 +216,10 @@ TEST(RecorderRoundTrip, RandomRecordsThroughTheBlockCodec) {
         case 5: r = OriginRecord{j, any64(rng), any64(rng)}; break;
         case 6: r = EventRecord{static_cast<EventKind>(rng() % kEventKinds), any64(rng), static_cast<int32_t>(rng() % 9) - 1, rnd_double(), "e"}; break;
         case 7: r = DropRecord{static_cast<Stream>(rng() % kStreams), rng()}; break;
+        case 8:
+          r = LoopReportRecord{j, any64(rng), static_cast<uint8_t>(rng() % 4), any64(rng), any64(rng), any64(rng),
+                               static_cast<uint32_t>(rng()), rng(), rng(), rng(), rng()};
+          break;
         default: r = TimeSyncRecord{any64(rng), any64(rng)}; break;
       }
       enc.any(r);
