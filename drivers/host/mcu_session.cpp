@@ -79,11 +79,12 @@ Status McuSession::start(double now_s) {
   return {};
 }
 
-// A stalled I/O thread on this side explains an underrun, a watchdog or a silent link: " (this
-// link's I/O thread did not run for up to N ms)" when it stalled >= 20 ms since start(), else "".
+// A stalled I/O thread on this side may explain an underrun, a watchdog or a silent link: " (this
+// link's I/O thread did not run for up to N ms)" when it stalled for 100 ms or more (the steps'
+// lead: shorter stalls are harmless by design) since start(), else "".
 std::string McuSession::io_stall_note() const {
   const double gap_ms = transport_.io_stats().io_max_gap_us * 1e-3;
-  if (gap_ms <= io_gap_at_start_ms_ || gap_ms < 20.0) return {};
+  if (gap_ms <= io_gap_at_start_ms_ || gap_ms < 100.0) return {};
   return " (this link's I/O thread did not run for up to " + std::to_string(static_cast<int>(gap_ms)) + " ms)";
 }
 
@@ -220,10 +221,12 @@ void McuSession::poll(double now_s) {
   clock_.refresh();
   if (state_ == McuState::kIdle || state_ == McuState::kFailed) return;
   if (state_ == McuState::kDisconnected) {
-    if (now_s < next_reconnect_s_) return;
-    if (!transport_.connected() && !transport_.open().ok()) {
+    // open() every reconnect_period_s; a transport with an I/O thread reopens in the background
+    // and is taken as soon as it is up.
+    if (!transport_.connected()) {
+      if (now_s < next_reconnect_s_) return;
       next_reconnect_s_ = now_s + p_.reconnect_period_s;
-      return;
+      if (!transport_.open().ok()) return;
     }
     state_ = state_before_disconnect_;
     events_.push_back("MCU '" + p_.name + "' (" + transport_.describe() + ") reconnected");
@@ -252,20 +255,18 @@ void McuSession::poll(double now_s) {
   if (p_.link_stall_s > 0 && link_.in_flight() > 0 && ns(now_s) - link_.last_progress_ns() > ns(p_.link_stall_s)) {
     const std::string silent = std::to_string(static_cast<int>(p_.link_stall_s * 1000.0)) + " ms with " +
                                std::to_string(link_.in_flight()) + " frame(s) in flight";
-    if (const std::string note = io_stall_note(); !note.empty())
-      fail("MCU '" + p_.name + "' (" + transport_.describe() + ") acknowledged nothing for " + silent + note +
-           "; motion stopped");
-    else if (now_s - last_refused_s_ < p_.link_stall_s)
+    const std::string note = io_stall_note();
+    if (now_s - last_refused_s_ < p_.link_stall_s)
       fail("MCU '" + p_.name + "' (" + transport_.describe() + ") acknowledged nothing for " + silent +
            " while the transport's send queue refused frames (" + std::to_string(frames_refused_) +
-           " so far): its I/O thread is stalled or the device does not read; motion stopped");
+           " so far): its I/O thread is stalled or the device does not read" + note + "; motion stopped");
     else if (state_ == McuState::kIdentifying)
       fail("MCU '" + p_.name + "' (" + transport_.describe() + ") does not answer (nothing acknowledged for " +
-           silent + "): is feedloop firmware running there, at this port/device?");
+           silent + "): is feedloop firmware running there, at this port/device?" + note);
     else
       fail("MCU '" + p_.name + "' (" + transport_.describe() + ") acknowledged nothing for " + silent +
-           ": it restarted (and lost its step queue) or hangs; motion stopped, start the session again to "
-           "re-identify it");
+           ": it restarted (and lost its step queue) or hangs" + note +
+           "; motion stopped, start the session again to re-identify it");
     return;
   }
   if (state_ == McuState::kReady && now_s >= next_query_s_ && link_.can_send()) {
