@@ -35,8 +35,8 @@ cmake -S . -B build-san -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE
 cmake --build build-san -j"$JOBS"
 stage "tests under sanitizers"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
-ctest --test-dir build-san -j"$JOBS" --output-on-failure --timeout 900 -LE "slow|realtime"
-ctest --test-dir build-san --output-on-failure --timeout 900 -L realtime -LE slow
+ctest --test-dir build-san -j"$JOBS" --output-on-failure --timeout 900 -LE "slow|realtime|long"
+ctest --test-dir build-san --output-on-failure --timeout 900 -L realtime -LE "slow|long"
 
 stage "fuzz (short run of every target)"
 bash fuzz/run.sh build-san 10  # fuzz/README.md; 10 s each (the long runs are separate)
