@@ -68,8 +68,7 @@ bool MotionExecutor::faulted() const {
 }
 
 bool MotionExecutor::motion_pending() const {
-  return planner_queued_.load() > 0 || pushed_.load() != popped_.load() ||
-         telemetry_.anchored.load(std::memory_order_relaxed);
+  return planner_queued_.load() > 0 || pushed_.load() != popped_.load() || telemetry_.anchored.load();
 }
 
 void MotionExecutor::motion_status(MachineStatus& s) const {
@@ -174,6 +173,7 @@ void MotionExecutor::drop_queued_moves() {
   planner::PlannedMove drop;
   while (queue_.try_pop(drop)) popped_.fetch_add(1, std::memory_order_release);
   if (telemetry_.anchored.load()) steps_.flush();
+  publish_step_counts();
   telemetry_.anchored.store(false);
 }
 
@@ -187,6 +187,10 @@ void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
     for (size_t n; (n = backend_->take_device_reports(reports, 16)) > 0;)
       for (size_t k = 0; k < n && tap_ != nullptr; ++k) tap_->on_device_loop_report(reports[k]);
   }
+  publish_step_counts();
+}
+
+void MotionExecutor::publish_step_counts() {
   for (int j = 0; j < kJoints && j < 4; ++j)
     step_count_[static_cast<size_t>(j)].store(steps_.position_steps(j), std::memory_order_relaxed);
 }
@@ -257,6 +261,9 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
       offset_s_ = horizon_s - front->start_time_s;
       steps_.set_time_offset_s(offset_s_);
       anchored = true;
+      // Published before the first pop: a waiter (M400) must never see the queue empty and
+      // the motion not yet started.
+      telemetry_.anchored.store(true);
       telemetry_.anchors.fetch_add(1, std::memory_order_relaxed);
     }
     if (front->start_time_s + offset_s_ > horizon_s) break;
@@ -280,8 +287,9 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
   if (queue_.empty() && print_now_s > executed_end_s_ && planner_queued_.load() == 0) {
     steps_.flush();
     anchored = false;
+    publish_step_counts();  // the counts a waiter reads once the motion has ended
   }
-  telemetry_.anchored.store(anchored, std::memory_order_relaxed);
+  telemetry_.anchored.store(anchored);
 }
 
 // After power-on or a fault: the joints restart from the plan (the steps queued before were not
@@ -445,6 +453,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
     if (front == nullptr) return;
     start_sampled(*front, now_s);
     anchored = true;
+    telemetry_.anchored.store(true);  // before the first pop (see run_cycle)
     telemetry_.anchors.fetch_add(1, std::memory_order_relaxed);
   }
   const double print_now_s = now_s - offset_s_;
@@ -651,8 +660,9 @@ void MotionExecutor::sampled_cycle(double now_s) {
   if (plan_empty && next_sample_s_ >= stop_s && print_now_s >= next_sample_s_) {
     steps_.flush();
     anchored = false;
+    publish_step_counts();  // the counts a waiter reads once the motion has ended
   }
-  telemetry_.anchored.store(anchored, std::memory_order_relaxed);
+  telemetry_.anchored.store(anchored);
 }
 
 }  // namespace feedloop::engine

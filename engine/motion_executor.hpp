@@ -190,6 +190,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   std::array<unsigned long long, 4> encoder_reports_seen_{};
   // After the motion ends: the last sample, republished with fresh encoders until settle_end_s_.
   void run_cycle(double now_s, bool cancel);  // servo_cycle() before the settling tail
+  void publish_step_counts();  // each joint's step counter, for M114 and the status
   void publish_settling(double now_s, bool was_anchored);
   ServoSample last_sample_{};
   double settle_end_s_ = 0.0;
