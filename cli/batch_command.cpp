@@ -2,12 +2,14 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <fstream>
 #include <string>
 #include <vector>
-#include <fstream>
 
 #include "cli/progress.hpp"
 #include "config/config.hpp"
@@ -21,11 +23,13 @@ namespace {
 
 void usage() {
   std::fputs(
-      "usage: feedloop batch FILE.gcode [--config CFG.yaml] [--json OUT.json] [--quiet]\n"
+      "usage: feedloop batch FILE.gcode [--config CFG.yaml] [--json OUT.json] [--quiet] [--threads "
+      "1|2]\n"
       "       feedloop batch FILE.gcode [--config CFG.yaml] --simulate [--json OUT.json]\n"
       "       feedloop batch FILE.gcode [--config CFG.yaml] --export-trace TRACE.csv\n"
       "  Translates FILE through the whole pipeline in virtual time (no hardware) and prints a\n"
-      "  summary. Without --config the embedded simulated Cartesian printer is used.\n"
+      "  summary. Without --config the embedded simulated Cartesian printer is used. --threads 2\n"
+      "  (default) steps half the joints on a second thread; the output is the same with 1.\n"
       "  --simulate runs FILE on the simulated printer of the config (its mock MCUs, plants and\n"
       "  control law) and prints what the machine did: lost-step events, the tracking error e_t\n"
       "  from the encoders, faults, steps the plant lost (ground truth). Exit 1 on any of them.\n"
@@ -114,6 +118,18 @@ int export_trace(const std::string& file, const config::MachineConfig& cfg, cons
   return r->error.empty() ? 0 : 1;
 }
 
+// Writes `j` to `path`; false (with a message) when the file cannot be written.
+bool write_json_file(const std::string& path, const nlohmann::json& j) {
+  std::ofstream out(path);
+  out << j.dump(2) << "\n";
+  out.flush();
+  if (!out) {
+    std::fprintf(stderr, "feedloop batch: cannot write %s: %s\n", path.c_str(), std::strerror(errno));
+    return false;
+  }
+  return true;
+}
+
 // The file on the config's simulated printer, in virtual time: the machine's own figures (what
 // the daemon's status shows at the end of a print) and the plant's ground truth.
 int simulate(const std::string& file, const config::MachineConfig& cfg, const std::string& config_name,
@@ -156,7 +172,7 @@ int simulate(const std::string& file, const config::MachineConfig& cfg, const st
                                             {"max", r->tracking_error_max_mm},
                                             {"samples", r->tracking_error_samples}}},
                      {"faults", r->faults}, {"error", r->error}};
-    std::ofstream(json_path) << j.dump(2) << "\n";
+    if (!write_json_file(json_path, j)) return 1;
   }
   const bool clean = r->error.empty() && r->rejected == 0 && r->faults == 0 && r->lost_step_events == 0 &&
                      lost_full_steps == 0;
@@ -165,7 +181,8 @@ int simulate(const std::string& file, const config::MachineConfig& cfg, const st
 
 // A DC-servo machine (drive: dc_servo): the G-code through engine::Machine with the maneuvering
 // executor in virtual time, and the path-following figures.
-int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bool quiet) {
+int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bool quiet,
+                   const std::string& json_path) {
   std::vector<std::string> lines;
   if (!read_lines(file, lines)) return 1;
   auto r = engine::run_maneuver_virtual(cfg, lines, 1e7);
@@ -187,6 +204,25 @@ int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bo
     std::printf("  end position      X %.3f Y %.3f Z %.3f mm%s\n", r->end_mm[0], r->end_mm[1], r->end_mm[2],
                 r->faulted ? " (stopped on a tracking fault)" : "");
   }
+  if (!json_path.empty()) {
+    const nlohmann::json j{{"file", file},
+                           {"drive", "dc_servo"},
+                           {"commands", r->commands},
+                           {"rejected", r->rejected},
+                           {"first_error", r->first_error},
+                           {"moves", r->moves},
+                           {"segments_entered", r->segments_entered},
+                           {"machine_time_s", r->virtual_s},
+                           {"path_time_s", r->path_time_s},
+                           {"path_mm", r->path_mm},
+                           {"max_cross_track_mm", r->max_cross_track_mm},
+                           {"iae_cross_track_mm_s", r->iae_cross_track_mm_s},
+                           {"max_error_mm", r->max_error_mm},
+                           {"max_voltage_v", r->max_voltage_v},
+                           {"end_mm", {r->end_mm[0], r->end_mm[1], r->end_mm[2]}},
+                           {"faulted", r->faulted}};
+    if (!write_json_file(json_path, j)) return 1;
+  }
   return r->faulted ? 1 : 0;
 }
 
@@ -195,9 +231,18 @@ int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bo
 int batch_command(const std::vector<std::string>& args) {
   std::string file, config_path, json_path, trace_path;
   bool quiet = false, sim = false;
+  int threads = 2;
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--config" && i + 1 < args.size()) config_path = args[++i];
-    else if (args[i] == "--json" && i + 1 < args.size()) json_path = args[++i];
+    else if (args[i] == "--threads" && i + 1 < args.size()) {
+      const std::string& v = args[++i];
+      if (v != "1" && v != "2") {
+        std::fprintf(stderr, "feedloop batch: --threads must be 1 or 2, not '%s'\n", v.c_str());
+        return 2;
+      }
+      threads = v == "1" ? 1 : 2;
+    } else if (args[i] == "--json" && i + 1 < args.size())
+      json_path = args[++i];
     else if (args[i] == "--quiet") quiet = true;
     else if (args[i] == "--simulate") sim = true;
     else if (args[i] == "--export-trace" && i + 1 < args.size()) trace_path = args[++i];
@@ -212,11 +257,12 @@ int batch_command(const std::vector<std::string>& args) {
     std::fprintf(stderr, "feedloop batch: invalid config:\n%s\n", cfg.error().to_string().c_str());
     return 1;
   }
-  if (cfg->drive == config::Drive::dc_servo) return maneuver_batch(file, *cfg, quiet);
+  if (cfg->drive == config::Drive::dc_servo) return maneuver_batch(file, *cfg, quiet, json_path);
   if (!trace_path.empty()) return export_trace(file, *cfg, trace_path, quiet);
   if (sim) return simulate(file, *cfg, config_path.empty() ? "embedded default" : config_path, json_path, quiet);
   Progress progress("batch");
   engine::BatchOptions opt;
+  opt.threads = threads;
   if (!quiet) opt.on_progress = [&](double f) { progress.update(f); };
   auto sum = engine::run_batch(file, *cfg, opt);
   if (!quiet) progress.finish();
@@ -260,7 +306,7 @@ int batch_command(const std::vector<std::string>& args) {
       j["joints"][s.joint_names[static_cast<size_t>(k)]] = {{"steps", js.steps}, {"runs", js.runs},
           {"batches", js.batches}, {"max_step_rate_hz", js.max_step_rate_hz}};
     }
-    std::ofstream(json_path) << j.dump(2) << "\n";
+    if (!write_json_file(json_path, j)) return 1;
   }
   return s.check_failures == 0 ? 0 : 1;
 }

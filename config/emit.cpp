@@ -314,6 +314,13 @@ void write_runtime(Writer& w, const MachineConfig& c) {
   write_effect(w, "scale_error", fx.scale_error,
                [&](const ScaleErrorConfig& v) { w.num("scale", v.scale); });
   w.end();
+  if (s.external_plant) {
+    w.begin("external_plant");
+    w.str("command", s.external_plant->command);
+    w.list("axes", s.external_plant->axes);
+    w.num("period_us", s.external_plant->period_us);
+    w.end();
+  }
   w.end();
 
   char mode[8];

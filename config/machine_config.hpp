@@ -146,7 +146,8 @@ struct ControlConfig {
   double max_correction_mm_s = 50.0;          // clamp of the PI correction (per period: / rate_hz)
   double skipped_step_threshold_mm = 0.3;     // following error that counts as lost steps
   double max_following_error_mm = 2.0;        // beyond this: fault, stop motion
-  double max_encoder_jump_mm = 1.0;           // a sample-to-sample jump beyond this is implausible
+  double max_encoder_jump_mm = 0.05;          // an encoder sample beyond the travel possible since the
+                                              // last good one (2 x max velocity x dt) plus this is implausible
   double command_lead_ms = 4.0;               // closed loop / feedforward: motor commands are computed
                                               // this far ahead of execution (the PI's loop delay)
   ManeuverControlConfig maneuver;             // mode maneuver (drive: dc_servo)
@@ -371,11 +372,21 @@ struct SimEffectsConfig {
   bool operator==(const SimEffectsConfig&) const = default;
 };
 
+// DESIGN.md "External plant v1": the listed axes are driven by a plant in another process
+// (sim/external_plant.hpp); the others stay on the built-in simulator.
+struct ExternalPlantConfig {
+  std::string command;            // run with /bin/sh -c
+  std::vector<std::string> axes;  // config axis names, in the order of the plant's columns
+  double period_us = 100.0;       // one exchange per period
+  bool operator==(const ExternalPlantConfig&) const = default;
+};
+
 struct SimulatorConfig {
   std::uint64_t seed = 1;
   double encoder_noise_um = 0.0;   // rms, added before quantisation to the encoder resolution
   double sample_delay_us = 0.0;    // encoder sample to report latency
   SimEffectsConfig effects;
+  std::optional<ExternalPlantConfig> external_plant;
   bool operator==(const SimulatorConfig&) const = default;
 };
 

@@ -107,6 +107,28 @@ void read_simulator(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
     m.number("scale", v.scale, Range::open(0.5, 2.0), Need::required);
   });
   e.finish();
+  if (s.has("external_plant")) {
+    MapReader x = s.sub("external_plant");
+    ExternalPlantConfig plant;
+    if (x.string("command", plant.command, Need::required) && plant.command.empty())
+      diag.add(x.key_mark("command"), x.key_path("command") + " must not be empty");
+    if (!x.has("axes")) diag.add(x.mark(), x.path() + ".axes is required (the axes the plant drives)");
+    read_axis_refs(x, "axes", cfg, plant.axes, diag);
+    if (x.has("axes") && plant.axes.empty() && x.get("axes").IsSequence() && x.get("axes").size() == 0)
+      diag.add(x.key_mark("axes"), x.key_path("axes") + " must name at least one axis");
+    x.number("period_us", plant.period_us, Range::closed(10.0, 100000.0));
+    for (const std::string& a : plant.axes)
+      for (const McuConfig& m : cfg.mcus)
+        for (const std::string& ma : m.axes)
+          if (ma == a && m.transport != TransportType::mock)
+            diag.add(x.key_mark("axes"), x.key_path("axes") + ": axis '" + a + "' is driven by MCU '" + m.name +
+                                             "', which is not simulated (transport: mock): an external plant "
+                                             "drives simulated axes only");
+    x.finish();
+    sim.external_plant = plant;
+  } else {
+    s.sub("external_plant");  // known key
+  }
   s.finish();
 }
 

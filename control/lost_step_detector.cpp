@@ -14,11 +14,13 @@ Status LostStepDetector::configure(const LostStepParams& params) {
     return bad("full_step_mm must be >= 0 (0: unknown)");
   if (params.full_steps_per_cycle < 1) return bad("full_steps_per_cycle must be >= 1");
   if (params.settle_periods < 1) return bad("settle_periods must be >= 1");
+  if (!std::isfinite(params.period_s) || params.period_s <= 0.0) return bad("period_s must be > 0");
   const double cycle_mm = params.full_step_mm * params.full_steps_per_cycle;
   if (cycle_mm > 0.0 && cycle_mm <= 2.0 * params.threshold_mm)
     return bad("a slip cycle (full_steps_per_cycle x full_step_mm) must exceed 2 x threshold_mm");
   p_ = params;
   cycle_mm_ = cycle_mm;
+  settle_s_ = params.settle_periods * params.period_s;
   reset();
   return Status::Ok();
 }
@@ -27,20 +29,28 @@ void LostStepDetector::reset() {
   total_mm_ = 0.0;
   d_mm_ = 0.0;
   count_ = 0;
-  pending_ = 0;
+  beyond_ = false;
+  beyond_s_ = 0.0;
 }
 
 std::optional<LostStepEvent> LostStepDetector::update(double motor_mm, double encoder_mm,
-                                                      double expected_deflection_mm) {
+                                                      double expected_deflection_mm, double dt_s) {
   const double d = motor_mm - encoder_mm - expected_deflection_mm - total_mm_;
   if (!std::isfinite(d)) return std::nullopt;  // the encoder guard reports the sensor
   d_mm_ = d;
   if (std::abs(d) <= p_.threshold_mm) {
-    pending_ = 0;  // under the threshold (again): a transient, not a slip
+    beyond_ = false;  // under the threshold (again): a transient, not a slip
     return std::nullopt;
   }
-  if (pending_ <= p_.settle_periods) ++pending_;  // saturates: stays > settle while beyond
-  if (pending_ <= p_.settle_periods) return std::nullopt;
+  if (!(dt_s > 0.0) || !std::isfinite(dt_s)) dt_s = p_.period_s;
+  if (!beyond_) {  // crossed somewhere since the previous sample: the wait starts here
+    beyond_ = true;
+    beyond_s_ = 0.0;
+  } else if (beyond_s_ < settle_s_) {
+    beyond_s_ += dt_s;
+  }
+  constexpr double kTimeEpsS = 1e-9;  // sums of periods are not exact
+  if (beyond_s_ + kTimeEpsS < settle_s_) return std::nullopt;
   // Settled: round to whole cycles of the torque law when the step length is known.
   double size_mm = d;
   std::int64_t full_steps = 0;
@@ -50,7 +60,7 @@ std::optional<LostStepEvent> LostStepDetector::update(double motor_mm, double en
     size_mm = static_cast<double>(cycles) * cycle_mm_;
     full_steps = cycles * p_.full_steps_per_cycle;
   }
-  pending_ = 0;
+  beyond_ = false;
   total_mm_ += size_mm;
   ++count_;
   d_mm_ = d - size_mm;

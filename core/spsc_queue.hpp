@@ -1,6 +1,7 @@
 // Bounded lock-free single-producer single-consumer queue. Storage is allocated once, at
 // construction; push/pop never allocate and never block, so the real-time side may use them.
-// The producer calls try_push only, the consumer try_pop/front only.
+// The producer calls try_push (or try_claim + commit, to fill a large element in place) only, the
+// consumer try_pop / front + pop only.
 #pragma once
 
 #include <atomic>
@@ -37,6 +38,15 @@ class SpscQueue {
     return true;
   }
 
+  // Producer side, in place: the next free slot (nullptr when full), published by commit(). Between
+  // the two the producer writes the slot; nothing is visible to the consumer before commit().
+  T* try_claim() {
+    const size_t head = head_.load(std::memory_order_relaxed);
+    if (((head + 1) & mask_) == tail_.load(std::memory_order_acquire)) return nullptr;
+    return &slots_[head];
+  }
+  void commit() { head_.store((head_.load(std::memory_order_relaxed) + 1) & mask_, std::memory_order_release); }
+
   // Consumer side. False when empty.
   bool try_pop(T& out) {
     const size_t tail = tail_.load(std::memory_order_relaxed);
@@ -48,6 +58,19 @@ class SpscQueue {
 
   // Consumer side: the oldest element without removing it, or nullptr.
   const T* front() const {
+    const size_t tail = tail_.load(std::memory_order_relaxed);
+    if (tail == head_.load(std::memory_order_acquire)) return nullptr;
+    return &slots_[tail];
+  }
+
+  // Consumer side: drops the oldest element (after front() returned it).
+  void pop() {
+    const size_t tail = tail_.load(std::memory_order_relaxed);
+    if (tail == head_.load(std::memory_order_acquire)) return;
+    tail_.store((tail + 1) & mask_, std::memory_order_release);
+  }
+  // Consumer side: the oldest element, mutable (e.g. to consume it in parts), or nullptr.
+  T* front_mut() {
     const size_t tail = tail_.load(std::memory_order_relaxed);
     if (tail == head_.load(std::memory_order_acquire)) return nullptr;
     return &slots_[tail];

@@ -602,7 +602,8 @@ json Daemon::info() const {
 }
 
 namespace {
-// Each MCU link: frames, errors, clock-query round trips (us) and the MCU clock's measured rate.
+// Each MCU link: frames, errors, clock-query round trips (us), the MCU clock's measured rate and
+// the transport's queues (back pressure, I/O errors).
 json links_json(const engine::LinkTelemetrySet& set) {
   json out = json::array();
   for (int i = 0; i < set.count && i < engine::LinkTelemetrySet::kMaxLinks; ++i) {
@@ -620,7 +621,12 @@ json links_json(const engine::LinkTelemetrySet& set) {
                    {"in_flight", l.in_flight},
                    {"rtt_us", {{"last", l.rtt_last_us}, {"min", l.rtt_min_us}, {"mean", l.rtt_mean_us}}},
                    {"clock_samples", l.clock_samples},
-                   {"clock_rate_ppm", l.clock_rate_ppm}});
+                   {"clock_rate_ppm", l.clock_rate_ppm},
+                   {"io", {{"tx_queue_full", l.tx_queue_full},
+                           {"tx_blocked", l.tx_blocked},
+                           {"rx_queue_full", l.rx_queue_full},
+                           {"errors", l.io_errors},
+                           {"clock_fit", l.clock_fit_async ? "io_thread" : "inline"}}}});
   }
   return out;
 }

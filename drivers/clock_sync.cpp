@@ -12,18 +12,21 @@ void ClockSync::configure(const ClockSyncParams& p) {
   ring_.assign(static_cast<size_t>(p_.window), Sample{});
   scratch_.reserve(static_cast<size_t>(p_.window));  // fit() then never allocates
   head_ = count_ = 0;
-  freq_hz_ = p_.nominal_hz;
+  est_ = ClockEstimate{};
+  est_.freq_hz_ = p_.nominal_hz;
 }
 
 void ClockSync::add_sample(double send_s, double recv_s, int64_t mcu_clock) {
   if (recv_s < send_s) return;
-  last_rtt_s_ = recv_s - send_s;
+  est_.last_rtt_s_ = recv_s - send_s;
   ring_[static_cast<size_t>((head_ + count_) % p_.window)] = {0.5 * (send_s + recv_s), recv_s - send_s, mcu_clock};
   if (count_ < p_.window) ++count_; else head_ = (head_ + 1) % p_.window;
   fit();
+  est_.samples_ = count_;
+  est_.mean_rtt_s_ = window_mean_rtt_s();
 }
 
-double ClockSync::mean_rtt_s() const {
+double ClockSync::window_mean_rtt_s() const {
   if (count_ == 0) return 0.0;
   double sum = 0.0;
   for (int i = 0; i < count_; ++i) sum += ring_[static_cast<size_t>((head_ + i) % p_.window)].rtt_s;
@@ -41,7 +44,7 @@ void ClockSync::fit() {
   const double q25_rtt = scratch_[static_cast<size_t>(count_ / 4)];
   double min_rtt = at(0).rtt_s;
   for (int i = 1; i < count_; ++i) min_rtt = std::min(min_rtt, at(i).rtt_s);
-  min_rtt_s_ = min_rtt;
+  est_.min_rtt_s_ = min_rtt;
   const double keep_rtt = min_rtt + std::max(p_.rtt_floor_s, 2.0 * (q25_rtt - min_rtt));
   // Reference point: the newest sample (keeps the numbers small).
   const Sample& ref = at(count_ - 1);
@@ -68,9 +71,9 @@ void ClockSync::fit() {
     // A wild slope (too few good samples) is worse than the nominal frequency.
     if (std::fabs(f / p_.nominal_hz - 1.0) > 0.01) f = p_.nominal_hz;
   }
-  freq_hz_ = f;
-  m_ref_ = ref.mid_s + mx;
-  c_ref_ = static_cast<double>(ref.clock) + my;
+  est_.freq_hz_ = f;
+  est_.m_ref_ = ref.mid_s + mx;
+  est_.c_ref_ = static_cast<double>(ref.clock) + my;
 
   // Refinement by interval intersection: the MCU read its clock at some tau_i in [s_i, r_i], so
   // a line c = o + f (t - t0) through all samples must satisfy
@@ -99,9 +102,9 @@ void ClockSync::fit() {
     }
     const double fc = 0.5 * (a + b);
     if (width(fc, o) >= 0.0) {
-      freq_hz_ = fc;
-      m_ref_ = t0;
-      c_ref_ = static_cast<double>(ref.clock) + o;
+      est_.freq_hz_ = fc;
+      est_.m_ref_ = t0;
+      est_.c_ref_ = static_cast<double>(ref.clock) + o;
       return;
     }
   }
@@ -115,8 +118,8 @@ void ClockSync::fit() {
     hi = std::min(hi, c - f * (s.mid_s - 0.5 * s.rtt_s - t0));
   }
   if (lo <= hi) {
-    m_ref_ = t0;
-    c_ref_ = static_cast<double>(ref.clock) + 0.5 * (lo + hi);
+    est_.m_ref_ = t0;
+    est_.c_ref_ = static_cast<double>(ref.clock) + 0.5 * (lo + hi);
   }
 }
 

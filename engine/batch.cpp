@@ -1,10 +1,10 @@
 // Batch mode (see batch.hpp). Threads: the calling thread reads, parses, plans and steps its
-// joints; with threads = 2 a worker receives every PlannedMove through an SPSC queue and steps
+// joints; with threads = 2 a worker receives every PlannedMove through a blocking SPSC queue
+// (core/blocking_spsc_queue.hpp: a side that waits sleeps on a futex, it does not spin) and steps
 // the other joints. Each thread has its own JointEmitter and StepPipeline (joint_mask), and both
 // close runs on the same schedule (every 64 moves), so the output does not depend on threading.
 #include "engine/batch.hpp"
 
-#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
@@ -12,7 +12,7 @@
 #include <memory>
 #include <thread>
 
-#include "core/spsc_queue.hpp"
+#include "core/blocking_spsc_queue.hpp"
 #include "drivers/protocol/frame.hpp"
 #include "gcode/line_splitter.hpp"
 #include "gcode/parser.hpp"
@@ -25,6 +25,7 @@ namespace {
 constexpr unsigned kMainJoints = 0x6u;    // y (or B) and z (or C): stepped by the reading thread
 constexpr unsigned kWorkerJoints = 0x9u;  // x (or A) and the extruder: stepped by the worker
 constexpr size_t kQueueMoves = 1024;      // moves in flight between the threads
+constexpr size_t kWakeMoves = 64;         // moves that wake a sleeping worker
 
 double process_cpu_s() {
   timespec ts{};
@@ -76,63 +77,52 @@ class MoveStepper {
   int since_flush_ = 0;
 };
 
-// The worker: pops moves until the reader says it is done and the queue is empty.
+// The worker: pops moves until the reader closes the queue and it is drained.
 class StepWorker {
  public:
   StepWorker(const planner::Kinematics& kin, double period_s, StepPipeline& steps,
              planner::JointSink* tap)
-      : queue_(kQueueMoves), stepper_(kin, period_s, steps, tap), steps_(steps) {}
+      : queue_(kQueueMoves, kWakeMoves), stepper_(kin, period_s, steps, tap), steps_(steps) {}
   ~StepWorker() { finish(); }
   void start() { thread_ = std::thread([this] { run(); }); }
-  void push(const planner::PlannedMove& m) {
-    for (int spins = 0; !queue_.try_push(m); ++spins) backoff(spins);
-  }
+  void push(const planner::PlannedMove& m) { queue_.push(m); }
   void finish() {
     if (!thread_.joinable()) return;
-    done_.store(true, std::memory_order_release);
+    queue_.close();
     thread_.join();
   }
+  uint64_t reader_waits() const { return queue_.producer_waits(); }
+  uint64_t worker_waits() const { return queue_.consumer_waits(); }
 
  private:
-  static void backoff(int spins) {
-    if (spins < 64) std::this_thread::yield();
-    else std::this_thread::sleep_for(std::chrono::microseconds(50));
-  }
   void run() {
     planner::PlannedMove m;
-    int spins = 0;
-    for (;;) {
-      if (queue_.try_pop(m)) {
-        stepper_.on_move(m);
-        spins = 0;
-        continue;
-      }
-      if (done_.load(std::memory_order_acquire) && queue_.empty()) break;
-      backoff(spins++);
-    }
+    while (queue_.pop(m)) stepper_.on_move(m);
     steps_.flush();
   }
-  SpscQueue<planner::PlannedMove> queue_;
+  BlockingSpscQueue<planner::PlannedMove> queue_;
   MoveStepper stepper_;
   StepPipeline& steps_;
-  std::atomic<bool> done_{false};
   std::thread thread_;
 };
 
 // Planner output: counted, stepped here, and handed to the worker if there is one.
 class MoveDispatch final : public planner::MoveSink {
  public:
-  MoveDispatch(MoveStepper& local, StepWorker* worker) : local_(local), worker_(worker) {}
+  MoveDispatch(MoveStepper& local, StepWorker* worker, bool step)
+      : local_(local), worker_(worker), step_(step) {}
   void on_move(const planner::PlannedMove& m) override {
+    ++moves;
+    if (!step_) return;
     if (worker_ != nullptr) worker_->push(m);
     local_.on_move(m);
-    ++moves;
   }
   uint64_t moves = 0;
 
  private:
   MoveStepper& local_;
   StepWorker* worker_;
+  bool step_;
 };
 
 struct CountingBatchSink final : stepgen::BatchSink {
@@ -157,12 +147,14 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
   const planner::PlannerConfig pcfg = planner_config(cfg);
   if (Status s = pcfg.validate(); !s) return s.error();
   const auto kin = planner::make_kinematics(pcfg);
-  const bool threaded = options.threads >= 2;
+  const bool threaded = options.threads >= 2 && options.last_stage >= BatchStage::step_times;
   StepPipelineParams sp;
   sp.steps_per_mm = steps_per_mm(cfg);
   sp.mcu_clock_hz = static_cast<double>(cfg.stepgen.mcu_clock_hz);
   sp.max_step_error_us = cfg.stepgen.max_step_error_us;
   sp.joint_mask = threaded ? kMainJoints : (kMainJoints | kWorkerJoints);
+  sp.compress = options.last_stage >= BatchStage::compression;
+  sp.encode = options.last_stage >= BatchStage::output;
   CountingBatchSink batches, worker_batches;
   batches.tap = worker_batches.tap = options.batch_tap;
   StepPipeline steps(sp, &batches);
@@ -176,7 +168,7 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
     worker = std::make_unique<StepWorker>(*kin, pcfg.servo_period_s, *worker_steps, options.segment_tap);
     worker->start();
   }
-  MoveDispatch sink(local, worker.get());
+  MoveDispatch sink(local, worker.get(), options.last_stage >= BatchStage::step_times);
   planner::Planner planner(pcfg, sink);
   planner::Interpreter interp(pcfg, *kin, planner);
 
@@ -205,6 +197,7 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
     if (cmd.empty()) return;
     ++sum.commands;
     if (cmd.unknown) ++sum.unknown_commands;
+    if (options.last_stage == BatchStage::parse) return;
     if (Status s = interp.execute(cmd); !s) {
       ++sum.rejected;
       note(s.error().to_string());

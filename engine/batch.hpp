@@ -16,6 +16,11 @@
 
 namespace feedloop::engine {
 
+// How far batch mode takes the file, for bench/batch's time per stage: parse the lines; also
+// plan the moves; also compute every exact step time; also compress them into runs; also encode
+// the runs into QUEUE_STEPS batches (everything: the only stage with complete output).
+enum class BatchStage { parse, plan, step_times, compression, output };
+
 struct BatchOptions {
   // Called now and then with the fraction of the file read (0..1).
   std::function<void(double fraction)> on_progress;
@@ -24,6 +29,7 @@ struct BatchOptions {
   // (moves handed over through an SPSC queue). 1: everything on the calling thread. The runs,
   // batches and statistics are bit-identical either way.
   int threads = 2;
+  BatchStage last_stage = BatchStage::output;
   // Test taps, both optional. Each is called from the thread that steps the joint concerned
   // (never concurrently for the same joint): keep per-joint state apart.
   planner::JointSink* segment_tap = nullptr;  // every joint segment before step generation

@@ -29,12 +29,18 @@ control::LostStepParams lost_step_params_from_config(const config::ControlConfig
   return p;
 }
 
-control::EncoderGuardParams encoder_guard_params_from_config(const config::ControlConfig& control,
+control::EncoderGuardParams encoder_guard_params_from_config(const config::MachineConfig& cfg,
                                                              const std::string& axis) {
   control::EncoderGuardParams p;
   p.axis = axis;
-  p.max_jump_mm = control.max_encoder_jump_mm;
-  p.max_following_error_mm = control.max_following_error_mm;
+  const config::AxisConfig* a = cfg.axis(axis);
+  const double v_max_mm_s = a != nullptr ? a->max_velocity_mm_s : cfg.planner.max_velocity_mm_s;
+  p.max_speed_mm_s = 2.0 * v_max_mm_s;
+  p.jump_margin_mm = cfg.control.max_encoder_jump_mm;
+  p.reject_limit = 3;
+  p.max_following_error_mm = cfg.control.max_following_error_mm;
+  // Samples may be missing for ten servo periods while moving (the host loop asks for one each).
+  p.stale_s = 10.0 / cfg.servo.rate_hz;
   return p;
 }
 

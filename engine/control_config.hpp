@@ -32,7 +32,12 @@ control::PiParams pi_params_from_config(const config::ControlConfig& control,
 control::LostStepParams lost_step_params_from_config(const config::ControlConfig& control,
                                                      double full_step_mm);
 
-control::EncoderGuardParams encoder_guard_params_from_config(const config::ControlConfig& control,
+// The encoder plausibility of one joint, for the host's guard and the device loop alike: no
+// carriage moves faster than twice its axis's max_velocity_mm_s (the planner's limit for a joint
+// without an axis section: a delta carriage), ringing included; beyond that travel in the time
+// between two samples a sample may differ by control.max_encoder_jump_mm (noise, quantisation);
+// three implausible samples in a row are the fault.
+control::EncoderGuardParams encoder_guard_params_from_config(const config::MachineConfig& cfg,
                                                              const std::string& axis);
 
 control::ShaperType shaper_type(config::ShaperType type);

@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <numbers>
 
+#include "engine/control_config.hpp"
+
 namespace feedloop::engine {
 
 namespace {
@@ -39,11 +41,12 @@ device::LoopParams DeviceLoopLink::params_from_config(const config::MachineConfi
   p.max_correction_nm = static_cast<float>(c.max_following_error_mm * 1e6);
   p.max_correction_rate_nm_s = static_cast<float>(c.max_correction_mm_s * 1e6);
   p.max_following_error_nm = static_cast<float>(c.max_following_error_mm * 1e6);
-  // Encoder plausibility: no carriage moves faster than twice its axis's limit (ringing included).
-  const double v_max_mm_s =
-      axis != nullptr ? axis->max_velocity_mm_s : cfg.planner.max_velocity_mm_s;
-  p.max_speed_nm_s = static_cast<float>(2.0 * v_max_mm_s * 1e6);
-  p.encoder_margin_nm = static_cast<float>(std::max(50e3, 4.0 * mm_per_count * 1e6));
+  // Encoder plausibility: the host guard's limits (engine/control_config.hpp), at least 4 counts
+  // of margin.
+  const control::EncoderGuardParams guard = encoder_guard_params_from_config(cfg, name);
+  p.max_speed_nm_s = static_cast<float>(guard.max_speed_mm_s * 1e6);
+  p.encoder_margin_nm = static_cast<float>(std::max(guard.jump_margin_mm, 4.0 * mm_per_count) * 1e6);
+  p.encoder_reject_limit = static_cast<uint32_t>(guard.reject_limit);
   p.slip_threshold_nm = static_cast<float>(c.skipped_step_threshold_mm * 1e6);
   // A slip is an offset that stays; the belt's ringing (Y: 21 Hz, thesis Table 4) crosses zero
   // every ~24 ms. 30 ms of MCU time beyond the threshold tells the two apart.
@@ -63,6 +66,10 @@ device::LoopParams DeviceLoopLink::params_from_config(const config::MachineConfi
     p.deflection_s =
         static_cast<float>(gm->c1_ns_per_m / gm->k1_n_per_m + gm->c2_ns_per_m / gm->k2_n_per_m);
   }
+  // Behind the model inverse the host's steps already lead r by the deflection a better model
+  // expects (the belt's position and direction dependence, the identified friction): the slip
+  // check takes that lead (the host loop's detector does the same, engine/servo_control.cpp).
+  p.deflection_from_host_steps = cfg.feedforward.type == config::FeedforwardType::lpv;
   p.report_every_ticks =
       static_cast<uint32_t>(std::max(1.0, std::round(c.device_rate_hz / 100.0)));  // 100 Hz
   // A delta carriage's correction acts through its electrical part, a 46-65 Hz mode with zeta

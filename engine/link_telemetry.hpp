@@ -23,6 +23,12 @@ struct LinkTelemetry {
   double rtt_min_us = 0.0;   // the sync window
   double rtt_mean_us = 0.0;
   double clock_rate_ppm = 0.0;  // the MCU clock's measured rate against its nominal frequency
+  // The transport's queues and I/O thread (serial, USB; 0 for the simulated link).
+  uint64_t tx_queue_full = 0;   // frames the send queue refused (back pressure; retransmitted later)
+  uint64_t tx_blocked = 0;      // times the device did not take bytes (full UART/pty, USB NAK)
+  uint64_t rx_queue_full = 0;   // times reading paused because the servo thread had not taken the bytes
+  uint64_t io_errors = 0;       // times the link went down
+  bool clock_fit_async = false;  // the clock sync's fit runs on the transport's I/O thread
 };
 
 struct LinkTelemetrySet {

@@ -5,6 +5,7 @@
 #include <cmath>      // std::fabs, NAN
 #include <cstdio>     // snprintf
 
+#include "core/clock.hpp"  // ns_from_seconds
 #include "drivers/stepgen/run_codec.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/usb_transport.hpp"
@@ -40,6 +41,7 @@ struct McuBridge::JointPort final : device::MotorPort {
   size_t head = 0, count = 0;
   JointTiming timing;
   int64_t swallow = 0;  // steps still to be lost (inject_lost_steps)
+  int64_t encoder_offset_counts = 0;  // added to every encoder reading (inject_encoder_offset)
   void push(double t_s) {
     if (count == intended_s.size()) return;  // more in flight than tracked: timing not checked
     intended_s[(head + count) % intended_s.size()] = t_s;
@@ -66,7 +68,9 @@ struct McuBridge::JointPort final : device::MotorPort {
     plant->step(t_s, direction);
   }
   void set_enabled(double t_s, bool on) override { plant->set_enabled(t_s, on); }
-  int64_t read_encoder_counts(double t_s) override { return plant->read_encoder_counts(t_s); }
+  int64_t read_encoder_counts(double t_s) override {
+    return plant->read_encoder_counts(t_s) + encoder_offset_counts;
+  }
 };
 
 McuBridge::McuBridge(const config::MachineConfig&, const McuBridgeOptions& options) : options_(options) {
@@ -100,6 +104,9 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
     encoder_mm_per_count_[static_cast<size_t>(j)] = plant_->encoder_mm_per_count(j);
   }
 
+  // The transports' I/O threads run just below the servo thread (SCHED_FIFO when it is): frames
+  // the servo thread queues must not wait for a CPU behind every other process.
+  const int io_priority = cfg.servo.realtime_priority > 1 ? cfg.servo.realtime_priority - 1 : 0;
   int index = 0;
   for (const config::McuConfig& mc : cfg.mcus) {
     auto m = std::make_unique<Mcu>();
@@ -143,12 +150,16 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
       simulated_ = true;
       m->transport = std::move(t);
     } else if (mc.transport == config::TransportType::serial) {
-      m->transport = std::make_unique<drivers::SerialTransport>(mc.serial.device, static_cast<unsigned>(mc.serial.baud));
+      drivers::QueuedTransportParams io = drivers::SerialTransport::serial_io_params();
+      io.rt_priority = io_priority;
+      m->transport =
+          std::make_unique<drivers::SerialTransport>(mc.serial.device, static_cast<unsigned>(mc.serial.baud), io);
     } else {
       drivers::UsbParams up;
       up.vendor_id = static_cast<uint16_t>(mc.usb.vid);
       up.product_id = static_cast<uint16_t>(mc.usb.pid);
       up.serial = mc.usb.serial;
+      up.io.rt_priority = io_priority;
       m->transport = std::make_unique<drivers::UsbTransport>(up);
     }
     drivers::McuSessionParams sp;
@@ -200,6 +211,9 @@ double McuBridge::sim_time(double host_s) {
   if (!have_epoch_) {
     epoch_s_ = host_s;
     have_epoch_ = true;
+    // Real transports stamp their bytes with CLOCK_MONOTONIC, the real-time host clock
+    // (core/clock.hpp MonotonicClock); the sessions' time line starts at the epoch.
+    for (auto& m : mcus_) m->transport->set_time_base_ns(ns_from_seconds(epoch_s_));
   }
   return host_s - epoch_s_;
 }
@@ -273,6 +287,13 @@ stepgen::TickMap McuBridge::tick_map(int joint) const {
 void McuBridge::inject_lost_steps(int joint, int64_t steps) {
   if (joint < 0 || joint >= kJoints || !ports_[static_cast<size_t>(joint)]) return;
   ports_[static_cast<size_t>(joint)]->swallow += steps;
+}
+
+void McuBridge::inject_encoder_offset(int joint, double offset_mm) {
+  if (joint < 0 || joint >= kJoints || !ports_[static_cast<size_t>(joint)]) return;
+  const double per_count = encoder_mm_per_count_[static_cast<size_t>(joint)];
+  if (!(per_count > 0.0) || !std::isfinite(offset_mm)) return;
+  ports_[static_cast<size_t>(joint)]->encoder_offset_counts += std::llround(offset_mm / per_count);
 }
 
 double McuBridge::encoder_time_s(int joint) const {
@@ -444,7 +465,13 @@ void McuBridge::publish_links(double now_s) {
     l.crc_errors = s.decoder_stats().crc_errors;
     l.bytes_written = s.bytes_written();
     l.in_flight = s.frames_in_flight();
-    const drivers::ClockSync& c = s.clock();
+    const drivers::TransportStats io = m.transport->io_stats();
+    l.tx_queue_full = io.tx_full;
+    l.tx_blocked = io.tx_blocked;
+    l.rx_queue_full = io.rx_queue_full;
+    l.io_errors = io.io_errors;
+    l.clock_fit_async = s.clock_fit_async();
+    const drivers::ClockEstimate& c = s.clock();
     l.clock_samples = c.samples();
     l.rtt_last_us = c.last_rtt_s() * 1e6;
     l.rtt_min_us = c.min_rtt_s() * 1e6;
@@ -470,7 +497,14 @@ void McuBridge::service(double host_s) {
   }
   poll_all(now_s);
   last_service_s_ = now_s;
-  if (plant_) plant_->advance_to(now_s);
+  if (plant_) {
+    plant_->advance_to(now_s);
+    // An external plant that failed is gone for good: the machine stops and does not restart.
+    if (const char* why = plant_->fault()) {
+      latch_fault(why);
+      return;
+    }
+  }
   collect(now_s);
   publish_links(now_s);
 
@@ -560,7 +594,7 @@ void McuBridge::on_batch(const stepgen::StepBatch& b) {
   JointTiming* t = ports_[joint] ? &ports_[joint]->timing : nullptr;
   stepgen::RunDecoder d;
   if (t != nullptr && d.begin(b.body, b.body_bytes)) {
-    const drivers::ClockSync& clock = m.session->clock();
+    const drivers::ClockEstimate& clock = m.session->clock();
     int64_t p = d.first_clock();
     stepgen::StepRun r;
     while (!d.done() && d.next(r)) {

@@ -7,15 +7,20 @@
 //   StepPipeline --StepBatch--> McuBridge::on_batch --> McuSession --> Transport (mock: faults)
 //        --> VirtualMcu --MotorPort--> plant;   encoder reports, clock sync, errors flow back.
 //
-// Servo thread: service(now) once per period (from MotionExecutor::servo_cycle): transport I/O,
-// virtual MCUs and plants advanced to now, clock sync, encoder samples, faults. tick_map(joint)
-// gives the clock sync's host-time -> MCU-tick map used for every step time.
+// Servo thread: service(now) once per period (from MotionExecutor::servo_cycle): the sessions
+// (frames into the transports' send queues, received bytes out of theirs; serial and USB move the
+// bytes on their own I/O threads, drivers/transport/queued_transport.hpp, where the clock sync's
+// fit runs too), virtual MCUs and plants advanced to now (mock: in-process, on this thread),
+// encoder samples, faults. tick_map(joint) gives the clock sync's host-time -> MCU-tick map used
+// for every step time. Nothing here waits on a device.
 // Faults: an MCU that disconnects or stops latches fault() with a message naming it; every other
 // MCU gets an emergency stop. When every link is back, all MCUs are re-identified, the clocks
 // re-synchronised, and the fault clears (the executor then restarts from the planned position;
 // the real machine has lost its position and should be homed).
 // Real time: nothing on the steady-state path allocates (the sessions' rings, the mock transport's
-// frame pools, the encoder sample buffers swapped with the sessions'; tests/engine_sim).
+// frame pools, the encoder sample buffers swapped with the sessions'; tests/engine_sim). The first
+// open of a serial/USB link waits for its I/O thread's attempt (start(), before motion); every
+// later reopen is asked of the I/O thread and never waited for.
 #pragma once
 
 #include <array>
@@ -33,7 +38,7 @@
 #include "drivers/transport/mock_transport.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/device_loop_link.hpp"
-#include "engine/seqlock.hpp"
+#include "core/seqlock.hpp"
 #include "engine/servo_backend.hpp"
 #include "engine/simulated_plant.hpp"
 
@@ -115,6 +120,9 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   // Simulation fault injection (servo thread / tests): the next `steps` steps the MCU executes on
   // `joint` never reach the motor, as if the stepper had skipped them.
   void inject_lost_steps(int joint, int64_t steps);
+  // From now on `joint`'s encoder reads offset_mm more than the carriage (a glitch that stays: a
+  // slipped read head, a count lost by the interface), rounded to whole counts.
+  void inject_encoder_offset(int joint, double offset_mm);
   uint64_t batches_dropped() const { return batches_dropped_; }  // arrived while faulted
   uint64_t faults() const { return faults_total_; }
   uint64_t recoveries() const { return recoveries_; }

@@ -355,12 +355,82 @@ void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now
   prime_pending_ = true;  // the preview fills once the moves are on the timeline (sampled_cycle)
   // The motor is where the steps put it; the correction the PI holds is part of that.
   sample_no_ = 0;
+  model_next_ = 0;
+  model_t_s_ = next_sample_s_ - pcfg_.servo_period_s;
   Sample& s0 = history_[0];
   s0.t_s = next_sample_s_;
+  s0.plan_s = next_sample_s_ - plan_shift_s_;
   s0.r_mm = at.r_mm;
   s0.nozzle_mm = at.nozzle_mm;
   s0.u_ff_mm = at.r_mm;
   s0.u_mm = last_command_mm_;
+}
+
+// The host loop's feedback (control.loop: host): the lost-step model advanced over every command
+// sample executed since the previous cycle, one per servo period of executed time (a hold of the
+// plan repeats its held command), then the PI on the encoders' time-stamped samples. False when
+// the control law stopped motion (the fault is latched and named).
+bool MotionExecutor::host_feedback(double now_s, uint64_t n_enc, double enc_time_s,
+                                   const control::JointArray& enc, const std::array<bool, 4>& fresh) {
+  const size_t cap = history_.size();
+  const double period_s = pcfg_.servo_period_s;
+  // The lost-step detector's model has no friction or weight: it gets the commands without the
+  // share those loads take up.
+  auto executed = [](const Sample& x) {
+    ServoControl::ExecutedSample e;
+    e.desired_mm = x.r_mm;
+    for (size_t i = 0; i < e.motor_mm.size(); ++i) {
+      e.expected_lead_mm[i] = x.u_ff_mm[i] - x.load_mm[i] - x.r_mm[i];
+      e.motor_mm[i] = x.u_mm[i] - x.load_mm[i];
+    }
+    return e;
+  };
+  // The ring holds the last `cap` samples: after a longer stall the model goes on from the oldest.
+  const uint64_t oldest = sample_no_ + 1 > cap ? sample_no_ + 1 - cap : 0;
+  if (model_next_ < oldest) {
+    model_next_ = oldest;
+    model_t_s_ = history_[oldest % cap].t_s - period_s;
+  }
+  // One model step per period up to the encoders' sampling time: the sample due then, or within a
+  // pause of the plan (a late cycle's hold) the held one.
+  for (size_t guard = 0; guard < cap + 10000; ++guard) {
+    const double t = model_t_s_ + period_s;
+    if (t > enc_time_s + 0.5 * period_s) break;
+    if (model_next_ <= sample_no_ && history_[model_next_ % cap].t_s <= t + 0.5 * period_s) {
+      const Sample& x = history_[model_next_ % cap];
+      control_->advance_model(executed(x));
+      model_t_s_ = x.t_s;
+      ++model_next_;
+    } else if (model_next_ > oldest) {
+      control_->advance_model(executed(history_[(model_next_ - 1) % cap]));
+      model_t_s_ = t;
+    } else {
+      break;
+    }
+  }
+  const Sample& at_enc = history_[n_enc % cap];
+  ServoControl::FeedbackInput in;
+  in.now_s = now_s;
+  in.print_time_s = at_enc.plan_s;  // events at the plan time the encoders were sampled at
+  in.desired_mm = at_enc.r_mm;
+  in.encoder_mm = enc;
+  in.fresh = fresh;
+  for (int j = 0; j < kJoints; ++j)
+    in.sample_time_s[static_cast<size_t>(j)] = backend_ != nullptr ? backend_->encoder_time_s(j) : NAN;
+  ServoEvent ev;
+  bool has_event = false;
+  const bool ok = control_->update_feedback(in, &ev, &has_event);
+  if (has_event && tap_ != nullptr) tap_->on_servo_event(ev);
+  if (has_event) lost_step_events_.fetch_add(1, std::memory_order_relaxed);
+  if (!ok) {
+    std::snprintf(control_fault_text_, sizeof control_fault_text_, "%s", control_->fault_text());
+    control_fault_.store(true);
+    if (tap_ != nullptr) tap_->on_servo_event(ev);
+    drop_queued_moves();
+    resync_ = true;
+    return false;
+  }
+  return true;
 }
 
 void MotionExecutor::sampled_cycle(double now_s) {
@@ -413,6 +483,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
   // with the plan at the instant they were sampled, or a velocity-proportional bias would reach
   // the PI (100 mm/s x 1 ms = 0.1 mm).
   uint64_t n_enc = n_now;
+  double print_enc_s = NAN;  // when the encoders were sampled (servo time), if known
   if (backend_ != nullptr) {
     double t_enc_s = NAN;
     for (int j = 0; j < kJoints; ++j) {
@@ -420,7 +491,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
       if (std::isfinite(t) && !(t >= t_enc_s)) t_enc_s = t;  // the oldest reading
     }
     if (std::isfinite(t_enc_s)) {
-      const double print_enc_s = t_enc_s - offset_s_;
+      print_enc_s = t_enc_s - offset_s_;
       while (n_enc > 0 && history_[n_enc % cap].t_s > print_enc_s + 0.5 * period_s && sample_no_ - n_enc + 2 < cap)
         --n_enc;
     }
@@ -464,28 +535,9 @@ void MotionExecutor::sampled_cycle(double now_s) {
       e_t_samples_.fetch_add(1, std::memory_order_relaxed);
     }
   }
-  if (control_->closed_loop()) {
-    // The lost-step detector's model has no friction or weight: it gets the commands without the
-    // share those loads take up.
-    control::JointArray lead_mm{}, motor_mm{};
-    for (size_t i = 0; i < lead_mm.size(); ++i) {
-      lead_mm[i] = at_enc.u_ff_mm[i] - at_enc.load_mm[i] - at_enc.r_mm[i];
-      motor_mm[i] = at_enc.u_mm[i] - at_enc.load_mm[i];
-    }
-    ServoEvent ev;
-    bool has_event = false;
-    const bool ok = control_->update_feedback(print_now_s, at_enc.r_mm, enc, motor_mm, lead_mm, fresh, &ev, &has_event);
-    if (has_event && tap_ != nullptr) tap_->on_servo_event(ev);
-    if (has_event) lost_step_events_.fetch_add(1, std::memory_order_relaxed);
-    if (!ok) {
-      std::snprintf(control_fault_text_, sizeof control_fault_text_, "%s", control_->fault_text());
-      control_fault_.store(true);
-      if (tap_ != nullptr) tap_->on_servo_event(ev);
-      drop_queued_moves();
-      resync_ = true;
-      return;
-    }
-  }
+  if (control_->closed_loop() &&
+      !host_feedback(now_s, n_enc, std::isfinite(print_enc_s) ? print_enc_s : at_enc.t_s, enc, fresh))
+    return;
   // Command samples up to control_lead_s ahead: u = F(r) + C(e), one linear segment per period;
   // after the plan's end (and the feedforward's preview), the loop holds the position for
   // control_settle_s more (the PI removes what is left of the error), then stops.
@@ -500,8 +552,10 @@ void MotionExecutor::sampled_cycle(double now_s) {
   // A late cycle (the thread woke more than the lead late, on a machine without real-time
   // scheduling): the samples still to come would be due in the past, and steps in the past stop
   // the MCU (queue underrun). Instead the plan pauses: the motor holds its last command over the
-  // gap and the plan resumes a quarter of the lead from now. Counted in late_cycles.
-  const double earliest_s = print_now_s + 0.25 * lead_s;
+  // gap and the plan resumes a quarter of the lead from now, and no sooner than two periods from
+  // now (the steps computed now reach the MCU with the next cycle's I/O: with a 2 ms lead, a
+  // quarter of it left steps due before they arrived). Counted in late_cycles.
+  const double earliest_s = print_now_s + std::min(lead_s, std::max(0.25 * lead_s, 2.0 * period_s));
   const bool commanding = !(plan_empty && next_sample_s_ >= stop_s);
   if (device_loop_ && commanding && next_sample_s_ + period_s < print_now_s) {
     // The PI runs on the MCUs, which had r(t) and the steps for lead_s: a stall shorter than that
@@ -516,7 +570,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
     resync_ = true;
     return;
   }
-  if (!device_loop_ && commanding && next_sample_s_ + period_s < earliest_s) {
+  if (!device_loop_ && commanding && next_sample_s_ + period_s < earliest_s - 1e-9) {
     const double gap_s = earliest_s - (next_sample_s_ + period_s);
     const Sample& last = history_[sample_no_ % cap];
     for (int j = 0; j < kJoints; ++j) {
@@ -553,6 +607,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
     control::FeedforwardInput now_ref;
     reference(t_s, now_ref);
     s.t_s = t_s;
+    s.plan_s = t_s - plan_shift_s_;
     s.r_mm = now_ref.r_mm;
     // What the command aims at: the feedback compares the encoders with it (a smoothed velocity
     // jump is the feedforward's reference there, not the plan's corner).
@@ -586,7 +641,11 @@ void MotionExecutor::sampled_cycle(double now_s) {
   const double print_plan_s = plan_empty ? std::min(print_now_s - plan_shift_s_, executed_end_s_)
                                          : print_now_s - plan_shift_s_;
   telemetry_.print_time_s.store(print_plan_s, std::memory_order_relaxed);
-  if (tap_ != nullptr) publish_sample(now_s, print_now_s - plan_shift_s_, at_now.r_mm, at_now.u_mm, at_now.nozzle_mm);
+  // The sample's plan time: that of the command in effect now (while a late cycle's pause holds
+  // a command, the plan time of the held one; print_now_s less the new shift would run ahead).
+  if (tap_ != nullptr)
+    publish_sample(now_s, at_now.plan_s + std::min(print_now_s - at_now.t_s, period_s), at_now.r_mm,
+                   at_now.u_mm, at_now.nozzle_mm);
   // Done when everything planned has been commanded (with the feedforward's preview drained and
   // the hold over) and executed.
   if (plan_empty && next_sample_s_ >= stop_s && print_now_s >= next_sample_s_) {

@@ -170,12 +170,17 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   std::unique_ptr<planner::MoveTimeline> timeline_;
   struct Sample {  // one command sample, kept for the feedback comparison
     double t_s = 0.0;
+    double plan_s = 0.0;  // its plan (print) time: t_s less the plan's shift when it was commanded
     control::JointArray r_mm{}, u_mm{}, u_ff_mm{};
     control::JointArray load_mm{};  // the feedforward's load share of u (friction, weight)
     std::array<double, 3> nozzle_mm{};
   };
   std::vector<Sample> history_;  // ring, indexed by sample number
   uint64_t sample_no_ = 0;       // samples emitted since the anchor
+  uint64_t model_next_ = 0;
+  double model_t_s_ = 0.0;       //   and the servo time it has advanced to
+  bool host_feedback(double now_s, uint64_t n_enc, double enc_time_s,
+                     const control::JointArray& enc, const std::array<bool, 4>& fresh);      // host loop: the next sample the lost-step model advances over
   bool prime_pending_ = false;   // the feedforward's preview is to be filled (motion start)
   double next_sample_s_ = 0.0;   // servo time of the last command sample (segment end)
   double plan_shift_s_ = 0.0;    // servo time - plan (print) time: grows when a move arrives

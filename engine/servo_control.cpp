@@ -24,13 +24,15 @@ Result<std::unique_ptr<ServoControl>> ServoControl::create(const ServoControlPar
     if (Status s = c->pi_[j].configure(pi_params_from_config(p.control, axis, p.period_s)); !s)
       return Error{"control: " + axis + ": " + s.error().message};
     control::LostStepParams lp = lost_step_params_from_config(p.control, p.mm_per_full_step[j]);
+    lp.period_s = p.period_s;
     // A slip is permanent, a transient of the model residual (a resonance the model has slightly
     // off) is not: the residual must stay beyond the threshold for lost_step_confirm_s.
     lp.settle_periods = std::max(lp.settle_periods, static_cast<int>(std::lround(p.lost_step_confirm_s / p.period_s)));
     if (Status s = c->lost_[j].configure(lp); !s)
       return Error{std::string("control: ") + s.error().message};
-    if (Status s = c->guard_[j].configure(encoder_guard_params_from_config(p.control, axis)); !s)
-      return Error{std::string("control: ") + s.error().message};
+    control::EncoderGuardParams gp = p.guard[j];
+    gp.axis = axis;
+    if (Status s = c->guard_[j].configure(gp); !s) return Error{std::string("control: ") + s.error().message};
     if (p.carriage_model[j]) {
       auto d = model::discretize_zoh(*p.carriage_model[j], p.period_s);
       if (!d.ok()) return Error{"control: carriage model of " + axis + ": " + d.error().message};
@@ -47,9 +49,16 @@ ServoControl::ServoControl(const ServoControlParams& p, std::unique_ptr<control:
       closed_loop_(p.control.mode == config::ControlMode::pi && p.control.loop == config::ControlLoop::host),
       ff_(std::move(ff)) {
   ff_inverts_ = ff_->inverts_model();
+  command_step_mm_ = (p.control.max_correction_mm_s + p.recovery_mm_s) * p.period_s;
 }
 
-void ServoControl::reset_feedforward(const control::FeedforwardInput& at) { ff_->reset(at); }
+// Motion restarts from rest: the loop was open meanwhile, so the next samples' intervals start
+// there (not at the last sample of the previous motion).
+void ServoControl::reset_feedforward(const control::FeedforwardInput& at) {
+  ff_->reset(at);
+  for (size_t j = 0; j < 4; ++j) guard_[j].restart();
+  have_sample_.fill(false);
+}
 
 void ServoControl::reset_all(const control::FeedforwardInput& at) {
   ff_->reset(at);
@@ -59,78 +68,106 @@ void ServoControl::reset_all(const control::FeedforwardInput& at) {
     guard_[j].reset();
   }
   correction_mm_.fill(0.0);
+  commanded_mm_.fill(0.0);
   model_primed_.fill(false);
+  base_primed_.fill(false);
+  have_y_hat_.fill(false);
+  have_sample_.fill(false);
   residual_base_mm_.fill(0.0);
   recovery_left_mm_.fill(0.0);
   fault_text_[0] = '\0';
 }
 
-bool ServoControl::update_feedback(double print_time_s, const control::JointArray& desired_mm,
-                                   const control::JointArray& encoder_mm, const control::JointArray& motor_mm,
-                                   const control::JointArray& expected_lead_mm, const std::array<bool, 4>& fresh,
-                                   ServoEvent* event, bool* has_event) {
+// Lost steps: where the model puts the carriage for the motor commands executed (y_hat) against
+// the encoder. The model is a ZOH discretisation at the servo period, so it advances once per
+// period of executed time whatever the host's cycles did meanwhile.
+void ServoControl::advance_model(const ExecutedSample& x) {
+  last_executed_ = x;
+  for (size_t j = 0; j < 4; ++j) {
+    if (!p_.has_encoder[j]) continue;
+    if (!has_model_[j]) {
+      y_hat_mm_[j] = x.motor_mm[j] - x.expected_lead_mm[j];
+      have_y_hat_[j] = true;
+      continue;
+    }
+    // Behind a model inverse (a better model than this one: position- and direction-dependent
+    // belt, friction) the carriage is predicted at the desired position plus this model's
+    // response to the correction u - u_ff alone; otherwise this model runs on all of u.
+    const double correction_mm = x.motor_mm[j] - x.expected_lead_mm[j] - x.desired_mm[j];
+    const double u_m = (ff_inverts_ ? correction_mm : x.motor_mm[j]) * 1e-3;
+    if (!model_primed_[j]) {
+      carriage_[j].reset_to_steady_state(&u_m);
+      model_primed_[j] = true;
+    }
+    double y_m = 0.0;
+    carriage_[j].step(&u_m, &y_m);
+    y_hat_mm_[j] = (ff_inverts_ ? x.desired_mm[j] : 0.0) + y_m * 1e3;
+    have_y_hat_[j] = true;
+  }
+}
+
+bool ServoControl::update_feedback(const FeedbackInput& in, ServoEvent* event, bool* has_event) {
   *has_event = false;
   for (size_t j = 0; j < 4; ++j) {
     if (!p_.has_encoder[j]) continue;
-    control::EncoderGuardInput in;
-    in.fresh = fresh[j];
-    in.encoder_mm = encoder_mm[j];
-    in.reference_mm = desired_mm[j];
-    if (guard_[j].update(in) != control::EncoderFault::none) {
+    control::EncoderGuardInput g;
+    g.fresh = in.fresh[j];
+    g.encoder_mm = in.encoder_mm[j];
+    g.sample_time_s = in.sample_time_s[j];
+    g.now_s = in.now_s;
+    g.reference_mm = in.desired_mm[j];
+    if (guard_[j].update(g) != control::EncoderFault::none) {
       std::snprintf(fault_text_, sizeof fault_text_, "%s", guard_[j].message());
       event->kind = guard_[j].fault() == control::EncoderFault::following_error ? ServoEventKind::kFollowingError
                                                                                 : ServoEventKind::kEncoderFault;
-      event->print_time_s = print_time_s;
+      event->print_time_s = in.print_time_s;
       event->joint = static_cast<int>(j);
-      event->size_mm = desired_mm[j] - encoder_mm[j];
+      event->size_mm = in.desired_mm[j] - in.encoder_mm[j];
       return false;
     }
-    if (!std::isfinite(encoder_mm[j])) continue;  // no report yet
-    // Lost steps: where the model puts the carriage for the motor commands sent (y_hat) against
-    // the encoder. Slow drifts of this residual (a steps/mm error the PI is correcting, thermal
-    // growth) are tracked by a baseline and are not slips; a slip is a sudden jump of a whole
-    // torque cycle of the stepper (4 full steps: the rotor sits in the next equilibrium of the
-    // field). Recovery: the motor command moves on by the slip, at the correction's clamp rate
-    // (a jump of a whole cycle would be invisible to the rotor, the torque law being periodic),
-    // so the rotor is carried the missing steps back onto the path; the detector's sum of slips
-    // S accounts for the model's y_hat running ahead of the carriage by what was lost.
-    double y_hat_mm = motor_mm[j] - expected_lead_mm[j];
-    if (has_model_[j]) {
-      // Behind a model inverse (a better model than this one: position- and direction-dependent
-      // belt, friction) the carriage is predicted at the desired position plus this model's
-      // response to the correction u - u_ff alone; otherwise this model runs on all of u.
-      const double correction_mm = motor_mm[j] - expected_lead_mm[j] - desired_mm[j];
-      const double u_m = (ff_inverts_ ? correction_mm : motor_mm[j]) * 1e-3;
-      if (!model_primed_[j]) {
-        carriage_[j].reset_to_steady_state(&u_m);
-        model_primed_[j] = true;
-        residual_base_mm_[j] = motor_mm[j] - encoder_mm[j];
-      }
-      double y_m = 0.0;
-      carriage_[j].step(&u_m, &y_m);
-      y_hat_mm = (ff_inverts_ ? desired_mm[j] : 0.0) + y_m * 1e3;
+    // No new sample, or one the guard rejected: nothing new to act on; the time until the next
+    // accepted sample goes into that one's dt.
+    if (!guard_[j].sample_accepted() || !have_y_hat_[j]) continue;
+    const double t_s = std::isfinite(in.sample_time_s[j]) ? in.sample_time_s[j] : in.now_s;
+    double dt_s = have_sample_[j] ? t_s - last_sample_s_[j] : p_.period_s;
+    if (!(dt_s > 0.0)) dt_s = p_.period_s;  // a repeated or reordered timestamp: one period
+    last_sample_s_[j] = t_s;
+    have_sample_[j] = true;
+
+    const double encoder_mm = in.encoder_mm[j];
+    if (!base_primed_[j]) {
+      residual_base_mm_[j] = last_executed_.motor_mm[j] - encoder_mm;
+      base_primed_[j] = true;
     }
-    const double residual_mm = y_hat_mm - encoder_mm[j];
+    // Slow drifts of the residual (a steps/mm error the PI is correcting, thermal growth) are
+    // tracked by a baseline and are not slips; a slip is a sudden jump of a whole torque cycle of
+    // the stepper (4 full steps: the rotor sits in the next equilibrium of the field). Recovery:
+    // the motor command moves on by the slip, at recovery_mm_s (a jump of a whole cycle would be
+    // invisible to the rotor, the torque law being periodic), so the rotor is carried the missing
+    // steps back onto the path; the detector's sum of slips S accounts for the model's y_hat
+    // running ahead of the carriage by what was lost.
+    const double residual_mm = y_hat_mm_[j] - encoder_mm;
     // The baseline follows the residual net of the slips already reported (the detector
-    // subtracts their sum S itself).
+    // subtracts their sum S itself): a first-order filter with time constant residual_baseline_s.
     if (!lost_[j].pending())
       residual_base_mm_[j] += (residual_mm - lost_[j].total_mm() - residual_base_mm_[j]) *
-                              (p_.period_s / p_.residual_baseline_s);
-    if (auto slip = lost_[j].update(residual_mm - residual_base_mm_[j], 0.0, 0.0)) {
+                              std::min(1.0, dt_s / p_.residual_baseline_s);
+    if (auto slip = lost_[j].update(residual_mm - residual_base_mm_[j], 0.0, 0.0, dt_s)) {
       recovery_left_mm_[j] += slip->size_mm;
       event->kind = ServoEventKind::kLostSteps;
-      event->print_time_s = print_time_s;
+      event->print_time_s = in.print_time_s;
       event->joint = static_cast<int>(j);
       event->size_mm = slip->size_mm;
       *has_event = true;
     }
-    if (recovery_left_mm_[j] != 0.0) {  // carry the rotor back, at the clamp's rate
-      const double max_mm = p_.recovery_mm_s * p_.period_s;
+    if (recovery_left_mm_[j] != 0.0) {  // carry the rotor back, at recovery_mm_s
+      const double max_mm = p_.recovery_mm_s * dt_s;
       const double step_mm = std::clamp(recovery_left_mm_[j], -max_mm, max_mm);
       pi_[j].shift(step_mm);
       recovery_left_mm_[j] -= step_mm;
     }
-    correction_mm_[j] = pi_[j].update(desired_mm[j] - encoder_mm[j]);
+    // Thesis Sect. 4.6: I[k] = I[k-1] + K_I e[k] (t[k] - t[k-1]), the clamp over the same dt.
+    correction_mm_[j] = pi_[j].update(in.desired_mm[j] - encoder_mm, dt_s);
   }
   return true;
 }
@@ -138,7 +175,11 @@ bool ServoControl::update_feedback(double print_time_s, const control::JointArra
 void ServoControl::command(const control::FeedforwardInput& ahead, control::JointArray& u_ff_mm,
                            control::JointArray& u_mm) {
   ff_->step(ahead, u_ff_mm);
-  for (size_t j = 0; j < 4; ++j) u_mm[j] = u_ff_mm[j] + (closed_loop_ ? correction_mm_[j] : 0.0);
+  for (size_t j = 0; j < 4; ++j) {
+    if (closed_loop_)
+      commanded_mm_[j] += std::clamp(correction_mm_[j] - commanded_mm_[j], -command_step_mm_, command_step_mm_);
+    u_mm[j] = u_ff_mm[j] + (closed_loop_ ? commanded_mm_[j] : 0.0);
+  }
 }
 
 // ---- from the config -----------------------------------------------------------------------------
@@ -155,6 +196,7 @@ Result<std::unique_ptr<ServoControl>> make_servo_control(const config::MachineCo
     p.joint_names[j] = names[j];
     const config::AxisConfig* a = cfg.axis(names[j]);
     p.has_encoder[j] = closed && a != nullptr && a->encoder.has_value();
+    p.guard[j] = encoder_guard_params_from_config(cfg, names[j]);
     // A stepper's torque law repeats every 4 full steps: 2 pi r / n_r per cycle (thesis Eq. 2).
     if (const config::GantryModelConfig* g = cfg.model.gantry_for(names[j]);
         g != nullptr && cfg.kinematics != config::Kinematics::delta) {

@@ -36,6 +36,7 @@ struct ServoControlParams {
   std::array<bool, 4> has_encoder{};        // joints with an encoder (PI and guards act on these)
   std::array<double, 4> mm_per_full_step{};  // slips come in multiples of 4 full steps (0: unknown)
   std::array<std::string, 4> joint_names{};  // for the messages
+  std::array<control::EncoderGuardParams, 4> guard{};  // per joint (the axis name is joint_names')
   // The carriage model per joint (motor command -> carriage, SI), for the lost-step detector's
   // expected position; none: the detector compares against the command.
   std::array<std::optional<model::StateSpace>, 4> carriage_model;
@@ -65,21 +66,45 @@ class ServoControl {
   void reset_feedforward(const control::FeedforwardInput& at);
   void reset_all(const control::FeedforwardInput& at);
 
-  // Once per servo cycle while motion runs, before command(): the encoder readings (joint
-  // coordinates; NaN: none), the desired positions at the time they were measured, the motor
-  // command at that time and what the model expects the motor to lead the carriage by then.
-  // Returns false with a message in fault_text() when motion must stop (encoder fault or
-  // following error); events (lost steps) are written to `event` when `*has_event`.
-  bool update_feedback(double print_time_s, const control::JointArray& desired_mm,
-                       const control::JointArray& encoder_mm, const control::JointArray& motor_mm,
-                       const control::JointArray& expected_lead_mm, const std::array<bool, 4>& fresh,
-                       ServoEvent* event, bool* has_event);
+  // The loop runs on time-stamped encoder samples (issue 13, control.loop: host): the PI's
+  // integral, the clamp on its output, the lost-step model, its baseline and the recovery all
+  // advance by the time between a joint's samples, not by a count of servo cycles, so a late
+  // cycle (one sample after 20 ms) neither doubles nor drops a correction; the encoder guard
+  // judges a jump on the same timestamps.
+
+  // One command sample the motors executed, for the lost-step model (motor command and expected
+  // lead less the modelled loads' share).
+  struct ExecutedSample {
+    control::JointArray desired_mm{};
+    control::JointArray motor_mm{};
+    control::JointArray expected_lead_mm{};
+  };
+  // RT-safe. Once per servo period of executed time since the previous call, oldest first (a
+  // hold of the plan repeats its held sample): advances the carriage model of each joint.
+  void advance_model(const ExecutedSample& s);
+
+  struct FeedbackInput {
+    double now_s = 0.0;                    // this cycle's time (the servo clock)
+    double print_time_s = 0.0;             // for events
+    control::JointArray desired_mm{};      // r at the samples' time (the last advance_model()'s)
+    control::JointArray encoder_mm{};      // joint coordinates; NaN: none
+    control::JointArray sample_time_s{};   // when each was sampled (the servo clock; NaN: unknown)
+    std::array<bool, 4> fresh{};           // a new sample arrived this cycle
+  };
+  // Once per servo cycle while motion runs, after advance_model() and before command(). Returns
+  // false with a message in fault_text() when motion must stop (encoder fault or following
+  // error); events (lost steps) are written to `event` when `*has_event`.
+  bool update_feedback(const FeedbackInput& in, ServoEvent* event, bool* has_event);
 
   // One command sample: the reference P samples ahead in, the motor command out (u_ff + u_c).
+  // The correction in the commands follows the PI's output at most at the rate the PI's clamp and
+  // the recovery allow per command period, so the burst of samples after a late cycle ramps to a
+  // correction that its longer dt allowed to move further, instead of jumping.
   void command(const control::FeedforwardInput& ahead, control::JointArray& u_ff_mm, control::JointArray& u_mm);
 
   const char* fault_text() const { return fault_text_; }
-  const control::JointArray& correction_mm() const { return correction_mm_; }
+  const control::JointArray& correction_mm() const { return correction_mm_; }          // the PI's output
+  const control::JointArray& commanded_correction_mm() const { return commanded_mm_; }  // in the last command
 
  private:
   ServoControl(const ServoControlParams& p, std::unique_ptr<control::Feedforward> ff);
@@ -91,11 +116,19 @@ class ServoControl {
   std::array<control::LostStepDetector, 4> lost_;
   std::array<control::EncoderGuard, 4> guard_;
   control::JointArray correction_mm_{};
+  control::JointArray commanded_mm_{};   // the correction in the last command sample
+  double command_step_mm_ = 0.0;        // its largest change per command period
   std::array<model::DiscreteLtiFilter, 4> carriage_;  // configured where has_model_
   std::array<bool, 4> has_model_{};
   std::array<bool, 4> model_primed_{};
+  std::array<bool, 4> base_primed_{};
+  ExecutedSample last_executed_{};
+  control::JointArray y_hat_mm_{};       // the model's carriage at the last executed sample
+  std::array<bool, 4> have_y_hat_{};
   control::JointArray residual_base_mm_{};
   control::JointArray recovery_left_mm_{};  // slips still to be made up
+  control::JointArray last_sample_s_{};     // time of each joint's last accepted sample
+  std::array<bool, 4> have_sample_{};
   char fault_text_[160] = {};
 };
 

@@ -20,13 +20,19 @@ namespace {
 // advanced the plants to the cycle's time before the executor publishes).
 class Recorder final : public TelemetryTap {
  public:
-  Recorder(SimRunResult& out, McuBridge& bridge, bool keep, std::vector<LostStepInjection> inject)
-      : out_(out), bridge_(bridge), keep_(keep), inject_(std::move(inject)) {}
+  Recorder(SimRunResult& out, McuBridge& bridge, bool keep, std::vector<LostStepInjection> inject,
+           std::vector<EncoderGlitchInjection> glitches)
+      : out_(out), bridge_(bridge), keep_(keep), inject_(std::move(inject)), glitches_(std::move(glitches)) {}
   void on_servo_sample(const ServoSample& s) override {
     for (LostStepInjection& i : inject_)
       if (i.steps != 0 && s.print_time_s >= i.at_s) {
         bridge_.inject_lost_steps(i.joint, i.steps);
         i.steps = 0;
+      }
+    for (EncoderGlitchInjection& g : glitches_)
+      if (g.offset_mm != 0.0 && s.print_time_s >= g.at_s) {
+        bridge_.inject_encoder_offset(g.joint, g.offset_mm);
+        g.offset_mm = 0.0;
       }
     if (!keep_ && !on_sample_) return;
     SimRunSample r;
@@ -53,6 +59,7 @@ class Recorder final : public TelemetryTap {
   McuBridge& bridge_;
   bool keep_;
   std::vector<LostStepInjection> inject_;
+  std::vector<EncoderGlitchInjection> glitches_;
 };
 
 }  // namespace
@@ -71,7 +78,7 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
 
   SimRunResult out;
   if (options.keep_samples) out.samples.reserve(1 << 16);
-  Recorder rec(out, bridge, options.keep_samples, options.lose_steps);
+  Recorder rec(out, bridge, options.keep_samples, options.lose_steps, options.encoder_glitches);
   rec.on_sample_ = options.on_sample;
   ex.set_telemetry(&rec);
 
@@ -92,7 +99,11 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
     ex.servo_cycle(now_ns, false);
   };
   while (!bridge.ready() && now_ns < end_ns) cycle();
-  if (!bridge.ready()) return Error{"run_simulated: the simulated MCUs did not become ready"};
+  if (!bridge.ready()) {
+    char why[256] = "";
+    if (bridge.fault()) bridge.fault_message(why, sizeof why);
+    return Error{std::string("run_simulated: the simulated MCUs did not become ready") + (why[0] ? ": " : "") + why};
+  }
   ready_ns = now_ns;
 
   int line_no = 0;
@@ -140,7 +151,11 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   if (out.error.empty() && s.last_error[0] != '\0') out.error = s.last_error;
   if (ex.motion_pending() && out.error.empty()) out.error = "motion did not finish within the timeout";
   if (SimulatedPlant* plant = bridge.plant())
-    for (int j = 0; j < 3; ++j) out.lost_full_steps[static_cast<size_t>(j)] = plant->lost_full_steps(j);
+    for (int j = 0; j < 3; ++j) {
+      out.lost_full_steps[static_cast<size_t>(j)] = plant->lost_full_steps(j);
+      out.slip_events[static_cast<size_t>(j)] = plant->slip_events(j);
+    }
+  out.late_cycles = s.late_cycles;
   ex.set_telemetry(nullptr);
   return out;
 }

@@ -27,6 +27,14 @@ struct LostStepInjection {
   int64_t steps = 0;
 };
 
+// Fault injection: from print time `at_s` on, `joint`'s encoder reads offset_mm more than the
+// carriage (a glitch that stays).
+struct EncoderGlitchInjection {
+  double at_s = 0.0;
+  int joint = 0;
+  double offset_mm = 0.0;
+};
+
 // A host stall: at `at_s` of virtual time after the MCUs are ready, the planner and the motion
 // stage stop for `duration_s` (no servo cycle runs; the MCUs and the plant go on, and the link is
 // serviced through the gap when the stage wakes, as the bridge does after any late cycle).
@@ -44,6 +52,7 @@ struct SimRunOptions {
   // Called now and then with the fraction of the lines executed (0..1); may be empty.
   std::function<void(double fraction)> on_progress;
   std::vector<LostStepInjection> lose_steps;
+  std::vector<EncoderGlitchInjection> encoder_glitches;
   std::vector<HostStall> stalls;  // in time order
 };
 
@@ -58,6 +67,8 @@ struct SimRunResult {
   std::vector<SimRunSample> samples;     // every servo period while motion was anchored
   std::vector<ServoEvent> events;        // lost steps detected, encoder faults, ...
   std::array<int64_t, 4> lost_full_steps{};  // ground truth from the plant (0 for an ideal joint)
+  std::array<int64_t, 4> slip_events{};      // ground truth: slips either way (lost_full_steps is net)
+  uint64_t late_cycles = 0;                  // cycles that found the commands nearly run out (plan paused)
   uint64_t commands = 0;                 // G-code lines executed
   uint64_t rejected = 0;                 // lines rejected (with the first error in `error`)
   double motion_time_s = 0.0;            // planned print time from first move start to last end

@@ -32,6 +32,13 @@ class SimulatedPlant {
   virtual std::array<double, 3> nozzle_mm() const = 0;
   // Full steps the joint's motor has lost so far (0 where the plant does not model slips).
   virtual int64_t lost_full_steps(int joint) const = 0;
+
+  // A plant that can fail (an external plant process that exited, answered garbage or went
+  // silent): the message, nullptr while healthy. The bridge stops the machine for good on it.
+  virtual const char* fault() const { return nullptr; }
+  // Slips of the joint's motor so far, in either direction (each 4 full steps); 0 where the plant
+  // does not model slips. A slip forward and one back cancel in lost_full_steps, not here.
+  virtual int64_t slip_events(int /*joint*/) const { return 0; }
 };
 
 }  // namespace feedloop::engine

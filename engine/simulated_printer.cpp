@@ -8,7 +8,9 @@
 #include <vector>
 
 #include "engine/config_mapping.hpp"
+#include "planner/kinematics.hpp"
 #include "sim/delta_plant.hpp"
+#include "sim/external_plant.hpp"
 #include "sim/gantry_axis.hpp"
 #include "sim/gantry_params.hpp"
 
@@ -43,6 +45,7 @@ class SimulatedPrinter final : public SimulatedPlant {
  public:
   device::MotorPort* motor(int joint) override {
     if (joint < 0 || joint >= kJoints) return nullptr;
+    if (external_port_[static_cast<size_t>(joint)]) return external_port_[static_cast<size_t>(joint)];
     if (delta_) return joint < 3 ? &delta_->carriage_port(joint) : nullptr;
     return gantries_[static_cast<size_t>(joint)].get();
   }
@@ -53,14 +56,20 @@ class SimulatedPrinter final : public SimulatedPlant {
     for (auto& g : gantries_)
       if (g) g->advance_to(t_s);
     if (delta_) delta_->advance_to(t_s);
+    if (external_) external_->advance_to(t_s);
   }
   double carriage_mm(int joint) const override {
     if (joint < 0 || joint >= kJoints) return NAN;
+    if (const sim::ExternalAxisPort* e = external_port_[static_cast<size_t>(joint)]) return e->carriage_mm();
     if (delta_) return joint < 3 ? delta_->carriage_mm(joint) : NAN;
     const auto& g = gantries_[static_cast<size_t>(joint)];
     return g ? g->carriage_mm() : NAN;
   }
+  const char* fault() const override {
+    return external_ && external_->faulted() ? external_->fault().c_str() : nullptr;
+  }
   std::array<double, 3> nozzle_mm() const override {
+    if (delta_ && external_) return {NAN, NAN, NAN};  // the carriages are the external plant's
     if (delta_) {
       const Eigen::Vector3d n = delta_->nozzle_mm();
       return {n[0], n[1], n[2]};
@@ -71,6 +80,10 @@ class SimulatedPrinter final : public SimulatedPlant {
     const sim::GantryAxis* g = gantry(joint);
     return g ? g->lost_full_steps() : 0;
   }
+  int64_t slip_events(int joint) const override {
+    const sim::GantryAxis* g = gantry(joint);
+    return g ? g->slip_events() : 0;
+  }
 
   sim::GantryAxis* gantry(int joint) const {
     return joint < 0 || joint >= kJoints ? nullptr : gantries_[static_cast<size_t>(joint)].get();
@@ -79,6 +92,8 @@ class SimulatedPrinter final : public SimulatedPlant {
 
   std::array<std::unique_ptr<sim::GantryAxis>, kJoints> gantries_;  // by joint (nullptr: none)
   std::unique_ptr<sim::DeltaPlant> delta_;
+  std::unique_ptr<sim::ExternalPlant> external_;                       // simulator.external_plant
+  std::array<sim::ExternalAxisPort*, kJoints> external_port_{};       // by joint (nullptr: built-in)
   std::array<double, kJoints> encoder_mm_per_count_{};
 };
 
@@ -134,6 +149,42 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
       if (!g.ok()) return Error{"simulated axis " + names[js] + ": " + g.error().message};
       out->gantries_[js] = std::make_unique<sim::GantryAxis>(std::move(g.value()));
       out->encoder_mm_per_count_[js] = out->gantries_[js]->encoder_mm_per_count();
+    }
+  }
+  if (const auto& ext = cfg.simulator.external_plant) {
+    // Where each joint starts: the planner's joint position at the origin (Cartesian: 0; delta:
+    // the carriage heights with the nozzle at 0, 0, 0).
+    const auto kin = planner::make_kinematics(planner_config(cfg));
+    const planner::Joints start = kin->inverse(planner::Vec3{0.0, 0.0, 0.0});
+    sim::ExternalPlantParams xp;
+    xp.command = ext->command;
+    xp.period_s = ext->period_us * 1e-6;
+    std::array<int, kJoints> joint_of{};
+    for (size_t i = 0; i < ext->axes.size(); ++i) {
+      int j = -1;
+      for (int k = 0; k < kJoints; ++k)
+        if (names[static_cast<size_t>(k)] == ext->axes[i]) j = k;
+      if (j < 0) return Error{"simulator.external_plant: axis '" + ext->axes[i] + "' is not a joint of this machine"};
+      const size_t js = static_cast<size_t>(j);
+      sim::ExternalAxisParams a;
+      a.name = ext->axes[i];
+      a.mm_per_step = 1.0 / spm[js];
+      a.start_mm = j < 3 ? start[js] : 0.0;
+      a.encoder.noise_um = cfg.simulator.encoder_noise_um;
+      a.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
+      if (const config::AxisConfig* ac = cfg.axis(names[js]); ac && ac->encoder)
+        a.encoder.resolution_um = ac->encoder->resolution_um;
+      a.seed = cfg.simulator.seed + 7000 + 1000 * js;
+      xp.axes.push_back(a);
+      joint_of[i] = j;
+    }
+    auto plant = sim::ExternalPlant::start(xp);
+    if (!plant) return plant.error();
+    out->external_ = std::move(plant.value());
+    for (size_t i = 0; i < ext->axes.size(); ++i) {
+      const size_t js = static_cast<size_t>(joint_of[i]);
+      out->external_port_[js] = &out->external_->port(static_cast<int>(i));
+      out->encoder_mm_per_count_[js] = out->external_port_[js]->encoder_mm_per_count();
     }
   }
   return std::unique_ptr<SimulatedPlant>(std::move(out));

@@ -14,12 +14,13 @@ StepPipeline::StepPipeline(const StepPipelineParams& params, stepgen::BatchSink*
     stepgen::StepCompressorParams cp;
     cp.max_error_ticks = params.max_step_error_us * 1e-6 * params.mcu_clock_hz;
     if (!owns(j)) cp.max_run_count = 1;  // never fed: no point buffer (1.5 MB per joint)
-    jt->run_tap.next = &jt->batcher;
+    jt->run_tap.next = params.encode ? static_cast<stepgen::RunSink*>(&jt->batcher) : &null_runs_;
     jt->run_tap.observer = owns(j) ? params.observer : nullptr;
     jt->run_tap.joint = j;
     jt->compressor.configure(cp, &jt->run_tap);
     jt->compressor.reset(0, 0.0);
-    jt->tap.next = &jt->compressor;
+    jt->tap.next =
+        params.compress ? static_cast<stepgen::StepSink*>(&jt->compressor) : &null_steps_;
     jt->gen.configure(params.steps_per_mm[static_cast<size_t>(j)], map, &jt->tap);
     joints_[static_cast<size_t>(j)] = std::move(jt);
   }

@@ -50,6 +50,10 @@ struct StepPipelineParams {
   // pipelines on two threads can share one joint-segment stream (batch mode).
   unsigned joint_mask = 0xFu;
   StepObserver* observer = nullptr;  // optional; must outlive the pipeline
+  // Bench/batch's time per stage only: stop after the exact step times (compress = false) or
+  // after compression (encode = false: no batches).
+  bool compress = true;
+  bool encode = true;
 };
 
 struct JointStepStats {
@@ -116,6 +120,12 @@ class StepPipeline final : public planner::JointSink {
       next->on_run(start_clock, run);
     }
   };
+  struct NullSteps final : stepgen::StepSink {
+    void on_steps(const double*, const int8_t*, size_t) override {}
+  };
+  struct NullRuns final : stepgen::RunSink {
+    void on_run(int64_t, const stepgen::StepRun&) override {}
+  };
   struct Joint {
     stepgen::StepGenerator gen;
     StepTap tap;
@@ -128,6 +138,8 @@ class StepPipeline final : public planner::JointSink {
   void apply_maps();
 
   StepPipelineParams params_;
+  NullSteps null_steps_;
+  NullRuns null_runs_;
   double offset_s_ = 0.0;
   std::array<stepgen::TickMap, kJoints> host_maps_{};
   std::array<std::unique_ptr<Joint>, kJoints> joints_;

@@ -26,7 +26,7 @@ std::mutex& fftw_planner_mutex() {
 // A real-to-complex plan of size n with its own aligned buffers.
 class R2cPlan {
  public:
-  explicit R2cPlan(int n) : n_(n) {
+  explicit R2cPlan(int n) {
     std::lock_guard<std::mutex> lock(fftw_planner_mutex());
     in_ = fftw_alloc_real(static_cast<size_t>(n));
     out_ = fftw_alloc_complex(static_cast<size_t>(n / 2 + 1));
@@ -47,7 +47,6 @@ class R2cPlan {
   void execute() { fftw_execute(plan_); }
 
  private:
-  int n_;
   double* in_ = nullptr;
   fftw_complex* out_ = nullptr;
   fftw_plan plan_ = nullptr;

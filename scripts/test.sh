@@ -1,35 +1,43 @@
 #!/usr/bin/env bash
-# Sets up, builds and runs every test: the normal build, the ASan+UBSan build, and a short fuzz
-# run of the G-code parser. Usage: scripts/test.sh [--fast]  (--fast: normal build only)
+# Sets up, builds and runs every test. Two builds (docs/decisions.md, "CI time"):
+#   1. GCC, RelWithDebInfo: every test, the slow ones included (timing and allocation tests run
+#      here, where no sanitizer changes the allocator or the speed);
+#   2. clang, ASan + UBSan with libFuzzer's coverage: the tests again under the sanitizers (the
+#      slow ones excluded), then a short run of every fuzz target from the same build.
+# Usage: scripts/test.sh [--fast]  (--fast: build 1 only)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 JOBS=$(nproc)
+t0=$SECONDS
+stage() { echo "== $1 (at $(( (SECONDS - t0) / 60 )) min $(( (SECONDS - t0) % 60 )) s)"; }
 
-echo "== build (RelWithDebInfo)"
-# -g1 (line tables only) in every build here: full debug info cost ~38 % of the compile time
-# (docs/decisions.md, "CI time"); stack traces and sanitizer reports keep their lines.
+stage "build 1: GCC RelWithDebInfo"
+# -g1 (line tables only) in every build here: full debug info cost ~38 % of the compile time;
+# stack traces and sanitizer reports keep their lines.
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" >/dev/null
 cmake --build build -j"$JOBS"
-echo "== tests"
-ctest --test-dir build -j"$JOBS" --output-on-failure --timeout 600
+# Tests labelled `realtime` run a daemon or a serial link on the wall clock: they run one at a
+# time after the others, so that no other test competes with their threads for the two cores.
+# Tests labelled `long` (the whole corpus on the simulated printer, ~15 min of CPU) are not run
+# here: `ctest --test-dir build -L long` (README, "Tests").
+stage "tests"
+ctest --test-dir build -j"$JOBS" --output-on-failure --timeout 600 -LE "realtime|long"
+stage "tests on the wall clock, one at a time"
+ctest --test-dir build --output-on-failure --timeout 600 -L realtime -LE long
 
 if [ "${1:-}" = "--fast" ]; then exit 0; fi
 
-echo "== build (ASan + UBSan)"
+stage "build 2: clang, ASan + UBSan + libFuzzer coverage"
 # -O1: sanitizers keep full precision; the plant simulator and fits stay fast enough to test.
-cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g1" \
-  -DFEEDLOOP_SANITIZE=ON -DFEEDLOOP_BENCH=OFF >/dev/null
-cmake --build build-asan -j"$JOBS"
-echo "== tests under sanitizers"
-ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  ctest --test-dir build-asan -j"$JOBS" --output-on-failure --timeout 900 -LE slow
+cmake -S . -B build-san -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=Debug \
+  -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g1" -DFEEDLOOP_SANITIZE=ON -DFEEDLOOP_FUZZ=ON -DFEEDLOOP_BENCH=OFF >/dev/null
+cmake --build build-san -j"$JOBS"
+stage "tests under sanitizers"
+export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
+ctest --test-dir build-san -j"$JOBS" --output-on-failure --timeout 900 -LE "slow|realtime"
+ctest --test-dir build-san --output-on-failure --timeout 900 -L realtime -LE slow
 
-if [ -f fuzz/CMakeLists.txt ]; then
-  echo "== fuzz (short run)"
-  cmake -S . -B build-fuzz -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
-    -DFEEDLOOP_FUZZ=ON -DFEEDLOOP_TESTS=OFF -DFEEDLOOP_BENCH=OFF >/dev/null
-  cmake --build build-fuzz -j"$JOBS" --target fuzz_all
-  bash fuzz/run.sh build-fuzz 20  # every target (fuzz/README.md), 20 s each
-fi
+stage "fuzz (short run of every target)"
+bash fuzz/run.sh build-san 10  # fuzz/README.md; 10 s each (the long runs are separate)
+stage "done"

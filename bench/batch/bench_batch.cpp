@@ -1,21 +1,26 @@
-// Batch mode over the G-code corpus: throughput, bytes on the wire per step, peak memory, CPU and
-// wall time, and Klipper's published batch-mode figures for comparison (ANCHORS.md).
-// Usage: bench_batch [--json FILE] [--gcode-dir DIR] [--reps N]
+// Batch mode over the G-code corpus: wall time, steps/s, bytes on the wire per step, peak memory,
+// CPU time; for the benchy and the 12-benchy plate also the time per stage and one thread
+// against two, alone and with `stress-ng --cpu 1` beside it. Every figure printed is measured
+// by this program in this run.
+// Usage: bench_batch [--json FILE] [--gcode-dir DIR] [--reps N] [--no-stress] [--only SUBSTRING]
 //
 // Every measurement runs in its own child process (fork), so the peak RSS of one file
 // (getrusage(RUSAGE_SELF).ru_maxrss in the child) does not include another's. The 45 MB
-// 12-benchy file is decompressed (xz -dk) into a temporary directory and removed afterwards.
+// 12-benchy file is decompressed (xz -dc) into a temporary directory and removed afterwards.
+#include <signal.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -36,7 +41,8 @@ struct Run {
 };
 
 // Runs batch mode on one file in a child process and reads its figures back through a pipe.
-Run run_child(const std::string& file, const config::MachineConfig& cfg, int threads) {
+Run run_child(const std::string& file, const config::MachineConfig& cfg, int threads,
+              engine::BatchStage stage = engine::BatchStage::output) {
   int fds[2];
   if (pipe(fds) != 0) return {};
   const pid_t pid = fork();
@@ -46,6 +52,7 @@ Run run_child(const std::string& file, const config::MachineConfig& cfg, int thr
     Run r;
     engine::BatchOptions opt;
     opt.threads = threads;
+    opt.last_stage = stage;
     auto sum = engine::run_batch(file, cfg, opt);
     if (sum) {
       r.ok = true;
@@ -85,17 +92,133 @@ struct Job {
   bool delta = false;
 };
 
+// `stress-ng --cpu 1` beside the measurements while it lives; nothing when stress-ng is absent.
+class CpuHog {
+ public:
+  bool start() {
+    pid_ = fork();
+    if (pid_ < 0) return false;
+    if (pid_ == 0) {
+      execlp("stress-ng", "stress-ng", "--cpu", "1", "--timeout", "3600s", "--quiet", nullptr);
+      _exit(127);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == pid_) {  // exited at once: not installed
+      pid_ = -1;
+      return false;
+    }
+    return true;
+  }
+  ~CpuHog() {
+    if (pid_ <= 0) return;
+    kill(pid_, SIGTERM);
+    waitpid(pid_, nullptr, 0);
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
+
+const char* kStageNames[] = {"parse", "plan", "step times", "compression", "output"};
+constexpr int kStages = 5;
+
+// Time per stage, one thread: each stage run also does the stages before it, so a stage's time is
+// the difference of two medians (interleaved runs, so that load on the machine hits all alike).
+nlohmann::json stage_times(const Job& job, const config::MachineConfig& cfg, int reps) {
+  std::vector<double> wall[kStages], cpu[kStages];
+  for (int i = 0; i < reps; ++i)
+    for (int st = 0; st < kStages; ++st) {
+      const Run r = run_child(job.path, cfg, 1, static_cast<engine::BatchStage>(st));
+      if (!r.ok) return {};
+      wall[st].push_back(r.wall_s);
+      cpu[st].push_back(r.cpu_s);
+    }
+  std::printf(
+      "\n%s, time per stage (one thread, CPU s; median of %d, each stage's run minus the one "
+      "before):\n",
+      job.name.c_str(), reps);
+  nlohmann::json out = nlohmann::json::array();
+  double prev = 0.0;
+  for (int st = 0; st < kStages; ++st) {
+    const double c = median(cpu[st]);
+    std::printf("  %-12s %7.3f s  (cumulative %.3f s CPU, %.3f s wall)\n", kStageNames[st],
+                c - prev, c, median(wall[st]));
+    out.push_back({{"stage", kStageNames[st]},
+                   {"cpu_s", c - prev},
+                   {"cumulative_cpu_s", c},
+                   {"cumulative_wall_s", median(wall[st])}});
+    prev = c;
+  }
+  return out;
+}
+
+// One thread against two, interleaved; alone, then with stress-ng --cpu 1 beside it.
+nlohmann::json threads_and_load(const Job& job, const config::MachineConfig& cfg, int reps,
+                                bool stress) {
+  nlohmann::json out = nlohmann::json::array();
+  std::printf("\n%s, one thread vs two (median of %d, interleaved):\n", job.name.c_str(), reps);
+  std::printf("  %-22s %8s %8s %8s %10s %8s\n", "condition", "threads", "wall_s", "cpu_s",
+              "Msteps/s", "peakMB");
+  for (int loaded = 0; loaded <= (stress ? 1 : 0); ++loaded) {
+    CpuHog hog;
+    if (loaded && !hog.start()) {
+      std::printf("  with stress-ng --cpu 1: not measured (stress-ng did not start)\n");
+      break;
+    }
+    std::vector<double> w[2], c[2], m[2];
+    uint64_t steps = 0;
+    for (int i = 0; i < reps; ++i)
+      for (int t = 0; t < 2; ++t) {
+        const Run r = run_child(job.path, cfg, t + 1);
+        if (!r.ok) return out;
+        w[t].push_back(r.wall_s), c[t].push_back(r.cpu_s), m[t].push_back(r.max_rss_mb);
+        steps = r.steps;
+      }
+    const char* cond = loaded ? "stress-ng --cpu 1" : "alone";
+    for (int t = 0; t < 2; ++t) {
+      const double wall = median(w[t]);
+      std::printf("  %-22s %8d %8.3f %8.3f %10.1f %8.1f\n", cond, t + 1, wall, median(c[t]),
+                  static_cast<double>(steps) / wall / 1e6, median(m[t]));
+      out.push_back({{"condition", cond},
+                     {"threads", t + 1},
+                     {"wall_s", wall},
+                     {"cpu_s", median(c[t])},
+                     {"steps_per_s", static_cast<double>(steps) / wall},
+                     {"peak_rss_mb", median(m[t])}});
+    }
+  }
+  return out;
+}
+
+double load_average_1min() {
+  double l = -1.0;
+  if (FILE* f = std::fopen("/proc/loadavg", "r")) {
+    if (std::fscanf(f, "%lf", &l) != 1) l = -1.0;
+    std::fclose(f);
+  }
+  return l;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string json_path, dir = std::string(FEEDLOOP_SHARED_DIR) + "/gcode";
+  std::string json_path, only, dir = std::string(FEEDLOOP_SHARED_DIR) + "/gcode";
   int reps = 3;
+  bool stress = true;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--json") && i + 1 < argc) json_path = argv[++i];
     else if (!std::strcmp(argv[i], "--gcode-dir") && i + 1 < argc) dir = argv[++i];
     else if (!std::strcmp(argv[i], "--reps") && i + 1 < argc) reps = std::max(1, std::atoi(argv[++i]));
+    else if (!std::strcmp(argv[i], "--no-stress"))
+      stress = false;
+    else if (!std::strcmp(argv[i], "--only") && i + 1 < argc)
+      only = argv[++i];
     else {
-      std::fprintf(stderr, "usage: %s [--json FILE] [--gcode-dir DIR] [--reps N]\n", argv[0]);
+      std::fprintf(
+          stderr,
+          "usage: %s [--json FILE] [--gcode-dir DIR] [--reps N] [--no-stress] [--only SUBSTRING]\n",
+          argv[0]);
       return 2;
     }
   }
@@ -120,7 +243,8 @@ int main(int argc, char** argv) {
   // The 12-benchy plate, decompressed for the run.
   std::string tmp_dir;
   const fs::path xz = fs::path(dir) / "benchy_x12_cartesian_LARGE.gcode.xz";
-  if (fs::exists(xz)) {
+  if (fs::exists(xz) &&
+      (only.empty() || std::string("benchy_x12_cartesian_LARGE").find(only) != std::string::npos)) {
     char tmpl[] = "/tmp/bench_batch_XXXXXX";
     if (mkdtemp(tmpl) != nullptr) {
       tmp_dir = tmpl;
@@ -130,13 +254,18 @@ int main(int argc, char** argv) {
       else std::fprintf(stderr, "bench_batch: xz failed; skipping the 12-benchy file\n");
     }
   }
+  if (!only.empty())
+    std::erase_if(jobs, [&](const Job& j) { return j.name.find(only) == std::string::npos; });
 
   nlohmann::json out;
+  out["load_average_1min_at_start"] = load_average_1min();
   out["files"] = nlohmann::json::array();
-  std::printf("batch mode, %d rep(s) per file (median; CPU = all threads of the process)\n", reps);
-  std::printf("%-36s %8s %8s %9s %10s %9s %8s %8s %8s %7s %7s %6s\n", "file", "lines", "klines/s",
-              "kmoves/s", "Msteps/s", "steps", "B/st@5", "B/st@25", "peakMB", "cpu_s", "wall_s", "fails");
-  double benchy_wall = 0, benchy_cpu = 0, cube_mb = 0, large_mb = 0;
+  std::printf(
+      "batch mode, %d rep(s) per file (median; two threads; CPU = all threads of the process)\n",
+      reps);
+  std::printf("load average (1 min) at start: %.2f\n", load_average_1min());
+  std::printf("%-36s %8s %10s %9s %8s %8s %8s %7s %7s %6s\n", "file", "lines", "Msteps/s", "steps",
+              "B/st@5", "B/st@25", "peakMB", "cpu_s", "wall_s", "fails");
   for (const Job& job : jobs) {
     const config::MachineConfig& cfg = job.delta ? *delta_cfg : cart;
     std::vector<double> wall, cpu, rss;
@@ -156,49 +285,32 @@ int main(int argc, char** argv) {
     cfg25.stepgen.max_step_error_us = 25.0;
     const Run r25 = run_child(job.path, cfg25, 2);
     const double w = median(wall), c = median(cpu), m = median(rss);
-    std::printf("%-36s %8lld %8.0f %9.0f %10.1f %9.2fM %8.3f %8.3f %8.1f %7.3f %7.3f %6llu\n", job.name.c_str(),
-                static_cast<long long>(r.lines), r.lines / w / 1e3, r.moves / w / 1e3, r.steps / w / 1e6,
-                r.steps / 1e6, r.bytes_per_step, r25.bytes_per_step, m, c, w,
+    std::printf("%-36s %8lld %10.1f %8.2fM %8.3f %8.3f %8.1f %7.3f %7.3f %6llu\n", job.name.c_str(),
+                static_cast<long long>(r.lines), static_cast<double>(r.steps) / w / 1e6,
+                static_cast<double>(r.steps) / 1e6, r.bytes_per_step, r25.bytes_per_step, m, c, w,
                 static_cast<unsigned long long>(r.check_failures));
-    if (job.name == "benchy_cartesian") benchy_wall = w, benchy_cpu = c;
-    if (job.name == "cube20_cartesian") cube_mb = m;
-    if (job.name == "benchy_x12_cartesian_LARGE") large_mb = m;
-    out["files"].push_back({{"file", job.name}, {"lines", r.lines}, {"moves", r.moves}, {"steps", r.steps},
-                            {"lines_per_s", r.lines / w}, {"moves_per_s", r.moves / w},
-                            {"steps_per_s", r.steps / w}, {"wire_bytes_per_step_5us", r.bytes_per_step},
-                            {"wire_bytes_per_step_25us", r25.bytes_per_step}, {"peak_rss_mb", m},
-                            {"cpu_s", c}, {"wall_s", w}, {"check_failures", r.check_failures}});
+    out["files"].push_back({{"file", job.name},
+                            {"lines", r.lines},
+                            {"moves", r.moves},
+                            {"steps", r.steps},
+                            {"steps_per_s", static_cast<double>(r.steps) / w},
+                            {"wire_bytes_per_step_5us", r.bytes_per_step},
+                            {"wire_bytes_per_step_25us", r25.bytes_per_step},
+                            {"peak_rss_mb", m},
+                            {"cpu_s", c},
+                            {"wall_s", w},
+                            {"check_failures", r.check_failures}});
+  }
+
+  // The benchy and the 12-benchy plate in detail.
+  for (const Job& job : jobs) {
+    if (job.name != "benchy_cartesian" && job.name != "benchy_x12_cartesian_LARGE") continue;
+    out["detail"][job.name]["stages"] = stage_times(job, cart, reps);
+    out["detail"][job.name]["threads"] = threads_and_load(job, cart, reps, stress);
   }
   if (!tmp_dir.empty()) fs::remove_all(tmp_dir);
-
-  // One thread vs two on the same file, interleaved so that machine load hits both alike.
-  const fs::path benchy = fs::path(dir) / "benchy_cartesian.gcode";
-  if (fs::exists(benchy)) {
-    std::vector<double> w1, c1, w2, c2;
-    for (int i = 0; i < reps; ++i) {
-      const Run a = run_child(benchy.string(), cart, 1);
-      const Run b = run_child(benchy.string(), cart, 2);
-      w1.push_back(a.wall_s), c1.push_back(a.cpu_s), w2.push_back(b.wall_s), c2.push_back(b.cpu_s);
-    }
-    std::printf("\nbenchy_cartesian, 1 vs 2 threads (interleaved, median of %d): wall %.3f -> %.3f s (x%.2f), "
-                "CPU %.3f -> %.3f s\n", reps, median(w1), median(w2), median(w1) / median(w2), median(c1),
-                median(c2));
-    out["threads"] = {{"wall_1_s", median(w1)}, {"wall_2_s", median(w2)}, {"cpu_1_s", median(c1)},
-                      {"cpu_2_s", median(c2)}};
-  }
-  // Klipper's batch mode (ANCHORS.md, same machine kind): benchy_cartesian 4.44 s median wall,
-  // 3.09 s pinned to one core, 0.58 B/step at its 25 us bound, 53 MB -> 258 MB for 12 benchies.
-  std::printf("\nKlipper batch mode (ANCHORS.md): benchy 4.44 s wall, 3.09 s one core, 0.58 B/step @25us, "
-              "peak 53 MB (1 benchy) -> 258 MB (12)\n");
-  if (benchy_wall > 0)
-    std::printf("feedloop: benchy %.3f s wall (%.1fx faster), %.3f s CPU (%.1fx less than Klipper's one core)\n",
-                benchy_wall, 4.44 / benchy_wall, benchy_cpu, 3.09 / benchy_cpu);
-  if (cube_mb > 0 && large_mb > 0)
-    std::printf("feedloop: peak memory cube20 %.1f MB -> 12 benchies %.1f MB (%+.1f %%)\n", cube_mb, large_mb,
-                100.0 * (large_mb / cube_mb - 1.0));
-  out["klipper"] = {{"benchy_wall_s", 4.44}, {"benchy_one_core_s", 3.09}, {"bytes_per_step_25us", 0.58},
-                    {"peak_mb_one_benchy", 53}, {"peak_mb_12_benchies", 258}};
-  out["memory"] = {{"cube20_mb", cube_mb}, {"large_mb", large_mb}};
+  out["load_average_1min_at_end"] = load_average_1min();
+  std::printf("\nload average (1 min) at the end: %.2f\n", load_average_1min());
   if (!json_path.empty()) {
     std::ofstream f(json_path);
     f << out.dump(2) << "\n";

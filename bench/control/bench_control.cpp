@@ -3,7 +3,7 @@
 // plant simulator in virtual time (engine::run_simulated), with the metrics of Sect. 5.2
 // (bench/control/metrics.hpp). Cases, rows, criteria: bench/control/README.md.
 //
-// Usage: bench_control [--quick] [--json FILE] [--delta-config FILE] [--no-delta] [--self-test]
+// Usage: bench_control [--quick] [--json FILE] [--delta-config FILE] [--no-delta | --loops-only] [--self-test]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -482,9 +482,34 @@ RunOut pool(const std::vector<RunOut>& runs) {
   return p;
 }
 
+// Where the PI runs (issue 13): on the MCUs at a control rate, or on the host's servo thread with a
+// command lead. The rows of the main blocks use the config's default (the device loop at 1 kHz).
+struct LoopDef {
+  const char* id;
+  const char* label;
+  config::ControlLoop loop;
+  double device_rate_hz;  // loop device
+  double lead_ms;         // loop host: control.command_lead_ms
+};
+
+std::vector<LoopDef> loop_defs() {
+  return {
+      {"device_1k", "device loop 1 kHz", config::ControlLoop::device, 1000.0, 2.0},
+      {"device_10k", "device loop 10 kHz", config::ControlLoop::device, 10000.0, 2.0},
+      {"host_2ms", "host loop, 2 ms lead", config::ControlLoop::host, 1000.0, 2.0},
+      {"host_25ms", "host loop, 25 ms lead", config::ControlLoop::host, 1000.0, 25.0},
+  };
+}
+
 RunOut run_gantry(const config::MachineConfig& base, const CaseDef& c, const RowDef& row, bool effects,
-                  const ShaperChoice& sh, const IdentifiedFriction* friction, bool single_position = false) {
-  const config::MachineConfig cfg = make_config(base, c, row, effects, sh, friction);
+                  const ShaperChoice& sh, const IdentifiedFriction* friction, bool single_position = false,
+                  const LoopDef* loop = nullptr) {
+  config::MachineConfig cfg = make_config(base, c, row, effects, sh, friction);
+  if (loop != nullptr) {
+    cfg.control.loop = loop->loop;
+    cfg.control.device_rate_hz = loop->device_rate_hz;
+    cfg.control.command_lead_ms = loop->lead_ms;
+  }
   if (table1_case(c) && !single_position) {
     std::vector<RunOut> runs;
     for (const auto& pos : kTable1Positions_mm)
@@ -698,6 +723,98 @@ std::vector<Criterion> criteria(const std::vector<Block>& blocks) {
   return out;
 }
 
+// ---- where the loop runs (issue 13) ----------------------------------------------------------------
+
+// The thesis cases with the unmodelled effects on, PI at the thesis gains (0.5, 20) behind F = 1
+// and behind the LPV feedforward (with the identified friction), each with the loop on the MCUs at
+// 1 and 10 kHz and on the host's servo thread 2 and 25 ms ahead. The gains are the same in every
+// row: the rows compare where the loop runs, not a tuning.
+struct LoopRow {
+  std::string controller;  // "pi" | "lpv_pi"
+  std::string loop;        // LoopDef::id
+  RunOut out;
+};
+
+struct LoopCase {
+  CaseDef c;
+  std::vector<LoopRow> rows;
+  const LoopRow* row(const std::string& controller, const std::string& loop) const {
+    for (const LoopRow& r : rows)
+      if (r.controller == controller && r.loop == loop) return &r;
+    return nullptr;
+  }
+};
+
+std::vector<LoopCase> run_loops(const config::MachineConfig& base, const ShaperChoice& sh,
+                                const IdentifiedFriction* friction, bool quick) {
+  std::vector<LoopCase> out;
+  const RowDef controllers[2] = {{"pi", "PI thesis (0.5, 20)", ControlMode::pi, kThesisGains, FeedforwardType::none},
+                                 {"lpv_pi", "LPV FF + PI (0.5, 20)", ControlMode::pi, kThesisGains, FeedforwardType::lpv}};
+  for (const CaseDef& c : gantry_cases()) {
+    if (!c.thesis_case) continue;
+    LoopCase lc;
+    lc.c = c;
+    for (const RowDef& row : controllers)
+      for (const LoopDef& l : loop_defs()) {
+        lc.rows.push_back({row.id, l.id, run_gantry(base, c, row, true, sh, friction, quick, &l)});
+        progress(std::string("loops / ") + c.id + " / " + row.id + " / " + l.id, lc.rows.back().out);
+      }
+    out.push_back(std::move(lc));
+  }
+  return out;
+}
+
+void print_loops(const std::vector<LoopCase>& cases) {
+  std::printf("\n== where the loop runs: the thesis cases with unmodelled effects, e_t mean / max mm, lost full "
+              "steps (events) ==\n");
+  for (const char* controller : {"pi", "lpv_pi"}) {
+    std::printf("\n%s\n  %-22s", std::strcmp(controller, "pi") == 0 ? "PI thesis (0.5, 20), F = 1"
+                                                                     : "LPV feedforward + PI thesis (0.5, 20)",
+                "case");
+    for (const LoopDef& l : loop_defs()) std::printf(" | %-26s", l.label);
+    std::printf("\n");
+    for (const LoopCase& lc : cases) {
+      std::printf("  %-22s", lc.c.id);
+      for (const LoopDef& l : loop_defs()) {
+        const LoopRow* r = lc.row(controller, l.id);
+        char cell[64] = "-";
+        if (r != nullptr && r->out.have_metrics)
+          std::snprintf(cell, sizeof cell, "%.4f / %.4f %3lld (%d)%s", r->out.m.e_t_mm, r->out.m.e_max_mm,
+                        static_cast<long long>(r->out.lost_full_steps), r->out.lost_step_events,
+                        r->out.ok ? "" : " !");
+        else if (r != nullptr)
+          std::snprintf(cell, sizeof cell, "(%s)", r->out.error.substr(0, 22).c_str());
+        std::printf(" | %-26s", cell);
+      }
+      std::printf("\n");
+    }
+  }
+  std::printf("  (! = the run ended in a fault; its error is in the JSON)\n");
+}
+
+// Issue 13: the device loop at 1 kHz is at least as good as the host loop at 2 ms: e_t mean no
+// larger and no more lost full steps, in every thesis case, behind either feedforward.
+void loop_criteria(std::vector<Criterion>& out, const std::vector<LoopCase>& cases) {
+  for (const LoopCase& lc : cases)
+    for (const char* controller : {"pi", "lpv_pi"}) {
+      Criterion c{std::string("device loop 1 kHz at least as good as host loop 2 ms: ") + lc.c.id, "effects",
+                  controller, false, false, "", "e_t <= host, lost <= host"};
+      const LoopRow* d = lc.row(controller, "device_1k");
+      const LoopRow* h = lc.row(controller, "host_2ms");
+      if (d && h && d->out.ok && h->out.have_metrics) {
+        c.available = true;
+        char v[96];
+        std::snprintf(v, sizeof v, "%.4f vs %.4f, %lld vs %lld lost", d->out.m.e_t_mm, h->out.m.e_t_mm,
+                      static_cast<long long>(d->out.lost_full_steps), static_cast<long long>(h->out.lost_full_steps));
+        c.value = v;
+        c.pass = d->out.m.e_t_mm <= h->out.m.e_t_mm && d->out.lost_full_steps <= h->out.lost_full_steps;
+      } else {
+        c.value = d ? d->out.error : "missing run";
+      }
+      out.push_back(c);
+    }
+}
+
 // ---- delta ---------------------------------------------------------------------------------------
 
 struct DeltaRun {
@@ -876,7 +993,8 @@ std::string jtuning(const Tuning& t) {
 }
 
 bool write_json(const char* path, const Tuning& t, const Tuning& tl, const ShaperChoice& sh, const std::vector<Block>& blocks,
-                const std::vector<DeltaRun>& delta, const std::vector<Criterion>& crit, bool quick) {
+                const std::vector<LoopCase>& loops, const std::vector<DeltaRun>& delta, const std::vector<Criterion>& crit,
+                bool quick) {
   FILE* f = std::fopen(path, "w");
   if (!f) return false;
   std::fprintf(f, "{\"bench\": \"control\", \"quick\": %s, \"sample_period_s\": 0.001,\n", quick ? "true" : "false");
@@ -915,6 +1033,15 @@ bool write_json(const char* path, const Tuning& t, const Tuning& tl, const Shape
     }
     std::fprintf(f, "]}");
   }
+  std::fprintf(f, "],\n \"loops\": [");
+  bool first_loop = true;
+  for (const LoopCase& lc : loops)
+    for (const LoopRow& r : lc.rows) {
+      std::fprintf(f, "%s{\"case\": %s, \"block\": \"effects\", \"controller\": %s, \"loop\": %s, \"run\": %s}",
+                   first_loop ? "\n  " : ",\n  ", jstr(lc.c.id).c_str(), jstr(r.controller).c_str(), jstr(r.loop).c_str(),
+                   jrun(r.out).c_str());
+      first_loop = false;
+    }
   std::fprintf(f, "],\n \"delta\": [");
   for (size_t i = 0; i < delta.size(); ++i) {
     const DeltaRun& r = delta[i];
@@ -939,7 +1066,7 @@ bool write_json(const char* path, const Tuning& t, const Tuning& tl, const Shape
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false, self_test = false, delta = true, gantry = true;
+  bool quick = false, self_test = false, delta = true, gantry = true, loops_only = false;
   const char* json_path = nullptr;
   std::string only;  // CASE:ROW, one gantry run (nominal) with its figures, for a quick look
   double only_kp[2] = {NAN, NAN}, only_ki[2] = {NAN, NAN};  // --kp / --ki X[,Y]: the --only run's gains
@@ -950,6 +1077,7 @@ int main(int argc, char** argv) {
     if (a == "--quick") quick = true;
     else if (a == "--self-test") self_test = true;
     else if (a == "--no-delta") delta = false;
+    else if (a == "--loops-only") loops_only = true;
     else if (a == "--delta-only") gantry = false;
     else if (a == "--json" && i + 1 < argc) json_path = argv[++i];
     else if (a == "--delta-config" && i + 1 < argc) delta_config = argv[++i];
@@ -963,7 +1091,7 @@ int main(int argc, char** argv) {
     }
     else if (a == "--effects") only_effects = true;
     else {
-      std::fprintf(stderr, "usage: %s [--quick] [--json FILE] [--delta-config FILE] [--no-delta | --delta-only] [--self-test]\n"
+      std::fprintf(stderr, "usage: %s [--quick] [--json FILE] [--delta-config FILE] [--no-delta | --delta-only | --loops-only] [--self-test]\n"
                    "       %s --only CASE:ROW [--kp KX[,KY]] [--ki KX[,KY]] [--effects]\n",
                    argv[0], argv[0]);
       return 2;
@@ -1016,6 +1144,26 @@ int main(int argc, char** argv) {
   }
   Tuning tuning, tuning_lpv;
   std::vector<Block> blocks;
+  std::vector<LoopCase> loops;
+  auto identify = [&] {
+    std::fprintf(stderr, "identifying the effects plant...\n");
+    const IdentifiedFriction friction = identify_on_effects_plant(base, sh);
+    std::printf("\nIdentification on the effects plant (20 s of random moves per axis, ident::identify_axis; CPU %.1f s):\n",
+                friction.cpu_s);
+    for (int a = 0; a < 2; ++a)
+      std::printf("  %s: effects found: %s; held-out residual RMS %.2f -> %.2f um; model coulomb_friction_n = %.3f N\n",
+                  a == 0 ? "x" : "y", friction.effects[a].empty() ? "none" : friction.effects[a].c_str(),
+                  friction.rms_um[a][0], friction.rms_um[a][1], friction.force_n[a]);
+    if (!friction.ok) std::printf("  identification failed: %s (the LPV rows run without friction)\n", friction.error.c_str());
+    return friction;
+  };
+  if (loops_only) {
+    gantry = false;
+    delta = false;
+    const IdentifiedFriction friction = identify();
+    loops = run_loops(base, sh, &friction, quick);
+    print_loops(loops);
+  }
   if (gantry) {
   std::fprintf(stderr, "tuning PI on the nominal circle and small star...\n");
   tuning = tune_pi(base, quick, FeedforwardType::none);
@@ -1024,22 +1172,17 @@ int main(int argc, char** argv) {
   print_tuning(tuning_lpv);
   const std::vector<RowDef> rows = gantry_rows(tuning, tuning_lpv);
 
-  std::fprintf(stderr, "identifying the effects plant...\n");
-  const IdentifiedFriction friction = identify_on_effects_plant(base, sh);
-  std::printf("\nIdentification on the effects plant (20 s of random moves per axis, ident::identify_axis; CPU %.1f s):\n",
-              friction.cpu_s);
-  for (int a = 0; a < 2; ++a)
-    std::printf("  %s: effects found: %s; held-out residual RMS %.2f -> %.2f um; model coulomb_friction_n = %.3f N\n",
-                a == 0 ? "x" : "y", friction.effects[a].empty() ? "none" : friction.effects[a].c_str(),
-                friction.rms_um[a][0], friction.rms_um[a][1], friction.force_n[a]);
-  if (!friction.ok) std::printf("  identification failed: %s (the LPV rows run without friction)\n", friction.error.c_str());
+  const IdentifiedFriction friction = identify();
 
   for (bool effects : {false, true}) {
     blocks.push_back(run_block(base, effects, rows, sh, &friction, quick));
     print_block(blocks.back());
   }
+  loops = run_loops(base, sh, &friction, quick);
+  print_loops(loops);
   }
   std::vector<Criterion> crit = criteria(blocks);
+  loop_criteria(crit, loops);
 
   std::vector<DeltaRun> delta_runs;
   if (delta) {
@@ -1053,7 +1196,7 @@ int main(int argc, char** argv) {
   }
   print_criteria(crit);
   std::printf("\nCPU time %.1f s\n", cpu_seconds() - t0);
-  if (json_path && !write_json(json_path, tuning, tuning_lpv, sh, blocks, delta_runs, crit, quick)) {
+  if (json_path && !write_json(json_path, tuning, tuning_lpv, sh, blocks, loops, delta_runs, crit, quick)) {
     std::fprintf(stderr, "cannot write %s\n", json_path);
     return 1;
   }

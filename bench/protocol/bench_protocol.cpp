@@ -75,12 +75,16 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_protocol: %s\n", vmcu.error().c_str());
     return 1;
   }
-  SerialTransport transport(vmcu.pty());
+  // The I/O thread as the machine runs it: SCHED_FIFO below the servo thread, when permitted.
+  QueuedTransportParams io = SerialTransport::serial_io_params();
+  io.rt_priority = 79;
+  SerialTransport transport(vmcu.pty(), 250000, io);
   McuSessionParams sp;
   sp.name = "bench";
   McuSession session(sp, transport);
   MonotonicClock clock;
   const int64_t t0 = clock.now_ns();
+  transport.set_time_base_ns(t0);  // the I/O thread's stamps on this time line (clock sync)
   auto now = [&] { return seconds_from_ns(clock.now_ns() - t0); };
   auto pump = [&](double until_s) {
     while (now() < until_s) {

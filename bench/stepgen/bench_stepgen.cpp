@@ -22,9 +22,14 @@ using namespace feedloop::stepgen;
 
 namespace {
 
-struct NullSteps final : StepSink {
-  double sum = 0;
-  void on_steps(const double* t, const int8_t*, size_t n) override { sum += t[n - 1]; }
+// Keeps the exact step times, so that compression can be timed alone on them.
+struct StoreSteps final : StepSink {
+  std::vector<double> ticks;
+  std::vector<int8_t> dirs;
+  void on_steps(const double* t, const int8_t* d, size_t n) override {
+    ticks.insert(ticks.end(), t, t + n);
+    dirs.insert(dirs.end(), d, d + n);
+  }
 };
 struct CountBatches final : BatchSink {
   uint64_t bytes = 0, batches = 0;
@@ -36,7 +41,7 @@ constexpr double kFrameOverheadBytes = 9.0;
 
 struct Row {
   std::string workload;
-  double err_us, steps, gen_ns, total_ns, msteps_s, run_bps, wire_bps, steps_per_run;
+  double err_us, steps, gen_ns, comp_ns, total_ns, msteps_s, run_bps, wire_bps, steps_per_run;
 };
 
 // Thread CPU time: robust against other processes on a shared machine (this is single-threaded
@@ -47,20 +52,49 @@ double now_s() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
+// Compresses stored step times in the chunks the generator hands over (StepGenerator::kChunk).
+void compress(const StoreSteps& st, StepCompressor& c) {
+  constexpr size_t kChunk = 256;
+  for (size_t i = 0; i < st.ticks.size(); i += kChunk)
+    c.on_steps(st.ticks.data() + i, st.dirs.data() + i, std::min(kChunk, st.ticks.size() - i));
+}
+
 Row run(const std::string& name, const std::vector<JointSegment>& segs, double spm, double err_us) {
   const TickMap map{0.0, 20e6};
-  Row r{name, err_us, 0, 0, 0, 0, 0, 0, 0};
+  Row r{name, err_us, 0, 0, 0, 0, 0, 0, 0, 0};
+  StoreSteps st;
   {
-    NullSteps ns;
+    // Generation alone (into a vector reserved beforehand: the stores are part of the cost).
+    StoreSteps warm;
     StepGenerator g;
-    g.configure(spm, map, &ns);
+    g.configure(spm, map, &warm);
+    g.set_position_mm(segs.front().c0_mm);
+    for (const auto& s : segs) g.add_segment(s);
+    g.flush();
+    st.ticks.reserve(warm.ticks.size());
+    st.dirs.reserve(warm.dirs.size());
+    g.configure(spm, map, &st);
     g.set_position_mm(segs.front().c0_mm);
     const double t0 = now_s();
     for (const auto& s : segs) g.add_segment(s);
     g.flush();
-    r.gen_ns = (now_s() - t0) * 1e9 / g.steps_emitted();
-    r.steps = g.steps_emitted();
+    r.gen_ns = (now_s() - t0) * 1e9 / static_cast<double>(st.ticks.size());
+    r.steps = static_cast<double>(st.ticks.size());
   }
+  {
+    // Compression and batch encoding alone, on the stored times.
+    CountBatches cb;
+    StepBatcher b;
+    b.configure(0, 200, &cb);
+    StepCompressor c;
+    c.configure({err_us * 20.0, 65535}, &b);
+    const double t0 = now_s();
+    compress(st, c);
+    c.flush();
+    b.flush();
+    r.comp_ns = (now_s() - t0) * 1e9 / r.steps;
+  }
+  // The whole path as the pipeline runs it: generation straight into compression.
   CountBatches cb;
   StepBatcher b;
   b.configure(0, 200, &cb);
@@ -101,11 +135,13 @@ int main(int argc, char** argv) {
     rows.push_back(run("trapezoid", trap, 80.0, e));
     rows.push_back(run("cubic_1ms", cubic, 160.0, e));
   }
-  std::printf("%-10s %6s %10s %8s %9s %8s %8s %9s %10s\n", "workload", "err_us", "steps", "gen_ns",
-              "total_ns", "Msteps/s", "run_B/st", "wire_B/st", "steps/run");
+  std::printf("%-10s %6s %10s %8s %8s %10s %9s %8s %8s %9s %10s\n", "workload", "err_us", "steps",
+              "gen_ns", "comp_ns", "comp_Mst/s", "total_ns", "Msteps/s", "run_B/st", "wire_B/st",
+              "steps/run");
   for (const auto& r : rows)
-    std::printf("%-10s %6.0f %10.0f %8.2f %9.2f %8.1f %8.3f %9.3f %10.1f\n", r.workload.c_str(), r.err_us,
-                r.steps, r.gen_ns, r.total_ns, r.msteps_s, r.run_bps, r.wire_bps, r.steps_per_run);
+    std::printf("%-10s %6.0f %10.0f %8.2f %8.2f %10.1f %9.2f %8.1f %8.3f %9.3f %10.1f\n",
+                r.workload.c_str(), r.err_us, r.steps, r.gen_ns, r.comp_ns, 1e3 / r.comp_ns,
+                r.total_ns, r.msteps_s, r.run_bps, r.wire_bps, r.steps_per_run);
   if (!json.empty()) {
     FILE* f = std::fopen(json.c_str(), "w");
     if (!f) { std::perror(json.c_str()); return 1; }
@@ -113,11 +149,14 @@ int main(int argc, char** argv) {
     for (size_t i = 0; i < rows.size(); ++i) {
       const auto& r = rows[i];
       std::fprintf(f,
-                   "  {\"workload\": \"%s\", \"max_error_us\": %g, \"steps\": %.0f, \"gen_ns_per_step\": %.3f, "
-                   "\"total_ns_per_step\": %.3f, \"msteps_per_s\": %.3f, \"run_bytes_per_step\": %.4f, "
+                   "  {\"workload\": \"%s\", \"max_error_us\": %g, \"steps\": %.0f, "
+                   "\"gen_ns_per_step\": %.3f, "
+                   "\"compress_ns_per_step\": %.3f, \"total_ns_per_step\": %.3f, \"msteps_per_s\": "
+                   "%.3f, \"run_bytes_per_step\": %.4f, "
                    "\"wire_bytes_per_step\": %.4f, \"steps_per_run\": %.2f}%s\n",
-                   r.workload.c_str(), r.err_us, r.steps, r.gen_ns, r.total_ns, r.msteps_s, r.run_bps,
-                   r.wire_bps, r.steps_per_run, i + 1 < rows.size() ? "," : "");
+                   r.workload.c_str(), r.err_us, r.steps, r.gen_ns, r.comp_ns, r.total_ns,
+                   r.msteps_s, r.run_bps, r.wire_bps, r.steps_per_run,
+                   i + 1 < rows.size() ? "," : "");
     }
     std::fprintf(f, "]}\n");
     std::fclose(f);

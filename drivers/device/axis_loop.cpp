@@ -297,8 +297,13 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
     }
     // 3. PI on the elapsed MCU time.
     pi_.update(e_nm_, dt_s);
-    // 4. Skipped steps: motor - carriage against the deflection model.
-    const float deflection = p_.deflection_s2 * a_ref_nm_s2_ + p_.deflection_s * v_ref_nm_s_;
+    // 4. Skipped steps: motor - carriage against the deflection model, or behind a model inverse
+    //    against the lead its steps have over r (the host's steps: all but the loop's own).
+    const float deflection =
+        p_.deflection_from_host_steps
+            ? static_cast<float>(sub_saturate_i64(
+                  sub_saturate_i64(motor_nm, q16_mul(in.device_steps, p_.nm_per_step_q16)), r_nm_))
+            : p_.deflection_s2 * a_ref_nm_s2_ + p_.deflection_s * v_ref_nm_s_;
     const bool was_pending = slip_.pending();
     const SlipEvent s =
         slip_.update(static_cast<float>(sub_saturate_i64(motor_nm, y_nm_)), deflection, dt_s);

@@ -41,6 +41,10 @@ struct LoopParams {
   float deflection_s2 = 0.0f;             // m / k (s^2)
   float deflection_s = 0.0f;              // c / k (s)
   float accel_filter_s = 0.005f;          // time constant of the a_ref filter
+  // The host's steps come from a model inverse (the LPV feedforward), which already leads r by
+  // the deflection its better model expects (position- and direction-dependent belt, friction):
+  // the expected deflection is then the host's steps - r, and the two terms above are unused.
+  bool deflection_from_host_steps = false;
 
   // Controlled stop (watchdog, trips): decelerate from r's speed at this rate.
   float stop_decel_nm_s2 = 3.0e9f;        // 3000 mm/s^2

@@ -20,9 +20,14 @@ McuSession::McuSession(const McuSessionParams& params, Transport& transport)
   protocol::LinkParams lp = p_.link;
   lp.initial_epoch = static_cast<int>(reinterpret_cast<uintptr_t>(this) >> 4) & 0x0F;
   link_.configure(lp, this, this);
+  clock_.set_async(transport_.run_on_io_thread(&clock_));
   clock_.configure({});
   samples_.reserve(kSampleCapacity);
   status_scratch_.axes.reserve(device::VirtualMcu::kMaxAxes);
+}
+
+McuSession::~McuSession() {
+  if (clock_.async()) transport_.run_on_io_thread(nullptr);  // the I/O thread lets go of clock_
 }
 
 uint8_t* McuSession::outbox_slot(size_t n, bool front) {
@@ -63,6 +68,7 @@ Status McuSession::start(double now_s) {
   link_.reset();
   out_head_ = out_count_ = 0;
   query_head_ = query_count_ = 0;
+  io_gap_at_start_ms_ = transport_.io_stats().io_max_gap_us * 1e-3;
   state_ = McuState::kIdentifying;
   error_.reset();
   identify_version_ = p_.protocol_version;
@@ -71,6 +77,14 @@ Status McuSession::start(double now_s) {
                         static_cast<uint8_t>(p_.protocol_version >> 8)};
   enqueue(m, sizeof m);
   return {};
+}
+
+// A stalled I/O thread on this side explains an underrun, a watchdog or a silent link: " (this
+// link's I/O thread did not run for up to N ms)" when it stalled >= 20 ms since start(), else "".
+std::string McuSession::io_stall_note() const {
+  const double gap_ms = transport_.io_stats().io_max_gap_us * 1e-3;
+  if (gap_ms <= io_gap_at_start_ms_ || gap_ms < 20.0) return {};
+  return " (this link's I/O thread did not run for up to " + std::to_string(static_cast<int>(gap_ms)) + " ms)";
 }
 
 void McuSession::fail(std::string message) {
@@ -89,14 +103,28 @@ void McuSession::mark_disconnected(const std::string& why) {
 
 void McuSession::write_frame(const uint8_t* frame, size_t n) {
   if (state_ == McuState::kDisconnected) return;  // lost; the link retransmits after reconnect
-  Status st = transport_.write(frame, n);
-  if (!st.ok()) {
-    mark_disconnected(st.error().message);
-    return;
+  switch (transport_.try_write(frame, n)) {
+    case TxResult::kQueued:
+      bytes_written_ += n;
+      ++frames_written_;
+      last_send_s_ = now_s_;
+      if (capture_ticket_) {
+        captured_ticket_ = transport_.tx_ticket() - 1;
+        captured_ = true;
+      }
+      return;
+    case TxResult::kFull:  // back pressure: counted; the link retransmits the frame after its timeout
+      ++frames_refused_;
+      last_refused_s_ = now_s_;
+      return;
+    case TxResult::kTooLong:
+      fail("MCU '" + p_.name + "' (" + transport_.describe() + "): a frame of " + std::to_string(n) +
+           " bytes is refused by the transport; motion stopped");
+      return;
+    case TxResult::kDown:
+      mark_disconnected(transport_.error_text());
+      return;
   }
-  bytes_written_ += n;
-  ++frames_written_;
-  last_send_s_ = now_s_;
 }
 
 void McuSession::queue_steps(const stepgen::StepBatch& b) {
@@ -151,13 +179,19 @@ void McuSession::send_clock_query() {
   MsgWriter w(buf, sizeof buf);
   const uint64_t token = next_token_++;
   w.u8(static_cast<uint8_t>(MsgType::kClockQuery)).var(token);
-  // Sent directly (not behind step batches) so the round trip is short.
-  if (!link_.send(buf, w.size(), ns(now_s_))) return;
+  // Sent directly (not behind step batches) so the round trip is short; the transport's frame
+  // number gives its departure stamp.
+  capture_ticket_ = true;
+  captured_ = false;
+  const bool sent = link_.send(buf, w.size(), ns(now_s_));
+  capture_ticket_ = false;
+  if (!sent) return;
   if (query_count_ == kMaxQueries) {  // the oldest never got its reply: forget it
     query_head_ = (query_head_ + 1) % kMaxQueries;
     --query_count_;
   }
-  queries_[static_cast<size_t>((query_head_ + query_count_) % kMaxQueries)] = {token, now_s_};
+  queries_[static_cast<size_t>((query_head_ + query_count_) % kMaxQueries)] = {token, now_s_, captured_ticket_,
+                                                                                captured_};
   ++query_count_;
 }
 
@@ -183,6 +217,7 @@ std::vector<std::string> McuSession::take_events() {
 void McuSession::poll(double now_s) {
   now_s_ = now_s;
   transport_.poll(now_s, 0.0);
+  clock_.refresh();
   if (state_ == McuState::kIdle || state_ == McuState::kFailed) return;
   if (state_ == McuState::kDisconnected) {
     if (now_s < next_reconnect_s_) return;
@@ -195,17 +230,21 @@ void McuSession::poll(double now_s) {
     link_.retransmit_now(ns(now_s));
   }
   if (!transport_.connected()) {
-    mark_disconnected("link down");
+    mark_disconnected(transport_.error_text());
     return;
   }
   uint8_t buf[4096];
-  for (;;) {
+  for (int chunks = 0; chunks < 1024; ++chunks) {  // bounded: the I/O thread may keep adding
     Result<size_t> r = transport_.read(buf, sizeof buf);
     if (!r.ok()) {
       mark_disconnected(r.error().message);
       return;
     }
     if (*r == 0) break;
+    // When these bytes arrived: the I/O thread's stamp when there is one (on our time line: not
+    // after now, not absurdly old), else now.
+    const double t = transport_.last_read_time_s();
+    rx_time_s_ = t <= now_s && t > now_s - 60.0 ? t : now_s;
     link_.on_bytes(buf, *r, ns(now_s));
     if (state_ == McuState::kFailed) return;
   }
@@ -213,7 +252,14 @@ void McuSession::poll(double now_s) {
   if (p_.link_stall_s > 0 && link_.in_flight() > 0 && ns(now_s) - link_.last_progress_ns() > ns(p_.link_stall_s)) {
     const std::string silent = std::to_string(static_cast<int>(p_.link_stall_s * 1000.0)) + " ms with " +
                                std::to_string(link_.in_flight()) + " frame(s) in flight";
-    if (state_ == McuState::kIdentifying)
+    if (const std::string note = io_stall_note(); !note.empty())
+      fail("MCU '" + p_.name + "' (" + transport_.describe() + ") acknowledged nothing for " + silent + note +
+           "; motion stopped");
+    else if (now_s - last_refused_s_ < p_.link_stall_s)
+      fail("MCU '" + p_.name + "' (" + transport_.describe() + ") acknowledged nothing for " + silent +
+           " while the transport's send queue refused frames (" + std::to_string(frames_refused_) +
+           " so far): its I/O thread is stalled or the device does not read; motion stopped");
+    else if (state_ == McuState::kIdentifying)
       fail("MCU '" + p_.name + "' (" + transport_.describe() + ") does not answer (nothing acknowledged for " +
            silent + "): is feedloop firmware running there, at this port/device?");
     else
@@ -313,7 +359,11 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       for (int i = 0; i < query_count_; ++i) {
         Query& q = queries_[static_cast<size_t>((query_head_ + i) % kMaxQueries)];
         if (q.token != token) continue;
-        clock_.add_sample(q.sent_s, now_s_, clock);
+        // The round trip of the wire: from the frame's departure (the I/O thread's stamp; else
+        // when it was queued) to the arrival of the reply's bytes.
+        const double departed = q.has_ticket ? transport_.departure_time_s(q.ticket) : NAN;
+        const double send_s = departed >= q.sent_s && departed <= rx_time_s_ ? departed : q.sent_s;
+        clock_.add_sample(send_s, rx_time_s_, clock);
         // Forget it and every older query (their replies are lost or will never match).
         query_head_ = (query_head_ + i + 1) % kMaxQueries;
         query_count_ -= i + 1;
@@ -424,7 +474,7 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
                  code == McuError::kEmergencyStop || code == McuError::kBatchOverlap ||
                  code == McuError::kQueueOverflow || code == McuError::kFollowingError ||
                  code == McuError::kEncoderFault || code == McuError::kTargetUnderrun) {
-        fail(msg + "; the MCU stopped its motor");
+        fail(msg + io_stall_note() + "; the MCU stopped its motor");
       } else {
         events_.push_back(std::move(msg));
       }

@@ -7,7 +7,11 @@
 // Real time: in steady streaming (queue_steps, poll, acks, clock queries, encoder reports,
 // take_encoder_samples(out)) it allocates nothing: fixed rings for outgoing messages and clock
 // queries, sample buffers reserved up front. Events, errors, start() and status replies may
-// allocate. Owner: the I/O thread, the servo thread (McuBridge) or the batch-mode pipeline thread.
+// allocate. It never waits on the transport: frames go out through Transport::try_write() (a
+// full send queue is counted and the link retransmits later), received bytes carry the I/O
+// thread's arrival stamps, and the clock sync's fit runs on the transport's I/O thread when it
+// has one (ClockSyncChannel). Owner: the servo thread (McuBridge), a test or the batch-mode
+// pipeline thread.
 #pragma once
 
 #include <array>
@@ -16,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "drivers/clock_sync.hpp"
+#include "drivers/clock_sync_channel.hpp"
 #include "drivers/protocol/loop_messages.hpp"
 #include "drivers/protocol/messages.hpp"
 #include "drivers/protocol/reliable_link.hpp"
@@ -72,7 +76,11 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   static constexpr int kMaxQueries = 64;       // clock queries awaiting their reply
   static constexpr size_t kSampleCapacity = 4096;  // encoder samples kept until taken
 
+  // The session must not outlive its transport.
   McuSession(const McuSessionParams& params, Transport& transport);
+  ~McuSession() override;
+  McuSession(const McuSession&) = delete;
+  McuSession& operator=(const McuSession&) = delete;
 
   // Opens the transport, resets the link and sends IDENTIFY.
   Status start(double now_s);
@@ -93,8 +101,11 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   // Nothing waiting to be sent and nothing unacknowledged.
   bool idle() const { return out_count_ == 0 && link_.in_flight() == 0; }
 
-  const ClockSync& clock() const { return clock_; }
-  stepgen::TickMap tick_map() const { return clock_.tick_map(); }
+  // The latest clock estimate (taken from the I/O thread's fit at each poll()).
+  const ClockEstimate& clock() const { return clock_.estimate(); }
+  stepgen::TickMap tick_map() const { return clock_.estimate().tick_map(); }
+  // True when the clock fit runs on the transport's I/O thread.
+  bool clock_fit_async() const { return clock_.async(); }
   // Encoder samples since the last call, oldest first. This form allocates a new vector each call.
   std::vector<EncoderSample> take_encoder_samples();
   // Real-time form: out is cleared and swapped with the session's buffer (both keep at least
@@ -107,6 +118,8 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   const std::optional<DeviceStatus>& last_status() const { return status_; }
   uint64_t bytes_written() const { return bytes_written_; }
   uint64_t frames_written() const { return frames_written_; }
+  // Frames the transport's send queue refused (back pressure; the link sent them again later).
+  uint64_t frames_refused() const { return frames_refused_; }
   const protocol::LinkStats& link_stats() const { return link_.stats(); }
   const protocol::FrameDecoderStats& decoder_stats() const { return link_.decoder_stats(); }
   int frames_in_flight() const { return link_.in_flight(); }
@@ -133,13 +146,14 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   void enqueue(const uint8_t* msg, size_t n, bool front = false);
   void send_clock_query();
   void fail(std::string message);
+  std::string io_stall_note() const;
   void mark_disconnected(const std::string& why);
   int64_t ns(double s) const { return static_cast<int64_t>(s * 1e9); }
 
   McuSessionParams p_;
   Transport& transport_;
   protocol::ReliableLink link_;
-  ClockSync clock_;
+  ClockSyncChannel clock_;
   McuState state_ = McuState::kIdle;
   McuState state_before_disconnect_ = McuState::kIdle;
   std::optional<Error> error_;
@@ -156,8 +170,13 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   uint64_t next_token_ = 1;
   struct Query {
     uint64_t token = 0;
-    double sent_s = 0.0;
+    double sent_s = 0.0;     // when the session queued it
+    uint64_t ticket = 0;     // the transport's frame number (its departure stamp), if has_ticket
+    bool has_ticket = false;
   };
+  bool capture_ticket_ = false, captured_ = false;  // send_clock_query -> write_frame
+  uint64_t captured_ticket_ = 0;
+  double rx_time_s_ = 0.0;  // arrival of the bytes being decoded (the transport's stamp or now)
   std::array<Query, kMaxQueries> queries_{};  // ring, oldest at query_head_
   int query_head_ = 0, query_count_ = 0;
   uint32_t mcu_clock_hz_ = 0;
@@ -175,7 +194,9 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   std::vector<std::string> events_;
   std::optional<DeviceStatus> status_;
   DeviceStatus status_scratch_;
-  uint64_t bytes_written_ = 0, frames_written_ = 0;
+  uint64_t bytes_written_ = 0, frames_written_ = 0, frames_refused_ = 0;
+  double last_refused_s_ = -1e300;
+  double io_gap_at_start_ms_ = 0.0;  // the transport's longest I/O thread gap when start() ran
 };
 
 }  // namespace feedloop::drivers

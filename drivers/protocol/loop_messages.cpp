@@ -14,7 +14,7 @@ size_t encode_configure_loop(const ConfigureLoopMsg& m, uint8_t* buf, size_t cap
   w.u8(static_cast<uint8_t>(MsgType::kConfigureLoop))
       .u8(m.axis)
       .var(static_cast<uint64_t>(m.activation_clock))
-      .u8(p.enabled ? 1 : 0)
+      .u8(static_cast<uint8_t>((p.enabled ? 1 : 0) | (p.deflection_from_host_steps ? 2 : 0)))
       .var(p.period_ticks)
       .var(p.nm_per_count_q16)
       .var(p.nm_per_step_q16)
@@ -53,7 +53,9 @@ bool decode_configure_loop(const uint8_t* buf, size_t n, ConfigureLoopMsg& out) 
   device::LoopParams& p = out.params;
   out.axis = r.u8();
   out.activation_clock = static_cast<int64_t>(r.var());
-  p.enabled = (r.u8() & 1) != 0;
+  const uint8_t flags = r.u8();
+  p.enabled = (flags & 1) != 0;
+  p.deflection_from_host_steps = (flags & 2) != 0;
   p.period_ticks = u32_of(r.var(), ok);
   p.nm_per_count_q16 = u32_of(r.var(), ok);
   p.nm_per_step_q16 = u32_of(r.var(), ok);

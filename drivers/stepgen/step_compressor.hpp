@@ -1,22 +1,29 @@
-// Compression of exact step times into runs (step_run.hpp) with a bounded step-time error.
+// Compression of exact step times into runs (step_run.hpp) with a bounded step-time error
+// (docs/protocol.md section 2).
 //
 // Each step i has an exact time T_i (real MCU ticks) and an allowed window
 //   L_i = T_i - min(E, (T_i - T_{i-1}) / 2)  <=  t_i  <=  U_i = T_i + E
 // where E is the maximum step-time error (default 5 us). Relative to the run's start P, step k
-// of a run is at P + k I + k(k-1)/2 A with integers I (interval) and A (add). The set of (I, A)
-// that keeps steps 1..n inside their windows (and every interval I + (k-1) A >= 1) is a convex
-// polygon: the intersection of strips  L_k - P <= k I + k(k-1)/2 A <= U_k - P.
+// of a run is at P + k I + k(k-1)/2 A with integers I (interval) and A (add); every interval
+// I + (k-1) A must be >= 1.
 //
-// Greedy run extension, O(1) amortised per step:
-//  - keep one integer candidate (I, A) valid for steps 1..n; a new step is accepted if the
-//    candidate's next step (two integer additions) falls inside its window;
-//  - only when it does not, look for another integer point near the centre of the polygon of an
-//    active set of strips (cutting planes: a candidate is verified exactly in integer arithmetic
-//    against all steps and the first step it violates joins the active set);
-//  - when none exists, emit the run and start the next one from its last step.
-// Before a run is handed to the sink it is checked again by expanding it with the MCU step law
-// (as Klipper's check_line does); a run that fails the check is counted in `check_failures()`
-// (never expected; tests assert zero).
+// One pass over the steps, greedy run extension:
+//  - a candidate (I, A) valid for steps 1..n is kept; a new step is accepted when the
+//    candidate's next step (two integer additions) falls inside its window: the common case;
+//  - otherwise the steps since the last such event enter two convex hulls (run_hulls.hpp) that
+//    describe every run valid for steps 1..n exactly, and a new candidate is looked up in them:
+//    first the add from the curvature of the newest exact times (their second difference),
+//    then, if that leaves no integer I, Newton steps on the convex F of run_hulls.hpp to the
+//    nearest adds that do; I continues the newest interval, within the range the hulls give.
+//    Each trial add costs two hull look-ups; no step is looked at again;
+//  - when there is none, the run is emitted and the next one starts from its last step. Its first
+//    candidate, when on_steps() has the next steps at hand, is the line through the mean
+//    intervals at half and at all of the previous run's length (a run about as long as the last
+//    one), clamped to the first step's window; otherwise the previous run's add.
+// Every step enters each hull once and leaves it at most once: O(1) amortised per step. Before a
+// run is handed to the sink it is expanded with the MCU step law and checked against every
+// window (as Klipper's check_line does); a run that fails is counted in check_failures (never
+// expected; tests assert zero) and sent as one-step runs that keep the bound instead.
 #pragma once
 
 #include <algorithm>  // std::min
@@ -25,6 +32,7 @@
 #include <cstdlib>  // std::free
 #include <memory>
 
+#include "drivers/stepgen/run_hulls.hpp"
 #include "drivers/stepgen/step_generator.hpp"
 #include "drivers/stepgen/step_run.hpp"
 
@@ -51,36 +59,36 @@ struct StepCompressorParams {
 struct StepCompressorStats {
   uint64_t steps = 0;
   uint64_t runs = 0;
-  uint64_t candidate_searches = 0;
-  uint64_t clips = 0, clip_vertices = 0, verifies = 0, add_tries = 0;  // cost counters of the searches
-  uint64_t trend_tries = 0, trend_hits = 0;  // cheap candidates tried before a polygon search
+  uint64_t searches = 0;  // steps the candidate did not take (a hull look-up followed)
+  uint64_t trials = 0;    // adds tried exactly in those look-ups
   uint64_t check_failures = 0;
   uint64_t window_violations = 0;  // steps closer than one tick: error bound could not be met
 };
 
 class StepCompressor final : public StepSink {
  public:
-  // Allocates the point buffer (max_run_count + 1 points). Not RT-safe.
+  // Allocates the point buffers (max_run_count + 2 points). Not RT-safe.
   void configure(const StepCompressorParams& params, RunSink* sink);
   // Starts a new stream: the previous step is at last_step_clock (no pending run).
   void reset(int64_t last_step_clock, double last_step_target_ticks);
 
   // RT-safe (no allocation). The common case (the candidate run takes the step) is inline.
   void push(double target_ticks, int8_t direction) {
-    const double lo = target_ticks - std::min(params_.max_error_ticks, 0.5 * (target_ticks - prev_target_));
+    const double prev = prev_target_;
     prev_target_ = target_ticks;
-    if (n_ > 0 && direction == dir_ && n_ < params_.max_run_count) {
-      const uint32_t k = n_ + 1;
-      set_point(k, target_ticks, lo);
-      const int64_t rel = pos_ + iv_ - P_;  // the candidate's next step: two integer additions
-      if (iv_ >= 1 && rel >= lo_i_[k] && rel <= hi_i_[k]) {
+    if (n_ > 0 && direction == dir_ && n_ < params_.max_run_count && iv_ >= 1) {
+      // The candidate's next step (two integer additions) against the window, in absolute
+      // ticks: an integer clock is >= a real bound exactly when it is >= its ceiling.
+      const auto next = static_cast<double>(pos_ + iv_);
+      if (next >= target_ticks - std::min(params_.max_error_ticks, 0.5 * (target_ticks - prev)) &&
+          next <= target_ticks + params_.max_error_ticks) {
+        T_[++n_] = target_ticks;
         pos_ += iv_;
         iv_ += A_;
-        n_ = k;
         return;
       }
     }
-    push_slow(target_ticks, lo, direction);
+    push_slow(target_ticks, prev, direction);
   }
   // The same as push() for each step; the common case runs with the state in registers.
   void on_steps(const double* ticks, const int8_t* directions, size_t n) override {
@@ -88,7 +96,10 @@ class StepCompressor final : public StepSink {
     while (i < n) {
       i = extend_run(ticks, directions, i, n);
       if (i < n) {
+        ahead_ = ticks + i + 1;
+        ahead_n_ = n - i - 1;
         push(ticks[i], directions[i]);
+        ahead_n_ = 0;
         ++i;
       }
     }
@@ -107,56 +118,46 @@ class StepCompressor final : public StepSink {
   const StepCompressorParams& params() const { return params_; }
 
  private:
-  struct Vertex {
-    double i, a;
-  };
+  // Starts a run whose first step is T_[1] (T_[0]: the step before it).
   void start_run_with_first_point();
-  bool search_candidate(uint32_t n);
-  bool try_trend(uint32_t n);
+  // A candidate valid for steps 1..n (n >= 2) from the hulls. False when there is none.
+  bool find_candidate(uint32_t n);
+  // The exact integer range of I for steps 1..n at add a (empty: lo > hi), and F(a/2) of
+  // run_hulls.hpp with its derivative in a.
+  struct Trial {
+    int64_t i_lo, i_hi;
+    double gap, gap_slope;  // I_min - I_max (> 0: no real I) and its derivative in a
+    uint32_t k_lo, k_hi;    // the hull vertices that bound I
+  };
+  Trial trial(int64_t a, uint32_t n);
+  // Same, real-valued only (no integer rounding): for the search over a.
+  Trial gap_at(double a, uint32_t n);
   // 0 if (I, A) keeps steps 1..n in their windows, else the first step that it violates.
   uint32_t first_violation(int64_t I, int64_t A, uint32_t n) const;
-  void clip_strip(uint32_t k);
-  void clip(double ni, double na, double c);  // keep ni*I + na*A <= c
   void emit();
-  // Window of step k relative to P, rounded inwards to whole ticks (model times are integers).
-  double lower(uint32_t k) const { return static_cast<double>(lo_i_[k]); }
-  double upper(uint32_t k) const { return static_cast<double>(hi_i_[k]); }
-  void set_point(uint32_t k, double target, double lo_abs) {
-    T_[k] = target;
-    const double p = static_cast<double>(P_);
-    lo_i_[k] = detail::ceil_i(lo_abs - p);
-    hi_i_[k] = detail::floor_i(target + params_.max_error_ticks - p);
-  }
-  void push_slow(double target, double lo, int8_t direction);
+  void emit_single_steps();
+  void push_slow(double target, double prev, int8_t direction);
   // Accepts steps i.. while the candidate run takes them (push()'s fast path, state kept in
   // locals); returns the index of the first step it does not take.
   size_t extend_run(const double* ticks, const int8_t* dirs, size_t i, size_t n) {
     uint32_t nn = n_;
     if (nn == 0) return i;
-    const double E = params_.max_error_ticks, p = static_cast<double>(P_);
+    const double E = params_.max_error_ticks;
     const uint32_t max_count = params_.max_run_count;
     const int8_t dir = dir_;
-    const int64_t A = A_, P = P_;
+    const int64_t A = A_;
     double prev = prev_target_;
     int64_t pos = pos_, iv = iv_;
     double* T = T_.get();
-    int64_t* lo_i = lo_i_.get();
-    int64_t* hi_i = hi_i_.get();
     for (; i < n; ++i) {
       const double t = ticks[i];
       if (dirs[i] != dir || nn >= max_count || iv < 1) break;
-      const uint32_t k = nn + 1;
-      const int64_t lo = detail::ceil_i(t - std::min(E, 0.5 * (t - prev)) - p);
-      const int64_t hi = detail::floor_i(t + E - p);
-      const int64_t rel = pos + iv - P;
-      if (rel < lo || rel > hi) break;
-      T[k] = t;
-      lo_i[k] = lo;
-      hi_i[k] = hi;
+      const auto next = static_cast<double>(pos + iv);
+      if (next < t - std::min(E, 0.5 * (t - prev)) || next > t + E) break;
+      T[++nn] = t;
       prev = t;
       pos += iv;
       iv += A;
-      nn = k;
     }
     n_ = nn;
     prev_target_ = prev;
@@ -164,33 +165,33 @@ class StepCompressor final : public StepSink {
     iv_ = iv;
     return i;
   }
+  // Window of step k in absolute ticks (docs/protocol.md section 2).
+  double window_lo(uint32_t k) const {
+    return T_[k] - std::min(params_.max_error_ticks, 0.5 * (T_[k] - T_[k - 1]));
+  }
+  double window_hi(uint32_t k) const { return T_[k] + params_.max_error_ticks; }
 
   StepCompressorParams params_;
   RunSink* sink_ = nullptr;
   StepCompressorStats stats_;
-  // Points of the current run, 1-based (index 0 unused): exact targets T (absolute ticks) and
-  // the integer window [lo_i, hi_i] relative to P.
+  // Exact times of the current run's steps, 1-based; T_[0] is the step before the run's first.
   struct FreeDeleter {
     void operator()(void* p) const { std::free(p); }
   };
   std::unique_ptr<double[], FreeDeleter> T_;
-  std::unique_ptr<int64_t[], FreeDeleter> lo_i_, hi_i_;
-  double prev_target_ = 0.0;   // exact time of the step before the newest point
+  RunHulls hulls_;
+  double prev_target_ = 0.0;   // exact time of the newest step pushed
   int64_t P_ = 0;              // clock of the last emitted step (run reference)
   uint32_t n_ = 0;             // accepted steps in the current run
   int8_t dir_ = 1;
   int64_t I_ = 0, A_ = 0;      // candidate
   int64_t pos_ = 0, iv_ = 0;   // candidate's clock of step n_ and its next interval
   int64_t last_add_ = 0;
-  // Cutting-plane polygon (two buffers swapped by clip()).
-  static constexpr int kMaxVerts = 64;
-  Vertex buf_a_[kMaxVerts];
-  Vertex buf_b_[kMaxVerts];
-  Vertex* poly_ = buf_a_;
-  Vertex* tmp_ = buf_b_;
-  bool poly_init_ = false;
-  int nv_ = 0;
-  bool poly_overflow_ = false;
+  uint32_t last_count_ = 0;  // steps of the last run
+  // Steps after the one being pushed, when on_steps() has them: a new run's first candidate
+  // aims at where the run will likely end.
+  const double* ahead_ = nullptr;
+  size_t ahead_n_ = 0;
 };
 
 }  // namespace feedloop::stepgen

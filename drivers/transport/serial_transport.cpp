@@ -1,14 +1,18 @@
-// Serial transport (Boost.Asio serial_port + termios raw mode): see serial_transport.hpp.
+// Serial transport (Boost.Asio serial_port + termios raw mode, I/O thread): see serial_transport.hpp.
 #include "drivers/transport/serial_transport.hpp"
 
-#include <poll.h>     // poll, ppoll
+#include <fcntl.h>    // fcntl, O_NONBLOCK
+#include <poll.h>     // ppoll
+#include <pthread.h>  // pthread_setname_np, pthread_setschedparam
+#include <sched.h>    // SCHED_FIFO
 #include <termios.h>  // cfmakeraw, tcsetattr
+#include <unistd.h>   // read, write
 
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/serial_port.hpp>
-#include <boost/asio/write.hpp>
+#include <algorithm>  // std::max
 #include <cerrno>
-#include <cstring>
+#include <cstring>  // strerror
 
 namespace feedloop::drivers {
 
@@ -17,16 +21,14 @@ namespace asio = boost::asio;
 struct SerialTransport::Impl {
   asio::io_context io;
   asio::serial_port port{io};
-  bool up = false;
 };
 
-SerialTransport::SerialTransport(std::string path, unsigned baud)
-    : impl_(std::make_unique<Impl>()), path_(std::move(path)), baud_(baud) {}
+SerialTransport::SerialTransport(std::string path, unsigned baud, QueuedTransportParams io)
+    : QueuedTransport(io), impl_(std::make_unique<Impl>()), path_(std::move(path)), baud_(baud) {}
 
-SerialTransport::~SerialTransport() { close(); }
+SerialTransport::~SerialTransport() { shutdown(); }
 
-Status SerialTransport::open() {
-  close();
+Status SerialTransport::device_open() {
   boost::system::error_code ec;
   impl_->port.open(path_, ec);
   if (ec) {
@@ -49,57 +51,107 @@ Status SerialTransport::open() {
     ::tcsetattr(fd, TCSANOW, &tio);
   }
   impl_->port.set_option(asio::serial_port_base::baud_rate(baud_), ec);  // ignored on a pty
-  impl_->up = true;
+  // The I/O thread never blocks in write() or read(): it waits in ppoll() only.
+  const int fl = ::fcntl(fd, F_GETFL);
+  if (fl < 0 || ::fcntl(fd, F_SETFL, fl | O_NONBLOCK) != 0) {
+    const std::string why = std::strerror(errno);
+    impl_->port.close(ec);
+    return Error{"cannot make serial port " + path_ + " non-blocking: " + why, {}};
+  }
+  tx_offset_ = 0;
+  fd_ = fd;
+  if (has_io_thread()) {  // the writer (its start is part of opening: may allocate)
+    writer_stop_.store(false);
+    writer_ = std::thread([this] { writer_main(); });
+  }
   return {};
 }
 
-void SerialTransport::close() {
+void SerialTransport::device_close() {
+  writer_stop_.store(true, std::memory_order_release);
+  if (writer_.joinable()) writer_.join();
   boost::system::error_code ec;
   if (impl_->port.is_open()) impl_->port.close(ec);
-  impl_->up = false;
+  fd_ = -1;
+  tx_offset_ = 0;
 }
 
-bool SerialTransport::connected() const { return impl_->up; }
-
-Status SerialTransport::write(const uint8_t* data, size_t n) {
-  if (!impl_->up) return Error{"serial port " + path_ + " is not open", {}};
-  boost::system::error_code ec;
-  asio::write(impl_->port, asio::buffer(data, n), ec);
-  if (ec) {
-    impl_->up = false;
-    return Error{"write to " + path_ + " failed: " + ec.message(), {}};
+void SerialTransport::writer_main() {
+  pthread_setname_np(pthread_self(), "fl-io-ser-tx");
+  if (io_params().rt_priority > 0) {
+    sched_param sp{};
+    sp.sched_priority = io_params().rt_priority;
+    pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);  // refused: the default policy
   }
-  return {};
+  int64_t last_turn_ns = mono_ns();
+  while (!writer_stop_.load(std::memory_order_acquire)) {
+    begin_turn(last_turn_ns);
+    if (connected() && write_queued(fd_) == TxState::kFailed) continue;  // the I/O thread closes
+    sleep_s(io_params().io_period_s);
+  }
 }
 
-Result<size_t> SerialTransport::read(uint8_t* buf, size_t cap) {
-  if (!impl_->up) return Error{"serial port " + path_ + " is not open", {}};
-  pollfd p{impl_->port.native_handle(), POLLIN, 0};
-  const int r = ::poll(&p, 1, 0);
-  if (r <= 0) return size_t{0};
-  if (p.revents & (POLLERR | POLLHUP | POLLNVAL)) {
-    if (!(p.revents & POLLIN)) {
-      impl_->up = false;
-      return Error{"serial port " + path_ + " hung up (device gone)", {}};
+SerialTransport::TxState SerialTransport::write_queued(int fd) {
+  while (const TxFrame* f = tx_front()) {
+    if (tx_offset_ == 0) tx_departs(f->ticket);
+    const ssize_t w = ::write(fd, f->bytes + tx_offset_, f->n - tx_offset_);
+    if (w > 0) {
+      tx_offset_ += static_cast<size_t>(w);
+      if (tx_offset_ >= f->n) {
+        tx_pop();
+        tx_offset_ = 0;
+      }
+      continue;
     }
+    if (w < 0 && errno == EINTR) continue;
+    if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {  // the device does not keep up
+      note_tx_blocked();
+      return TxState::kBlocked;
+    }
+    link_failed("write to " + path_ + " failed: " + std::strerror(errno));
+    return TxState::kFailed;
   }
-  boost::system::error_code ec;
-  const size_t n = impl_->port.read_some(asio::buffer(buf, cap), ec);
-  if (ec) {
-    impl_->up = false;
-    return Error{"read from " + path_ + " failed: " + ec.message(), {}};
-  }
-  return n;
+  return TxState::kIdle;
 }
 
-void SerialTransport::poll(double /*now_s*/, double max_wait_s) {
-  if (!impl_->up || max_wait_s <= 0.0) return;
-  pollfd p{impl_->port.native_handle(), POLLIN, 0};
-  // ppoll: sub-millisecond waits sleep instead of spinning (a sleeping process is woken
-  // promptly by the scheduler; a spinning one competes for the CPU).
+// Waits up to max_wait_s for input and reads it; a full receive queue stops reading (the bytes
+// wait in the kernel) until the caller has taken some.
+void SerialTransport::receive(int fd, double max_wait_s) {
+  const bool can_receive = !rx_full();
+  pollfd p{fd, static_cast<short>(can_receive ? POLLIN : 0), 0};
   const auto ns = static_cast<long>(max_wait_s * 1e9);
   timespec ts{ns / 1'000'000'000, ns % 1'000'000'000};
-  ::ppoll(&p, 1, &ts, nullptr);
+  if (::ppoll(&p, 1, &ts, nullptr) <= 0) {
+    if (!can_receive) (void)rx_claim();  // counts the full queue
+    return;
+  }
+  const bool hung_up = (p.revents & (POLLERR | POLLHUP | POLLNVAL)) != 0;
+  if (p.revents & POLLIN) {
+    while (uint8_t* chunk = rx_claim()) {
+      const ssize_t r = ::read(fd, chunk, kRxChunkBytes);
+      if (r > 0) {
+        rx_commit(static_cast<size_t>(r), mono_ns());
+        continue;
+      }
+      if (r == 0 && hung_up) break;  // end of file after a hang-up: below
+      if (r == 0 || errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return;  // drained
+      link_failed("read from " + path_ + " failed: " + std::strerror(errno));
+      return;
+    }
+  }
+  // A hang-up (the other end closed, the device unplugged) once what it sent has been read.
+  if (hung_up) link_failed("serial port " + path_ + " hung up (device gone)");
+}
+
+void SerialTransport::device_io(double max_wait_s) {
+  if (has_io_thread()) {
+    // The writer sends; input wakes this thread at once, so it need not turn every 0.5 ms: 5 ms
+    // bounds how late it serves the clock fit, a pause or a stop (and halves the idle cost).
+    receive(fd_, std::max(max_wait_s, 5e-3));
+    return;
+  }
+  if (write_queued(fd_) == TxState::kFailed) return;
+  receive(fd_, max_wait_s);
 }
 
 }  // namespace feedloop::drivers

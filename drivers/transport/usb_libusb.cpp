@@ -1,4 +1,6 @@
-// The real USB backend: libusb-1.0 (see usb_backend.hpp).
+// The real USB backend: libusb-1.0 with asynchronous bulk transfers (see usb_backend.hpp). Each
+// UsbTransfer keeps its libusb_transfer across submits (allocated at its first submit, freed by
+// release()); libusb itself allocates its URBs per submit, on the I/O thread that submits.
 #include <libusb.h>
 
 #include <sys/time.h>  // timeval
@@ -66,13 +68,28 @@ class LibusbBackend final : public UsbBackend {
     if (claimed_interface >= 0) libusb_release_interface(native(handle), claimed_interface);
     libusb_close(native(handle));
   }
-  int bulk_transfer(UsbHandle handle, uint8_t endpoint, uint8_t* data, int length, int* transferred,
-                    unsigned timeout_ms) override {
-    return libusb_bulk_transfer(native(handle), endpoint, data, length, transferred, timeout_ms);
+  int submit(UsbHandle handle, UsbTransfer& t) override {
+    auto* x = static_cast<libusb_transfer*>(t.backend);
+    if (x == nullptr) {
+      x = libusb_alloc_transfer(0);
+      if (x == nullptr) return LIBUSB_ERROR_NO_MEM;
+      t.backend = x;
+    }
+    libusb_fill_bulk_transfer(x, native(handle), t.endpoint, t.buffer, t.length, &LibusbBackend::on_done, &t,
+                              0 /* no timeout */);
+    return libusb_submit_transfer(x);
+  }
+  void cancel(UsbTransfer& t) override {
+    if (t.backend != nullptr) libusb_cancel_transfer(static_cast<libusb_transfer*>(t.backend));
+  }
+  void release(UsbTransfer& t) override {
+    if (t.backend != nullptr) libusb_free_transfer(static_cast<libusb_transfer*>(t.backend));
+    t.backend = nullptr;
   }
   void handle_events(double max_wait_s) override {
-    if (ctx_ == nullptr || max_wait_s <= 0.0) return;
-    timeval tv{0, static_cast<long>(max_wait_s * 1e6)};
+    if (ctx_ == nullptr) return;
+    const long us = max_wait_s > 0.0 ? static_cast<long>(max_wait_s * 1e6) : 0;  // 0: what is pending
+    timeval tv{us / 1'000'000, us % 1'000'000};
     libusb_handle_events_timeout_completed(ctx_, &tv, nullptr);
   }
   std::string error_text(int rc) const override {
@@ -81,6 +98,20 @@ class LibusbBackend final : public UsbBackend {
 
  private:
   static libusb_device_handle* native(UsbHandle h) { return reinterpret_cast<libusb_device_handle*>(h); }
+  static void LIBUSB_CALL on_done(libusb_transfer* x) {
+    auto& t = *static_cast<UsbTransfer*>(x->user_data);
+    t.transferred = x->actual_length;
+    switch (x->status) {
+      case LIBUSB_TRANSFER_COMPLETED: t.status = UsbTransferStatus::kCompleted; break;
+      case LIBUSB_TRANSFER_TIMED_OUT: t.status = UsbTransferStatus::kTimedOut; break;
+      case LIBUSB_TRANSFER_CANCELLED: t.status = UsbTransferStatus::kCancelled; break;
+      case LIBUSB_TRANSFER_STALL: t.status = UsbTransferStatus::kStall; break;
+      case LIBUSB_TRANSFER_NO_DEVICE: t.status = UsbTransferStatus::kNoDevice; break;
+      case LIBUSB_TRANSFER_OVERFLOW: t.status = UsbTransferStatus::kOverflow; break;
+      default: t.status = UsbTransferStatus::kError; break;
+    }
+    if (t.done != nullptr) t.done(t);
+  }
   void release_list() {
     if (list_ != nullptr) libusb_free_device_list(list_, 1);
     list_ = nullptr;

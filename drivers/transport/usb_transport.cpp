@@ -3,7 +3,9 @@
 
 #include <libusb.h>  // LIBUSB_ERROR_* codes
 
+#include <algorithm>  // std::min
 #include <cstdio>
+#include <cstring>    // memcpy
 
 namespace feedloop::drivers {
 
@@ -16,9 +18,26 @@ std::string hex4(uint16_t v) {
 }  // namespace
 
 UsbTransport::UsbTransport(UsbParams params, std::unique_ptr<UsbBackend> backend)
-    : p_(std::move(params)), usb_(std::move(backend)) {}
+    : QueuedTransport(params.io), p_(std::move(params)), usb_(std::move(backend)) {
+  for (Slot& s : in_) {
+    s.t.endpoint = p_.endpoint_in;
+    s.t.buffer = s.buf;
+    s.t.done = &UsbTransport::on_done;
+    s.t.user = &s;
+  }
+  for (Slot& s : out_) {
+    s.t.endpoint = p_.endpoint_out;
+    s.t.buffer = s.buf;
+    s.t.done = &UsbTransport::on_done;
+    s.t.user = &s;
+  }
+}
 
-UsbTransport::~UsbTransport() { close(); }
+UsbTransport::~UsbTransport() {
+  shutdown();
+  for (Slot& s : in_) usb_->release(s.t);
+  for (Slot& s : out_) usb_->release(s.t);
+}
 
 std::string UsbTransport::describe() const {
   std::string s = "usb " + hex4(p_.vendor_id) + ":" + hex4(p_.product_id);
@@ -61,8 +80,7 @@ Result<std::vector<UsbDeviceInfo>> UsbTransport::list_devices(UsbBackend* backen
   return out;
 }
 
-Status UsbTransport::open() {
-  close();
+Status UsbTransport::device_open() {
   if (Status st = init_backend(); !st.ok()) return st;
   std::vector<UsbDeviceEntry> entries;
   if (const int rc = usb_->list(entries); rc != 0) return Error{"cannot list USB devices: " + usb_->error_text(rc), {}};
@@ -99,7 +117,16 @@ Status UsbTransport::open() {
     }
     handle_ = h;
   }
-  if (handle_ != nullptr) return {};
+  if (handle_ != nullptr) {
+    in_head_ = in_count_ = 0;
+    submit_in();
+    if (in_count_ < kInTransfers) {  // the device went away between claim and submit
+      const std::string why = describe() + ": cannot start reading (the device is gone?)";
+      device_close();
+      return Error{why, {}};
+    }
+    return {};
+  }
   if (!access_problem.empty()) return Error{access_problem, {}};
   if (matches > 0)
     return Error{"no USB device " + describe() + " with serial '" + p_.serial + "' (" + std::to_string(matches) +
@@ -110,43 +137,160 @@ Status UsbTransport::open() {
                {}};
 }
 
-void UsbTransport::close() {
-  if (handle_ != nullptr) {
-    usb_->close(handle_, p_.interface_number);
-    handle_ = nullptr;
+void UsbTransport::on_done(UsbTransfer& t) {
+  Slot& s = *static_cast<Slot*>(t.user);
+  s.in_flight = false;
+  s.done = true;
+  s.stamp_ns = mono_ns();
+}
+
+bool UsbTransport::submit(Slot& s, bool in) {
+  s.t.length = in ? kTransferBytes : s.t.length;
+  s.t.transferred = 0;
+  s.done = false;
+  const int rc = usb_->submit(handle_, s.t);
+  if (rc == 0) {
+    s.in_flight = true;
+    return true;
+  }
+  if (rc == LIBUSB_ERROR_NO_DEVICE)
+    link_failed(describe() + " unplugged (USB " + (in ? "read" : "write") + ": " + usb_->error_text(rc) + ")");
+  else
+    link_failed("USB " + std::string(in ? "read from " : "write to ") + describe() + " failed: " + usb_->error_text(rc));
+  return false;
+}
+
+// Every IN slot not holding data is in flight.
+void UsbTransport::submit_in() {
+  while (in_count_ < kInTransfers) {
+    Slot& s = in_[static_cast<size_t>((in_head_ + in_count_) % kInTransfers)];
+    if (!submit(s, /*in=*/true)) return;
+    ++in_count_;
   }
 }
 
-Status UsbTransport::write(const uint8_t* data, size_t n) {
-  if (handle_ == nullptr) return Error{describe() + " is not open", {}};
-  int done = 0;
-  const int rc = usb_->bulk_transfer(handle_, p_.endpoint_out, const_cast<uint8_t*>(data), static_cast<int>(n), &done,
-                                     p_.write_timeout_ms);
-  if (rc == 0 && static_cast<size_t>(done) == n) return {};
-  if (rc == LIBUSB_ERROR_NO_DEVICE) {
-    close();
-    return Error{describe() + " unplugged (USB write: " + usb_->error_text(rc) + ")", {}};
+namespace {
+const char* status_text(UsbTransferStatus s) {
+  switch (s) {
+    case UsbTransferStatus::kCompleted: return "completed";
+    case UsbTransferStatus::kTimedOut: return "timed out";
+    case UsbTransferStatus::kCancelled: return "cancelled";
+    case UsbTransferStatus::kStall: return "endpoint stalled";
+    case UsbTransferStatus::kNoDevice: return "LIBUSB_ERROR_NO_DEVICE";
+    case UsbTransferStatus::kOverflow: return "overflow (the device sent more than asked)";
+    case UsbTransferStatus::kError: return "transfer error";
   }
-  if (rc == LIBUSB_ERROR_IO || rc == LIBUSB_ERROR_PIPE) close();
-  return Error{"USB write to " + describe() + " failed: " +
-                   (rc == 0 ? std::to_string(done) + " of " + std::to_string(n) + " bytes sent" : usb_->error_text(rc)),
-               {}};
+  return "?";
+}
+}  // namespace
+
+// Completed IN transfers, oldest first (their bytes in order), into the receive queue.
+void UsbTransport::process_in() {
+  while (in_count_ > 0) {
+    Slot& s = in_[static_cast<size_t>(in_head_)];
+    if (s.done) {
+      s.done = false;
+      switch (s.t.status) {
+        case UsbTransferStatus::kCompleted: s.holds_data = s.t.transferred > 0; break;
+        case UsbTransferStatus::kTimedOut:
+        case UsbTransferStatus::kCancelled: break;
+        case UsbTransferStatus::kNoDevice:
+          link_failed(describe() + " unplugged (USB read: LIBUSB_ERROR_NO_DEVICE)");
+          return;
+        default:
+          link_failed("USB read from " + describe() + " failed: " + status_text(s.t.status));
+          return;
+      }
+    } else if (!s.holds_data) {
+      return;  // the oldest is still in flight
+    }
+    if (s.holds_data) {
+      uint8_t* chunk = rx_claim();
+      if (chunk == nullptr) return;  // receive queue full: the device waits (NAK) meanwhile
+      const size_t n = static_cast<size_t>(std::min(s.t.transferred, static_cast<int>(kRxChunkBytes)));
+      std::memcpy(chunk, s.buf, n);
+      rx_commit(n, s.stamp_ns);
+      s.holds_data = false;
+    }
+    in_head_ = (in_head_ + 1) % kInTransfers;
+    --in_count_;
+  }
 }
 
-Result<size_t> UsbTransport::read(uint8_t* buf, size_t cap) {
-  if (handle_ == nullptr) return Error{describe() + " is not open", {}};
-  int got = 0;
-  const int rc = usb_->bulk_transfer(handle_, p_.endpoint_in, buf, static_cast<int>(cap), &got, p_.read_timeout_ms);
-  if (rc == LIBUSB_ERROR_TIMEOUT || rc == 0) return static_cast<size_t>(got);
-  if (rc == LIBUSB_ERROR_NO_DEVICE) {
-    close();
-    return Error{describe() + " unplugged (USB read: " + usb_->error_text(rc) + ")", {}};
+void UsbTransport::process_out() {
+  for (Slot& s : out_) {
+    if (!s.done) continue;
+    s.done = false;
+    if (s.t.status == UsbTransferStatus::kCompleted && s.t.transferred == s.t.length) continue;
+    if (s.t.status == UsbTransferStatus::kCancelled) continue;
+    if (s.t.status == UsbTransferStatus::kNoDevice) {
+      link_failed(describe() + " unplugged (USB write: LIBUSB_ERROR_NO_DEVICE)");
+    } else {
+      link_failed("USB write to " + describe() + " failed: " +
+                  (s.t.status == UsbTransferStatus::kCompleted
+                       ? std::to_string(s.t.transferred) + " of " + std::to_string(s.t.length) + " bytes sent"
+                       : std::string(status_text(s.t.status))));
+    }
+    return;
   }
-  return Error{"USB read from " + describe() + " failed: " + usb_->error_text(rc), {}};
 }
 
-void UsbTransport::poll(double /*now_s*/, double max_wait_s) {
-  if (initialised_) usb_->handle_events(max_wait_s);
+// Queued frames packed into free OUT transfers (whole frames, up to kTransferBytes each).
+void UsbTransport::fill_out() {
+  for (Slot& s : out_) {
+    if (s.in_flight || s.done) continue;
+    int used = 0;
+    while (const TxFrame* f = tx_front()) {
+      if (used + f->n > kTransferBytes) break;
+      tx_departs(f->ticket);
+      std::memcpy(s.buf + used, f->bytes, f->n);
+      used += f->n;
+      tx_pop();
+    }
+    if (used == 0) return;
+    s.t.length = used;
+    if (!submit(s, /*in=*/false)) return;
+  }
+  if (tx_front() != nullptr) note_tx_blocked();  // every OUT transfer pending: the device is slow
+}
+
+void UsbTransport::device_io(double max_wait_s) {
+  process_in();
+  process_out();
+  if (!connected()) return;
+  submit_in();
+  fill_out();
+  usb_->handle_events(max_wait_s);
+  process_in();
+  process_out();
+  if (!connected()) return;
+  submit_in();
+  fill_out();
+}
+
+void UsbTransport::device_close() {
+  if (handle_ == nullptr) return;
+  // Every transfer in flight is cancelled and completes before the handle goes.
+  for (Slot& s : in_)
+    if (s.in_flight) usb_->cancel(s.t);
+  for (Slot& s : out_)
+    if (s.in_flight) usb_->cancel(s.t);
+  const int64_t end = mono_ns() + 1'000'000'000;
+  auto any_in_flight = [&] {
+    for (const Slot& s : in_)
+      if (s.in_flight) return true;
+    for (const Slot& s : out_)
+      if (s.in_flight) return true;
+    return false;
+  };
+  while (any_in_flight() && mono_ns() < end) usb_->handle_events(0.01);
+  for (Slot* group : {in_.data(), out_.data()}) {
+    const int count = group == in_.data() ? kInTransfers : kOutTransfers;
+    for (int i = 0; i < count; ++i) group[i].in_flight = group[i].done = group[i].holds_data = false;
+  }
+  in_head_ = in_count_ = 0;
+  usb_->close(handle_, p_.interface_number);
+  handle_ = nullptr;
 }
 
 }  // namespace feedloop::drivers

@@ -1,7 +1,8 @@
 // LostStepDetector on synthetic motor / encoder traces: noise under the threshold gives no event,
 // a slip of 4 full steps (with the carriage ringing into its new position) is reported once with
 // its exact size, repeated slips in both directions add up, a short excursion over the threshold
-// is not a slip, the model's expected deflection is removed, and bad parameters are errors.
+// is not a slip, the settle wait is sample time, the model's expected deflection is removed, and
+// bad parameters are errors.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -120,6 +121,32 @@ TEST(LostStepDetector, ShortExcursionIsNotASlip) {
   }
   EXPECT_EQ(events, 0);
   EXPECT_FALSE(det.pending());
+}
+
+// The settle wait is sample time (settle_periods x period_s), not a count of updates: a late
+// update 20 ms after the last one does not confirm a slip that crossed the threshold just before
+// it, nor does it take the wait five times over.
+TEST(LostStepDetector, SettleWaitIsCountedInSampleTime) {
+  auto det = make_detector();  // settle 5 x 1 ms
+  EXPECT_FALSE(det.update(50.8, 50.0, 0.0, 1e-3));   // crosses: the wait starts here
+  EXPECT_TRUE(det.pending());
+  EXPECT_FALSE(det.update(50.8, 50.0, 0.0, 4e-3));   // 4 ms beyond
+  auto ev = det.update(50.8, 50.0, 0.0, 1e-3);       // 5 ms: confirmed
+  ASSERT_TRUE(ev.has_value());
+  EXPECT_DOUBLE_EQ(ev->size_mm, 0.8);
+  // One late update (20 ms) after the crossing confirms at once, as 20 on-time ones would.
+  auto late = make_detector();
+  EXPECT_FALSE(late.update(50.8, 50.0, 0.0, 1e-3));
+  EXPECT_TRUE(late.update(50.8, 50.0, 0.0, 20e-3).has_value());
+  // Without dt_s each update is one period_s: the sixth confirms.
+  auto counted = make_detector();
+  int confirmed_at = -1;
+  for (int k = 0; k < 10 && confirmed_at < 0; ++k)
+    if (counted.update(50.8, 50.0)) confirmed_at = k;
+  EXPECT_EQ(confirmed_at, 5);
+  fc::LostStepParams bad;
+  bad.period_s = 0.0;
+  EXPECT_FALSE(fc::LostStepDetector().configure(bad).ok());
 }
 
 TEST(LostStepDetector, ExpectedDeflectionIsRemoved) {

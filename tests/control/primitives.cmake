@@ -1,11 +1,13 @@
 # Tests of the servo loop's control primitives: PI, input shapers, lost-step detector, encoder
-# guard (and their config mappings, engine/control_config.hpp). The allocation test is its own
+# guard (and their config mappings, engine/control_config.hpp), and the host loop's timing
+# (engine/servo_control.hpp). The allocation test is its own
 # binary because it interposes malloc.
 feedloop_add_test(control_primitives_test
   SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/pi_controller_test.cpp
           ${CMAKE_CURRENT_SOURCE_DIR}/input_shaper_test.cpp
           ${CMAKE_CURRENT_SOURCE_DIR}/lost_step_detector_test.cpp
           ${CMAKE_CURRENT_SOURCE_DIR}/encoder_guard_test.cpp
+          ${CMAKE_CURRENT_SOURCE_DIR}/servo_timing_test.cpp
   LIBS feedloop_control feedloop_engine
   TIMEOUT 60)
 feedloop_add_test(control_primitives_rt_test

@@ -68,13 +68,14 @@ TEST(ControlPrimitivesRt, PerPeriodCallsDoNotAllocate) {
     if (k == 2500) pi.shift(0.8);
     const double slip = k >= 3000 ? 0.8 : 0.0;
     if (auto ev = det.update(t, t - slip)) events += static_cast<int>(ev->count);
-    guard.update({true, t + (k == 4000 ? 5.0 : 0.0), t});  // trips at k = 4000: 5 mm + 1 ms of motion
+    // Trips at k = 4002: 5 mm + 3 ms of motion, the third implausible sample in a row.
+    guard.update({true, t + (k >= 4000 ? 5.0 : 0.0), t, t, t});
   }
   g_counting = false;
   EXPECT_EQ(g_mallocs.load(), 0);
   EXPECT_TRUE(std::isfinite(sum));
   EXPECT_EQ(events, 1);
   EXPECT_EQ(guard.fault(), fc::EncoderFault::jump);
-  EXPECT_STREQ(guard.message(), "x: encoder jump of 5.001 mm in 1 period(s) (limit 1.000 mm)");
+  EXPECT_STREQ(guard.message(), "x: encoder jump of 5.003 mm in 3.0 ms (limit 1.850 mm; 3 samples in a row)");
 #endif
 }

@@ -101,6 +101,10 @@ TEST_F(Channels, StatusShowsEveryMcuLink) {
     EXPECT_LT(rtt_mean, 5000.0);
     const double expected_ppm = i % 2 == 0 ? 50.0 : -50.0;
     EXPECT_NEAR(l["clock_rate_ppm"].get<double>(), expected_ppm, 1.0);  // measured within 0.002 ppm
+    // The simulated links have no I/O thread: nothing refused, nothing lost, the fit inline.
+    EXPECT_EQ(l["io"]["tx_queue_full"].get<uint64_t>(), 0u);
+    EXPECT_EQ(l["io"]["errors"].get<uint64_t>(), 0u);
+    EXPECT_EQ(l["io"]["clock_fit"], "inline");
   }
   EXPECT_EQ(links[0]["name"], "mcu_x");
 }

@@ -33,6 +33,13 @@ class DaemonFixture : public ::testing::Test {
     cfg.servo.realtime_priority = 0;
     cfg.servo.lock_memory = false;
     cfg.recorder.directory = dir_ + "/recordings";  // never the user's state directory
+#ifdef FEEDLOOP_SANITIZED
+    // These tests check what the daemon answers, not its timing; under the sanitizers on a busy
+    // CI machine its threads stall for hundreds of ms, which with the default 100 ms lead ends the
+    // print in a (correct) "host stalled" stop. The stall rule itself is tested in
+    // engine_lateness_test.
+    cfg.stepgen.queue_ahead_ms = 400.0;
+#endif
     customize(cfg);
     daemon::DaemonOptions options{"", 0.3};
     options.virtual_time = virtual_time();

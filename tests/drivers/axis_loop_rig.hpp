@@ -33,6 +33,9 @@ struct RigParams {
   double start_s = 0.01;
   double knot_period_s = 1e-3;      // r(t) knots every ms (PWL error a dt^2 / 8 = 0.25 um)
   bool loop_enabled = true;
+  // The host's steps come from a model inverse that knows the plant (the LPV feedforward's role):
+  // they lead r by the belt's stretch, m a + c v + F sgn(v) over k; else they follow r rigidly.
+  bool inverse_feedforward = false;
   float kp = 0.5f;
   float ki_per_s = 40.0f;
 };
@@ -84,6 +87,16 @@ class LoopRig {
     return p_.start_s + 2 * ta + (d - v * ta) / v;
   }
 
+  // The inverse's lead of the motor over r at t (mm): the spring force that moves the carriage
+  // along r against its inertia, damping and friction.
+  double feedforward_lead_mm(double t) const {
+    constexpr double h = 1e-4;
+    const double v = (r_mm(t + h) - r_mm(t - h)) / (2 * h) * 1e-3;                   // m/s
+    const double a = (r_mm(t + h) - 2 * r_mm(t) + r_mm(t - h)) / (h * h) * 1e-3;     // m/s^2
+    const double f = p_.mass_kg * a + p_.damping_n_s_m * v + (std::abs(v) > 1e-6 ? (v > 0 ? 1 : -1) * p_.friction_n : 0.0);
+    return f / p_.belt_n_m * 1e3;
+  }
+
   int64_t clock_at(double t) const { return static_cast<int64_t>(std::llround(t * p_.clock_hz)); }
 
   // Activates the loop at t_s; r(t) knots are streamed 100 ms ahead (like the host's
@@ -125,7 +138,8 @@ class LoopRig {
       }
       // Host feedforward steps.
       if (host_steps_on_) {
-        const int64_t want = std::llround(r_mm(t_next) * 1e6 / p_.step_nm);
+        const double u_mm = r_mm(t_next) + (p_.inverse_feedforward ? feedforward_lead_mm(t_next) : 0.0);
+        const int64_t want = std::llround(u_mm * 1e6 / p_.step_nm);
         motor_steps_ += want - host_steps_;
         host_steps_ = want;
       }

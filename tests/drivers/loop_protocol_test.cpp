@@ -23,6 +23,7 @@ TEST(LoopProtocol, ConfigureLoopRoundTripsAndRefusesTruncation) {
   m.params.ki_per_s = 33.5f;
   m.params.slip_cycle_nm = 678000.0f;
   m.params.deflection_s = 0.0069f;
+  m.params.deflection_from_host_steps = true;
   m.params.horizon_margin_ticks = 400000;
   m.params.reversal_hysteresis_steps = 0.5f;
   uint8_t buf[protocol::kMaxPayload];
@@ -40,6 +41,7 @@ TEST(LoopProtocol, ConfigureLoopRoundTripsAndRefusesTruncation) {
   EXPECT_EQ(d.params.ki_per_s, 33.5f);
   EXPECT_EQ(d.params.slip_cycle_nm, 678000.0f);
   EXPECT_EQ(d.params.deflection_s, 0.0069f);
+  EXPECT_TRUE(d.params.deflection_from_host_steps);  // flags bit 2
   EXPECT_EQ(d.params.horizon_margin_ticks, 400000u);
   EXPECT_EQ(d.params.report_every_ticks, m.params.report_every_ticks);
   EXPECT_EQ(d.params.reversal_hysteresis_steps, 0.5f);

@@ -5,9 +5,15 @@
 // reorder), and across a device restart (the process killed and started again).
 #include <gtest/gtest.h>
 
+#include <pthread.h>       // pthread_setschedparam
+#include <sched.h>         // SCHED_FIFO
+#include <sys/resource.h>  // getrusage, RUSAGE_THREAD
+
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <random>
 #include <string>
 #include <thread>
@@ -22,6 +28,7 @@
 #include "drivers/stepgen/step_generator.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "segment_streams.hpp"
+#include "tests/common/malloc_counter.hpp"
 #include "vmcu_process.hpp"
 
 namespace feedloop::drivers {
@@ -48,12 +55,22 @@ struct Collect final : stepgen::BatchSink {
 
 using Clock = MonotonicClock;
 
-// Real-time driver of one session over a SerialTransport.
+// The I/O thread as the machine runs it: SCHED_FIFO below the servo thread (when permitted), so
+// that a busy machine does not starve it while the test's thread queues frames.
+QueuedTransportParams pty_io() {
+  QueuedTransportParams p = SerialTransport::serial_io_params();
+  p.rt_priority = 10;
+  return p;
+}
+
+// Real-time driver of one session over a SerialTransport. The session's time line starts at t0;
+// the transport's arrival and departure stamps are put on it.
 struct PtyHost {
   SerialTransport& transport;
   McuSession& session;
   Clock clock;
   int64_t t0 = clock.now_ns();
+  bool based = (transport.set_time_base_ns(t0), true);
   double now() { return seconds_from_ns(clock.now_ns() - t0); }
   void pump(double until_s) {
     while (now() < until_s) {
@@ -109,6 +126,122 @@ Streamed stream(PtyHost& h, int moves, uint64_t seed, double stop_at_s = 1e300) 
   return {col.steps, col.hash};
 }
 
+// What a timing thread saw of its own cycles.
+struct CycleStats {
+  uint64_t cycles = 0;
+  double max_work_us = 0.0;  // the cycle's work: step generation and the session's poll
+  double max_late_us = 0.0;  // its wake-up after the deadline
+  long blocked = 0;          // voluntary context switches inside the work: a call that blocked
+  long mallocs = -1;         // allocations (any thread) while the session polled; -1: not counted
+  void add(double work_us, double late_us, long vcsw) {
+    ++cycles;
+    max_work_us = std::max(max_work_us, work_us);
+    max_late_us = std::max(max_late_us, late_us);
+    blocked += vcsw;
+  }
+};
+
+struct TimedStream {
+  Streamed sent;
+  CycleStats outside, during;  // cycles outside / inside the I/O thread's pause
+  bool realtime = false;       // the loop ran SCHED_FIFO (above the I/O threads), as the servo does
+};
+
+// The calling thread at SCHED_FIFO `priority` while it lives (when permitted), like the servo
+// thread; back to the default policy after.
+struct RealtimeScope {
+  bool granted = false;
+  explicit RealtimeScope(int priority) {
+    sched_param sp{};
+    sp.sched_priority = priority;
+    granted = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;
+  }
+  ~RealtimeScope() {
+    sched_param sp{};
+    if (granted) pthread_setschedparam(pthread_self(), SCHED_OTHER, &sp);
+  }
+};
+
+long voluntary_switches() {
+  rusage ru{};
+  ::getrusage(RUSAGE_THREAD, &ru);
+  return ru.ru_nvcsw;
+}
+
+// Like stream(), from a 1 kHz loop with absolute deadlines like the servo thread's; at
+// pause_at_s after the motion's start the transport's I/O thread is paused for pause_s, and
+// in_pause() (if given) runs in each cycle of the pause.
+TimedStream stream_1khz(PtyHost& h, int moves, uint64_t seed, double pause_at_s, double pause_s,
+                        const std::function<void()>& in_pause = {}) {
+  std::mt19937_64 rng(seed);
+  auto segs = testing::trapezoid_stream(rng, moves);
+  const double start = h.now() + 0.3;
+  for (auto& s : segs) s.t0_s += start;
+  Collect col;
+  col.session = &h.session;
+  stepgen::StepBatcher batcher;
+  batcher.configure(0, 200, &col);
+  stepgen::StepCompressor comp;
+  comp.configure({100.0, 65535}, &batcher);
+  stepgen::StepGenerator gen;
+  const stepgen::TickMap map = h.session.tick_map();
+  gen.configure(80.0, map, &comp);
+  comp.reset(static_cast<int64_t>(map.ticks(h.now())), map.ticks(h.now()));
+  h.session.set_enabled(true);
+  size_t next = 0;
+  const double end = segs.back().end_s();
+  TimedStream out;
+  const RealtimeScope rt(11);  // above the I/O threads (pty_io(): 10), as the servo is
+  out.realtime = rt.granted;
+  bool paused = false;
+  double pause_end_s = 0.0;
+  constexpr int64_t kPeriodNs = 1'000'000;
+  int64_t deadline = h.clock.now_ns() + kPeriodNs;
+  while (h.now() < end + 0.2) {
+    h.clock.sleep_until_ns(deadline);
+    const int64_t wake = h.clock.now_ns();
+    const double late_us = static_cast<double>(wake - deadline) * 1e-3;
+    deadline += kPeriodNs;
+    if (deadline <= wake) deadline = wake + kPeriodNs;  // periods lost are not caught up
+    const long vcsw0 = voluntary_switches();
+    const int64_t w0 = h.clock.now_ns();
+    const double now = h.now();
+    if (!paused && now >= start + pause_at_s) {
+      h.transport.pause_io(pause_s);
+      paused = true;
+      pause_end_s = now + pause_s + 0.002;  // it starts at the I/O thread's next turn
+    }
+    if (paused && now < pause_end_s && in_pause) in_pause();
+    while (next < segs.size() && segs[next].t0_s < now + 0.5) gen.add_segment(segs[next++]);
+    gen.flush();
+    const auto due = static_cast<int64_t>(map.ticks(now + 0.25));
+    comp.flush_if_due(due);
+    batcher.flush_if_due(due);
+    if (next == segs.size()) {
+      comp.flush();
+      batcher.flush();
+    }
+#ifdef FEEDLOOP_COUNT_MALLOC
+    const long m0 = g_mallocs.load();
+    g_counting.store(true);
+#endif
+    h.session.poll(now);
+#ifdef FEEDLOOP_COUNT_MALLOC
+    g_counting.store(false);
+    const long polled_mallocs = g_mallocs.load() - m0;
+#else
+    const long polled_mallocs = -1;
+#endif
+    const double work_us = static_cast<double>(h.clock.now_ns() - w0) * 1e-3;
+    const long vcsw = voluntary_switches() - vcsw0;
+    CycleStats& c = paused && now < pause_end_s ? out.during : out.outside;
+    c.add(work_us, late_us, vcsw);
+    if (polled_mallocs >= 0) c.mallocs = std::max(c.mallocs, 0L) + polled_mallocs;
+  }
+  out.sent = {col.steps, col.hash};
+  return out;
+}
+
 // "feedloop-vmcu NAME: faults host->device: F frames, D dropped, C corrupted, U duplicated, L
 // delayed, R reordered" (its summary on stderr at exit), both directions summed.
 struct InjectedFaults {
@@ -156,7 +289,7 @@ TEST_P(SerialPtyMotion, EveryStepExactlyOnce) {
   args.insert(args.end(), GetParam().args.begin(), GetParam().args.end());
   const std::string log = temp_path(std::string("feedloop-vmcu-") + GetParam().name + ".log");
   ASSERT_TRUE(vmcu.start(kVmcu, args, log)) << vmcu.error();
-  SerialTransport transport(vmcu.pty());
+  SerialTransport transport(vmcu.pty(), 250000, pty_io());
   McuSessionParams sp;
   sp.name = "pty-x";
   McuSession session(sp, transport);
@@ -171,6 +304,11 @@ TEST_P(SerialPtyMotion, EveryStepExactlyOnce) {
   session.request_status();
   h.pump_until([&] { return session.last_status().has_value(); }, 1.0);
   for (const auto& e : session.take_events()) std::printf("event: %s\n", e.c_str());
+  std::printf("clock rate %+.2f ppm (device: +50)\n", (session.clock().freq_hz() / session.mcu_clock_hz() - 1.0) * 1e6);
+  std::printf("I/O thread (%s): longest gap between turns %.0f us, %llu turns; clock rtt min %.0f us, mean %.0f us\n",
+              transport.io_stats().io_realtime ? "SCHED_FIFO" : "default policy", transport.io_stats().io_max_gap_us,
+              (unsigned long long)transport.io_stats().io_turns,
+              session.clock().min_rtt_s() * 1e6, session.clock().mean_rtt_s() * 1e6);
   vmcu.stop();
   const InjectedFaults inj = read_injected(log);
   std::remove(log.c_str());
@@ -220,7 +358,7 @@ TEST(SerialPty, DeviceRestartIsReportedAndRecovered) {
   const std::string link = temp_path("feedloop-vmcu-link");
   testing::VmcuProcess first;
   ASSERT_TRUE(first.start(kVmcu, {"--name", "pty-x", "--link", link})) << first.error();
-  SerialTransport transport(link);
+  SerialTransport transport(link, 250000, pty_io());
   McuSessionParams sp;
   sp.name = "pty-x";
   McuSession session(sp, transport);
@@ -280,10 +418,138 @@ TEST(SerialPty, DeviceRestartIsReportedAndRecovered) {
   second.stop();
 }
 
+// DESIGN.md "Threads and time": the serial bytes move on the transport's I/O thread, so a stalled
+// I/O thread (paused 50 ms mid-print) does not delay the thread that streams the steps: its
+// cycles go on at 1 kHz, none blocks (no voluntary context switch inside a cycle's work), its
+// work and wake-up times stay what they are outside the pause; the frames wait in the send queue
+// and every step is executed exactly once.
+TEST(SerialPty, StalledIoThreadDoesNotDelayTheTimingThread) {
+  testing::VmcuProcess vmcu;
+  ASSERT_TRUE(vmcu.start(kVmcu, {"--name", "pty-x", "--drift-ppm", "50"})) << vmcu.error();
+  SerialTransport transport(vmcu.pty(), 250000, pty_io());
+  McuSessionParams sp;
+  sp.name = "pty-x";
+  McuSession session(sp, transport);
+  PtyHost h{transport, session};
+  ASSERT_TRUE(session.clock_fit_async()) << "the clock fit runs on the I/O thread";
+  ASSERT_TRUE(session.start(h.now()).ok()) << session.error()->message;
+  ASSERT_TRUE(h.pump_until([&] { return session.ready(); }, 2.0));
+  h.pump(h.now() + 0.6);
+  const double cpu0 = transport.io_thread_cpu_s(), t_stream0 = h.now();
+  const TimedStream r = stream_1khz(h, 12, 5, 0.5, 0.05);
+  const double io_cpu_s = transport.io_thread_cpu_s() - cpu0, stream_s = h.now() - t_stream0;
+  session.request_status();
+  h.pump_until([&] { return session.last_status().has_value() && session.last_status()->steps_executed == r.sent.steps; },
+               1.0);
+  for (const auto& e : session.take_events()) std::printf("event: %s\n", e.c_str());
+  const TransportStats io = transport.io_stats();
+  std::printf("1 kHz timing thread (%s), I/O thread paused 50 ms: %llu cycles during the pause (max work %.0f us, "
+              "max wake-up lateness %.0f us, %ld blocking), %llu outside (max work %.0f us, max lateness %.0f us, "
+              "%ld blocking); %llu frames refused, %llu retransmitted; clock rtt min %.0f us mean %.0f us over %d "
+              "samples\n",
+              r.realtime ? "SCHED_FIFO" : "default policy: its lateness is the machine's load", (unsigned long long)r.during.cycles, r.during.max_work_us, r.during.max_late_us, r.during.blocked,
+              (unsigned long long)r.outside.cycles, r.outside.max_work_us, r.outside.max_late_us, r.outside.blocked,
+              (unsigned long long)io.tx_full, (unsigned long long)session.link_stats().retransmitted,
+              session.clock().min_rtt_s() * 1e6, session.clock().mean_rtt_s() * 1e6, session.clock().samples());
+  std::printf("I/O thread while streaming: %.1f ms of CPU in %.2f s (%.2f %% of a core), %llu frames sent, %llu "
+              "chunks received; allocations while the session polled: %ld (pause), %ld (outside)\n",
+              io_cpu_s * 1e3, stream_s, io_cpu_s * 100.0 / stream_s, (unsigned long long)io.tx_frames,
+              (unsigned long long)io.rx_chunks, r.during.mallocs, r.outside.mallocs);
+  vmcu.stop();
+  EXPECT_EQ(io.io_pauses, 1u);
+  EXPECT_EQ(r.during.blocked, 0);
+  EXPECT_EQ(r.outside.blocked, 0);
+#ifdef FEEDLOOP_COUNT_MALLOC
+  // The session's steady streaming (frames out, bytes in, clock samples to the I/O thread's fit)
+  // allocates nothing, in either thread, during the pause or outside it.
+  EXPECT_EQ(r.during.mallocs, 0);
+  EXPECT_EQ(r.outside.mallocs, 0);
+#endif
+  // A timing thread that waited for the I/O thread would show the 50 ms in one cycle's work.
+  EXPECT_LT(r.during.max_work_us, 5000.0);
+  if (r.realtime) {  // it kept cycling through the pause, on time
+    EXPECT_GE(r.during.cycles, 45u);
+    EXPECT_LT(r.during.max_late_us, 5000.0);
+  }
+  ASSERT_TRUE(session.last_status().has_value());
+  EXPECT_GT(r.sent.steps, 3000u);
+  EXPECT_EQ(session.last_status()->steps_executed, r.sent.steps);
+  EXPECT_EQ(session.last_status()->step_hash, r.sent.hash);
+  EXPECT_FALSE(session.last_status()->stopped);
+  EXPECT_EQ(session.state(), McuState::kReady);
+}
+
+// Back pressure loses nothing: with a send queue of 15 frames and the I/O thread paused for 100 ms
+// while the session asks for the device's status every cycle, the link fills its window of 12
+// frames, retransmits them after its timeout (25 ms, then 50 ms) and the queue refuses what does
+// not fit; the refusals are counted (transport and
+// session) and the reliable link sends those frames again, so every step is still executed
+// exactly once.
+TEST(SerialPty, FullSendQueueIsCountedAndLosesNoStep) {
+  testing::VmcuProcess vmcu;
+  ASSERT_TRUE(vmcu.start(kVmcu, {"--name", "pty-x"})) << vmcu.error();
+  QueuedTransportParams io = pty_io();
+  io.tx_frames = 15;  // a little more than the link's window of 12 frames
+  SerialTransport transport(vmcu.pty(), 250000, io);
+  McuSessionParams sp;
+  sp.name = "pty-x";
+  McuSession session(sp, transport);
+  PtyHost h{transport, session};
+  ASSERT_TRUE(session.start(h.now()).ok()) << session.error()->message;
+  ASSERT_TRUE(h.pump_until([&] { return session.ready(); }, 2.0));
+  h.pump(h.now() + 0.6);
+  const TimedStream r = stream_1khz(h, 12, 7, 0.4, 0.1, [&] { session.request_status(); });
+  session.request_status();
+  h.pump_until([&] { return session.last_status().has_value() && session.last_status()->steps_executed == r.sent.steps; },
+               1.0);
+  for (const auto& e : session.take_events()) std::printf("event: %s\n", e.c_str());
+  const TransportStats st = transport.io_stats();
+  std::printf("send queue of 15 frames, I/O thread paused 100 ms: %llu frames refused (session: %llu), %llu retransmitted; "
+              "%llu steps sent, %llu executed\n",
+              (unsigned long long)st.tx_full, (unsigned long long)session.frames_refused(),
+              (unsigned long long)session.link_stats().retransmitted, (unsigned long long)r.sent.steps,
+              (unsigned long long)(session.last_status() ? session.last_status()->steps_executed : 0));
+  vmcu.stop();
+  EXPECT_GT(st.tx_full, 0u);
+  EXPECT_EQ(session.frames_refused(), st.tx_full);
+  EXPECT_GT(session.link_stats().retransmitted, 0u);
+  EXPECT_EQ(r.during.blocked, 0);
+  ASSERT_TRUE(session.last_status().has_value());
+  EXPECT_EQ(session.last_status()->steps_executed, r.sent.steps);
+  EXPECT_EQ(session.last_status()->step_hash, r.sent.hash);
+  EXPECT_EQ(session.state(), McuState::kReady);
+}
+
+// A stall of the I/O thread longer than the MCU's watchdog (0.5 s) and the steps' lead: the MCU
+// stops its motor (watchdog or underrun), and the session's failure (the MCU's report, or the link
+// silent for 1 s) names the stalled I/O thread.
+TEST(SerialPty, IoThreadStalledBeyondTheLeadIsNamed) {
+  testing::VmcuProcess vmcu;
+  ASSERT_TRUE(vmcu.start(kVmcu, {"--name", "pty-x"})) << vmcu.error();
+  SerialTransport transport(vmcu.pty(), 250000, pty_io());
+  McuSessionParams sp;
+  sp.name = "pty-x";
+  McuSession session(sp, transport);
+  PtyHost h{transport, session};
+  ASSERT_TRUE(session.start(h.now()).ok()) << session.error()->message;
+  ASSERT_TRUE(h.pump_until([&] { return session.ready(); }, 2.0));
+  h.pump(h.now() + 0.6);
+  const TimedStream r = stream_1khz(h, 12, 5, 0.3, 0.7);
+  h.pump_until([&] { return session.state() == McuState::kFailed; }, 1.0);
+  for (const auto& e : session.take_events()) std::printf("event: %s\n", e.c_str());
+  vmcu.stop();
+  ASSERT_EQ(session.state(), McuState::kFailed);
+  const std::string msg = session.error()->message;
+  std::printf("I/O thread paused 700 ms: %s\n", msg.c_str());
+  EXPECT_NE(msg.find("MCU 'pty-x'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("I/O thread did not run for up to"), std::string::npos) << msg;
+  EXPECT_EQ(r.during.blocked, 0);
+}
+
 TEST(SerialPty, VersionMismatchRefused) {
   testing::VmcuProcess vmcu;
   ASSERT_TRUE(vmcu.start(kVmcu, {"--protocol-version", "9"})) << vmcu.error();
-  SerialTransport transport(vmcu.pty());
+  SerialTransport transport(vmcu.pty(), 250000, pty_io());
   McuSession session({}, transport);
   MonotonicClock clock;
   const int64_t t0 = clock.now_ns();

@@ -6,10 +6,13 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <atomic>
 #include <random>
+#include <thread>
 #include <vector>
 
 #include "drivers/clock_sync.hpp"
+#include "drivers/clock_sync_channel.hpp"
 #include "drivers/device/virtual_mcu.hpp"
 #include "drivers/host/mcu_session.hpp"
 #include "drivers/stepgen/run_codec.hpp"
@@ -391,6 +394,89 @@ TEST(ClockSync, AccuracyUnderJitterAndDrift) {
   EXPECT_LT(max_err_us, 15.0);
   EXPECT_LT(max_pred_err_us, 15.0);
   EXPECT_LT(std::fabs(cs.freq_hz() / rate - 1) * 1e6, 1.0);
+}
+
+// The clock fit off the session's thread (ClockSyncChannel, async): samples handed in while an
+// "I/O thread" fits them concurrently give, once it has caught up, exactly the estimate of the
+// same samples fitted inline; a re-identify (configure) discards the old fit, and samples of the
+// old fit still queued are not mixed into the new one.
+TEST(ClockSyncChannel, AsyncFitEqualsInlineFitAndResetsCleanly) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> lat(100e-6, 600e-6);
+  const double rate = 20e6 * (1 - 30e-6), offset_s = 1.7;
+  ClockSyncChannel async;
+  async.set_async(true);
+  ClockSyncChannel inline_fit;
+  ClockSyncParams p;
+  p.nominal_hz = 20e6;
+  async.configure(p);
+  inline_fit.configure(p);
+  std::atomic<bool> stop{false};
+  std::atomic<uint64_t> turns{0};
+  std::thread io([&] {
+    while (!stop.load()) {
+      async.on_io_thread();
+      turns.fetch_add(1);
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+  });
+  for (int k = 0; k < 300; ++k) {
+    const double send = 0.1 * k, up = lat(rng), down = lat(rng);
+    const auto c = static_cast<int64_t>(std::floor((send + up + offset_s) * rate));
+    async.add_sample(send, send + up + down, c);
+    inline_fit.add_sample(send, send + up + down, c);
+    if (k % 7 == 0) std::this_thread::sleep_for(std::chrono::microseconds(300));
+    async.refresh();  // whatever the I/O thread has published so far
+  }
+  // Caught up: two more turns after the last sample.
+  const uint64_t t0 = turns.load();
+  while (turns.load() < t0 + 2) std::this_thread::yield();
+  async.refresh();
+  const ClockEstimate& a = async.estimate();
+  const ClockEstimate& b = inline_fit.estimate();
+  std::printf("async fit: %d samples, %.6f Hz; inline: %d samples, %.6f Hz; at t=30 s: %.3f vs %.3f ticks\n",
+              a.samples(), a.freq_hz(), b.samples(), b.freq_hz(), a.clock_at(30.0), b.clock_at(30.0));
+  EXPECT_EQ(a.samples(), b.samples());
+  EXPECT_EQ(a.freq_hz(), b.freq_hz());
+  EXPECT_EQ(a.clock_at(30.0), b.clock_at(30.0));
+  EXPECT_EQ(async.samples_dropped(), 0u);
+
+  // Re-identified at another nominal rate: the estimate is the new nominal one at once, and after
+  // one sample it is a fit of that sample alone.
+  ClockSyncParams q;
+  q.nominal_hz = 48e6;
+  async.configure(q);
+  EXPECT_EQ(async.estimate().freq_hz(), 48e6);
+  EXPECT_FALSE(async.estimate().ready());
+  async.add_sample(40.0, 40.0002, 123456789);
+  const uint64_t t1 = turns.load();
+  while (turns.load() < t1 + 2) std::this_thread::yield();
+  async.refresh();
+  EXPECT_EQ(async.estimate().samples(), 1);
+  EXPECT_NEAR(async.estimate().clock_at(40.0001), 123456789.0, 1.0);
+  stop.store(true);
+  io.join();
+}
+
+// The I/O thread does not run for a while: the sample queue (63) fills, samples are counted as
+// dropped, and a re-identify in that state still reaches the fit before the next samples.
+TEST(ClockSyncChannel, ResetSurvivesAFullQueue) {
+  ClockSyncChannel ch;
+  ch.set_async(true);
+  ClockSyncParams p;
+  ch.configure(p);
+  for (int k = 0; k < 100; ++k) ch.add_sample(0.1 * k, 0.1 * k + 2e-4, 1000 * k);  // 63 fit in the queue
+  EXPECT_GT(ch.samples_dropped(), 0u);
+  ClockSyncParams q;
+  q.nominal_hz = 16e6;
+  ch.configure(q);  // the queue is full: the reset waits
+  ch.on_io_thread();  // the I/O thread runs again: the old generation's samples are fitted
+  ch.add_sample(20.0, 20.0002, 777777);  // the reset goes first, then this sample
+  ch.on_io_thread();
+  ch.refresh();
+  EXPECT_EQ(ch.estimate().samples(), 1);
+  EXPECT_NEAR(ch.estimate().freq_hz(), 16e6, 1e-6);
+  EXPECT_NEAR(ch.estimate().clock_at(20.0001), 777777.0, 1.0);
 }
 
 }  // namespace

@@ -9,14 +9,21 @@
 #include <libusb.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cstring>
 #include <memory>
+#include <mutex>
+#include <thread>
 #include <vector>
 
+#include "core/clock.hpp"
 #include "drivers/device/virtual_mcu.hpp"
 #include "drivers/host/mcu_session.hpp"
 #include "drivers/stepgen/run_codec.hpp"
 #include "drivers/transport/usb_transport.hpp"
+#include "tests/common/malloc_counter.hpp"
+#include <sys/resource.h>  // getrusage, RUSAGE_THREAD
 
 namespace feedloop::drivers {
 namespace {
@@ -118,32 +125,78 @@ class FakeUsb final : public UsbBackend {
   }
   int claim_interface(UsbHandle h, int) override { return handle(h)->dev->claim_error; }
   void close(UsbHandle h, int) override { handle(h)->closed = true; }
-  int bulk_transfer(UsbHandle h, uint8_t ep, uint8_t* data, int len, int* transferred, unsigned) override {
+  // Asynchronous transfers: queued here, completed (done() called) by handle_events() in
+  // submission order, as a host controller completes them: OUT at once (the device reads) unless
+  // out_stalled (a device that stops reading: NAKs forever); IN when the device has sent bytes.
+  int submit(UsbHandle h, UsbTransfer& t) override {
+    std::lock_guard lock(mutex_);
     Handle* hd = handle(h);
-    *transferred = 0;
     if (hd->closed) return LIBUSB_ERROR_INVALID_PARAM;
     FakeDevice& d = *hd->dev;
     if (!d.present || hd->generation != d.generation) {
       ++transfers_after_unplug;
       return LIBUSB_ERROR_NO_DEVICE;
     }
-    if ((ep & 0x80) == 0) {  // OUT: a frame to the MCU
-      d.mcu->receive(data, static_cast<size_t>(len), now);
-      *transferred = len;
-      return 0;
-    }
-    d.mcu->run_until(now);
-    uint8_t frame[protocol::kMaxFrame];
-    size_t n = 0;
-    while (d.mcu->pop_frame(frame, n)) d.in.insert(d.in.end(), frame, frame + n);
-    if (d.in.empty()) return LIBUSB_ERROR_TIMEOUT;
-    const size_t take = std::min(d.in.size(), static_cast<size_t>(len));
-    std::memcpy(data, d.in.data(), take);
-    d.in.erase(d.in.begin(), d.in.begin() + static_cast<std::ptrdiff_t>(take));
-    *transferred = static_cast<int>(take);
+    pending_.push_back({&t, hd, false});
+    ++submitted;
     return 0;
   }
-  void handle_events(double) override {}
+  void cancel(UsbTransfer& t) override {
+    std::lock_guard lock(mutex_);
+    for (Pending& p : pending_)
+      if (p.t == &t) p.cancelled = true;
+  }
+  void handle_events(double max_wait_s) override {
+    complete_due();
+    if (sleep_in_events && max_wait_s > 0.0)  // like libusb: wait for events (there are none)
+      std::this_thread::sleep_for(std::chrono::duration<double>(max_wait_s));
+  }
+  void complete_due() {
+    std::lock_guard lock(mutex_);
+    scratch_.clear();
+    scratch_.swap(pending_);  // both keep their capacity: no allocation in steady use
+    for (Pending& p : scratch_) {
+      UsbTransfer& t = *p.t;
+      FakeDevice& d = *p.h->dev;
+      if (p.cancelled) {
+        complete(t, UsbTransferStatus::kCancelled, 0);
+      } else if (!d.present || p.h->generation != d.generation) {
+        ++transfers_after_unplug;
+        complete(t, UsbTransferStatus::kNoDevice, 0);
+      } else if ((t.endpoint & 0x80) == 0) {  // OUT: frames to the MCU
+        if (out_stalled) {
+          pending_.push_back(p);
+          continue;
+        }
+        d.mcu->receive(t.buffer, static_cast<size_t>(t.length), now);
+        complete(t, UsbTransferStatus::kCompleted, t.length);
+      } else {  // IN: what the MCU sent
+        d.mcu->run_until(now);
+        uint8_t frame[protocol::kMaxFrame];
+        size_t n = 0;
+        while (d.mcu->pop_frame(frame, n)) d.in.insert(d.in.end(), frame, frame + n);
+        if (d.in.empty()) {
+          pending_.push_back(p);
+          continue;
+        }
+        const size_t take = std::min(d.in.size(), static_cast<size_t>(t.length));
+        std::memcpy(t.buffer, d.in.data(), take);
+        d.in.erase(d.in.begin(), d.in.begin() + static_cast<std::ptrdiff_t>(take));
+        complete(t, UsbTransferStatus::kCompleted, static_cast<int>(take));
+      }
+    }
+  }
+  size_t in_flight() {
+    std::lock_guard lock(mutex_);
+    return pending_.size();
+  }
+  std::atomic<bool> out_stalled{false};  // the device stops reading (NAKs every OUT packet)
+  bool sleep_in_events = false;          // an I/O thread's handle_events waits as libusb's does
+  uint64_t submitted = 0;
+  FakeUsb() {
+    pending_.reserve(64);
+    scratch_.reserve(64);
+  }
   std::string error_text(int rc) const override { return std::string(libusb_error_name(rc)); }
 
  private:
@@ -152,6 +205,18 @@ class FakeUsb final : public UsbBackend {
     int generation;
     bool closed;
   };
+  struct Pending {
+    UsbTransfer* t;
+    Handle* h;
+    bool cancelled;
+  };
+  static void complete(UsbTransfer& t, UsbTransferStatus status, int transferred) {
+    t.status = status;
+    t.transferred = transferred;
+    t.done(t);
+  }
+  std::mutex mutex_;  // the I/O thread's calls against the test's inspection
+  std::vector<Pending> pending_, scratch_;
   static Handle* handle(UsbHandle h) { return reinterpret_cast<Handle*>(h); }
   std::vector<FakeDevice*> listed_;
   std::vector<std::unique_ptr<Handle>> handles_;
@@ -163,9 +228,12 @@ FakeDevice other_device(uint16_t vid, uint16_t pid, int address) {
   return d;
 }
 
+// Virtual time: the transport does its I/O in poll() on the test's thread (no I/O thread), so
+// the fake bus and its VirtualMcu run deterministically at the test's `now`.
 UsbParams mcu_params_usb() {
   UsbParams p;  // 1d50:614e
   p.serial = "FL-1";
+  p.io.io_thread = false;
   return p;
 }
 
@@ -366,6 +434,90 @@ TEST(UsbFake, ReplugOfARebootedDeviceIsReportedAndReidentified) {
   EXPECT_EQ(rig.motor_b.steps, steps);
   EXPECT_EQ(rig.session->last_status()->steps_executed, steps);
   EXPECT_EQ(rig.session->last_status()->step_hash, hash);
+}
+
+// The caller's side of the USB transport with its I/O thread, against a device that stops
+// reading (every OUT transfer stays pending, as NAKed packets do): the OUT transfers fill, the
+// send queue fills, and try_write() keeps returning at once with kFull (counted) — without
+// blocking (no voluntary context switch of the calling thread) and without allocating (either
+// thread). When the device reads again, the queue drains and frames are taken again.
+TEST(UsbRealTime, DeviceThatStopsReadingGivesBackPressureWithoutBlockingOrAllocating) {
+  IdealMotor motor;
+  device::VirtualMcuParams vp;
+  std::snprintf(vp.name, sizeof vp.name, "usb-x");
+  device::VirtualMcu mcu(vp, &motor);
+  FakeDevice dev;
+  dev.entry = {0x1d50, 0x614e, 1, 9, 3};
+  dev.serial = "FL-1";
+  dev.mcu = &mcu;
+  auto f = std::make_unique<FakeUsb>();
+  FakeUsb* fake = f.get();
+  fake->bus = {&dev};
+  fake->sleep_in_events = true;
+  fake->out_stalled = true;
+  UsbParams p;
+  p.serial = "FL-1";  // an I/O thread (the default)
+  UsbTransport t(p, std::move(f));
+  ASSERT_TRUE(t.open().ok()) << t.error_text();
+  MonotonicClock clock;
+  uint8_t frame[protocol::kMaxFrame];
+  for (size_t i = 0; i < sizeof frame; ++i) frame[i] = static_cast<uint8_t>(i * 3);
+  constexpr int kCalls = 20000;
+  std::vector<double> us;
+  us.reserve(kCalls);
+  uint64_t queued = 0, full = 0, other = 0;
+  rusage r0{}, r1{};
+  ::getrusage(RUSAGE_THREAD, &r0);
+#ifdef FEEDLOOP_COUNT_MALLOC
+  g_mallocs.store(0);
+  g_counting.store(true);
+#endif
+  const int64_t start_ns = clock.now_ns();
+  for (int i = 0; i < kCalls; ++i) {
+    const int64_t a = clock.now_ns();
+    const TxResult r = t.try_write(frame, sizeof frame);
+    us.push_back(static_cast<double>(clock.now_ns() - a) * 1e-3);
+    if (r == TxResult::kQueued) ++queued;
+    else if (r == TxResult::kFull) ++full;
+    else ++other;
+    while (clock.now_ns() < start_ns + (i + 1) * 50'000) {
+    }
+  }
+#ifdef FEEDLOOP_COUNT_MALLOC
+  g_counting.store(false);
+  const long mallocs = g_mallocs.load();
+#endif
+  ::getrusage(RUSAGE_THREAD, &r1);
+  const TransportStats s = t.io_stats();
+  std::sort(us.begin(), us.end());
+  const double median = us[us.size() / 2], p99 = us[us.size() * 99 / 100], max = us.back();
+  std::printf("%d try_write calls, device not reading: %llu queued, %llu refused; OUT transfers pending %d, I/O "
+              "thread found them all busy %llu times; median %.2f us, p99 %.2f us, max %.1f us; context switches: "
+              "%ld voluntary, %ld involuntary\n",
+              kCalls, (unsigned long long)queued, (unsigned long long)full, UsbTransport::kOutTransfers,
+              (unsigned long long)s.tx_blocked, median, p99, max, r1.ru_nvcsw - r0.ru_nvcsw,
+              r1.ru_nivcsw - r0.ru_nivcsw);
+  EXPECT_EQ(other, 0u);
+  EXPECT_GT(full, 1000u);
+  EXPECT_EQ(s.tx_full, full);
+  EXPECT_GT(s.tx_blocked, 0u);
+  EXPECT_EQ(r1.ru_nvcsw - r0.ru_nvcsw, 0);
+  EXPECT_LT(median, 5.0);
+  EXPECT_LT(p99, 20.0);
+  EXPECT_LT(max, 50'000.0);
+#ifdef FEEDLOOP_COUNT_MALLOC
+  EXPECT_EQ(mallocs, 0) << "allocations during the calls (either thread)";
+#endif
+  // The device reads again: within 100 ms the queue has room.
+  fake->out_stalled = false;
+  const int64_t t0 = clock.now_ns();
+  TxResult again = TxResult::kFull;
+  while (again == TxResult::kFull && clock.now_ns() - t0 < 100'000'000) {
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+    again = t.try_write(frame, sizeof frame);
+  }
+  EXPECT_EQ(again, TxResult::kQueued);
+  EXPECT_TRUE(t.connected());
 }
 
 }  // namespace

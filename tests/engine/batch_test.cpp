@@ -37,6 +37,37 @@ TEST(BatchThreads, TwoThreadsGiveTheSameRunsAsOne) {
   expect_identical(path, config::default_config());
 }
 
+// The stages bench/batch times: each does what the one before it does, and one thing more.
+TEST(BatchStages, EachStageDoesTheWorkOfThoseBeforeIt) {
+  const std::string path = write_temp("spiral_stages.gcode", spiral_gcode(100, 100, 30, 500));
+  const config::MachineConfig cfg = config::default_config();
+  BatchSummary by_stage[5];
+  for (int st = 0; st < 5; ++st) {
+    BatchOptions o;
+    o.last_stage = static_cast<BatchStage>(st);
+    auto r = run_batch(path, cfg, o);
+    ASSERT_TRUE(r.ok()) << r.error().to_string();
+    by_stage[st] = *r;
+  }
+  const BatchSummary &parse = by_stage[0], &plan = by_stage[1], &times = by_stage[2],
+                     &comp = by_stage[3], &all = by_stage[4];
+  EXPECT_GT(all.total_steps, 10000u);
+  for (const BatchSummary* s : {&parse, &plan, &times, &comp}) {
+    EXPECT_EQ(s->lines, all.lines);
+    EXPECT_EQ(s->commands, all.commands);
+  }
+  EXPECT_EQ(parse.moves, 0u);
+  EXPECT_EQ(plan.moves, all.moves);
+  EXPECT_EQ(plan.total_steps, 0u);
+  EXPECT_EQ(times.total_steps, all.total_steps);
+  EXPECT_EQ(times.joints[0].runs, 0u);
+  EXPECT_EQ(comp.total_steps, all.total_steps);
+  for (int j = 0; j < kJoints; ++j)
+    EXPECT_EQ(comp.joints[static_cast<size_t>(j)].runs, all.joints[static_cast<size_t>(j)].runs);
+  EXPECT_EQ(comp.wire_bytes, 0u);
+  EXPECT_GT(all.wire_bytes, 0u);
+}
+
 TEST(BatchThreads, TwoThreadsGiveTheSameRunsAsOneOnTheCorpusCube) {
   const std::string path = std::string(FEEDLOOP_SHARED_DIR) + "/gcode/cube20_cartesian.gcode";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "corpus absent: " << path;

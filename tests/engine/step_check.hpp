@@ -126,10 +126,11 @@ class StepChecker final : public planner::JointSink, public stepgen::BatchSink {
       f_prev = fb;
     }
     if (best_dist > 1e299) {
-      // A reversal right at the threshold: over it and back within one grid cell. Find the
-      // extremum of f near t (golden section; f is unimodal there): f rises above 0 before a
-      // maximum (bisect [left end, argmax]) or leaves a minimum <= 0 (bisect [argmin, right end]).
-      const double left = t - 2.0 * h, right = t + 2.0 * h;
+      // A reversal right at the threshold: over it and back within one grid cell, anywhere in
+      // the step's window (t - E, t + E). Find the extremum of f there (golden section; f is
+      // unimodal there): f rises above 0 before a maximum (bisect [left end, argmax]) or leaves a
+      // minimum <= 0 (bisect [argmin, right end]).
+      const double left = t - std::max(2.0 * h, 1.25 * e), right = t + std::max(2.0 * h, 1.25 * e);
       auto extremum = [&](double sign) {
         double a = left, b = right;
         const double g = 0.5 * (std::sqrt(5.0) - 1.0);

@@ -21,7 +21,7 @@ struct CountingSink final : stepgen::BatchSink {
   void on_batch(const stepgen::StepBatch& b) override { steps += b.steps; }
 };
 
-constexpr const char* kLongMove = "G90\nG1 X200 Y150 F6000\n";
+[[maybe_unused]] constexpr const char* kLongMove = "G90\nG1 X200 Y150 F6000\n";
 
 TEST(ServoAlloc, ExecutorAndPipelineAllocateNothingBridgeIsMeasured) {
 #ifndef FEEDLOOP_COUNT_MALLOC
@@ -75,9 +75,11 @@ TEST(ServoAlloc, ClosedLoopCycleAllocatesNothing) {
 #ifndef FEEDLOOP_COUNT_MALLOC
   GTEST_SKIP() << "malloc counting needs glibc and no sanitizer";
 #else
+  for (auto loop : {config::ControlLoop::device, config::ControlLoop::host})
   for (auto ff : {config::FeedforwardType::none, config::FeedforwardType::shaper, config::FeedforwardType::lpv}) {
     config::MachineConfig cfg = config::default_config();
     cfg.control.mode = config::ControlMode::pi;
+    cfg.control.loop = loop;
     cfg.feedforward.type = ff;
     testing::SimRig rig(cfg);
     auto control = make_servo_control(cfg);
@@ -92,8 +94,8 @@ TEST(ServoAlloc, ClosedLoopCycleAllocatesNothing) {
     g_counting = true;
     rig.run_for(0.5);
     g_counting = false;
-    std::printf("closed loop, feedforward %d: %ld allocations in 500 servo cycles\n", static_cast<int>(ff),
-                g_mallocs.load());
+    std::printf("closed loop (%s), feedforward %d: %ld allocations in 500 servo cycles\n",
+                loop == config::ControlLoop::host ? "host" : "device", static_cast<int>(ff), g_mallocs.load());
     EXPECT_GT(rig.bridge->timing(0).steps_executed, steps0 + 1000);  // it moved
     EXPECT_EQ(g_mallocs.load(), 0);
   }

@@ -1,0 +1,228 @@
+// Property test of the step compressor (seeded, randomised, many runs): every compressed run,
+// decoded from the wire bodies and expanded with the MCU step law, reproduces every step time
+// within its window  T_i - min(E, (T_i - T_{i-1})/2) <= t_i <= T_i + E,  in order, with the
+// same directions and count; no run fails its re-expansion check. Each run draws a stream
+// (printing-like trapezoid moves, reversals, 1 ms cubic pieces, or all three), an error bound
+// E, an MCU clock rate, steps/mm, a run-length limit, how the steps are handed over (the
+// generator's chunks or one push() at a time) and early closes (flush_if_due).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <vector>
+
+#include "drivers/stepgen/run_codec.hpp"
+#include "drivers/stepgen/step_batcher.hpp"
+#include "drivers/stepgen/step_compressor.hpp"
+#include "drivers/stepgen/step_generator.hpp"
+#include "segment_streams.hpp"
+
+namespace feedloop::stepgen {
+namespace {
+
+struct Recorder final : StepSink {
+  std::vector<double> ticks;
+  std::vector<int8_t> dirs;
+  void on_steps(const double* t, const int8_t* d, size_t n) override {
+    ticks.insert(ticks.end(), t, t + n);
+    dirs.insert(dirs.end(), d, d + n);
+  }
+};
+
+struct Bodies final : BatchSink {
+  std::vector<std::vector<uint8_t>> bodies;
+  uint64_t bytes = 0;
+  void on_batch(const StepBatch& b) override {
+    bodies.emplace_back(b.body, b.body + b.body_bytes);
+    bytes += b.body_bytes;
+  }
+};
+
+struct Draw {
+  int kind;  // 0 trapezoid, 1 reversals, 2 cubic, 3 all three in a row
+  double err_us, clock_hz, steps_per_mm;
+  uint32_t max_run_count;
+  bool one_at_a_time;
+  double flush_every_s;  // 0: never close runs early
+};
+
+std::vector<JointSegment> stream(std::mt19937_64& rng, int kind) {
+  switch (kind) {
+    case 0:
+      return testing::trapezoid_stream(rng, 60);
+    case 1:
+      return testing::reversal_stream(rng, 150);
+    case 2:
+      return testing::cubic_stream(rng, 1500);
+    default: {
+      // Each part continues where the previous one stopped (time and position).
+      auto a = testing::trapezoid_stream(rng, 20);
+      auto append = [&a](const std::vector<JointSegment>& part) {
+        const double t_end = a.back().end_s(), pos_end = a.back().position_mm(t_end);
+        for (auto s : part) {
+          s.t0_s += t_end;
+          s.c0_mm += pos_end;
+          a.push_back(s);
+        }
+      };
+      append(testing::cubic_stream(rng, 500));
+      append(testing::reversal_stream(rng, 50));
+      return a;
+    }
+  }
+}
+
+// Replays the exact step times into the compressor as the draw says; returns the decoded clocks.
+struct Outcome {
+  std::vector<int64_t> clocks;
+  std::vector<int8_t> dirs;
+  StepCompressorStats stats;
+  uint64_t bytes = 0;
+};
+
+Outcome compress(const Recorder& exact, const std::vector<JointSegment>& segs, const Draw& d,
+                 double offset) {
+  Bodies sink;
+  StepBatcher batcher;
+  batcher.configure(0, 200, &sink);
+  StepCompressor comp;
+  comp.configure({d.err_us * 1e-6 * d.clock_hz, d.max_run_count}, &batcher);
+  comp.reset(static_cast<int64_t>(offset), offset);
+  double next_flush_s = segs.front().t0_s + d.flush_every_s;
+  size_t i = 0;
+  const size_t n = exact.ticks.size();
+  while (i < n) {
+    // Hand over steps up to the next early close, as the engine does between servo cycles.
+    size_t j = n;
+    if (d.flush_every_s > 0) {
+      const double due = offset + next_flush_s * d.clock_hz;
+      j = static_cast<size_t>(
+          std::upper_bound(exact.ticks.begin() + static_cast<long>(i), exact.ticks.end(), due) -
+          exact.ticks.begin());
+    }
+    if (d.one_at_a_time) {
+      for (size_t k = i; k < j; ++k) comp.push(exact.ticks[k], exact.dirs[k]);
+    } else {
+      for (size_t k = i; k < j; k += 256)
+        comp.on_steps(&exact.ticks[k], &exact.dirs[k], std::min<size_t>(256, j - k));
+    }
+    i = j;
+    if (d.flush_every_s > 0) {
+      comp.flush_if_due(static_cast<int64_t>(offset + next_flush_s * d.clock_hz));
+      batcher.flush_if_due(static_cast<int64_t>(offset + next_flush_s * d.clock_hz));
+      next_flush_s += d.flush_every_s;
+    }
+  }
+  comp.flush();
+  batcher.flush();
+  Outcome o;
+  o.stats = comp.stats();
+  o.bytes = sink.bytes;
+  for (const auto& body : sink.bodies) {
+    RunDecoder dec;
+    EXPECT_TRUE(dec.begin(body.data(), body.size()));
+    int64_t p = dec.first_clock();
+    while (!dec.done()) {
+      StepRun r;
+      if (!dec.next(r)) {
+        ADD_FAILURE() << "malformed body";
+        return o;
+      }
+      EXPECT_TRUE(run_is_valid(p, r));
+      for (uint32_t k = 1; k <= r.count; ++k) {
+        o.clocks.push_back(run_step_clock(p, r, k));
+        o.dirs.push_back(r.direction);
+      }
+      p = run_end_clock(p, r);
+    }
+  }
+  return o;
+}
+
+TEST(StepCompressorProperty, EveryRunReproducesEveryStepWithinTheBound) {
+  constexpr int kRuns = 240;
+  const double errs_us[] = {0.5, 1.0, 2.0, 5.0, 5.0, 10.0, 25.0, 50.0};
+  const double clocks_hz[] = {16e6, 20e6, 48e6, 72e6, 72e6, 180e6, 400e6};
+  const uint32_t run_limits[] = {1, 2, 3, 17, 255, 65535, 65535, 65535};
+  std::mt19937_64 draw_rng(20240611);
+  uint64_t steps = 0, runs = 0, bytes = 0;
+  double worst_frac = 0.0;  // largest |t - T| as a fraction of the step's own bound
+  for (int run = 0; run < kRuns; ++run) {
+    std::uniform_int_distribution<int> pick(0, 1 << 20);
+    Draw d;
+    d.kind = pick(draw_rng) % 4;
+    d.err_us = errs_us[pick(draw_rng) % 8];
+    d.clock_hz = clocks_hz[pick(draw_rng) % 7];
+    d.steps_per_mm = 20.0 + 380.0 * (pick(draw_rng) / double(1 << 20));
+    d.max_run_count = run_limits[pick(draw_rng) % 8];
+    d.one_at_a_time = pick(draw_rng) % 4 == 0;
+    d.flush_every_s =
+        pick(draw_rng) % 3 == 0 ? 0.0005 + 0.02 * (pick(draw_rng) / double(1 << 20)) : 0.0;
+    std::mt19937_64 rng(1000 + static_cast<uint64_t>(run));
+    const auto segs = stream(rng, d.kind);
+    const double offset = 1e6 + 1e9 * (pick(draw_rng) / double(1 << 20));  // the MCU clock at t = 0
+    Recorder exact;
+    StepGenerator gen;
+    gen.configure(d.steps_per_mm, TickMap{offset, d.clock_hz}, &exact);
+    gen.set_position_mm(segs.front().c0_mm);
+    for (const auto& s : segs) gen.add_segment(s);
+    gen.flush();
+    if (exact.ticks.empty()) continue;
+    const Outcome o = compress(exact, segs, d, offset);
+    const double E = d.err_us * 1e-6 * d.clock_hz;
+    SCOPED_TRACE(::testing::Message()
+                 << "run " << run << " kind " << d.kind << " E " << d.err_us << " us clock "
+                 << d.clock_hz << " spm " << d.steps_per_mm << " limit " << d.max_run_count
+                 << (d.one_at_a_time ? " push" : " chunks") << " flush " << d.flush_every_s);
+    ASSERT_EQ(o.clocks.size(), exact.ticks.size());
+    ASSERT_EQ(o.dirs, exact.dirs);
+    EXPECT_EQ(o.stats.check_failures, 0u);
+    EXPECT_EQ(o.stats.window_violations, 0u);
+    EXPECT_EQ(o.stats.steps, exact.ticks.size());
+    double prev_t = offset, prev_clock = offset;
+    for (size_t i = 0; i < o.clocks.size(); ++i) {
+      const double t = exact.ticks[i], c = static_cast<double>(o.clocks[i]);
+      const double lo = t - std::min(E, 0.5 * (t - prev_t)), hi = t + E;
+      ASSERT_GE(c, lo) << "step " << i;
+      ASSERT_LE(c, hi) << "step " << i;
+      ASSERT_GT(c, prev_clock) << "step " << i;
+      worst_frac = std::max(worst_frac, std::fabs(c - t) / E);
+      prev_t = t;
+      prev_clock = c;
+    }
+    steps += exact.ticks.size();
+    runs += o.stats.runs;
+    bytes += o.bytes;
+  }
+  std::printf(
+      "%d runs: %llu steps, %llu compressed runs, %.3f body bytes/step, worst |t - T| = %.4f E\n",
+      kRuns, static_cast<unsigned long long>(steps), static_cast<unsigned long long>(runs),
+      static_cast<double>(bytes) / static_cast<double>(steps), worst_frac);
+  EXPECT_GT(steps, 1000000u);
+  EXPECT_LE(worst_frac, 1.0);
+}
+
+// Long runs: a constant integer interval fits one (I, 0) for ever; runs stop at the count limit.
+TEST(StepCompressorProperty, LongRunsStopAtTheCountLimit) {
+  for (uint32_t limit : {1u, 1000u, 65535u}) {
+    Bodies sink;
+    StepBatcher batcher;
+    batcher.configure(0, 200, &sink);
+    StepCompressor comp;
+    comp.configure({100.0, limit}, &batcher);
+    std::vector<double> t(200000);
+    std::vector<int8_t> d(t.size(), 1);
+    for (size_t i = 0; i < t.size(); ++i) t[i] = 5000.0 * static_cast<double>(i + 1);
+    for (size_t i = 0; i < t.size(); i += 256)
+      comp.on_steps(&t[i], &d[i], std::min<size_t>(256, t.size() - i));
+    comp.flush();
+    EXPECT_EQ(comp.stats().steps, t.size());
+    EXPECT_EQ(comp.stats().runs, (t.size() + limit - 1) / limit) << limit;
+    EXPECT_EQ(comp.stats().check_failures, 0u);
+  }
+}
+
+}  // namespace
+}  // namespace feedloop::stepgen
