@@ -518,8 +518,8 @@ void MotionExecutor::sampled_cycle(double now_s) {
       uint64_t n = n_now;
       const double t = backend_ != nullptr ? backend_->encoder_time_s(j) : NAN;
       if (std::isfinite(t)) {
-        const double print_enc_s = t - offset_s_;
-        while (n > 0 && history_[n % cap].t_s > print_enc_s + 0.5 * period_s && sample_no_ - n + 2 < cap) --n;
+        const double joint_enc_s = t - offset_s_;  // this joint's sample instant, in print time
+        while (n > 0 && history_[n % cap].t_s > joint_enc_s + 0.5 * period_s && sample_no_ - n + 2 < cap) --n;
       }
       last_e_mm_[i] = history_[n % cap].r_mm[i] - enc[i];
       has_e_[i] = true;
