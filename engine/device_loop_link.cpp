@@ -72,6 +72,11 @@ device::LoopParams DeviceLoopLink::params_from_config(const config::MachineConfi
   p.deflection_from_host_steps = cfg.feedforward.type == config::FeedforwardType::lpv;
   p.report_every_ticks =
       static_cast<uint32_t>(std::max(1.0, std::round(c.device_rate_hz / 100.0)));  // 100 Hz
+  // A delta carriage's correction acts through its electrical part, a 46-65 Hz mode with zeta
+  // 0.048 and |G| up to 48 (delta paper Table I; docs/decisions.md): a correction step toggling
+  // back and forth at half a step held a 0.6 mm limit cycle there. A reversal waits for half a
+  // step more. The gantry's modes are damped: plain rounding, as the thesis's loop steps.
+  p.reversal_hysteresis_steps = delta ? 0.5f : 0.0f;
   return p;
 }
 

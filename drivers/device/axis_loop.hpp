@@ -171,6 +171,7 @@ class AxisLoop {
   int64_t last_motor_nm_ = 0;
   float last_target_slope_nm_s_ = 0.0f;  // slope of the queue's last piece
   int64_t device_steps_ = 0;
+  int last_step_dir_ = 0;  // direction of the last correction step (the reversal hysteresis)
   float integral_before_slip_nm_ = 0.0f;
 
   // Counters.

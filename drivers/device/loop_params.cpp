@@ -19,6 +19,7 @@ const char* loop_param_error_name(LoopParamError e) {
     case LoopParamError::kSlip: return "slip threshold not > 0, slip cycle not > 2 x threshold, or settle time < 0";
     case LoopParamError::kStop: return "stop deceleration not > 0";
     case LoopParamError::kModel: return "deflection model terms not finite or filter time < 0";
+    case LoopParamError::kHysteresis: return "reversal hysteresis not in [0, 4] steps";
   }
   return "unknown";
 }
@@ -40,6 +41,8 @@ LoopParamError validate_loop_params(const LoopParams& p) {
   if (!std::isfinite(p.deflection_s2) || !std::isfinite(p.deflection_s) || !std::isfinite(p.accel_filter_s) ||
       p.accel_filter_s < 0.0f)
     return LoopParamError::kModel;
+  if (!(p.reversal_hysteresis_steps >= 0.0f && p.reversal_hysteresis_steps <= 4.0f))
+    return LoopParamError::kHysteresis;
   return LoopParamError::kOk;
 }
 

@@ -51,6 +51,11 @@ struct LoopParams {
   uint32_t horizon_margin_ticks = 0;      // start the stop when r's queue ends within this (0: 20 ms)
 
   uint32_t report_every_ticks = 10;       // LOOP_REPORT every N ticks (0: none)
+
+  // Correction steps: rounded, but a step against the last one waits until the correction is
+  // this many steps beyond the rounding threshold (0: plain rounding). A lightly damped carriage
+  // (the delta's electrical mode) turns a step toggling at half a step into a limit cycle.
+  float reversal_hysteresis_steps = 0.0f;
 };
 
 // What is wrong with a parameter set (validate_loop_params); kOk when usable.
@@ -63,6 +68,7 @@ enum class LoopParamError : uint8_t {
   kSlip = 5,          // threshold not > 0, or a cycle not > 2 x threshold
   kStop = 6,          // stop_decel_nm_s2 not > 0
   kModel = 7,         // deflection terms or filter not finite / filter < 0
+  kHysteresis = 8,    // reversal_hysteresis_steps not in [0, 4]
 };
 
 const char* loop_param_error_name(LoopParamError e);

@@ -34,7 +34,8 @@ size_t encode_configure_loop(const ConfigureLoopMsg& m, uint8_t* buf, size_t cap
       .f32(p.accel_filter_s)
       .f32(p.stop_decel_nm_s2)
       .var(p.horizon_margin_ticks)
-      .var(p.report_every_ticks);
+      .var(p.report_every_ticks)
+      .f32(p.reversal_hysteresis_steps);
   return w.ok() ? w.size() : 0;
 }
 
@@ -75,6 +76,8 @@ bool decode_configure_loop(const uint8_t* buf, size_t n, ConfigureLoopMsg& out) 
   p.stop_decel_nm_s2 = r.f32();
   p.horizon_margin_ticks = u32_of(r.var(), ok);
   p.report_every_ticks = u32_of(r.var(), ok);
+  // Optional trailing field (added in protocol v2's first revision): absent = plain rounding.
+  p.reversal_hysteresis_steps = r.at_end() ? 0.0f : r.f32();
   return ok && r.ok() && r.at_end();
 }
 

@@ -25,6 +25,7 @@ TEST(LoopProtocol, ConfigureLoopRoundTripsAndRefusesTruncation) {
   m.params.deflection_s = 0.0069f;
   m.params.deflection_from_host_steps = true;
   m.params.horizon_margin_ticks = 400000;
+  m.params.reversal_hysteresis_steps = 0.5f;
   uint8_t buf[protocol::kMaxPayload];
   const size_t n = protocol::encode_configure_loop(m, buf, sizeof buf);
   ASSERT_GT(n, 0u);
@@ -42,6 +43,11 @@ TEST(LoopProtocol, ConfigureLoopRoundTripsAndRefusesTruncation) {
   EXPECT_EQ(d.params.deflection_s, 0.0069f);
   EXPECT_TRUE(d.params.deflection_from_host_steps);  // flags bit 2
   EXPECT_EQ(d.params.horizon_margin_ticks, 400000u);
+  EXPECT_EQ(d.params.report_every_ticks, m.params.report_every_ticks);
+  EXPECT_EQ(d.params.reversal_hysteresis_steps, 0.5f);
+  // The trailing hysteresis is optional: a message from before it decodes with plain rounding.
+  ASSERT_TRUE(protocol::decode_configure_loop(buf, n - 4, d));
+  EXPECT_EQ(d.params.reversal_hysteresis_steps, 0.0f);
   EXPECT_EQ(d.params.report_every_ticks, m.params.report_every_ticks);
   EXPECT_FALSE(protocol::decode_configure_loop(buf, n - 1, d));
   EXPECT_EQ(protocol::encode_configure_loop(m, buf, 20), 0u);  // does not fit: 0, not a partial message

@@ -419,5 +419,72 @@ TEST(LoopProtocolInput, NonFiniteAndHugeTelemetryIsSaturatedOnTheWire) {
   EXPECT_EQ(d.report.u_nm, static_cast<float>(INT64_MIN));
 }
 
+
+// The correction's step quantisation (axis_loop.cpp step 5): with kp 1 and the encoder hovering
+// 0.4-0.6 steps from r (a carriage ringing around a half step), plain rounding toggles a step
+// out and back; with a reversal hysteresis of half a step the step goes out once and stays.
+// (The delta's carriages need the hysteresis: the toggling fed their 46-65 Hz mode.)
+TEST(AxisLoopInput, AReversalHysteresisStopsAStepTogglingAtHalfAStep) {
+  for (const float hysteresis : {0.0f, 0.5f}) {
+    SCOPED_TRACE(hysteresis);
+    device::AxisLoop loop;
+    loop.init(1e6f);
+    device::LoopParams p;
+    p.enabled = true;
+    p.period_ticks = 1000;
+    p.nm_per_step_q16 = 10000u << 16;  // 10 um steps
+    p.nm_per_count_q16 = 100u << 16;   // 0.1 um counts
+    p.kp = 1.0f;
+    p.ki_per_s = 0.0f;
+    p.reversal_hysteresis_steps = hysteresis;
+    ASSERT_EQ(loop.stage(p, 0), device::LoopParamError::kOk);
+    ASSERT_TRUE(loop.push_target({0, 0}));
+    ASSERT_TRUE(loop.push_target({1'000'000'000, 0}));  // r = 0 for 1000 s
+    int64_t device_steps = 0, reversals = 0, steps_out = 0;
+    int last_dir = 0;
+    for (int k = 0; k < 200; ++k) {
+      device::LoopTickIn in;
+      in.clock = loop.next_tick_clock();
+      // The carriage 4-6 um below r, alternating: e = r - y = +4..+6 um, u = e (kp 1).
+      in.encoder_counts = k % 2 == 0 ? -60 : -40;
+      in.motor_steps = device_steps;
+      in.device_steps = device_steps;
+      device::LoopTickOut out;
+      loop.tick(in, out);
+      device_steps += out.extra_steps;  // the owner executes them before the next tick
+      if (out.extra_steps != 0) {
+        ++steps_out;
+        const int dir = out.extra_steps > 0 ? 1 : -1;
+        if (last_dir != 0 && dir != last_dir) ++reversals;
+        last_dir = dir;
+      }
+    }
+    EXPECT_EQ(loop.state(), device::LoopState::kRunning);
+    if (hysteresis == 0.0f) {
+      EXPECT_GT(reversals, 50);  // out at 6 um, back at 4 um: every other tick
+    } else {
+      EXPECT_EQ(steps_out, 1);   // out at 6 um; back only below 0 um, which never comes
+      EXPECT_EQ(reversals, 0);
+      EXPECT_EQ(device_steps, 1);
+    }
+  }
+}
+
+TEST(AxisLoopInput, ReversalHysteresisOutsideZeroToFourStepsIsRejected) {
+  device::LoopParams p;
+  p.enabled = true;
+  p.period_ticks = 1000;
+  p.nm_per_step_q16 = 10000u << 16;
+  p.nm_per_count_q16 = 100u << 16;
+  p.reversal_hysteresis_steps = -0.1f;
+  EXPECT_EQ(device::validate_loop_params(p), device::LoopParamError::kHysteresis);
+  p.reversal_hysteresis_steps = 4.5f;
+  EXPECT_EQ(device::validate_loop_params(p), device::LoopParamError::kHysteresis);
+  p.reversal_hysteresis_steps = NAN;
+  EXPECT_EQ(device::validate_loop_params(p), device::LoopParamError::kHysteresis);
+  p.reversal_hysteresis_steps = 0.5f;
+  EXPECT_EQ(device::validate_loop_params(p), device::LoopParamError::kOk);
+}
+
 }  // namespace
 }  // namespace feedloop::drivers

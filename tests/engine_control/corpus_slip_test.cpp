@@ -3,7 +3,8 @@
 // files on the embedded default, `*delta*` files on config/examples/delta_sim.yaml), through the
 // daemon's pipeline (engine::run_simulated, what `feedloop batch FILE --simulate` runs): no
 // lost-step event, no step lost by the simulated motors, no fault, no rejected line, and a
-// tracking error a working closed loop has. Label `slow` (about 15 min of CPU for the corpus);
+// tracking error a working closed loop has. Labels `slow` and `long` (about 15 min of CPU for the
+// corpus; not in scripts/test.sh: `ctest --test-dir build -L long`);
 // FEEDLOOP_CORPUS_FILTER=substring runs only the matching files. bench/corpus runs the same files
 // through feedloopd as well and prints the table.
 #include <gtest/gtest.h>
