@@ -13,16 +13,11 @@ namespace feedloop::engine {
 
 const char* to_string(MachineState s) {
   switch (s) {
-    case MachineState::kIdle:
-      return "idle";
-    case MachineState::kBusy:
-      return "busy";
-    case MachineState::kError:
-      return "error";
-    case MachineState::kEmergencyStopped:
-      return "emergency_stopped";
-    case MachineState::kStopped:
-      return "stopped";
+    case MachineState::kIdle: return "idle";
+    case MachineState::kBusy: return "busy";
+    case MachineState::kError: return "error";
+    case MachineState::kEmergencyStopped: return "emergency_stopped";
+    case MachineState::kStopped: return "stopped";
   }
   return "unknown";
 }
@@ -37,9 +32,7 @@ Machine::Machine(MachineOptions options, Clock& clock, std::unique_ptr<CommandEx
   publish_status();
 }
 
-Machine::~Machine() {
-  stop();
-}
+Machine::~Machine() { stop(); }
 
 Status Machine::start(std::string* warnings) {
   if (started_) return Error{"machine already started"};
@@ -173,10 +166,8 @@ Status Machine::execute_machine_command(const gcode::Command& cmd) {
   const bool hotend = cmd.is('M', 104) || cmd.is('M', 109) || cmd.is('G', 10);
   HeaterSim& h = hotend ? hotend_ : bed_;
   const bool wait = cmd.is('M', 109) || cmd.is('M', 190);
-  if (cmd.has('S'))
-    h.target_c = cmd.get('S');
-  else if (cmd.has('R') && !cmd.is('G', 10))
-    h.target_c = cmd.get('R');
+  if (cmd.has('S')) h.target_c = cmd.get('S');
+  else if (cmd.has('R') && !cmd.is('G', 10)) h.target_c = cmd.get('R');
   if (!wait) return Status::Ok();
   if (clock_.is_virtual()) {  // no one advances time for a wait in virtual time: settle at once
     h.temp_c = h.target_c > 0 ? h.target_c : h.ambient_c;
