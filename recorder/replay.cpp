@@ -12,6 +12,7 @@
 #include "config/config.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/executor_factory.hpp"
+#include "engine/machine.hpp"
 #include "engine/mcu_bridge.hpp"
 #include "engine/motion_executor.hpp"
 #include "gcode/parser.hpp"
@@ -21,16 +22,6 @@
 
 namespace feedloop::recorder {
 namespace fs = std::filesystem;
-
-namespace {
-
-// Heater commands are the Machine's (engine/machine.cpp), not the motion executor's; in virtual
-// time their waits settle at once, so a run without the Machine skips them.
-bool is_heater_command(const gcode::Command& c) {
-  return c.is('M', 104) || c.is('M', 109) || c.is('M', 140) || c.is('M', 190);
-}
-
-}  // namespace
 
 std::vector<std::string> print_log_parts(const std::string& last_path) {
   std::vector<std::string> out;
@@ -118,6 +109,10 @@ Result<VirtualPrintResult> record_virtual_print(const config::MachineConfig& cfg
   engine::MotionExecutor& ex = *stack->executor;
   if (!stack->bridge) return Error{"a virtual-time run needs the config's MCUs (mock transport)"};
   ex.set_telemetry(&er);
+  // The daemon's machine, driven from this thread (engine/machine.hpp, one-thread runs): its
+  // planner stage takes the commands (heaters and their waits included), its servo stage runs
+  // one period at a time.
+  engine::Machine machine(engine::machine_options(cfg), clock, std::move(stack->executor));
 
   VirtualPrintResult out;
   if (Status s = r.start_print(print_name); !s) return s.error();
@@ -127,7 +122,6 @@ Result<VirtualPrintResult> record_virtual_print(const config::MachineConfig& cfg
   const int64_t start_ns = clock.now_ns();
   const int64_t end_ns = start_ns + static_cast<int64_t>(options.timeout_s * 1e9);
   int64_t next_poll_ns = start_ns + poll_ns;
-  std::atomic<bool> cancel{false};
   Status io_status = Status::Ok();
   auto poll = [&] {
     if (Status s = r.poll(); !s && io_status) io_status = s;
@@ -135,14 +129,14 @@ Result<VirtualPrintResult> record_virtual_print(const config::MachineConfig& cfg
   auto cycle = [&] {
     const int64_t now = clock.now_ns() + period_ns;
     clock.sleep_until_ns(now);
-    ex.servo_cycle(now, false);
+    (void)machine.servo_cycle_inline(now);  // never fails: the machine is not started
     if (now >= next_poll_ns) {
       poll();
       next_poll_ns = now + poll_ns;
     }
   };
   auto run_until_idle = [&] {
-    ex.idle_tick(cancel);
+    machine.idle_tick_inline();
     while (ex.motion_pending() && clock.now_ns() < end_ns) cycle();
   };
   // As in feedloopd --virtual-time, time stands still until there is motion: the first servo
@@ -156,16 +150,12 @@ Result<VirtualPrintResult> record_virtual_print(const config::MachineConfig& cfg
     r.writer(Stream::io).gcode_line(clock.now_ns(), GcodeSource::file, line);
     Status st = gcode::parse_line(line, SourceLocation{print_name, line_no, 0}, cmd);
     if (st && cmd.empty()) continue;
-    if (st && is_heater_command(cmd)) {
-      ++out.commands;
-      continue;
-    }
     if (st && cmd.is('M', 400)) {  // the planner thread would wait for the machine: run it dry
       run_until_idle();
       ++out.commands;
       continue;
     }
-    if (st) st = ex.execute(cmd, cancel);
+    if (st) st = machine.execute_inline(cmd);
     if (!st) {
       ++out.rejected;
       if (out.first_error.empty()) out.first_error = "line " + std::to_string(line_no) + ": " + st.error().to_string();
