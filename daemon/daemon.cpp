@@ -1,5 +1,7 @@
 #include "daemon/daemon.hpp"
 
+#include <cmath>
+
 #include <spdlog/spdlog.h>
 
 #include <cstdio>  // snprintf
@@ -8,6 +10,7 @@
 #include "config/config.hpp"
 #include "daemon/runtime_dir.hpp"
 #include "engine/executor_factory.hpp"
+#include "engine/thermal_config.hpp"
 #include "gcode/parser.hpp"
 #include "recorder/options_from_config.hpp"
 #include "recorder/replay.hpp"
@@ -21,11 +24,34 @@ namespace {
 constexpr auto kTickInterval = std::chrono::milliseconds(5);
 constexpr const char* kVersion = "0.1.0";
 
+// Marlin's M105 answer: "ok T:210.0 /210.0 B:60.0 /60.0 @:127 B@:64" (the thermal loop's report;
+// a machine without heaters reports ambient zeros as before).
 std::string format_temp_reply(const engine::MachineStatus& s) {
+  if (s.num_heaters > 0) return std::string("ok ") + s.temp_report;
   char buf[160];
   std::snprintf(buf, sizeof buf, "ok T:%.1f /%.1f B:%.1f /%.1f @:0 B@:0", s.hotend_c,
                 s.hotend_target_c, s.bed_c, s.bed_target_c);
   return buf;
+}
+
+json heaters_json(const engine::MachineStatus& s) {
+  json out = json::array();
+  for (int i = 0; i < s.num_heaters; ++i) {
+    const engine::HeaterStatus& h = s.heaters[i];
+    out.push_back({{"name", h.name},
+                   {"temp_c", std::round(h.temp_c * 100.0) / 100.0},
+                   {"target_c", h.target_c},
+                   {"power", std::round(h.power * 1000.0) / 1000.0},
+                   {"faulted", h.faulted},
+                   {"autotuning", h.autotuning}});
+  }
+  return out;
+}
+
+json fans_json(const engine::MachineStatus& s) {
+  json out = json::array();
+  for (int i = 0; i < s.num_fans; ++i) out.push_back({{"name", s.fans[i].name}, {"speed", s.fans[i].speed}});
+  return out;
 }
 }  // namespace
 
@@ -199,6 +225,9 @@ Status Daemon::start_machine(std::unique_ptr<engine::CommandExecutor> executor,
                              std::string* warnings) {
   machine_ = std::make_unique<engine::Machine>(engine::machine_options(cfg_), *machine_clock_,
                                                std::move(executor));
+  auto thermal = engine::make_thermal_loop(cfg_);
+  if (!thermal) return thermal.error();
+  machine_->set_thermal(std::move(thermal.value()));
   machine_->set_done_callback([this](engine::CommandDone d) {
     asio::post(io_, [this, d = std::move(d)]() mutable { on_command_done(std::move(d)); });
   });
@@ -354,6 +383,10 @@ void Daemon::process_marlin_line(Client& c, std::string_view line) {
   }
   flush();  // e.g. "echo:Unknown command"
   if (is_query(cmd)) {
+    if (cmd.is('M', 155)) {  // Marlin's AUTO_REPORT_TEMPERATURES, per client
+      c.autoreport_period_ns = ns_from_seconds(cmd.has('S') ? cmd.get('S') : 0.0);
+      c.next_autoreport_ns = clock_.now_ns() + c.autoreport_period_ns;
+    }
     if (c.replies.empty()) {
       std::string answer;
       answer_query(cmd, answer);
@@ -399,7 +432,7 @@ void Daemon::flush_replies(Client& c) {
 bool Daemon::is_query(const gcode::Command& cmd) {
   if (cmd.empty()) return true;
   return cmd.letter == 'M' && (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 ||
-                               cmd.code == 117 || cmd.code == 73);
+                               cmd.code == 117 || cmd.code == 73 || cmd.code == 155);
 }
 
 bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply) {
@@ -413,6 +446,9 @@ bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply) {
   switch (cmd.code) {
     case 105:
       reply = format_temp_reply(s);
+      return true;
+    case 155:
+      reply = "ok";
       return true;
     case 114: {
       // Marlin's M114: the logical position, then each stepper's step counter
@@ -664,6 +700,8 @@ json Daemon::status() const {
           {"position_mm", {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
           {"temperatures_c",
            {{"hotend", s.hotend_c}, {"hotend_target", s.hotend_target_c}, {"bed", s.bed_c}, {"bed_target", s.bed_target_c}}},
+          {"heaters", heaters_json(s)},
+          {"fans", fans_json(s)},
           {"queue", {{"depth", s.queue_depth}, {"capacity", s.queue_capacity}}},
           {"commands", {{"executed", s.commands_executed}, {"rejected", s.commands_rejected}}},
           {"servo",
@@ -735,6 +773,27 @@ void Daemon::tick() {
     if (now - c.last_progress_ns > 2 * kNsPerS) {
       c.session->send_line("echo:busy: processing");
       c.last_progress_ns = now;
+    }
+  }
+  // M155 auto-reports (Marlin sends " T:.. /.. B:.. /.. @:.. B@:.." without an ok), and a log line
+  // every 5 s while a heater is on, so the log shows the temperatures settling.
+  {
+    bool due = now >= next_heater_log_ns_;
+    for (auto& [id, c] : clients_)
+      due = due || (c.kind == Kind::kMarlin && c.autoreport_period_ns > 0 && now >= c.next_autoreport_ns);
+    if (due) {  // a status copy only when something needs it
+      const engine::MachineStatus ms = machine_->status();
+      for (auto& [id, c] : clients_) {
+        if (c.kind != Kind::kMarlin || c.autoreport_period_ns <= 0 || now < c.next_autoreport_ns) continue;
+        c.session->send_line(" " + format_temp_reply(ms).substr(3));
+        c.next_autoreport_ns = now + c.autoreport_period_ns;
+      }
+      if (now >= next_heater_log_ns_) {
+        bool heating = false;
+        for (int i = 0; i < ms.num_heaters; ++i) heating = heating || ms.heaters[i].target_c > 0;
+        if (heating) spdlog::info("heaters: {}", ms.temp_report);
+        next_heater_log_ns_ = now + (heating ? 5 : 1) * kNsPerS;
+      }
     }
   }
   // Lines waiting for their turn or for the rate limit; flooding clients are dropped here.
