@@ -14,9 +14,12 @@ namespace {
 
 double kind_max_temp_c(HeaterKind k) {
   switch (k) {
-    case HeaterKind::extruder: return 500.0;  // all-metal hotends with a PT1000
-    case HeaterKind::bed: return 150.0;
-    case HeaterKind::chamber: return 100.0;
+    case HeaterKind::extruder:
+      return 500.0;  // all-metal hotends with a PT1000
+    case HeaterKind::bed:
+      return 150.0;
+    case HeaterKind::chamber:
+      return 100.0;
   }
   return 500.0;
 }
@@ -58,8 +61,10 @@ void read_heater(MapReader& m, HeaterConfig& h, Diagnostics& diag) {
   }
   m.number("min_temp_c", h.min_temp_c, Range::closed(-50.0, 500.0));
   const double kind_max = kind_max_temp_c(h.kind);
-  if (m.number("max_temp_c", h.max_temp_c, Range::open_closed(0.0, 1000.0)) && h.max_temp_c > kind_max)
-    diag.add(m.get("max_temp_c").Mark(), m.key_path("max_temp_c") + " = " + format_number(h.max_temp_c) +
+  if (m.number("max_temp_c", h.max_temp_c, Range::open_closed(0.0, 1000.0)) &&
+      h.max_temp_c > kind_max)
+    diag.add(m.get("max_temp_c").Mark(), m.key_path("max_temp_c") + " = " +
+                                             format_number(h.max_temp_c) +
                                              " C is implausible for a heater of kind " +
                                              enum_name(heater_kind_names(), h.kind) + " (at most " +
                                              format_number(kind_max) + " C)");
@@ -98,17 +103,20 @@ void read_heater(MapReader& m, HeaterConfig& h, Diagnostics& diag) {
   std::optional<thermal::SensorParams> sp;
   if (h.sensor == "thermistor") {
     if (!h.thermistor) {
-      diag.add(m.key_mark("sensor"), m.key_path("sensor") + ": thermistor needs a thermistor: mapping");
+      diag.add(m.key_mark("sensor"),
+               m.key_path("sensor") + ": thermistor needs a thermistor: mapping");
       return;
     }
     const ThermistorConfig& t = *h.thermistor;
     sp = t.form == ThermistorConfig::Form::beta
              ? thermal::beta_thermistor(t.t1_c, t.r1_ohm, t.beta, h.pullup_ohm)
-             : thermal::steinhart_hart(t.t1_c, t.r1_ohm, t.t2_c, t.r2_ohm, t.t3_c, t.r3_ohm, h.pullup_ohm);
+             : thermal::steinhart_hart(t.t1_c, t.r1_ohm, t.t2_c, t.r2_ohm, t.t3_c, t.r3_ohm,
+                                       h.pullup_ohm);
     if (!sp) {
-      diag.add(m.key_mark("thermistor"), m.key_path("thermistor") +
-                                             ": these points give no usable curve (the resistance must fall "
-                                             "as the temperature rises)");
+      diag.add(m.key_mark("thermistor"),
+               m.key_path("thermistor") +
+                   ": these points give no usable curve (the resistance must fall "
+                   "as the temperature rises)");
       return;
     }
   } else {
@@ -125,9 +133,11 @@ void read_heater(MapReader& m, HeaterConfig& h, Diagnostics& diag) {
     const double adc = thermal::adc_at(*sp, t);
     if (!(adc > defaults.short_adc && adc < defaults.open_adc))
       diag.add(m.key_mark(t == h.max_temp_c ? "max_temp_c" : "min_temp_c"),
-               m.path() + ": sensor '" + h.sensor + "' with pullup_ohm " + format_number(h.pullup_ohm) + " reads " +
-                   format_number(t) + " C as an ADC fraction of " + format_number(std::round(adc * 1e4) / 1e4) +
-                   ", indistinguishable from a " + (adc <= defaults.short_adc ? "short" : "broken wire") +
+               m.path() + ": sensor '" + h.sensor + "' with pullup_ohm " +
+                   format_number(h.pullup_ohm) + " reads " + format_number(t) +
+                   " C as an ADC fraction of " + format_number(std::round(adc * 1e4) / 1e4) +
+                   ", indistinguishable from a " +
+                   (adc <= defaults.short_adc ? "short" : "broken wire") +
                    "; narrow the temperature range or choose another sensor/pullup");
   }
 }
@@ -140,7 +150,8 @@ void read_thermal(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
     MapReader m = heaters.sub(name);
     HeaterConfig h;
     h.name = name;
-    if (name.size() > 15) diag.add(heaters.key_mark(name), "heater name '" + name + "' is longer than 15 characters");
+    if (name.size() > 15)
+      diag.add(heaters.key_mark(name), "heater name '" + name + "' is longer than 15 characters");
     read_heater(m, h, diag);
     m.finish();
     cfg.heaters.push_back(h);
@@ -153,13 +164,16 @@ void read_thermal(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
     MapReader m = fans.sub(name);
     FanConfig f;
     f.name = name;
-    if (name.size() > 15) diag.add(fans.key_mark(name), "fan name '" + name + "' is longer than 15 characters");
+    if (name.size() > 15)
+      diag.add(fans.key_mark(name), "fan name '" + name + "' is longer than 15 characters");
     m.choice("kind", f.kind, fan_kind_names(), Need::required);
     if (f.kind == FanKind::heater) {
       if (m.string("heater", f.heater, Need::required)) {
         bool found = false;
         for (const HeaterConfig& h : cfg.heaters) found = found || h.name == f.heater;
-        if (!found) diag.add(m.get("heater").Mark(), m.key_path("heater") + ": no heater named '" + f.heater + "'");
+        if (!found)
+          diag.add(m.get("heater").Mark(),
+                   m.key_path("heater") + ": no heater named '" + f.heater + "'");
       }
       m.number("heater_temp_c", f.heater_temp_c, Range::closed(0.0, 200.0));
     }

@@ -132,6 +132,7 @@ void Machine::set_error(const std::string& message) {
 MachineStatus Machine::status() const {
   MachineStatus s = status_.load();
   if (executor_) executor_->motion_status(s);  // live: the planner thread may be blocked
+  fill_thermal(s);                              // live: the thermal thread moves on its own
   return s;
 }
 
@@ -162,23 +163,7 @@ void Machine::publish_status() {
     executor_->position(s.pos_mm);
     executor_->motion_status(s);
   }
-  if (thermal_) {
-    thermal_->snapshot(s.heaters, s.num_heaters, s.fans, s.num_fans);
-    bool have_t = false, have_b = false;
-    for (int i = 0; i < s.num_heaters; ++i) {
-      const HeaterStatus& h = s.heaters[i];
-      if (h.marlin == 'T' && !have_t) {
-        have_t = true;
-        s.hotend_c = h.temp_c;
-        s.hotend_target_c = h.target_c;
-      } else if (h.marlin == 'B' && !have_b) {
-        have_b = true;
-        s.bed_c = h.temp_c;
-        s.bed_target_c = h.target_c;
-      }
-    }
-    std::snprintf(s.temp_report, sizeof s.temp_report, "%s", thermal_->marlin_report().c_str());
-  }
+  fill_thermal(s);
   s.queue_depth = static_cast<uint32_t>(queue_.size());
   s.queue_capacity = static_cast<uint32_t>(queue_.capacity());
   s.commands_executed = executed_.load();
@@ -188,6 +173,25 @@ void Machine::publish_status() {
     std::snprintf(s.last_error, sizeof s.last_error, "%s", last_error_.c_str());
   }
   status_.store(s);
+}
+
+void Machine::fill_thermal(MachineStatus& s) const {
+  if (!thermal_) return;
+  thermal_->snapshot(s.heaters, s.num_heaters, s.fans, s.num_fans);
+  bool have_t = false, have_b = false;
+  for (int i = 0; i < s.num_heaters; ++i) {
+    const HeaterStatus& h = s.heaters[i];
+    if (h.marlin == 'T' && !have_t) {
+      have_t = true;
+      s.hotend_c = h.temp_c;
+      s.hotend_target_c = h.target_c;
+    } else if (h.marlin == 'B' && !have_b) {
+      have_b = true;
+      s.bed_c = h.temp_c;
+      s.bed_target_c = h.target_c;
+    }
+  }
+  std::snprintf(s.temp_report, sizeof s.temp_report, "%s", thermal_->marlin_report().c_str());
 }
 
 bool Machine::is_machine_command(const gcode::Command& cmd) const {
@@ -200,8 +204,8 @@ bool Machine::is_machine_command(const gcode::Command& cmd) const {
 
 Status Machine::wait_for(const std::function<bool(double now_s)>& done) {
   for (;;) {
-    if (cancel_.load()) return Error{"wait for temperature cancelled"};
     if (auto f = thermal_->fault()) return Error{*f};
+    if (cancel_.load()) return Error{"wait for temperature cancelled"};
     if (done(seconds_from_ns(clock_.now_ns()))) return Status::Ok();
     if (clock_.is_virtual()) {
       // Virtual time is the wait's own while nothing moves (the servo thread advances it only for
@@ -308,7 +312,8 @@ void Machine::planner_main() {
       executed_.fetch_add(1);
     } else {
       rejected_.fetch_add(1);
-      set_error(st.error().to_string());
+      // Once stopped, the commands refused after it do not hide why it stopped.
+      if (!estop_.load()) set_error(st.error().to_string());
     }
     executing_.store(false);
     publish_status();

@@ -179,6 +179,7 @@ class Machine {
   void thermal_main();
   void on_thermal_fault(const std::string& message);
   void publish_status();
+  void fill_thermal(MachineStatus& s) const;
   void set_error(const std::string& message);
 
   MachineOptions options_;

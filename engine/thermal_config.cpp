@@ -10,7 +10,8 @@ thermal::SensorParams heater_sensor(const config::HeaterConfig& h) {
     const config::ThermistorConfig& t = *h.thermistor;
     s = t.form == config::ThermistorConfig::Form::beta
             ? thermal::beta_thermistor(t.t1_c, t.r1_ohm, t.beta, h.pullup_ohm)
-            : thermal::steinhart_hart(t.t1_c, t.r1_ohm, t.t2_c, t.r2_ohm, t.t3_c, t.r3_ohm, h.pullup_ohm);
+            : thermal::steinhart_hart(t.t1_c, t.r1_ohm, t.t2_c, t.r2_ohm, t.t3_c, t.r3_ohm,
+                                      h.pullup_ohm);
   } else {
     s = thermal::builtin_sensor(h.sensor, h.pullup_ohm);
   }
@@ -23,7 +24,9 @@ ThermalOptions thermal_options(const config::MachineConfig& cfg) {
   for (const config::HeaterConfig& h : cfg.heaters) {
     HeaterSpec s;
     s.name = h.name;
-    s.marlin = h.kind == config::HeaterKind::bed ? 'B' : h.kind == config::HeaterKind::chamber ? 'C' : 'T';
+    s.marlin = h.kind == config::HeaterKind::bed       ? 'B'
+               : h.kind == config::HeaterKind::chamber ? 'C'
+                                                       : 'T';
     s.sensor = heater_sensor(h);
     s.pid = thermal::PidParams{h.pid_kp, h.pid_ki, h.pid_kd, h.max_power, 1.0};
     thermal::ProtectionParams& p = s.protection;
@@ -60,8 +63,8 @@ Result<std::unique_ptr<ThermalLoop>> make_thermal_loop(const config::MachineConf
   if (cfg.heaters.empty() && cfg.fans.empty()) return std::unique_ptr<ThermalLoop>();
   for (const config::McuConfig& m : cfg.mcus)
     if (m.transport != config::TransportType::mock)
-      return Error{"heaters and fans are wired only on the simulated printer so far (mcu '" + m.name +
-                   "' is not mock); remove the heaters: and fans: sections"};
+      return Error{"heaters and fans are wired only on the simulated printer so far (mcu '" +
+                   m.name + "' is not mock); remove the heaters: and fans: sections"};
   const ThermalOptions o = thermal_options(cfg);
   return std::make_unique<ThermalLoop>(o, make_simulated_heater_link(cfg, o.mcu_clock_hz));
 }

@@ -10,7 +10,9 @@
 namespace feedloop::engine {
 
 namespace {
-uint16_t to_u16(double frac) { return static_cast<uint16_t>(std::lround(std::clamp(frac, 0.0, 1.0) * 65535.0)); }
+uint16_t to_u16(double frac) {
+  return static_cast<uint16_t>(std::lround(std::clamp(frac, 0.0, 1.0) * 65535.0));
+}
 }  // namespace
 
 ThermalLoop::ThermalLoop(ThermalOptions options, std::unique_ptr<HeaterLink> link)
@@ -45,7 +47,8 @@ void ThermalLoop::start(double now_s) {
     m.confirm_timeout_ticks = static_cast<uint32_t>(s.confirm_timeout_s * opt_.mcu_clock_hz);
     m.max_duty = to_u16(s.pid.max_power);
     uint8_t buf[32];
-    if (const size_t n = protocol::encode_configure_heater(m, buf, sizeof buf)) link_->send(now_s, buf, n);
+    if (const size_t n = protocol::encode_configure_heater(m, buf, sizeof buf))
+      link_->send(now_s, buf, n);
   }
   for (size_t i = 0; i < f_.size(); ++i) send_fan(static_cast<int>(i), 0.0, now_s);
 }
@@ -63,11 +66,12 @@ Status ThermalLoop::set_target(int heater, double target_c) {
   const HeaterSpec& s = opt_.heaters[static_cast<size_t>(heater)];
   if (target_c > s.protection.max_temp_c) {
     char buf[160];
-    std::snprintf(buf, sizeof buf, "heater %s: target %.1f C is above its max_temp_c %.1f C", s.name.c_str(),
-                  target_c, s.protection.max_temp_c);
+    std::snprintf(buf, sizeof buf, "heater %s: target %.1f C is above its max_temp_c %.1f C",
+                  s.name.c_str(), target_c, s.protection.max_temp_c);
     return Error{buf};
   }
-  if (fault_ && target_c > 0) return Error{"heater " + s.name + " is off after a thermal fault (" + *fault_ + "); send M999"};
+  if (fault_ && target_c > 0)
+    return Error{"heater " + s.name + " is off after a thermal fault (" + *fault_ + "); send M999"};
   Heater& h = h_[static_cast<size_t>(heater)];
   if (target_c != h.target_c) h.in_window_since_s = -1.0;
   h.target_c = std::max(0.0, target_c);
@@ -104,14 +108,16 @@ bool ThermalLoop::reached(int heater, bool heating_only, double now_s) {
 
 void ThermalLoop::send_heater(int i, double power, double now_s) {
   uint8_t buf[32];
-  const size_t n = protocol::encode_set_heater({static_cast<uint8_t>(i), to_u16(power)}, buf, sizeof buf);
+  const size_t n =
+      protocol::encode_set_heater({static_cast<uint8_t>(i), to_u16(power)}, buf, sizeof buf);
   if (n) link_->send(now_s, buf, n);
   h_[static_cast<size_t>(i)].power = power;
 }
 
 void ThermalLoop::send_fan(int i, double speed, double now_s) {
   uint8_t buf[32];
-  const size_t n = protocol::encode_set_fan({static_cast<uint8_t>(i), to_u16(speed)}, buf, sizeof buf);
+  const size_t n =
+      protocol::encode_set_fan({static_cast<uint8_t>(i), to_u16(speed)}, buf, sizeof buf);
   if (n) link_->send(now_s, buf, n);
   f_[static_cast<size_t>(i)].speed = speed;
 }
@@ -126,7 +132,8 @@ Status ThermalLoop::set_fan(int part_fan, double speed, double now_s) {
     double v = std::clamp(speed, 0.0, 1.0) * s.max_power;
     if (v < s.off_below) v = 0.0;
     f.requested = v;
-    // Klipper's fan.py: a kick at full power when starting from off or jumping up by more than half.
+    // Klipper's fan.py: a kick at full power when starting from off or jumping up by more than
+    // half.
     if (s.kick_start_s > 0 && v > 0 && v < 1.0 && (f.speed == 0.0 || v - f.speed > 0.5)) {
       f.kick_until_s = now_s + s.kick_start_s;
       send_fan(static_cast<int>(i), s.max_power, now_s);
@@ -166,7 +173,8 @@ void ThermalLoop::trip(int i, const std::string& why, double now_s) {
     h_[k].autotune.reset();
     send_heater(static_cast<int>(k), 0.0, now_s);
   }
-  if (autotune_heater_ >= 0 && !autotune_result_) autotune_result_ = Error{"autotune stopped: " + *fault_};
+  if (autotune_heater_ >= 0 && !autotune_result_)
+    autotune_result_ = Error{"autotune stopped: " + *fault_};
 }
 
 void ThermalLoop::all_off(double now_s) {
@@ -224,9 +232,10 @@ void ThermalLoop::handle(const uint8_t* msg, size_t n, double now_s) {
         if (h.autotune->state() == thermal::AutotuneState::kDone) {
           autotune_result_ = h.autotune->result();
         } else {
-          autotune_result_ = Error{std::string("PID autotune of ") + s.name + " failed: " +
-                                   (h.autotune->state() == thermal::AutotuneState::kTooHot ? "temperature too high"
-                                                                                           : "timeout")};
+          autotune_result_ =
+              Error{std::string("PID autotune of ") + s.name + " failed: " +
+                    (h.autotune->state() == thermal::AutotuneState::kTooHot ? "temperature too high"
+                                                                            : "timeout")};
         }
         h.autotune.reset();
         h.target_c = 0.0;
@@ -262,8 +271,10 @@ void ThermalLoop::handle(const uint8_t* msg, size_t n, double now_s) {
       f.a = s.protection.min_temp_c;
     }
     std::string why = thermal::describe(f, buf, sizeof buf);
-    if (m.reason == protocol::HeaterFaultReason::kBadConfig) why = "the MCU refused its configuration";
-    else why += " (detected by the MCU)";
+    if (m.reason == protocol::HeaterFaultReason::kBadConfig)
+      why = "the MCU refused its configuration";
+    else
+      why += " (detected by the MCU)";
     trip(m.heater, why, now_s);
   }
 }
@@ -293,7 +304,8 @@ Status ThermalLoop::start_autotune(int heater, double target_c, int cycles) {
   std::lock_guard lock(mu_);
   if (heater < 0 || heater >= static_cast<int>(h_.size())) return Error{"M303: no such heater"};
   const HeaterSpec& s = opt_.heaters[static_cast<size_t>(heater)];
-  if (fault_) return Error{"M303: heaters are off after a thermal fault (" + *fault_ + "); send M999"};
+  if (fault_)
+    return Error{"M303: heaters are off after a thermal fault (" + *fault_ + "); send M999"};
   if (!(target_c > 0 && target_c < s.protection.max_temp_c - 5.0))
     return Error{"M303: S must be above 0 and at least 5 C below max_temp_c of " + s.name};
   thermal::AutotuneParams p;
@@ -314,7 +326,8 @@ std::optional<Result<thermal::PidParams>> ThermalLoop::autotune_done(bool use_re
   if (!autotune_result_) return std::nullopt;
   auto r = std::move(autotune_result_);
   autotune_result_.reset();
-  if (use_result && r->ok() && autotune_heater_ >= 0) h_[static_cast<size_t>(autotune_heater_)].pid.set_params(r->value());
+  if (use_result && r->ok() && autotune_heater_ >= 0)
+    h_[static_cast<size_t>(autotune_heater_)].pid.set_params(r->value());
   autotune_heater_ = -1;
   return r;
 }
@@ -335,13 +348,24 @@ std::string ThermalLoop::marlin_report() const {
     } else {
       power_label = letter + "@";
     }
-    std::snprintf(buf, sizeof buf, "%s%s:%.1f /%.1f", temps.empty() ? "" : " ", letter.c_str(), h_[i].temp_c,
-                  h_[i].target_c);
+    std::snprintf(buf, sizeof buf, "%s%s:%.1f /%.1f", temps.empty() ? "" : " ", letter.c_str(),
+                  h_[i].temp_c, h_[i].target_c);
     temps += buf;
-    std::snprintf(buf, sizeof buf, " %s:%d", power_label.c_str(), static_cast<int>(std::lround(h_[i].power * 127.0)));
+    std::snprintf(buf, sizeof buf, " %s:%d", power_label.c_str(),
+                  static_cast<int>(std::lround(h_[i].power * 127.0)));
     powers += buf;
   }
   return temps + powers;
+}
+
+thermal::ProtectionMargins ThermalLoop::margins(int heater) const {
+  std::lock_guard lock(mu_);
+  return h_[static_cast<size_t>(heater)].protection.margins();
+}
+
+double ThermalLoop::now_s() const {
+  std::lock_guard lock(mu_);
+  return now_s_;
 }
 
 void ThermalLoop::snapshot(HeaterStatus* heaters, int& nh, FanStatus* fans, int& nf) const {

@@ -36,13 +36,14 @@ class HeaterLink {
 
 struct HeaterSpec {
   std::string name = "extruder";
-  char marlin = 'T';  // how Marlin names it: 'T' hotend (M104/M109), 'B' bed (M140/M190), 'C' chamber
-  int tool = 0;       // T index among the hotends
+  char marlin =
+      'T';       // how Marlin names it: 'T' hotend (M104/M109), 'B' bed (M140/M190), 'C' chamber
+  int tool = 0;  // T index among the hotends
   thermal::SensorParams sensor;
   thermal::PidParams pid;
   thermal::ProtectionParams protection;
-  double report_period_s = 0.3;  // Klipper's REPORT_TIME
-  int oversample = 8;            // ADC samples per report
+  double report_period_s = 0.3;    // Klipper's REPORT_TIME
+  int oversample = 8;              // ADC samples per report
   double confirm_timeout_s = 3.0;  // the MCU's own off switch (Klipper's MAX_HEAT_TIME)
   // M109/M190 waits (Marlin TEMP_WINDOW, TEMP_HYSTERESIS, TEMP_RESIDENCY_TIME).
   double window_c = 1.0, hysteresis_c = 3.0, residency_s = 10.0;
@@ -113,6 +114,9 @@ class ThermalLoop {
   // Marlin's temperature report: "T:210.0 /210.0 B:60.0 /60.0 @:127 B@:64".
   std::string marlin_report() const;
   void snapshot(HeaterStatus* heaters, int& nh, FanStatus* fans, int& nf) const;
+  thermal::ProtectionMargins margins(int heater) const;
+  HeaterLink& link() { return *link_; }
+  double now_s() const;
 
  private:
   struct Heater {

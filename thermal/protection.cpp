@@ -88,7 +88,7 @@ ThermalFault ThermalProtection::trip(ThermalRule r, double t_s, double temp_c, d
 }
 
 ThermalFault ThermalProtection::check(double t_s, double temp_c, double target_c, double adc,
-                                      bool heater_on) {
+                                      bool /*heater_on*/) {
   if (fault_) return fault_;
   // Sensor and range (checked always, heater on or off: Marlin's min/max temp, Klipper's ADC
   // range).
@@ -98,13 +98,19 @@ ThermalFault ThermalProtection::check(double t_s, double temp_c, double target_c
     return trip(ThermalRule::kMaxTemp, t_s, temp_c, target_c, p_.max_temp_c, 0, 0);
   if (!(temp_c >= p_.min_temp_c))
     return trip(ThermalRule::kMinTemp, t_s, temp_c, target_c, p_.min_temp_c, 0, 0);
+  m_.max_temp_c = std::max(m_.max_temp_c, temp_c);
+  m_.min_temp_c = std::min(m_.min_temp_c, temp_c);
   const bool on = target_c > 0.0;
 
   // Stuck sensor.
-  if (!on || !heater_on || adc != stuck_adc_) {
+  // With a target set, the heater on or regulating off: a live sensor never reads the same twice
+  // for long. (Off, a frozen reading harms nothing.)
+  if (!on || adc != stuck_adc_) {
     stuck_adc_ = adc;
     stuck_since_s_ = t_s;
-  } else if (p_.stuck_period_s > 0 && t_s - stuck_since_s_ >= p_.stuck_period_s) {
+  }
+  m_.max_stuck_s = std::max(m_.max_stuck_s, t_s - stuck_since_s_);
+  if (on && p_.stuck_period_s > 0 && t_s - stuck_since_s_ >= p_.stuck_period_s) {
     return trip(ThermalRule::kStuckSensor, t_s, temp_c, target_c, adc, t_s - stuck_since_s_, 0);
   }
 
@@ -121,6 +127,7 @@ ThermalFault ThermalProtection::check(double t_s, double temp_c, double target_c
     last_target_c_ = target_c;
   }
   if (watching_ && t_s >= watch_deadline_s_) {
+    m_.min_watch_headroom_c = std::min(m_.min_watch_headroom_c, temp_c - watch_goal_c_);
     if (temp_c < watch_goal_c_)
       return trip(ThermalRule::kHeatingWatch, t_s, temp_c, target_c, watch_goal_c_,
                   p_.watch_period_s, p_.watch_increase_c);
@@ -140,6 +147,7 @@ ThermalFault ThermalProtection::check(double t_s, double temp_c, double target_c
         }
         break;
       case Runaway::kStable:
+        m_.max_below_hysteresis_s = std::max(m_.max_below_hysteresis_s, t_s - runaway_since_s_);
         if (temp_c >= target_c - p_.runaway_hysteresis_c) {
           runaway_since_s_ = t_s;
         } else if (t_s - runaway_since_s_ >= p_.runaway_period_s) {
@@ -160,6 +168,8 @@ ThermalFault ThermalProtection::check(double t_s, double temp_c, double target_c
       if (temp_c <= target_c + h) verify_error_cs_ = 0.0;
     } else {
       verify_error_cs_ += (target_c - h) - temp_c;
+      if (!approaching_)
+        m_.max_verify_error_cs = std::max(m_.max_verify_error_cs, verify_error_cs_);
       if (!approaching_) {
         if (target_c != verify_last_target_c_) {
           approaching_ = starting_approach_ = true;

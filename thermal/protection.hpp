@@ -15,8 +15,9 @@
 //    2 C), evaluated once a second: the integrated shortfall below target - hysteresis may not
 //    exceed max_error C*s unless the heater is still approaching (gaining heating_gain within
 //    check_gain_time).
-//  - stuck sensor (feedloop's own rule; neither firmware has it): with the heater on, the raw ADC
-//    value did not change at all for stuck_period_s. A real ADC always shows some noise.
+//  - stuck sensor (feedloop's own rule; neither firmware has it): with a target set, the reported
+//    ADC value (the mean of the report's samples) did not change at all for stuck_period_s. A real
+//    ADC always shows some noise; a quiet one needs a longer stuck_period_s (0 disables the rule).
 #pragma once
 
 #include <cstdint>
@@ -67,6 +68,18 @@ struct ThermalFault {
 // Writes at most cap bytes (NUL-terminated); returns buf.
 const char* describe(const ThermalFault& f, char* buf, unsigned cap);
 
+// How close a heater came to each rule (for the benchmark of the margins, bench/thermal): the
+// smallest gain over target at a watch deadline (C above the goal), the longest time below the
+// runaway hysteresis, the largest verify_heater error, the longest unchanged ADC, the hottest and
+// coldest reading.
+struct ProtectionMargins {
+  double min_watch_headroom_c = 1e9;
+  double max_below_hysteresis_s = 0.0;
+  double max_verify_error_cs = 0.0;
+  double max_stuck_s = 0.0;
+  double max_temp_c = -1e9, min_temp_c = 1e9;
+};
+
 class ThermalProtection {
  public:
   explicit ThermalProtection(const ProtectionParams& p = {}) : p_(p) {}
@@ -74,6 +87,7 @@ class ThermalProtection {
   // whether the heater was driven (power > 0). Returns the first fault (latched) or none.
   ThermalFault check(double t_s, double temp_c, double target_c, double adc, bool heater_on);
   const ThermalFault& fault() const { return fault_; }
+  const ProtectionMargins& margins() const { return m_; }
   void reset();  // clears a latched fault (M999 / a new print)
   const ProtectionParams& params() const { return p_; }
 
@@ -82,6 +96,7 @@ class ThermalProtection {
                     double c);
   ProtectionParams p_;
   ThermalFault fault_;
+  ProtectionMargins m_;
   double last_target_c_ = 0.0;
   // Marlin watch
   bool watching_ = false;
