@@ -372,6 +372,7 @@ void write_thermal(Writer& w, const MachineConfig& c) {
       w.num("min_temp_c", h.min_temp_c);
       w.num("max_temp_c", h.max_temp_c);
       w.num("max_power", h.max_power);
+      w.num("residency_s", h.residency_s);
       w.begin("pid");
       w.num("kp", h.pid_kp);
       w.num("ki", h.pid_ki);

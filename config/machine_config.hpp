@@ -455,6 +455,7 @@ struct HeaterConfig {
   double pullup_ohm = 4700.0;
   double min_temp_c = 0.0, max_temp_c = 275.0;
   double max_power = 1.0;
+  double residency_s = 10.0;  // M109/M190: time within 1 C before the wait ends (Marlin TEMP_RESIDENCY_TIME)
   double pid_kp = 22.2, pid_ki = 1.08, pid_kd = 114.0;  // Marlin/Klipper units (per 255 of power)
   HeaterProtectionConfig protection;
   HeaterPlantConfig plant;

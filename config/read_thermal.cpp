@@ -36,7 +36,7 @@ void read_heater(MapReader& m, HeaterConfig& h, Diagnostics& diag) {
     h.protection.runaway_period_s = 20.0;  // THERMAL_PROTECTION_BED_PERIOD / HYSTERESIS
     h.protection.runaway_hysteresis_c = 2.0;
     h.protection.verify_gain_time_s = 60.0;  // Klipper's bed default check_gain_time
-    h.plant = HeaterPlantConfig{200.0, 600.0, 1.5, 0.1, 4.0, 3.0, 22.0};
+    h.plant = HeaterPlantConfig{250.0, 350.0, 1.2, 0.1, 3.0, 3.0, 22.0};
   }
   m.string("sensor", h.sensor);
   m.number("pullup_ohm", h.pullup_ohm, Range::positive());
@@ -72,6 +72,7 @@ void read_heater(MapReader& m, HeaterConfig& h, Diagnostics& diag) {
     diag.add(m.key_mark("min_temp_c"), m.key_path("min_temp_c") + " must be below max_temp_c (" +
                                            format_number(h.max_temp_c) + " C)");
   m.number("max_power", h.max_power, Range::open_closed(0.0, 1.0));
+  m.number("residency_s", h.residency_s, Range::closed(0.0, 120.0));
   MapReader pid = m.sub("pid");
   pid.number("kp", h.pid_kp, Range::positive());
   pid.number("ki", h.pid_ki, Range::non_negative());

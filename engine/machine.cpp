@@ -12,11 +12,16 @@ namespace feedloop::engine {
 
 const char* to_string(MachineState s) {
   switch (s) {
-    case MachineState::kIdle: return "idle";
-    case MachineState::kBusy: return "busy";
-    case MachineState::kError: return "error";
-    case MachineState::kEmergencyStopped: return "emergency_stopped";
-    case MachineState::kStopped: return "stopped";
+    case MachineState::kIdle:
+      return "idle";
+    case MachineState::kBusy:
+      return "busy";
+    case MachineState::kError:
+      return "error";
+    case MachineState::kEmergencyStopped:
+      return "emergency_stopped";
+    case MachineState::kStopped:
+      return "stopped";
   }
   return "unknown";
 }
@@ -35,7 +40,9 @@ void Machine::set_thermal(std::unique_ptr<ThermalLoop> thermal) {
   publish_status();
 }
 
-Machine::~Machine() { stop(); }
+Machine::~Machine() {
+  stop();
+}
 
 Status Machine::start(std::string* warnings) {
   if (started_) return Error{"machine already started"};
@@ -120,7 +127,8 @@ void Machine::thermal_main() {
   // the MCU's 3 s; in virtual time it follows the clock as the servo thread advances it.
   while (!stopping_.load()) {
     thermal_step();
-    std::this_thread::sleep_for(clock_.is_virtual() ? std::chrono::milliseconds(1) : std::chrono::milliseconds(20));
+    std::this_thread::sleep_for(clock_.is_virtual() ? std::chrono::milliseconds(1)
+                                                    : std::chrono::milliseconds(20));
   }
 }
 
@@ -132,7 +140,7 @@ void Machine::set_error(const std::string& message) {
 MachineStatus Machine::status() const {
   MachineStatus s = status_.load();
   if (executor_) executor_->motion_status(s);  // live: the planner thread may be blocked
-  fill_thermal(s);                              // live: the thermal thread moves on its own
+  fill_thermal(s);                             // live: the thermal thread moves on its own
   return s;
 }
 
@@ -195,8 +203,8 @@ void Machine::fill_thermal(MachineStatus& s) const {
 }
 
 bool Machine::is_machine_command(const gcode::Command& cmd) const {
-  if (cmd.is('M', 104) || cmd.is('M', 109) || cmd.is('M', 140) || cmd.is('M', 190) || cmd.is('M', 303) ||
-      (cmd.is('G', 10) && cmd.has('P')))
+  if (cmd.is('M', 104) || cmd.is('M', 109) || cmd.is('M', 140) || cmd.is('M', 190) ||
+      cmd.is('M', 303) || (cmd.is('G', 10) && cmd.has('P')))
     return true;
   // Fans are the machine's when it has any; otherwise the executor takes (and ignores) them.
   return thermal_ && thermal_->num_fans() > 0 && (cmd.is('M', 106) || cmd.is('M', 107));
@@ -229,7 +237,8 @@ Status Machine::wait_for(const std::function<bool(double now_s)>& done) {
 // M107 P<fan>, M303 E<heater, -1 bed> S<temp> C<cycles> U<use>.
 Status Machine::execute_machine_command(const gcode::Command& cmd) {
   if (!thermal_) {
-    if (cmd.is('M', 303)) return Error{"M303: this machine has no heaters (no heaters: section in the config)"};
+    if (cmd.is('M', 303))
+      return Error{"M303: this machine has no heaters (no heaters: section in the config)"};
     return Status::Ok();  // no heaters configured: nothing to heat, nothing to wait for
   }
   const double now_s = seconds_from_ns(clock_.now_ns());
@@ -242,7 +251,8 @@ Status Machine::execute_machine_command(const gcode::Command& cmd) {
     const int e = cmd.has('E') ? static_cast<int>(cmd.get('E')) : 0;
     const int heater = e < 0 ? thermal_->find_heater('B') : thermal_->find_heater('T', e);
     if (heater < 0) return Error{"M303: no heater E" + std::to_string(e)};
-    const double target = cmd.has('S') ? cmd.get('S') : (e < 0 ? 70.0 : 150.0);  // Marlin's defaults
+    const double target =
+        cmd.has('S') ? cmd.get('S') : (e < 0 ? 70.0 : 150.0);  // Marlin's defaults
     const int cycles = cmd.has('C') ? static_cast<int>(cmd.get('C')) : 5;
     if (Status st = thermal_->start_autotune(heater, target, cycles); !st) return st;
     const bool use = cmd.has('U') && cmd.get('U') != 0;
@@ -255,7 +265,8 @@ Status Machine::execute_machine_command(const gcode::Command& cmd) {
     if (!result->ok()) return result->error();
     char buf[160];
     const thermal::PidParams& g = result->value();
-    std::snprintf(buf, sizeof buf, "PID autotune of %s finished: pid_Kp=%.3f pid_Ki=%.3f pid_Kd=%.3f%s",
+    std::snprintf(buf, sizeof buf,
+                  "PID autotune of %s finished: pid_Kp=%.3f pid_Ki=%.3f pid_Kd=%.3f%s",
                   thermal_->spec(heater).name.c_str(), g.kp, g.ki, g.kd, use ? " (in use)" : "");
     autotune_report_ = buf;
     return Status::Ok();

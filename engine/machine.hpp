@@ -37,8 +37,10 @@ const char* to_string(MachineState s);
 struct MachineStatus {
   MachineState state = MachineState::kIdle;
   double pos_mm[4] = {0, 0, 0, 0};  // X Y Z E of the last executed command (planned position)
-  double hotend_c = 0, hotend_target_c = 0, bed_c = 0, bed_target_c = 0;  // the first T and B heater
-  // Heaters and fans (engine/thermal_loop.hpp); temp_report: Marlin's "T:210.0 /210.0 B:.. @:.. B@:..".
+  double hotend_c = 0, hotend_target_c = 0, bed_c = 0,
+         bed_target_c = 0;  // the first T and B heater
+  // Heaters and fans (engine/thermal_loop.hpp); temp_report: Marlin's "T:210.0 /210.0 B:.. @:..
+  // B@:..".
   HeaterStatus heaters[ThermalLoop::kMaxHeaters] = {};
   int num_heaters = 0;
   FanStatus fans[ThermalLoop::kMaxFans] = {};
@@ -49,23 +51,24 @@ struct MachineStatus {
   uint64_t commands_executed = 0;
   uint64_t commands_rejected = 0;
   // Motion (filled by the executor)
-  bool moving = false;              // print time is anchored on the machine clock
-  double print_time_s = 0.0;        // print time being executed now
-  double planned_until_s = 0.0;     // end of the last planned segment
+  bool moving = false;           // print time is anchored on the machine clock
+  double print_time_s = 0.0;     // print time being executed now
+  double planned_until_s = 0.0;  // end of the last planned segment
   uint64_t moves_planned = 0;
-  uint64_t segments_queued = 0;     // joint segments waiting for the servo thread
-  uint64_t motion_starts = 0;       // times motion started from rest
-  uint64_t lost_step_events = 0;    // closed loop: slips detected (and made up)
+  uint64_t segments_queued = 0;   // joint segments waiting for the servo thread
+  uint64_t motion_starts = 0;     // times motion started from rest
+  uint64_t lost_step_events = 0;  // closed loop: slips detected (and made up)
   // Tracking error e_t measured from the encoders: |r - x_enc| over the joints with an encoder
   // (x and y on the gantry: the thesis's e_t), at each fresh report while motion runs.
   double tracking_error_mean_mm = 0.0, tracking_error_max_mm = 0.0;
   uint64_t tracking_error_samples = 0;
-  uint64_t late_cycles = 0;         // sampled path: the plan paused for a late servo cycle
-  double encoder_mm[4] = {0, 0, 0, 0};  // latest encoder reading per joint from the MCUs (NaN: none)
-  uint64_t encoder_samples = 0;         // encoder samples received from the MCUs
-  int64_t step_count[4] = {0, 0, 0, 0};  // each joint's step counter (the executor steps them)
-  bool has_step_count = false;           // false: this executor makes no steps
-  LinkTelemetrySet links;               // each MCU link (frames, retransmissions, round trips)
+  uint64_t late_cycles = 0;  // sampled path: the plan paused for a late servo cycle
+  double encoder_mm[4] = {0, 0, 0,
+                          0};    // latest encoder reading per joint from the MCUs (NaN: none)
+  uint64_t encoder_samples = 0;  // encoder samples received from the MCUs
+  int64_t step_count[4] = {0, 0, 0, 0};   // each joint's step counter (the executor steps them)
+  bool has_step_count = false;            // false: this executor makes no steps
+  LinkTelemetrySet links;                 // each MCU link (frames, retransmissions, round trips)
   DeviceLoopTelemetrySet device_loops{};  // each joint's device loop (e, y, correction, tick cost)
   char last_error[192] = {};
 };
@@ -109,7 +112,9 @@ class CommandExecutor {
   // Virtual time only: may the servo thread advance time now? It must not run past the motion
   // the planner is still producing (that would cut the motion into pieces), but must advance
   // when the planner has nothing more to give. `planner_busy`: a command is queued or executing.
-  virtual bool may_advance_virtual(bool planner_busy) const { return !planner_busy || motion_pending(); }
+  virtual bool may_advance_virtual(bool planner_busy) const {
+    return !planner_busy || motion_pending();
+  }
   // Fills the motion fields of a status snapshot. Any thread.
   virtual void motion_status(MachineStatus& /*s*/) const {}
 };
@@ -117,7 +122,7 @@ class CommandExecutor {
 struct MachineOptions {
   double servo_rate_hz = 1000.0;
   size_t command_queue_capacity = 64;
-  int realtime_priority = 80;   // SCHED_FIFO priority of the servo thread (0 = do not try)
+  int realtime_priority = 80;  // SCHED_FIFO priority of the servo thread (0 = do not try)
   bool lock_memory = true;
 };
 

@@ -28,6 +28,7 @@ ThermalOptions thermal_options(const config::MachineConfig& cfg) {
                : h.kind == config::HeaterKind::chamber ? 'C'
                                                        : 'T';
     s.sensor = heater_sensor(h);
+    s.residency_s = h.residency_s;
     s.pid = thermal::PidParams{h.pid_kp, h.pid_ki, h.pid_kd, h.max_power, 1.0};
     thermal::ProtectionParams& p = s.protection;
     p.min_temp_c = h.min_temp_c;
