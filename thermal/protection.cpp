@@ -63,8 +63,8 @@ const char* describe(const ThermalFault& f, char* buf, unsigned cap) {
                     f.a, f.target_c, f.c, f.b);
       break;
     case ThermalRule::kStuckSensor:
-      std::snprintf(buf, cap, "%s: adc %.5f unchanged for %.1f s with the heater on", name, f.a,
-                    f.b);
+      std::snprintf(buf, cap, "%s: adc %.5f unchanged for %.1f s with a target of %.1f C", name, f.a,
+                    f.b, f.target_c);
       break;
     case ThermalRule::kMcuWatchdog:
       std::snprintf(buf, cap, "%s: no confirmation from the host for %.1f s, heater off", name,
@@ -168,14 +168,13 @@ ThermalFault ThermalProtection::check(double t_s, double temp_c, double target_c
       if (temp_c <= target_c + h) verify_error_cs_ = 0.0;
     } else {
       verify_error_cs_ += (target_c - h) - temp_c;
-      if (!approaching_)
-        m_.max_verify_error_cs = std::max(m_.max_verify_error_cs, verify_error_cs_);
       if (!approaching_) {
         if (target_c != verify_last_target_c_) {
           approaching_ = starting_approach_ = true;
           goal_temp_c_ = temp_c + p_.verify_heating_gain_c;
           goal_time_s_ = t_s + p_.verify_gain_time_s;
-        } else if (verify_error_cs_ >= p_.verify_max_error_cs) {
+        } else if (m_.max_verify_error_cs = std::max(m_.max_verify_error_cs, verify_error_cs_);
+                   verify_error_cs_ >= p_.verify_max_error_cs) {
           return trip(ThermalRule::kVerifyHeater, t_s, temp_c, target_c, verify_error_cs_,
                       p_.verify_max_error_cs, h);
         }

@@ -130,6 +130,7 @@ int main(int argc, char** argv) {
           const double t_end = t + 30.0;
           for (; t < t_end; t += 0.05) (void)loop->step_to(t);
         }
+        (void)loop->step_to(t);  // the device has sampled up to t: the fault acts from here on
         const double ti = t;
         engine::simulated_thermal_plant(loop->link(), h)->inject(ti, k);
         std::string msg = "NOT CAUGHT";
