@@ -340,9 +340,12 @@ void Machine::servo_main() {
     if (clock_.is_virtual() &&
         ((!executor_->motion_pending() && !executor_->settling()) ||
          !executor_->may_advance_virtual(!queue_.empty() || executing_.load()))) {
-      // Virtual time moves only while there is motion to simulate; otherwise wait for work.
+      // Virtual time moves only while there is motion to simulate; otherwise wait for work. A
+      // heater wait may advance the clock meanwhile (Machine::wait_for): the next cycle is due one
+      // period after the present, not at a deadline the idle time left behind (no false misses).
       std::this_thread::sleep_for(std::chrono::microseconds(200));
       servo_last_cycle_ns_.store(clock_.now_ns(), std::memory_order_release);
+      deadline = clock_.now_ns() + period_ns;
       continue;
     }
     clock_.sleep_until_ns(deadline);

@@ -64,7 +64,11 @@ TEST(ThermalMachine, M190AndM109WaitOnTheMachineClockAndSettle) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   const double virt_s = seconds_from_ns(r.clock.now_ns()) - 1.0;
   const MachineStatus s = r.m->status();
+  const ServoStatus servo = r.m->servo_status();
   r.m->stop();
+  // The wait advanced the virtual clock while the servo thread idled: no cycle counts it as late.
+  EXPECT_EQ(servo.deadline_misses, 0u);
+  EXPECT_GT(servo.cycles, 100u);  // the move ran
   std::printf("heat-up: %.1f s of machine time in %.2f s wall; T %.2f B %.2f\n", virt_s, wall_s,
               s.hotend_c, s.bed_c);
   EXPECT_EQ(r.done.load(), r.ticket);
