@@ -154,10 +154,28 @@ class Machine {
   // Stops motion safely: cancels queued commands, stops the threads, waits for them.
   void stop();
 
+  // Batch mode (no threads: never start()ed): runs one command on the calling thread through the
+  // planner stage's own dispatch (planner_main), so batch, virtual and real time share it. There
+  // is no servo stage: an executor that needs one (MotionExecutor) must be run with start().
+  Status execute_inline(const gcode::Command& cmd);
+
+  // One-thread runs (never start()ed; run_simulated: deterministic virtual time): the caller
+  // interleaves execute_inline() with one servo period at a time, at its own virtual now_ns
+  // (a gap of more than a period counts as deadline misses, as on the clock), and lets the
+  // planner stage do its idle work (release the lookahead's tail).
+  Status servo_cycle_inline(int64_t now_ns);
+  void idle_tick_inline();
+
   // I/O thread only. Returns false (and keeps `cmd`) when the queue is full.
   bool try_submit(uint64_t ticket, const gcode::Command& cmd);
   // Any thread. Latches kEmergencyStopped; queued commands are cancelled.
   void emergency_stop(const std::string& reason);
+
+  // Fault injection (the real-time lateness test, `docs/decisions.md` "Host stalls"): the planner
+  // and servo threads each sleep `duration_ns` at their next turn, as a host that is descheduled
+  // does (with simulated MCUs the servo thread is also the link's I/O, so that stops too). Any
+  // thread; a second request before the first is taken replaces it.
+  void inject_stall(int64_t duration_ns);
 
   MachineStatus status() const;
   ServoStatus servo_status() const { return servo_status_.load(); }
@@ -175,6 +193,8 @@ class Machine {
   };
   void planner_main();
   void servo_main();
+  void servo_tick(ServoStatus& st, int64_t wake_ns, int64_t late_ns, int64_t period_ns);
+  Status dispatch(const gcode::Command& cmd);  // the planner stage: machine commands or executor
   Status execute_machine_command(const gcode::Command& cmd);  // heaters, fans, waits
   bool is_machine_command(const gcode::Command& cmd) const;
   // Waits until the heater's temperature is reached (M109/M190) or the autotune ends (M303):
@@ -197,6 +217,7 @@ class Machine {
   std::condition_variable wake_cv_;
 
   std::atomic<bool> stopping_{false};
+  std::atomic<int64_t> planner_stall_ns_{0}, servo_stall_ns_{0};  // inject_stall, not yet taken
   std::atomic<bool> cancel_{false};
   std::atomic<bool> estop_{false};
   std::atomic<bool> executing_{false};
@@ -208,6 +229,7 @@ class Machine {
   std::string autotune_report_;  // planner thread: the last M303 result
   Seqlock<MachineStatus> status_;
   Seqlock<ServoStatus> servo_status_;
+  ServoStatus inline_servo_;  // the caller's, in one-thread runs
   std::atomic<int64_t> servo_last_cycle_ns_{0};
 
   std::mutex error_mutex_;  // protects last_error_
