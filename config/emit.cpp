@@ -345,6 +345,82 @@ void write_runtime(Writer& w, const MachineConfig& c) {
   w.end();
 }
 
+void write_thermal(Writer& w, const MachineConfig& c) {
+  if (!c.heaters.empty()) {
+    w.begin("heaters");
+    for (const HeaterConfig& h : c.heaters) {
+      w.begin(h.name);
+      w.word("kind", enum_name(heater_kind_names(), h.kind));
+      w.str("sensor", h.sensor);
+      if (h.thermistor) {
+        const ThermistorConfig& t = *h.thermistor;
+        w.begin("thermistor");
+        w.word("form", enum_name(thermistor_form_names(), t.form));
+        w.num("t1_c", t.t1_c);
+        w.num("r1_ohm", t.r1_ohm);
+        if (t.form == ThermistorConfig::Form::beta) {
+          w.num("beta", t.beta);
+        } else {
+          w.num("t2_c", t.t2_c);
+          w.num("r2_ohm", t.r2_ohm);
+          w.num("t3_c", t.t3_c);
+          w.num("r3_ohm", t.r3_ohm);
+        }
+        w.end();
+      }
+      w.num("pullup_ohm", h.pullup_ohm);
+      w.num("min_temp_c", h.min_temp_c);
+      w.num("max_temp_c", h.max_temp_c);
+      w.num("max_power", h.max_power);
+      w.num("residency_s", h.residency_s);
+      w.begin("pid");
+      w.num("kp", h.pid_kp);
+      w.num("ki", h.pid_ki);
+      w.num("kd", h.pid_kd);
+      w.end();
+      const HeaterProtectionConfig& p = h.protection;
+      w.begin("protection");
+      w.num("watch_period_s", p.watch_period_s);
+      w.num("watch_increase_c", p.watch_increase_c);
+      w.num("runaway_period_s", p.runaway_period_s);
+      w.num("runaway_hysteresis_c", p.runaway_hysteresis_c);
+      w.num("verify_max_error", p.verify_max_error);
+      w.num("verify_gain_time_s", p.verify_gain_time_s);
+      w.num("verify_hysteresis_c", p.verify_hysteresis_c);
+      w.num("verify_heating_gain_c", p.verify_heating_gain_c);
+      w.num("stuck_period_s", p.stuck_period_s);
+      w.end();
+      w.begin("plant");
+      w.num("power_w", h.plant.power_w);
+      w.num("heat_capacity_j_k", h.plant.heat_capacity_j_k);
+      w.num("loss_w_k", h.plant.loss_w_k);
+      w.num("fan_loss_w_k", h.plant.fan_loss_w_k);
+      w.num("delay_s", h.plant.delay_s);
+      w.num("sensor_tau_s", h.plant.sensor_tau_s);
+      w.num("ambient_c", h.plant.ambient_c);
+      w.end();
+      w.end();
+    }
+    w.end();
+  }
+  if (!c.fans.empty()) {
+    w.begin("fans");
+    for (const FanConfig& f : c.fans) {
+      w.begin(f.name);
+      w.word("kind", enum_name(fan_kind_names(), f.kind));
+      if (f.kind == FanKind::heater) {
+        w.str("heater", f.heater);
+        w.num("heater_temp_c", f.heater_temp_c);
+      }
+      w.num("kick_start_s", f.kick_start_s);
+      w.num("off_below", f.off_below);
+      w.num("max_power", f.max_power);
+      w.end();
+    }
+    w.end();
+  }
+}
+
 }  // namespace
 
 std::string to_yaml(const MachineConfig& c) {
@@ -358,6 +434,7 @@ std::string to_yaml(const MachineConfig& c) {
   write_model(w, c);
   write_hardware(w, c);
   write_runtime(w, c);
+  write_thermal(w, c);
   return w.finish();
 }
 

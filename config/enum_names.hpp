@@ -13,6 +13,20 @@ namespace feedloop::config {
 template <class E>
 using EnumNames = std::vector<std::pair<std::string, E>>;
 
+inline const EnumNames<HeaterKind>& heater_kind_names() {
+  static const EnumNames<HeaterKind> n = {
+      {"extruder", HeaterKind::extruder}, {"bed", HeaterKind::bed}, {"chamber", HeaterKind::chamber}};
+  return n;
+}
+inline const EnumNames<FanKind>& fan_kind_names() {
+  static const EnumNames<FanKind> n = {{"part", FanKind::part}, {"heater", FanKind::heater}};
+  return n;
+}
+inline const EnumNames<ThermistorConfig::Form>& thermistor_form_names() {
+  static const EnumNames<ThermistorConfig::Form> n = {{"beta", ThermistorConfig::Form::beta},
+                                                      {"steinhart_hart", ThermistorConfig::Form::steinhart_hart}};
+  return n;
+}
 inline const EnumNames<Kinematics>& kinematics_names() {
   static const EnumNames<Kinematics> n = {{"cartesian", Kinematics::cartesian},
                                           {"corexy", Kinematics::corexy},

@@ -49,6 +49,7 @@ void read_document(const YAML::Node& doc, MachineConfig& cfg, Diagnostics& diag)
   read_stepgen_mcus(root, cfg, marks, diag);
   read_simulator(root, cfg, diag);
   read_io(root, cfg, diag);
+  read_thermal(root, cfg, diag);
   root.finish();
   diag.resolve_unknown_keys();
   if (kin_ok) check_machine(cfg, marks, diag);

@@ -418,6 +418,63 @@ struct LoggingConfig {
   bool operator==(const LoggingConfig&) const = default;
 };
 
+// ---- heaters and fans (docs/heaters.md) -----------------------------------------------------------
+
+enum class HeaterKind { extruder, bed, chamber };
+
+// A custom thermistor: the beta form or a three-point Steinhart-Hart fit (Klipper's thermistor
+// section).
+struct ThermistorConfig {
+  enum class Form { beta, steinhart_hart } form = Form::beta;
+  double t1_c = 25.0, r1_ohm = 100000.0;  // beta: the reference point
+  double beta = 3950.0;
+  double t2_c = 150.0, r2_ohm = 1641.9, t3_c = 250.0, r3_ohm = 226.15;
+  bool operator==(const ThermistorConfig&) const = default;
+};
+
+struct HeaterProtectionConfig {  // Marlin's and Klipper's defaults; 0 disables a rule
+  double watch_period_s = 20.0, watch_increase_c = 2.0;
+  double runaway_period_s = 40.0, runaway_hysteresis_c = 4.0;
+  double verify_max_error = 120.0, verify_gain_time_s = 20.0, verify_hysteresis_c = 5.0,
+         verify_heating_gain_c = 2.0;
+  double stuck_period_s = 10.0;
+  bool operator==(const HeaterProtectionConfig&) const = default;
+};
+
+struct HeaterPlantConfig {  // the simulated printer's thermal plant (sim/thermal_plant.hpp)
+  double power_w = 40.0, heat_capacity_j_k = 12.0, loss_w_k = 0.065, fan_loss_w_k = 0.05;
+  double delay_s = 1.0, sensor_tau_s = 1.5, ambient_c = 22.0;
+  bool operator==(const HeaterPlantConfig&) const = default;
+};
+
+struct HeaterConfig {
+  std::string name;  // its key under heaters:
+  HeaterKind kind = HeaterKind::extruder;
+  std::string sensor = "EPCOS 100K B57560G104F";  // a built-in type, or "thermistor" (below)
+  std::optional<ThermistorConfig> thermistor;
+  double pullup_ohm = 4700.0;
+  double min_temp_c = 0.0, max_temp_c = 275.0;
+  double max_power = 1.0;
+  double residency_s = 10.0;  // M109/M190: time within 1 C before the wait ends (Marlin TEMP_RESIDENCY_TIME)
+  double pid_kp = 22.2, pid_ki = 1.08, pid_kd = 114.0;  // Marlin/Klipper units (per 255 of power)
+  HeaterProtectionConfig protection;
+  HeaterPlantConfig plant;
+  bool operator==(const HeaterConfig&) const = default;
+};
+
+enum class FanKind { part, heater };
+
+struct FanConfig {
+  std::string name;
+  FanKind kind = FanKind::part;
+  std::string heater;            // kind heater: the heater it cools
+  double heater_temp_c = 50.0;   // kind heater: on above this
+  double kick_start_s = 0.1;
+  double off_below = 0.0;
+  double max_power = 1.0;
+  bool operator==(const FanConfig&) const = default;
+};
+
 // ---- the whole machine --------------------------------------------------------------------------
 
 struct MachineConfig {
@@ -434,6 +491,8 @@ struct MachineConfig {
   StepgenConfig stepgen;
   std::vector<McuConfig> mcus;
   SimulatorConfig simulator;
+  std::vector<HeaterConfig> heaters;  // in file order
+  std::vector<FanConfig> fans;
   SocketsConfig sockets;
   RecorderConfig recorder;
   LoggingConfig logging;

@@ -37,6 +37,7 @@ void read_model(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 void read_stepgen_mcus(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag);
 void read_simulator(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 void read_io(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
+void read_thermal(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 
 // Checks that need the whole machine: every axis driven by exactly one MCU, delta reachability.
 void check_machine(const MachineConfig& cfg, const Marks& marks, Diagnostics& diag);

@@ -1,5 +1,7 @@
 #include "daemon/daemon.hpp"
 
+#include <cmath>
+
 #include <spdlog/spdlog.h>
 
 #include <cstdio>  // snprintf
@@ -8,6 +10,7 @@
 #include "config/config.hpp"
 #include "daemon/runtime_dir.hpp"
 #include "engine/executor_factory.hpp"
+#include "engine/thermal_config.hpp"
 #include "gcode/parser.hpp"
 #include "recorder/options_from_config.hpp"
 #include "recorder/replay.hpp"
@@ -21,11 +24,35 @@ namespace {
 constexpr auto kTickInterval = std::chrono::milliseconds(5);
 constexpr const char* kVersion = "0.1.0";
 
+// Marlin's M105 answer: "ok T:210.0 /210.0 B:60.0 /60.0 @:127 B@:64" (the thermal loop's report;
+// a machine without heaters reports ambient zeros as before).
 std::string format_temp_reply(const engine::MachineStatus& s) {
+  if (s.num_heaters > 0) return std::string("ok ") + s.temp_report;
   char buf[160];
   std::snprintf(buf, sizeof buf, "ok T:%.1f /%.1f B:%.1f /%.1f @:0 B@:0", s.hotend_c,
                 s.hotend_target_c, s.bed_c, s.bed_target_c);
   return buf;
+}
+
+json heaters_json(const engine::MachineStatus& s) {
+  json out = json::array();
+  for (int i = 0; i < s.num_heaters; ++i) {
+    const engine::HeaterStatus& h = s.heaters[i];
+    out.push_back({{"name", h.name},
+                   {"temp_c", std::round(h.temp_c * 100.0) / 100.0},
+                   {"target_c", h.target_c},
+                   {"power", std::round(h.power * 1000.0) / 1000.0},
+                   {"faulted", h.faulted},
+                   {"autotuning", h.autotuning}});
+  }
+  return out;
+}
+
+json fans_json(const engine::MachineStatus& s) {
+  json out = json::array();
+  for (int i = 0; i < s.num_fans; ++i)
+    out.push_back({{"name", s.fans[i].name}, {"speed", s.fans[i].speed}});
+  return out;
 }
 }  // namespace
 
@@ -107,15 +134,18 @@ void Daemon::start_print(const Client& owner) {
   }
   print_open_ = true;
   recorder_->writer(recorder::Stream::io)
-      .event(recorder::EventKind::print_start, machine_clock_->now_ns(), -1, 0.0, owner.session->name());
+      .event(recorder::EventKind::print_start, machine_clock_->now_ns(), -1, 0.0,
+             owner.session->name());
 }
 
 void Daemon::end_print() {
   if (!recorder_ || !print_open_) return;
   print_open_ = false;
-  recorder_->writer(recorder::Stream::io).event(recorder::EventKind::print_end, machine_clock_->now_ns(), -1, 0.0);
+  recorder_->writer(recorder::Stream::io)
+      .event(recorder::EventKind::print_end, machine_clock_->now_ns(), -1, 0.0);
   const std::string last = recorder_->stats().current_path;
-  if (Status s = recorder_->end_print(); !s) spdlog::warn("flight recorder: {}", s.error().to_string());
+  if (Status s = recorder_->end_print(); !s)
+    spdlog::warn("flight recorder: {}", s.error().to_string());
   const std::string err = recorder_->stats().last_error;
   if (!err.empty()) spdlog::warn("flight recorder: {}", err);
   if (!last.empty()) {
@@ -127,8 +157,10 @@ void Daemon::end_print() {
 Status Daemon::start() {
   if (options_.virtual_time && !cfg_.uses_simulator())
     return Error{"--virtual-time needs a simulated printer (mcus with transport: mock)"};
-  if (options_.virtual_time) machine_clock_ = std::make_unique<VirtualClock>();
-  else machine_clock_ = std::make_unique<MonotonicClock>();
+  if (options_.virtual_time)
+    machine_clock_ = std::make_unique<VirtualClock>();
+  else
+    machine_clock_ = std::make_unique<MonotonicClock>();
   open_recorder();
   auto executor = make_recorded_executor();
   if (!executor) {
@@ -172,21 +204,30 @@ Status Daemon::open_channels() {
   api_socket_path_ = *api;
   pty_link_ = *pty;
   std::vector<std::string> warnings;
-  if (Status s = check_channel_path("sockets.unix_socket", socket_path_, vars.runtime_dir, cfg_.sockets.mode, &warnings); !s)
+  if (Status s = check_channel_path("sockets.unix_socket", socket_path_, vars.runtime_dir,
+                                    cfg_.sockets.mode, &warnings);
+      !s)
     return s;
-  if (Status s = check_channel_path("sockets.api_socket", api_socket_path_, vars.runtime_dir, cfg_.sockets.mode, &warnings); !s)
+  if (Status s = check_channel_path("sockets.api_socket", api_socket_path_, vars.runtime_dir,
+                                    cfg_.sockets.mode, &warnings);
+      !s)
     return s;
-  if (Status s = check_channel_path("sockets.pty_link", pty_link_, vars.runtime_dir, 0, &warnings); !s) return s;
+  if (Status s = check_channel_path("sockets.pty_link", pty_link_, vars.runtime_dir, 0, &warnings);
+      !s)
+    return s;
   for (const std::string& w : warnings) spdlog::warn("{}", w);
-  if (Status s = gcode_listener_.listen(socket_path_, cfg_.sockets.mode,
-                                        [this](auto session) { add_client(std::move(session), Kind::kMarlin); });
+  if (Status s = gcode_listener_.listen(
+          socket_path_, cfg_.sockets.mode,
+          [this](auto session) { add_client(std::move(session), Kind::kMarlin); });
       !s)
     return s;
-  if (Status s = api_listener_.listen(api_socket_path_, cfg_.sockets.mode,
-                                      [this](auto session) { add_client(std::move(session), Kind::kJson); });
+  if (Status s = api_listener_.listen(
+          api_socket_path_, cfg_.sockets.mode,
+          [this](auto session) { add_client(std::move(session), Kind::kJson); });
       !s)
     return s;
-  return pty_.open(pty_link_, [this](auto session) { add_client(std::move(session), Kind::kMarlin); });
+  return pty_.open(pty_link_,
+                   [this](auto session) { add_client(std::move(session), Kind::kMarlin); });
 }
 
 void Daemon::close_channels() {
@@ -199,6 +240,9 @@ Status Daemon::start_machine(std::unique_ptr<engine::CommandExecutor> executor,
                              std::string* warnings) {
   machine_ = std::make_unique<engine::Machine>(engine::machine_options(cfg_), *machine_clock_,
                                                std::move(executor));
+  auto thermal = engine::make_thermal_loop(cfg_);
+  if (!thermal) return thermal.error();
+  machine_->set_thermal(std::move(thermal.value()));
   machine_->set_done_callback([this](engine::CommandDone d) {
     asio::post(io_, [this, d = std::move(d)]() mutable { on_command_done(std::move(d)); });
   });
@@ -354,6 +398,10 @@ void Daemon::process_marlin_line(Client& c, std::string_view line) {
   }
   flush();  // e.g. "echo:Unknown command"
   if (is_query(cmd)) {
+    if (cmd.is('M', 155)) {  // Marlin's AUTO_REPORT_TEMPERATURES, per client
+      c.autoreport_period_ns = ns_from_seconds(cmd.has('S') ? cmd.get('S') : 0.0);
+      c.next_autoreport_ns = clock_.now_ns() + c.autoreport_period_ns;
+    }
     if (c.replies.empty()) {
       std::string answer;
       answer_query(cmd, answer);
@@ -369,7 +417,8 @@ void Daemon::process_marlin_line(Client& c, std::string_view line) {
   auto slot = std::make_shared<ReplySlot>();
   c.replies.push_back(slot);
   const uint64_t cid = c.id;
-  const auto source = c.session->name().rfind("pty", 0) == 0 ? recorder::GcodeSource::pty : recorder::GcodeSource::socket;
+  const auto source = c.session->name().rfind("pty", 0) == 0 ? recorder::GcodeSource::pty
+                                                             : recorder::GcodeSource::socket;
   std::string refused = submit(c, cmd, line, source, [this, cid, slot](const Status& st) {
     if (!st) slot->text = "Error:" + st.error().to_string() + "\n";
     slot->text += gcode::HostProtocol::kOk;
@@ -399,7 +448,7 @@ void Daemon::flush_replies(Client& c) {
 bool Daemon::is_query(const gcode::Command& cmd) {
   if (cmd.empty()) return true;
   return cmd.letter == 'M' && (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 ||
-                               cmd.code == 117 || cmd.code == 73);
+                               cmd.code == 117 || cmd.code == 73 || cmd.code == 155);
 }
 
 bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply) {
@@ -414,6 +463,9 @@ bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply) {
     case 105:
       reply = format_temp_reply(s);
       return true;
+    case 155:
+      reply = "ok";
+      return true;
     case 114: {
       // Marlin's M114: the logical position, then each stepper's step counter
       // (Marlin/src/module/stepper.cpp, Stepper::report_positions; labels from language.h:
@@ -423,9 +475,10 @@ bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply) {
                                                                            : "X:%lld Y:%lld Z:%lld";
       char count[96];
       std::snprintf(count, sizeof count, labels, static_cast<long long>(s.step_count[0]),
-                    static_cast<long long>(s.step_count[1]), static_cast<long long>(s.step_count[2]));
-      std::snprintf(buf, sizeof buf, "X:%.2f Y:%.2f Z:%.2f E:%.2f Count %s\nok", s.pos_mm[0], s.pos_mm[1],
-                    s.pos_mm[2], s.pos_mm[3], count);
+                    static_cast<long long>(s.step_count[1]),
+                    static_cast<long long>(s.step_count[2]));
+      std::snprintf(buf, sizeof buf, "X:%.2f Y:%.2f Z:%.2f E:%.2f Count %s\nok", s.pos_mm[0],
+                    s.pos_mm[1], s.pos_mm[2], s.pos_mm[3], count);
       reply = buf;
       return true;
     }
@@ -460,7 +513,8 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
     return "Printer halted (emergency stop); restart feedloopd to clear";
   if (owner_ != 0 && owner_ != cid) {
     const Client* o = find_client(owner_);
-    return "busy: the print is owned by " + (o ? o->session->name() : std::string("another client"));
+    return "busy: the print is owned by " +
+           (o ? o->session->name() : std::string("another client"));
   }
   if (owner_ != cid) {
     owner_ = cid;
@@ -545,8 +599,8 @@ void Daemon::run_script_step(std::shared_ptr<Script> s) {
   while (s->next < s->lines.size()) {
     const std::string& text = s->lines[s->next++];
     ++s->line_number;
-    auto cmd = gcode::parse_line(text, SourceLocation{"api:" + c->session->name(),
-                                                      static_cast<int>(s->line_number), 0});
+    auto cmd = gcode::parse_line(
+        text, SourceLocation{"api:" + c->session->name(), static_cast<int>(s->line_number), 0});
     if (!cmd) {
       s->results.push_back({{"line", text}, {"ok", false}, {"error", cmd.error().to_string()}});
       s->done({{"results", s->results}}, "");
@@ -563,15 +617,16 @@ void Daemon::run_script_step(std::shared_ptr<Script> s) {
       asio::post(io_, [this, s] { run_script_step(s); });
       return;
     }
-    std::string refused = submit(*c, *cmd, text, recorder::GcodeSource::api, [this, s, text](const Status& st) {
-      s->results.push_back({{"line", text}, {"ok", static_cast<bool>(st)}});
-      if (!st) {
-        s->results.back()["error"] = st.error().to_string();
-        s->done({{"results", s->results}}, "");
-        return;
-      }
-      run_script_step(s);
-    });
+    std::string refused =
+        submit(*c, *cmd, text, recorder::GcodeSource::api, [this, s, text](const Status& st) {
+          s->results.push_back({{"line", text}, {"ok", static_cast<bool>(st)}});
+          if (!st) {
+            s->results.back()["error"] = st.error().to_string();
+            s->done({{"results", s->results}}, "");
+            return;
+          }
+          run_script_step(s);
+        });
     if (!refused.empty()) {
       s->done({}, refused);
       return;
@@ -608,48 +663,54 @@ json links_json(const engine::LinkTelemetrySet& set) {
   json out = json::array();
   for (int i = 0; i < set.count && i < engine::LinkTelemetrySet::kMaxLinks; ++i) {
     const engine::LinkTelemetry& l = set.links[i];
-    out.push_back({{"name", l.name},
-                   {"state", l.state},
-                   {"frames_sent", l.frames_sent},
-                   {"retransmitted", l.retransmitted},
-                   {"delivered", l.delivered},
-                   {"duplicates_dropped", l.duplicates_dropped},
-                   {"out_of_order_dropped", l.out_of_order_dropped},
-                   {"crc_errors", l.crc_errors},
-                   {"resets", l.resets},
-                   {"bytes_written", l.bytes_written},
-                   {"in_flight", l.in_flight},
-                   {"rtt_us", {{"last", l.rtt_last_us}, {"min", l.rtt_min_us}, {"mean", l.rtt_mean_us}}},
-                   {"clock_samples", l.clock_samples},
-                   {"clock_rate_ppm", l.clock_rate_ppm},
-                   {"io", {{"tx_queue_full", l.tx_queue_full},
-                           {"tx_blocked", l.tx_blocked},
-                           {"rx_queue_full", l.rx_queue_full},
-                           {"errors", l.io_errors},
-                           {"clock_fit", l.clock_fit_async ? "io_thread" : "inline"}}}});
+    out.push_back(
+        {{"name", l.name},
+         {"state", l.state},
+         {"frames_sent", l.frames_sent},
+         {"retransmitted", l.retransmitted},
+         {"delivered", l.delivered},
+         {"duplicates_dropped", l.duplicates_dropped},
+         {"out_of_order_dropped", l.out_of_order_dropped},
+         {"crc_errors", l.crc_errors},
+         {"resets", l.resets},
+         {"bytes_written", l.bytes_written},
+         {"in_flight", l.in_flight},
+         {"rtt_us", {{"last", l.rtt_last_us}, {"min", l.rtt_min_us}, {"mean", l.rtt_mean_us}}},
+         {"clock_samples", l.clock_samples},
+         {"clock_rate_ppm", l.clock_rate_ppm},
+         {"io",
+          {{"tx_queue_full", l.tx_queue_full},
+           {"tx_blocked", l.tx_blocked},
+           {"rx_queue_full", l.rx_queue_full},
+           {"errors", l.io_errors},
+           {"clock_fit", l.clock_fit_async ? "io_thread" : "inline"}}}});
   }
   return out;
 }
 
 // Each joint's device loop (control.loop: device) as its LOOP_REPORTs told it: state, the last
 // e = r - y, y and correction u, |e| over the reports while running, the cost of one tick.
-json device_loops_json(const engine::DeviceLoopTelemetrySet& set, const std::array<std::string, engine::kJoints>& names) {
+json device_loops_json(const engine::DeviceLoopTelemetrySet& set,
+                       const std::array<std::string, engine::kJoints>& names) {
   json out = json::object();
   for (size_t j = 0; j < set.size() && j < names.size(); ++j) {
     const engine::DeviceLoopTelemetry& t = set[j];
     if (!t.enabled) continue;
-    out[names[j]] = {{"state", engine::device_loop_state_name(t.state)},
-                     {"reports", t.reports},
-                     {"e_mm", t.e_mm},
-                     {"y_mm", t.y_mm},
-                     {"correction_mm", t.correction_mm},
-                     {"abs_e_mm", {{"mean", t.mean_abs_e_mm()}, {"max", t.max_abs_e_mm}, {"samples", t.running_reports}}},
-                     {"max_abs_correction_mm", t.max_abs_correction_mm},
-                     {"tick_cost_us", {{"last", t.tick_cost_us}, {"mean", t.mean_tick_cost_us()}, {"max", t.max_tick_cost_us}}},
-                     {"ticks", t.ticks},
-                     {"deadline_misses", t.deadline_misses},
-                     {"encoder_rejects", t.encoder_rejects},
-                     {"slips", t.slips}};
+    out[names[j]] = {
+        {"state", engine::device_loop_state_name(t.state)},
+        {"reports", t.reports},
+        {"e_mm", t.e_mm},
+        {"y_mm", t.y_mm},
+        {"correction_mm", t.correction_mm},
+        {"abs_e_mm",
+         {{"mean", t.mean_abs_e_mm()}, {"max", t.max_abs_e_mm}, {"samples", t.running_reports}}},
+        {"max_abs_correction_mm", t.max_abs_correction_mm},
+        {"tick_cost_us",
+         {{"last", t.tick_cost_us}, {"mean", t.mean_tick_cost_us()}, {"max", t.max_tick_cost_us}}},
+        {"ticks", t.ticks},
+        {"deadline_misses", t.deadline_misses},
+        {"encoder_rejects", t.encoder_rejects},
+        {"slips", t.slips}};
   }
   return out;
 }
@@ -661,9 +722,15 @@ json Daemon::status() const {
   const Client* o = nullptr;
   if (auto it = clients_.find(owner_); it != clients_.end()) o = &it->second;
   return {{"state", engine::to_string(s.state)},
-          {"position_mm", {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
+          {"position_mm",
+           {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
           {"temperatures_c",
-           {{"hotend", s.hotend_c}, {"hotend_target", s.hotend_target_c}, {"bed", s.bed_c}, {"bed_target", s.bed_target_c}}},
+           {{"hotend", s.hotend_c},
+            {"hotend_target", s.hotend_target_c},
+            {"bed", s.bed_c},
+            {"bed_target", s.bed_target_c}}},
+          {"heaters", heaters_json(s)},
+          {"fans", fans_json(s)},
           {"queue", {{"depth", s.queue_depth}, {"capacity", s.queue_capacity}}},
           {"commands", {{"executed", s.commands_executed}, {"rejected", s.commands_rejected}}},
           {"servo",
@@ -681,7 +748,9 @@ json Daemon::status() const {
             {"motion_starts", s.motion_starts},
             {"lost_step_events", s.lost_step_events},
             {"tracking_error_mm",
-             {{"mean", s.tracking_error_mean_mm}, {"max", s.tracking_error_max_mm}, {"samples", s.tracking_error_samples}}},
+             {{"mean", s.tracking_error_mean_mm},
+              {"max", s.tracking_error_max_mm},
+              {"samples", s.tracking_error_samples}}},
             {"late_cycles", s.late_cycles},
             {"segments_queued", s.segments_queued},
             {"device_loops", device_loops_json(s.device_loops, engine::joint_names(cfg_))}}},
@@ -737,6 +806,29 @@ void Daemon::tick() {
       c.last_progress_ns = now;
     }
   }
+  // M155 auto-reports (Marlin sends " T:.. /.. B:.. /.. @:.. B@:.." without an ok), and a log line
+  // every 5 s while a heater is on, so the log shows the temperatures settling.
+  {
+    bool due = now >= next_heater_log_ns_;
+    for (auto& [id, c] : clients_)
+      due = due ||
+            (c.kind == Kind::kMarlin && c.autoreport_period_ns > 0 && now >= c.next_autoreport_ns);
+    if (due) {  // a status copy only when something needs it
+      const engine::MachineStatus ms = machine_->status();
+      for (auto& [id, c] : clients_) {
+        if (c.kind != Kind::kMarlin || c.autoreport_period_ns <= 0 || now < c.next_autoreport_ns)
+          continue;
+        c.session->send_line(" " + format_temp_reply(ms).substr(3));
+        c.next_autoreport_ns = now + c.autoreport_period_ns;
+      }
+      if (now >= next_heater_log_ns_) {
+        bool heating = false;
+        for (int i = 0; i < ms.num_heaters; ++i) heating = heating || ms.heaters[i].target_c > 0;
+        if (heating) spdlog::info("heaters: {}", ms.temp_report);
+        next_heater_log_ns_ = now + (heating ? 5 : 1) * kNsPerS;
+      }
+    }
+  }
   // Lines waiting for their turn or for the rate limit; flooding clients are dropped here.
   {
     std::vector<std::shared_ptr<ClientSession>> sessions;
@@ -784,13 +876,15 @@ void Daemon::reload_config() {
   auto next = options_.config_path.empty() ? Result<config::MachineConfig>(config::default_config())
                                            : config::load_config_file(options_.config_path);
   if (!next) {
-    spdlog::error("config reload failed, keeping the running config:\n{}", next.error().to_string());
+    spdlog::error("config reload failed, keeping the running config:\n{}",
+                  next.error().to_string());
     notifier_.ready();
     return;
   }
   auto executor = engine::make_executor(*next);
   if (!executor) {
-    spdlog::error("config reload failed, keeping the running config: {}", executor.error().to_string());
+    spdlog::error("config reload failed, keeping the running config: {}",
+                  executor.error().to_string());
     notifier_.ready();
     return;
   }

@@ -109,6 +109,8 @@ class Daemon final : public JsonApiBackend {
     std::optional<Parked> parked;     // a command waiting for room in the machine queue
     size_t in_flight = 0;             // submitted, not yet done
     int64_t last_progress_ns = 0;     // last ok, or last keepalive sent
+    int64_t autoreport_period_ns = 0;  // M155 S<seconds>: temperature auto-report (0: off)
+    int64_t next_autoreport_ns = 0;
     std::deque<std::shared_ptr<ReplySlot>> replies;  // Marlin channels: answers not yet sent
   };
   // A submitted command: who gets the answer.
@@ -178,6 +180,7 @@ class Daemon final : public JsonApiBackend {
   uint64_t next_ticket_ = 1;
   uint64_t owner_ = 0;  // client id owning the print, 0: none
   int64_t owner_last_activity_ns_ = 0;
+  int64_t next_heater_log_ns_ = 0;  // the log's temperature line while heaters are on
   bool reload_requested_ = false;
   uint64_t reloads_ = 0;
   bool shutting_down_ = false;

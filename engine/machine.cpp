@@ -13,11 +13,16 @@ namespace feedloop::engine {
 
 const char* to_string(MachineState s) {
   switch (s) {
-    case MachineState::kIdle: return "idle";
-    case MachineState::kBusy: return "busy";
-    case MachineState::kError: return "error";
-    case MachineState::kEmergencyStopped: return "emergency_stopped";
-    case MachineState::kStopped: return "stopped";
+    case MachineState::kIdle:
+      return "idle";
+    case MachineState::kBusy:
+      return "busy";
+    case MachineState::kError:
+      return "error";
+    case MachineState::kEmergencyStopped:
+      return "emergency_stopped";
+    case MachineState::kStopped:
+      return "stopped";
   }
   return "unknown";
 }
@@ -27,12 +32,18 @@ Machine::Machine(MachineOptions options, Clock& clock, std::unique_ptr<CommandEx
       clock_(clock),
       executor_(std::move(executor)),
       queue_(options.command_queue_capacity) {
-  hotend_.max_slew_c_s = options_.heater_slew_c_s;
-  bed_.max_slew_c_s = options_.heater_slew_c_s / 4.0;
   publish_status();
 }
 
-Machine::~Machine() { stop(); }
+void Machine::set_thermal(std::unique_ptr<ThermalLoop> thermal) {
+  thermal_ = std::move(thermal);
+  if (thermal_) thermal_->start(seconds_from_ns(clock_.now_ns()));
+  publish_status();
+}
+
+Machine::~Machine() {
+  stop();
+}
 
 Status Machine::start(std::string* warnings) {
   if (started_) return Error{"machine already started"};
@@ -47,6 +58,7 @@ Status Machine::start(std::string* warnings) {
   std::string rt_warning;
   try {
     planner_thread_ = std::thread([this] { planner_main(); });
+    if (thermal_) thermal_thread_ = std::thread([this] { thermal_main(); });
     servo_thread_ = std::thread([this, &rt_done, &rt_warning] {
       if (options_.realtime_priority > 0 && !clock_.is_virtual()) {
         if (Status s = make_thread_realtime(options_.realtime_priority); !s)
@@ -59,6 +71,7 @@ Status Machine::start(std::string* warnings) {
     stopping_.store(true);
     wake_cv_.notify_all();
     if (planner_thread_.joinable()) planner_thread_.join();
+    if (thermal_thread_.joinable()) thermal_thread_.join();
     started_ = false;
     return Error{std::string("cannot start the machine's threads: ") + e.what()};
   }
@@ -75,6 +88,8 @@ void Machine::stop() {
   wake_cv_.notify_all();
   if (planner_thread_.joinable()) planner_thread_.join();
   if (servo_thread_.joinable()) servo_thread_.join();
+  if (thermal_thread_.joinable()) thermal_thread_.join();
+  if (thermal_) thermal_->all_off(seconds_from_ns(clock_.now_ns()));  // heaters off on the way out
   started_ = false;
   publish_status();
 }
@@ -104,7 +119,33 @@ void Machine::emergency_stop(const std::string& reason) {
   estop_.store(true);
   cancel_.store(true);
   set_error("emergency stop: " + reason);
+  if (thermal_) thermal_->all_off(seconds_from_ns(clock_.now_ns()));
   wake_cv_.notify_all();
+}
+
+// A thermal fault: every heater is already off (ThermalLoop::trip); the motion stops the way an
+// emergency stop stops it (queued commands cancelled, the executor's motion ended) and the message
+// names the heater, the rule and its numbers.
+void Machine::on_thermal_fault(const std::string& message) {
+  estop_.store(true);
+  cancel_.store(true);
+  set_error(message);
+  wake_cv_.notify_all();
+}
+
+void Machine::thermal_step() {
+  if (!thermal_) return;
+  if (auto f = thermal_->step_to(seconds_from_ns(clock_.now_ns()))) on_thermal_fault(*f);
+}
+
+void Machine::thermal_main() {
+  // The thermal loop's own thread: reports every 0.3 s of machine time need an answer well within
+  // the MCU's 3 s; in virtual time it follows the clock as the servo thread advances it.
+  while (!stopping_.load()) {
+    thermal_step();
+    std::this_thread::sleep_for(clock_.is_virtual() ? std::chrono::milliseconds(1)
+                                                    : std::chrono::milliseconds(20));
+  }
 }
 
 void Machine::set_error(const std::string& message) {
@@ -115,6 +156,7 @@ void Machine::set_error(const std::string& message) {
 MachineStatus Machine::status() const {
   MachineStatus s = status_.load();
   if (executor_) executor_->motion_status(s);  // live: the planner thread may be blocked
+  fill_thermal(s);                             // live: the thermal thread moves on its own
   return s;
 }
 
@@ -145,10 +187,7 @@ void Machine::publish_status() {
     executor_->position(s.pos_mm);
     executor_->motion_status(s);
   }
-  s.hotend_c = hotend_.temp_c;
-  s.hotend_target_c = hotend_.target_c;
-  s.bed_c = bed_.temp_c;
-  s.bed_target_c = bed_.target_c;
+  fill_thermal(s);
   s.queue_depth = static_cast<uint32_t>(queue_.size());
   s.queue_capacity = static_cast<uint32_t>(queue_.capacity());
   s.commands_executed = executed_.load();
@@ -160,41 +199,123 @@ void Machine::publish_status() {
   status_.store(s);
 }
 
-// Heater commands and waits are the machine's own; everything else goes to the executor.
-Status Machine::execute_machine_command(const gcode::Command& cmd) {
-  // G10 P<tool> S<active> R<standby>: the temperature form (the active temperature is the target).
-  const bool hotend = cmd.is('M', 104) || cmd.is('M', 109) || cmd.is('G', 10);
-  HeaterSim& h = hotend ? hotend_ : bed_;
-  const bool wait = cmd.is('M', 109) || cmd.is('M', 190);
-  if (cmd.has('S')) h.target_c = cmd.get('S');
-  else if (cmd.has('R') && !cmd.is('G', 10)) h.target_c = cmd.get('R');
-  if (!wait) return Status::Ok();
-  if (clock_.is_virtual()) {  // no one advances time for a wait in virtual time: settle at once
-    h.temp_c = h.target_c > 0 ? h.target_c : h.ambient_c;
-    return Status::Ok();
+void Machine::fill_thermal(MachineStatus& s) const {
+  if (!thermal_) return;
+  thermal_->snapshot(s.heaters, s.num_heaters, s.fans, s.num_fans);
+  bool have_t = false, have_b = false;
+  for (int i = 0; i < s.num_heaters; ++i) {
+    const HeaterStatus& h = s.heaters[i];
+    if (h.marlin == 'T' && !have_t) {
+      have_t = true;
+      s.hotend_c = h.temp_c;
+      s.hotend_target_c = h.target_c;
+    } else if (h.marlin == 'B' && !have_b) {
+      have_b = true;
+      s.bed_c = h.temp_c;
+      s.bed_target_c = h.target_c;
+    }
   }
-  int64_t last_ns = clock_.now_ns();
-  while (!h.at_target()) {
+  std::snprintf(s.temp_report, sizeof s.temp_report, "%s", thermal_->marlin_report().c_str());
+}
+
+bool Machine::is_machine_command(const gcode::Command& cmd) const {
+  if (cmd.is('M', 104) || cmd.is('M', 109) || cmd.is('M', 140) || cmd.is('M', 190) ||
+      cmd.is('M', 303) || (cmd.is('G', 10) && cmd.has('P')))
+    return true;
+  // Fans are the machine's when it has any; otherwise the executor takes (and ignores) them.
+  return thermal_ && thermal_->num_fans() > 0 && (cmd.is('M', 106) || cmd.is('M', 107));
+}
+
+Status Machine::wait_for(const std::function<bool(double now_s)>& done) {
+  for (;;) {
+    if (auto f = thermal_->fault()) return Error{*f};
     if (cancel_.load()) return Error{"wait for temperature cancelled"};
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    const int64_t now = clock_.now_ns();
-    hotend_.advance(seconds_from_ns(now - last_ns));
-    bed_.advance(seconds_from_ns(now - last_ns));
-    last_ns = now;
+    if (done(seconds_from_ns(clock_.now_ns()))) return Status::Ok();
+    if (clock_.is_virtual()) {
+      // Virtual time is the wait's own while nothing moves (the servo thread advances it only for
+      // motion): 20 ms per step, the heaters following the clock.
+      if (!executor_->motion_pending() && !executor_->settling()) {
+        clock_.sleep_until_ns(clock_.now_ns() + 20'000'000);
+        thermal_step();
+      } else {
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+      }
+    } else {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
     publish_status();
   }
-  return Status::Ok();
+}
+
+// Heaters, fans and waits are the machine's own (engine/thermal_loop.hpp); the rest goes to the
+// executor. Marlin's semantics: M104/M140 set, M109/M190 set and wait (S: for heating only, R: for
+// heating or cooling), G10 P<tool> S<active> sets the tool's temperature, M106 P<fan> S<0..255>,
+// M107 P<fan>, M303 E<heater, -1 bed> S<temp> C<cycles> U<use>.
+Status Machine::execute_machine_command(const gcode::Command& cmd) {
+  if (!thermal_) {
+    if (cmd.is('M', 303))
+      return Error{"M303: this machine has no heaters (no heaters: section in the config)"};
+    return Status::Ok();  // no heaters configured: nothing to heat, nothing to wait for
+  }
+  const double now_s = seconds_from_ns(clock_.now_ns());
+  if (cmd.is('M', 106) || cmd.is('M', 107)) {
+    const int fan = cmd.has('P') ? static_cast<int>(cmd.get('P')) : 0;
+    const double speed = cmd.is('M', 107) ? 0.0 : (cmd.has('S') ? cmd.get('S') / 255.0 : 1.0);
+    return thermal_->set_fan(fan, speed, now_s);
+  }
+  if (cmd.is('M', 303)) {
+    const int e = cmd.has('E') ? static_cast<int>(cmd.get('E')) : 0;
+    const int heater = e < 0 ? thermal_->find_heater('B') : thermal_->find_heater('T', e);
+    if (heater < 0) return Error{"M303: no heater E" + std::to_string(e)};
+    const double target =
+        cmd.has('S') ? cmd.get('S') : (e < 0 ? 70.0 : 150.0);  // Marlin's defaults
+    const int cycles = cmd.has('C') ? static_cast<int>(cmd.get('C')) : 5;
+    if (Status st = thermal_->start_autotune(heater, target, cycles); !st) return st;
+    const bool use = cmd.has('U') && cmd.get('U') != 0;
+    std::optional<Result<thermal::PidParams>> result;
+    Status st = wait_for([&](double) {
+      result = thermal_->autotune_done(use);
+      return result.has_value();
+    });
+    if (!st) return st;
+    if (!result->ok()) return result->error();
+    char buf[160];
+    const thermal::PidParams& g = result->value();
+    std::snprintf(buf, sizeof buf,
+                  "PID autotune of %s finished: pid_Kp=%.3f pid_Ki=%.3f pid_Kd=%.3f%s",
+                  thermal_->spec(heater).name.c_str(), g.kp, g.ki, g.kd, use ? " (in use)" : "");
+    autotune_report_ = buf;
+    return Status::Ok();
+  }
+  const bool bed = cmd.is('M', 140) || cmd.is('M', 190);
+  const char tool_letter = cmd.is('G', 10) ? 'P' : 'T';
+  const int tool = !bed && cmd.has(tool_letter) ? static_cast<int>(cmd.get(tool_letter)) : 0;
+  const int heater = bed ? thermal_->find_heater('B') : thermal_->find_heater('T', tool);
+  if (heater < 0) {
+    if (bed) return Status::Ok();  // Marlin without a heated bed ignores M140/M190
+    return Error{"no hotend T" + std::to_string(tool) + " in the config"};
+  }
+  const bool wait = cmd.is('M', 109) || cmd.is('M', 190);
+  bool heating_only = true;
+  if (cmd.has('S')) {
+    if (Status st = thermal_->set_target(heater, cmd.get('S')); !st) return st;
+  } else if (cmd.has('R') && !cmd.is('G', 10)) {
+    heating_only = false;
+    if (Status st = thermal_->set_target(heater, cmd.get('R')); !st) return st;
+  }
+  publish_status();
+  if (!wait) return Status::Ok();
+  return wait_for([&](double t) { return thermal_->reached(heater, heating_only, t); });
 }
 
 // The planner stage's one entry for a command, whichever thread runs it (the planner thread in
-// real and virtual time, the caller in batch mode): the machine's own commands (heaters, waits)
-// here, the rest to the executor; the outcome counted.
+// real and virtual time, the caller in batch mode): the machine's own commands (heaters, fans,
+// waits) here, the rest to the executor; the outcome counted.
 Status Machine::dispatch(const gcode::Command& cmd) {
   Status st;
   if (estop_.load()) {
     st = Error{"machine is emergency-stopped; restart the daemon (or send M999) to clear"};
-  } else if (cmd.is('M', 104) || cmd.is('M', 109) || cmd.is('M', 140) || cmd.is('M', 190) ||
-             (cmd.is('G', 10) && cmd.has('P'))) {
+  } else if (is_machine_command(cmd)) {
     st = execute_machine_command(cmd);
   } else {
     st = executor_->execute(cmd, cancel_);
@@ -203,7 +324,8 @@ Status Machine::dispatch(const gcode::Command& cmd) {
     executed_.fetch_add(1, std::memory_order_relaxed);
   } else {
     rejected_.fetch_add(1, std::memory_order_relaxed);
-    set_error(st.error().to_string());
+    // Once stopped, the commands refused after it do not hide why it stopped.
+    if (!estop_.load()) set_error(st.error().to_string());
   }
   return st;
 }
@@ -214,7 +336,6 @@ Status Machine::execute_inline(const gcode::Command& cmd) {
 }
 
 void Machine::planner_main() {
-  int64_t last_heater_ns = clock_.now_ns();
   while (!stopping_.load()) {
     take_stall(planner_stall_ns_);
     Queued q;
@@ -229,10 +350,6 @@ void Machine::planner_main() {
         std::unique_lock lock(wake_mutex_);
         wake_cv_.wait_for(lock, std::chrono::milliseconds(5));
       }
-      const int64_t now = clock_.now_ns();
-      hotend_.advance(seconds_from_ns(now - last_heater_ns));
-      bed_.advance(seconds_from_ns(now - last_heater_ns));
-      last_heater_ns = now;
       if (estop_.load()) cancel_.store(true);  // stays latched
       executor_->idle_tick(cancel_);
       publish_status();
@@ -282,9 +399,12 @@ void Machine::servo_main() {
     if (clock_.is_virtual() &&
         ((!executor_->motion_pending() && !executor_->settling()) ||
          !executor_->may_advance_virtual(!queue_.empty() || executing_.load()))) {
-      // Virtual time moves only while there is motion to simulate; otherwise wait for work.
+      // Virtual time moves only while there is motion to simulate; otherwise wait for work. A
+      // heater wait may advance the clock meanwhile (Machine::wait_for): the next cycle is due one
+      // period after the present, not at a deadline the idle time left behind (no false misses).
       std::this_thread::sleep_for(std::chrono::microseconds(200));
       servo_last_cycle_ns_.store(clock_.now_ns(), std::memory_order_release);
+      deadline = clock_.now_ns() + period_ns;
       continue;
     }
     take_stall(servo_stall_ns_);  // before the sleep: the stall makes this cycle late

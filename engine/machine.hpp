@@ -22,10 +22,10 @@
 #include "core/result.hpp"
 #include "core/spsc_queue.hpp"
 #include "engine/device_loop_telemetry.hpp"
-#include "engine/heater_sim.hpp"
 #include "engine/latency_histogram.hpp"
 #include "engine/link_telemetry.hpp"
 #include "engine/seqlock.hpp"
+#include "engine/thermal_loop.hpp"
 #include "gcode/command.hpp"
 
 namespace feedloop::engine {
@@ -37,7 +37,15 @@ const char* to_string(MachineState s);
 struct MachineStatus {
   MachineState state = MachineState::kIdle;
   double pos_mm[4] = {0, 0, 0, 0};  // X Y Z E of the last executed command (planned position)
-  double hotend_c = 0, hotend_target_c = 0, bed_c = 0, bed_target_c = 0;
+  double hotend_c = 0, hotend_target_c = 0, bed_c = 0,
+         bed_target_c = 0;  // the first T and B heater
+  // Heaters and fans (engine/thermal_loop.hpp); temp_report: Marlin's "T:210.0 /210.0 B:.. @:..
+  // B@:..".
+  HeaterStatus heaters[ThermalLoop::kMaxHeaters] = {};
+  int num_heaters = 0;
+  FanStatus fans[ThermalLoop::kMaxFans] = {};
+  int num_fans = 0;
+  char temp_report[160] = {};
   uint32_t queue_depth = 0;
   uint32_t queue_capacity = 0;
   uint64_t commands_executed = 0;
@@ -116,8 +124,6 @@ struct MachineOptions {
   size_t command_queue_capacity = 64;
   int realtime_priority = 80;  // SCHED_FIFO priority of the servo thread (0 = do not try)
   bool lock_memory = true;
-  // Heater simulation (the simulated printer has no real heaters).
-  double heater_slew_c_s = 40.0;
 };
 
 // A finished command, reported through the completion callback on the planner thread.
@@ -137,6 +143,10 @@ class Machine {
 
   // Called on the planner thread for every command, in order. Set before start().
   void set_done_callback(DoneCallback cb) { on_done_ = std::move(cb); }
+  // Heaters and fans (engine/thermal_config.hpp make_thermal_loop). Set before start(); without
+  // one, M104/M109/M140/M190 are accepted and do nothing (a machine without heaters).
+  void set_thermal(std::unique_ptr<ThermalLoop> thermal);
+  ThermalLoop* thermal() { return thermal_.get(); }
 
   // Starts the planner and servo threads. Warnings (no SCHED_FIFO, no mlockall) are returned
   // through `warnings` and do not fail the start.
@@ -185,8 +195,16 @@ class Machine {
   void servo_main();
   void servo_tick(ServoStatus& st, int64_t wake_ns, int64_t late_ns, int64_t period_ns);
   Status dispatch(const gcode::Command& cmd);  // the planner stage: machine commands or executor
-  Status execute_machine_command(const gcode::Command& cmd);  // heaters, waits
+  Status execute_machine_command(const gcode::Command& cmd);  // heaters, fans, waits
+  bool is_machine_command(const gcode::Command& cmd) const;
+  // Waits until the heater's temperature is reached (M109/M190) or the autotune ends (M303):
+  // in virtual time with nothing moving, the wait itself advances the clock.
+  Status wait_for(const std::function<bool(double now_s)>& done);
+  void thermal_step();  // runs the thermal loop to now; a fault stops the machine
+  void thermal_main();
+  void on_thermal_fault(const std::string& message);
   void publish_status();
+  void fill_thermal(MachineStatus& s) const;
   void set_error(const std::string& message);
 
   MachineOptions options_;
@@ -206,7 +224,9 @@ class Machine {
   std::atomic<uint64_t> executed_{0};
   std::atomic<uint64_t> rejected_{0};
 
-  HeaterSim hotend_, bed_;  // planner thread only
+  std::unique_ptr<ThermalLoop> thermal_;
+  std::thread thermal_thread_;
+  std::string autotune_report_;  // planner thread: the last M303 result
   Seqlock<MachineStatus> status_;
   Seqlock<ServoStatus> servo_status_;
   ServoStatus inline_servo_;  // the caller's, in one-thread runs

@@ -8,11 +8,15 @@
 #include <vector>
 
 #include "engine/config_mapping.hpp"
+#include "engine/thermal_config.hpp"
 #include "planner/kinematics.hpp"
 #include "sim/delta_plant.hpp"
 #include "sim/external_plant.hpp"
 #include "sim/gantry_axis.hpp"
 #include "sim/gantry_params.hpp"
+#include "sim/thermal_plant.hpp"
+#include "drivers/device/heater_board.hpp"
+#include "thermal/sensor.hpp"
 
 namespace feedloop::engine {
 namespace {
@@ -97,7 +101,67 @@ class SimulatedPrinter final : public SimulatedPlant {
   std::array<double, kJoints> encoder_mm_per_count_{};
 };
 
+// The heater MCU of the simulated printer, in process: the device code on the machine clock.
+class SimulatedHeaterLink final : public HeaterLink {
+ public:
+  SimulatedHeaterLink(const config::MachineConfig& cfg, double clock_hz) : clock_hz_(clock_hz) {
+    for (size_t i = 0; i < cfg.heaters.size() && i < 4; ++i) {
+      const config::HeaterConfig& h = cfg.heaters[i];
+      sim::ThermalPlantParams p;
+      p.power_w = h.plant.power_w;
+      p.heat_capacity_j_k = h.plant.heat_capacity_j_k;
+      p.loss_w_k = h.plant.loss_w_k;
+      p.fan_loss_w_k = h.plant.fan_loss_w_k;
+      p.delay_s = h.plant.delay_s;
+      p.sensor_tau_s = h.plant.sensor_tau_s;
+      p.ambient_c = h.plant.ambient_c;
+      p.seed = cfg.simulator.seed + 9000 + 31 * i;
+      p.sensor = heater_sensor(h);
+      plants_.push_back(std::make_unique<sim::ThermalPlant>(p));
+      heater_ports_[i] = plants_.back().get();
+    }
+    for (size_t i = 0; i < cfg.fans.size() && i < 4; ++i) {
+      fans_.push_back(std::make_unique<sim::PartFan>());
+      if (cfg.fans[i].kind == config::FanKind::part)  // part fans blow on the extruders' blocks
+        for (size_t k = 0; k < cfg.heaters.size() && k < 4; ++k)
+          if (cfg.heaters[k].kind == config::HeaterKind::extruder) fans_.back()->attach(plants_[k].get());
+      fan_ports_[i] = fans_.back().get();
+    }
+    board_ = std::make_unique<device::HeaterBoard>(heater_ports_, static_cast<int>(plants_.size()), fan_ports_,
+                                                   static_cast<int>(fans_.size()), clock_hz_);
+  }
+  void send(double now_s, const uint8_t* msg, size_t n) override { board_->on_message(msg, n, clock(now_s)); }
+  void advance_to(double t_s) override {
+    board_->run(clock(t_s));
+    for (auto& p : plants_) p->advance(t_s);
+  }
+  bool receive(uint8_t* out, size_t& n) override { return board_->pop_message(out, n); }
+  sim::ThermalPlant* plant(int i) { return i >= 0 && i < static_cast<int>(plants_.size()) ? plants_[static_cast<size_t>(i)].get() : nullptr; }
+  sim::PartFan* fan(int i) { return i >= 0 && i < static_cast<int>(fans_.size()) ? fans_[static_cast<size_t>(i)].get() : nullptr; }
+
+ private:
+  int64_t clock(double t_s) const { return static_cast<int64_t>(t_s * clock_hz_); }
+  double clock_hz_;
+  std::vector<std::unique_ptr<sim::ThermalPlant>> plants_;
+  std::vector<std::unique_ptr<sim::PartFan>> fans_;
+  device::HeaterPort* heater_ports_[4] = {};
+  device::FanPort* fan_ports_[4] = {};
+  std::unique_ptr<device::HeaterBoard> board_;
+};
+
 }  // namespace
+
+std::unique_ptr<HeaterLink> make_simulated_heater_link(const config::MachineConfig& cfg, double mcu_clock_hz) {
+  return std::make_unique<SimulatedHeaterLink>(cfg, mcu_clock_hz);
+}
+sim::ThermalPlant* simulated_thermal_plant(HeaterLink& link, int heater) {
+  auto* l = dynamic_cast<SimulatedHeaterLink*>(&link);
+  return l ? l->plant(heater) : nullptr;
+}
+sim::PartFan* simulated_part_fan(HeaterLink& link, int fan) {
+  auto* l = dynamic_cast<SimulatedHeaterLink*>(&link);
+  return l ? l->fan(fan) : nullptr;
+}
 
 Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfig& cfg, int joint) {
   const auto names = joint_names(cfg);

@@ -10,11 +10,14 @@
 #include "config/machine_config.hpp"
 #include "core/result.hpp"
 #include "engine/simulated_plant.hpp"
+#include "engine/thermal_loop.hpp"
 
 namespace feedloop::sim {
 class DeltaPlant;
 class GantryAxis;
 struct GantryAxisParams;
+class ThermalPlant;
+class PartFan;
 }  // namespace feedloop::sim
 
 namespace feedloop::engine {
@@ -33,5 +36,13 @@ Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfi
 // (include sim/gantry_axis.hpp, sim/delta_plant.hpp to use them). nullptr: no such plant.
 sim::GantryAxis* simulated_gantry(SimulatedPlant& plant, int joint);
 sim::DeltaPlant* simulated_delta(SimulatedPlant& plant);
+
+// The simulated printer's heaters and fans: the device side (drivers/device/heater_board.hpp,
+// fed the protocol v3 messages) driving a thermal plant per configured heater (sim/thermal_plant.hpp,
+// with the heater's plant: parameters) and the part fans cooling the extruders' plants.
+std::unique_ptr<HeaterLink> make_simulated_heater_link(const config::MachineConfig& cfg, double mcu_clock_hz);
+// Its plants and part fans, for tests and benchmarks (include sim/thermal_plant.hpp); nullptr: none.
+sim::ThermalPlant* simulated_thermal_plant(HeaterLink& link, int heater);
+sim::PartFan* simulated_part_fan(HeaterLink& link, int fan);
 
 }  // namespace feedloop::engine

@@ -59,6 +59,11 @@ constexpr ParamRule kReportTemp[] = {index('T')};
 // M106 fan on: S speed 0..255, P fan index, T secondary speed, I material preset.
 constexpr ParamRule kFanOn[] = {range('S', 0, 255), index('P'), range('T', 0, 255), index('I')};
 constexpr ParamRule kFanOff[] = {index('P')};
+// M155 temperature auto-report: S interval in seconds (0 off; Marlin allows up to 60).
+constexpr ParamRule kAutoReport[] = {range('S', 0, 60)};
+// M303 PID autotune: E heater (-1 the bed), S temperature, C cycles, U1 use the result.
+constexpr ParamRule kAutotune[] = {{'E', K::kNumber, -1.0, kMaxIndex, false, true}, temp('S'),
+                                   {'C', K::kNumber, 3.0, 20.0, false, true}, range('U', 0, 1)};
 // M110 set the current line number (the N word after M110).
 constexpr ParamRule kLineNumber[] = {{'N', K::kNumber, 0.0, 2147483647.0, false, true}};
 // M114 report position: D detail, E stepper position, R real position.
@@ -113,6 +118,7 @@ constexpr CodeRule kRules[] = {
     {'M', 115, "firmware info", {}},
     {'M', 117, "display message", {}},
     {'M', 140, "set bed temperature", kBed},
+    {'M', 155, "temperature auto-report", kAutoReport},
     {'M', 190, "wait for bed temperature", kBedWait},
     {'M', 201, "max acceleration", kPerAxisLimit},
     {'M', 203, "max feedrate", kPerAxisLimit},
@@ -120,6 +126,7 @@ constexpr CodeRule kRules[] = {
     {'M', 205, "advanced motion settings", kAdvanced},
     {'M', 220, "feedrate override", kFeedOverride},
     {'M', 221, "flow override", kFlowOverride},
+    {'M', 303, "PID autotune", kAutotune},
     {'M', 400, "wait for moves to finish", {}},
 };
 constexpr CodeRule kToolRule{'T', 0, "select tool", kToolChange};

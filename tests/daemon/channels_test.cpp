@@ -14,7 +14,20 @@ namespace {
 
 using nlohmann::json;
 
-class Channels : public DaemonFixture {};
+class Channels : public DaemonFixture {
+ protected:
+  // Heaters that heat in about a second (the keepalive test needs waits of known length): small
+  // heat capacities, short lags, no derivative braking, no residency.
+  void customize(config::MachineConfig& cfg) override {
+    for (config::HeaterConfig& h : cfg.heaters) {
+      h.plant.heat_capacity_j_k = h.kind == config::HeaterKind::bed ? 10.0 : 1.0;
+      h.plant.delay_s = 0.05;
+      h.plant.sensor_tau_s = 0.1;
+      h.pid_kd = 0.0;
+      h.residency_s = 0.0;
+    }
+  }
+};
 
 json call(LineClient& c, const json& req) {
   EXPECT_TRUE(c.send_line(req.dump()));
@@ -95,7 +108,8 @@ TEST_F(Channels, StatusShowsEveryMcuLink) {
     EXPECT_GT(l["delivered"].get<uint64_t>(), 10u);
     EXPECT_EQ(l["crc_errors"].get<uint64_t>(), 0u);
     EXPECT_GT(l["clock_samples"].get<int>(), 8);
-    const double rtt_min = l["rtt_us"]["min"].get<double>(), rtt_mean = l["rtt_us"]["mean"].get<double>();
+    const double rtt_min = l["rtt_us"]["min"].get<double>(),
+                 rtt_mean = l["rtt_us"]["mean"].get<double>();
     EXPECT_GT(rtt_min, 0.0);
     EXPECT_LE(rtt_min, rtt_mean);
     EXPECT_LT(rtt_mean, 5000.0);
@@ -137,7 +151,9 @@ TEST_F(Channels, JsonApiAnswersStatusRunsGcodeAndStreamsSubscriptions) {
   EXPECT_EQ(info["result"]["kinematics"], "cartesian");
   EXPECT_TRUE(info["result"]["simulated"].get<bool>());
 
-  json run = call(api, {{"jsonrpc", "2.0"}, {"id", 2}, {"method", "gcode"},
+  json run = call(api, {{"jsonrpc", "2.0"},
+                        {"id", 2},
+                        {"method", "gcode"},
                         {"params", {{"script", "G91\nG1 X7 Y2\nG1 X1\nM114"}}}});
   ASSERT_TRUE(run.contains("result")) << run.dump();
   ASSERT_EQ(run["result"]["results"].size(), 4u);
@@ -157,21 +173,27 @@ TEST_F(Channels, JsonApiAnswersStatusRunsGcodeAndStreamsSubscriptions) {
   }
   EXPECT_GE(st["result"]["servo"]["cycles"].get<uint64_t>(), 10u);
 
-  json bad_line = call(api, {{"jsonrpc", "2.0"}, {"id", 4}, {"method", "gcode"},
+  json bad_line = call(api, {{"jsonrpc", "2.0"},
+                             {"id", 4},
+                             {"method", "gcode"},
                              {"params", {{"script", "G1 X1\nG1 X2 W3\nG1 X50"}}}});
   const json& results = bad_line["result"]["results"];
   ASSERT_EQ(results.size(), 2u) << bad_line.dump();  // stops at the failing line
   EXPECT_FALSE(results[1]["ok"].get<bool>());
   EXPECT_NE(results[1]["error"].get<std::string>().find(":2:"), std::string::npos);
 
-  EXPECT_EQ(call(api, {{"jsonrpc", "2.0"}, {"id", 5}, {"method", "nope"}})["error"]["code"], -32601);
+  EXPECT_EQ(call(api, {{"jsonrpc", "2.0"}, {"id", 5}, {"method", "nope"}})["error"]["code"],
+            -32601);
   ASSERT_TRUE(api.send_line("{\"jsonrpc\": \"2.0\", \"id\": 6, \"method\": }"));
   json perr = json::parse(*api.read_line());
   EXPECT_EQ(perr["error"]["code"], -32700);
-  EXPECT_NE(perr["error"]["message"].get<std::string>().find("column 39: syntax error"), std::string::npos)
+  EXPECT_NE(perr["error"]["message"].get<std::string>().find("column 39: syntax error"),
+            std::string::npos)
       << perr.dump();
 
-  json sub = call(api, {{"jsonrpc", "2.0"}, {"id", 7}, {"method", "subscribe"},
+  json sub = call(api, {{"jsonrpc", "2.0"},
+                        {"id", 7},
+                        {"method", "subscribe"},
                         {"params", {{"topics", {"status"}}, {"interval_ms", 20}}}});
   EXPECT_TRUE(sub["result"]["status"].get<bool>());
   int notifications = 0;
@@ -232,14 +254,19 @@ TEST_F(HostileInput, HostileLinesGetAnErrorAndThePrintGoesOn) {
   EXPECT_EQ(r["error"]["code"], -32700);
   EXPECT_TRUE(r["id"].is_null());
   // Other out-of-range numbers and a G-code error that quotes non-UTF-8 bytes.
-  ASSERT_TRUE(api.send_line("{\"jsonrpc\":\"2.0\",\"id\":3,\"method\":\"subscribe\","
-                            "\"params\":{\"topics\":[\"status\"],\"interval_ms\":1e300}}"));
+  ASSERT_TRUE(
+      api.send_line("{\"jsonrpc\":\"2.0\",\"id\":3,\"method\":\"subscribe\","
+                    "\"params\":{\"topics\":[\"status\"],\"interval_ms\":1e300}}"));
   r = json::parse(*api.read_line());
   EXPECT_EQ(r["result"]["interval_ms"], 60000);
-  r = call(api, {{"jsonrpc", "2.0"}, {"id", 4}, {"method", "unsubscribe"}, {"params", {{"topics", {"status"}}}}});
+  r = call(api, {{"jsonrpc", "2.0"},
+                 {"id", 4},
+                 {"method", "unsubscribe"},
+                 {"params", {{"topics", {"status"}}}}});
   EXPECT_TRUE(r.contains("result"));
-  ASSERT_TRUE(api.send_line("{\"jsonrpc\":\"2.0\",\"id\":5,\"method\":\"gcode\","
-                            "\"params\":{\"script\":\"G1 X1 \\u00e9\"}}"));
+  ASSERT_TRUE(
+      api.send_line("{\"jsonrpc\":\"2.0\",\"id\":5,\"method\":\"gcode\","
+                    "\"params\":{\"script\":\"G1 X1 \\u00e9\"}}"));
   r = json::parse(*api.read_line());
   EXPECT_TRUE(r.contains("error") || r.contains("result")) << r.dump();
   ASSERT_TRUE(printer.send_line("G1 X5 \xFE"));  // an invalid word: an error with its column
@@ -297,10 +324,10 @@ TEST_F(Channels, KeepalivesCountTwoSecondsFromTheStartOfAWait) {
   LineClient c;
   ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
   const auto t0 = std::chrono::steady_clock::now();
-  ASSERT_TRUE(c.send_line("M190 S41"));  // 21 -> 40 C at 40 C/s: a 0.5 s wait
+  ASSERT_TRUE(c.send_line("M190 S41"));  // 22 -> 40 C at 25 C/s: a wait of about a second
   EXPECT_EQ(c.read_line(5000), "ok");
   EXPECT_GT(std::chrono::steady_clock::now() - t0, std::chrono::milliseconds(300));
-  ASSERT_TRUE(c.send_line("M109 S141"));  // 21 -> 140 C: a 3 s wait, one keepalive
+  ASSERT_TRUE(c.send_line("M109 S141"));  // 22 -> 140 C at 40 C/s: a 3 s wait, one keepalive
   EXPECT_EQ(c.read_line(5000), "echo:busy: processing");
   EXPECT_EQ(c.read_line(5000), "ok");
 }
@@ -308,7 +335,8 @@ TEST_F(Channels, KeepalivesCountTwoSecondsFromTheStartOfAWait) {
 TEST_F(Channels, AClientThatNeverReadsDoesNotStallMotion) {
   LineClient sleeper;  // subscribes to fast status notifications and never reads them
   ASSERT_TRUE(sleeper.connect_unix(daemon_->api_socket_path()));
-  ASSERT_TRUE(sleeper.send_line(R"({"jsonrpc":"2.0","id":1,"method":"subscribe","params":{"topics":["status"],"interval_ms":20}})"));
+  ASSERT_TRUE(sleeper.send_line(
+      R"({"jsonrpc":"2.0","id":1,"method":"subscribe","params":{"topics":["status"],"interval_ms":20}})"));
   LineClient printer;
   ASSERT_TRUE(printer.connect_unix(daemon_->socket_path()));
   const auto t0 = std::chrono::steady_clock::now();
@@ -355,12 +383,14 @@ TEST_F(Channels, ShutdownUnderLoadStopsPromptlyAndCleansUp) {
     }
   });
   // Load: the machine is moving and the host keeps its queue full.
-  for (int i = 0; i < 1000 && acked.load() < 50; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  for (int i = 0; i < 1000 && acked.load() < 50; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_GE(acked.load(), 50);
   const auto t0 = std::chrono::steady_clock::now();
   daemon_->request_shutdown("test");
   thread_.join();
-  const double stop_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double stop_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   stop = true;
   load.join();
   EXPECT_LT(stop_s, 2.0);

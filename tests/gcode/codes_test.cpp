@@ -67,6 +67,8 @@ const std::vector<Valid>& valid_cases() {
       {"M117 Hello", 'M', 117, {}},
       {"M140 S60", 'M', 140, {{'S', 60}}},
       {"M190 S60", 'M', 190, {{'S', 60}}},
+      {"M155 S2", 'M', 155, {{'S', 2}}},
+      {"M303 E-1 S60 C5 U1", 'M', 303, {{'E', -1}, {'S', 60}, {'C', 5}, {'U', 1}}},
       {"M190 R40", 'M', 190, {{'R', 40}}},
       {"M201 X3000 Y3000 Z100 E5000", 'M', 201, {{'X', 3000}, {'Y', 3000}, {'Z', 100}, {'E', 5000}}},
       {"M203 X300 Y300 Z12 E120", 'M', 203, {{'X', 300}, {'Y', 300}, {'Z', 12}, {'E', 120}}},
@@ -106,7 +108,7 @@ TEST(Codes, TheTableCoversExactlyTheIssueList) {
       "G0",   "G1",   "G2",   "G3",   "G4",   "G10",  "G11",  "G20",  "G21",  "G28",
       "G90",  "G91",  "G92",  "M73",  "M82",  "M83",  "M84",  "M104", "M105", "M106",
       "M107", "M109", "M110", "M112", "M114", "M115", "M117", "M140", "M190", "M201",
-      "M203", "M204", "M205", "M220", "M221", "M400"};
+      "M203", "M204", "M205", "M220", "M221", "M400", "M155", "M303"};
   std::set<std::string> table, tested;
   for (const CodeRule& r : all_code_rules()) table.insert(r.letter + std::to_string(r.code));
   for (const Valid& v : valid_cases()) tested.insert(v.letter + std::to_string(v.code));

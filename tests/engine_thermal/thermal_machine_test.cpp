@@ -1,0 +1,122 @@
+// The machine with heaters in virtual time: M190/M109 wait on the machine clock (seconds of heating
+// in milliseconds of wall time), the status shows the temperatures, and a thermal fault during a
+// wait stops the machine with the heater's message.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <string>
+#include <thread>
+
+#include "config/config.hpp"
+#include "core/clock.hpp"
+#include "engine/executor_factory.hpp"
+#include "engine/machine.hpp"
+#include "engine/simulated_printer.hpp"
+#include "engine/thermal_config.hpp"
+#include "gcode/parser.hpp"
+#include "sim/thermal_plant.hpp"
+
+namespace feedloop::engine {
+namespace {
+
+struct MachineRig {
+  VirtualClock clock{1'000'000'000};
+  std::unique_ptr<Machine> m;
+  std::atomic<uint64_t> done{0}, failed{0};
+  std::string last_failure;
+  std::mutex mu;
+  uint64_t ticket = 0;
+  MachineRig() {
+    const config::MachineConfig& cfg = config::default_config();
+    auto ex = make_executor(cfg);
+    m = std::make_unique<Machine>(machine_options(cfg), clock, std::move(ex.value()));
+    m->set_thermal(std::move(make_thermal_loop(cfg).value()));
+    m->set_done_callback([this](CommandDone d) {
+      if (!d.status.ok()) {
+        std::lock_guard lock(mu);
+        last_failure = d.status.error().message;
+        failed.fetch_add(1);
+      }
+      done.fetch_add(1);
+    });
+  }
+  void run(std::initializer_list<const char*> lines) {
+    for (const char* l : lines) {
+      auto cmd = gcode::parse_line(l, SourceLocation{"t", static_cast<int>(ticket) + 1, 0});
+      ASSERT_TRUE(cmd.ok()) << l;
+      while (!m->try_submit(++ticket, cmd.value()))
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (done.load() < ticket && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+};
+
+TEST(ThermalMachine, M190AndM109WaitOnTheMachineClockAndSettle) {
+  MachineRig r;
+  ASSERT_TRUE(r.m->start().ok());
+  const auto wall0 = std::chrono::steady_clock::now();
+  r.run(
+      {"M140 S60", "M104 S215", "M190 S60", "M109 S215", "M106 S128", "G1 X10 Y10 F3000", "M400"});
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  const double virt_s = seconds_from_ns(r.clock.now_ns()) - 1.0;
+  const MachineStatus s = r.m->status();
+  const ServoStatus servo = r.m->servo_status();
+  r.m->stop();
+  // The wait advanced the virtual clock while the servo thread idled: no cycle counts it as late.
+  EXPECT_EQ(servo.deadline_misses, 0u);
+  EXPECT_GT(servo.cycles, 100u);  // the move ran
+  std::printf("heat-up: %.1f s of machine time in %.2f s wall; T %.2f B %.2f\n", virt_s, wall_s,
+              s.hotend_c, s.bed_c);
+  EXPECT_EQ(r.done.load(), r.ticket);
+  EXPECT_EQ(r.failed.load(), 0u) << r.last_failure;
+  // The bed needs about a minute (250 W on 350 J/K) and 10 s of residency within 1 C.
+  EXPECT_GT(virt_s, 40.0);
+  EXPECT_LT(virt_s, 300.0);
+  EXPECT_NEAR(s.bed_c, 60.0, 2.0);
+  EXPECT_NEAR(s.hotend_c, 215.0, 3.0);
+  ASSERT_EQ(s.num_heaters, 2);
+  EXPECT_STREQ(s.heaters[0].name, "extruder");
+  EXPECT_EQ(s.heaters[0].target_c, 215.0);
+  ASSERT_EQ(s.num_fans, 2);
+  EXPECT_NEAR(s.fans[0].speed, 128.0 / 255.0, 1e-9);  // the kick-start (0.1 s) is over
+  EXPECT_EQ(s.fans[1].speed, 1.0);                    // the hotend fan: the extruder is above 50 C
+  EXPECT_EQ(std::string(s.temp_report).rfind("T:", 0), 0u) << s.temp_report;
+}
+
+TEST(ThermalMachine, AFaultDuringAWaitStopsTheMachineWithTheHeatersMessage) {
+  MachineRig r;
+  ASSERT_TRUE(r.m->start().ok());
+  r.run({"M104 S200", "M140 S50"});
+  sim::ThermalPlant* plant = simulated_thermal_plant(r.m->thermal()->link(), 0);
+  ASSERT_NE(plant, nullptr);
+  plant->inject(seconds_from_ns(r.clock.now_ns()), sim::ThermalFaultKind::kThermistorOpen);
+  r.run({"M190 S50", "G1 X10 F3000"});
+  const MachineStatus s = r.m->status();
+  r.m->stop();
+  EXPECT_EQ(s.state, MachineState::kEmergencyStopped);
+  EXPECT_NE(std::string(s.last_error).find("heater extruder: sensor open"), std::string::npos)
+      << s.last_error << " / " << r.last_failure;
+  EXPECT_EQ(r.failed.load(), 2u);  // the wait and the move after it
+  for (int i = 0; i < s.num_heaters; ++i) {
+    EXPECT_EQ(s.heaters[i].target_c, 0.0);
+    EXPECT_EQ(s.heaters[i].power, 0.0);
+  }
+  EXPECT_EQ(plant->duty(), 0.0);
+}
+
+TEST(ThermalMachine, M303AutotunesTheExtruderAndUsesTheResult) {
+  MachineRig r;
+  ASSERT_TRUE(r.m->start().ok());
+  r.run({"M303 E0 S200 C5 U1", "M109 S210"});
+  const MachineStatus s = r.m->status();
+  r.m->stop();
+  EXPECT_EQ(r.failed.load(), 0u) << r.last_failure;
+  EXPECT_NEAR(s.hotend_c, 210.0, 3.0);
+}
+
+}  // namespace
+}  // namespace feedloop::engine
