@@ -40,8 +40,8 @@ struct FakeMachine final : JobSink {
   int64_t clock_ns = 0;
   bool refuse = false;
 
-  Offer offer(const gcode::Command& cmd, std::string_view text, std::function<void(const Status&)> done,
-              std::string* why) override {
+  Offer offer(const gcode::Command& cmd, std::string_view text,
+              std::function<void(const Status&)> done, std::string* why) override {
     if (refuse) {
       *why = "refused by the test";
       return Offer::kRefused;
@@ -117,7 +117,8 @@ class PrintJobTest : public ::testing::Test {
     for (int i = 0; i < moves; ++i) {
       const double x = 20.0 + (i % 4 == 1 || i % 4 == 2 ? 40.0 : 0.0) + 0.1 * i;
       const double y = 20.0 + (i % 4 >= 2 ? 40.0 : 0.0) + 0.1 * i;
-      g << "G1 X" << x << " Y" << y << " E0.8 F" << (i % 2 ? 1800 : 2400) << " ; move " << i << "\n";
+      g << "G1 X" << x << " Y" << y << " E0.8 F" << (i % 2 ? 1800 : 2400) << " ; move " << i
+        << "\n";
       if (i % 10 == 9) g << "G1 Z" << 0.3 + 0.2 * (i / 10 + 1) << "\n";
     }
     g << "G1 Z20 F600\n";
@@ -179,9 +180,10 @@ TEST_F(PrintJobTest, UploadListDeleteAndSizeLimit) {
   EXPECT_EQ((*list)[1].name, "b.gcode");
   EXPECT_EQ((*list)[1].size_bytes, 10u);
   size_t entries = 0;
-  for (const auto& e : std::filesystem::directory_iterator(dir_ + "/gcodes")) entries += e.path().filename() != "" ? 1 : 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir_ + "/gcodes"))
+    entries += e.path().filename() != "" ? 1 : 0;
   EXPECT_EQ(entries, 3u);  // a, b, stray: no temporary left behind
-  struct stat st{};
+  struct stat st {};
   ASSERT_EQ(::stat((dir_ + "/gcodes/a.gcode").c_str(), &st), 0);
   EXPECT_EQ(st.st_mode & 0777, 0640u);
   ASSERT_TRUE(files_->remove("a.gcode").ok());
@@ -226,7 +228,8 @@ TEST_F(PrintJobTest, ProgressAndEstimateComeFromThePlannedTime) {
   job.pump();
   const double total = m.print_time_s;
   // The estimate at that point (planned time per byte, scaled to the file) against the real total.
-  EXPECT_NEAR(mid.estimated_total_s, total, 0.15 * total) << "mid " << mid.estimated_total_s << " total " << total;
+  EXPECT_NEAR(mid.estimated_total_s, total, 0.15 * total)
+      << "mid " << mid.estimated_total_s << " total " << total;
   EXPECT_NEAR(mid.estimated_remaining_s, mid.estimated_total_s - mid.print_time_s, 1e-9);
   EXPECT_GT(mid.progress_time, 0.2);
   const JobStatus end = job.status();
@@ -261,8 +264,10 @@ TEST_F(PrintJobTest, PauseParksAndResumeRestoresPositionModesAndFeedrate) {
   ASSERT_TRUE(p.pause_position.valid);
   // The pause position is where the last queued file command left the machine.
   const std::vector<std::string> lines = command_lines(text);
-  EXPECT_EQ(std::vector<std::string>(m.executed.begin(), m.executed.begin() + static_cast<long>(file_lines_before)),
-            std::vector<std::string>(lines.begin(), lines.begin() + static_cast<long>(file_lines_before)));
+  EXPECT_EQ(std::vector<std::string>(m.executed.begin(),
+                                     m.executed.begin() + static_cast<long>(file_lines_before)),
+            std::vector<std::string>(lines.begin(),
+                                     lines.begin() + static_cast<long>(file_lines_before)));
   // Parked: retracted by 1.5 mm, Z up 5 mm, at the park point.
   const auto& st = m.rig.interp.state();
   EXPECT_DOUBLE_EQ(st.logical_mm[0], 5.0);
@@ -271,7 +276,8 @@ TEST_F(PrintJobTest, PauseParksAndResumeRestoresPositionModesAndFeedrate) {
   EXPECT_NEAR(st.logical_mm[kE], p.pause_position.pos_mm[3] - 1.5, 1e-9);
   // Another client moves the machine and changes modes while paused: resume puts them back.
   for (const char* l : {"G91", "M82", "G1 X10 F300"}) {
-    m.queue.push_back({*gcode::parse_line(l, SourceLocation{"other", 1, 0}), l, [](const Status&) {}});
+    m.queue.push_back(
+        {*gcode::parse_line(l, SourceLocation{"other", 1, 0}), l, [](const Status&) {}});
   }
   m.run();
   ASSERT_TRUE(job.resume().ok());
@@ -282,7 +288,8 @@ TEST_F(PrintJobTest, PauseParksAndResumeRestoresPositionModesAndFeedrate) {
   ASSERT_TRUE(r.resume_position.valid);
   for (int i = 0; i < 4; ++i) {
     EXPECT_NEAR(r.resume_position.pos_mm[i], p.pause_position.pos_mm[i], 1e-9) << "axis " << i;
-    EXPECT_EQ(r.resume_position.step_count[i] - p.pause_position.step_count[i], i == 3 ? std::llround(0.2 * 80) : 0)
+    EXPECT_EQ(r.resume_position.step_count[i] - p.pause_position.step_count[i],
+              i == 3 ? std::llround(0.2 * 80) : 0)
         << "axis " << i;  // E: the prime beyond the retract is extruded; X Y Z: the same step
   }
   m.run();
@@ -290,7 +297,8 @@ TEST_F(PrintJobTest, PauseParksAndResumeRestoresPositionModesAndFeedrate) {
   EXPECT_EQ(job.state(), JobState::kComplete);
   EXPECT_FALSE(m.rig.interp.state().relative_xyz);
   EXPECT_TRUE(m.rig.interp.state().e_relative());
-  for (int i = 0; i < 3; ++i) EXPECT_NEAR(st.logical_mm[i], plain.rig.interp.state().logical_mm[i], 1e-9);
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(st.logical_mm[i], plain.rig.interp.state().logical_mm[i], 1e-9);
   EXPECT_NEAR(st.logical_mm[kE], plain.rig.interp.state().logical_mm[kE], 1e-9);
   // The feedrate the file left (F2400 or F1800 of the last move before the pause) was restored:
   // the file's next moves without F ran at it. The Z moves have no F: compare the last feedrate.
@@ -381,7 +389,8 @@ TEST_F(PrintJobTest, ARefusedOfferEndsTheJob) {
   PrintJob job(*files_, options_, m);
   ASSERT_TRUE(job.start("s.gcode").ok());
   EXPECT_EQ(job.state(), JobState::kError);
-  EXPECT_NE(job.status().message.find("s.gcode:1: refused by the test"), std::string::npos) << job.status().message;
+  EXPECT_NE(job.status().message.find("s.gcode:1: refused by the test"), std::string::npos)
+      << job.status().message;
 }
 
 }  // namespace
