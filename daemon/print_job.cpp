@@ -290,6 +290,13 @@ void PrintJob::feed() {
         bytes_submitted_ = read_offset_;
         continue;
       }
+      if (cmd->is('M', 25) || cmd->is('M', 601)) {
+        // A pause in the file (Marlin's M25 in an SD print; M601, PrusaSlicer's pause print):
+        // the job pauses itself there, and resume goes on with the next line.
+        bytes_submitted_ = read_offset_;
+        (void)pause();  // printing: it cannot fail
+        return;
+      }
       held_ = std::move(*cmd);
       held_text_ = line_;
       held_line_ = line_number_;

@@ -10,17 +10,18 @@
 //           M400 + a short settle dwell; record the position X Y Z E, the feedrate and the G90/G91,
 //           M82/M83 and G20/G21 modes; retract, lift Z (clamped to the travel), park in XY;
 //           heaters are held at their targets.
-//   resume: XY back, then Z, un-retract and prime (`prime_extra_mm`), G92 E back to the recorded
+//   resume: XY back, then Z,
+//   un-retract and prime (`prime_extra_mm`), G92 E back to the recorded
 //           E, settle dwell + M400 (the return position is measured here), restore the modes and
 //           the feedrate, continue with the next line of the file.
 //   cancel: stop reading; let the queued commands finish (at most the machine queue's capacity);
 //           every heater off (JobSink::all_heaters_off), retract, lift, park. Marlin's M524 /
 //           Klipper's CANCEL_PRINT.
 // A line of the file that fails to parse or that the machine refuses ends the job in `error` with
-// the file's name and line; the heaters are switched off and the machine is not parked (the
-// failed move may be the reason).
-// The job is not tied to any client: a print started by a client runs on after it disconnects.
-// I/O thread only; the web API (web/) and the JSON API call start/pause/resume/cancel/status.
+// the file's name and line; an M25 or M601 in the file pauses the job there; the heaters are
+// switched off and the machine is not parked (the failed move may be the reason). The job is not
+// tied to any client: a print started by a client runs on after it disconnects. I/O thread only;
+// the web API (web/) and the JSON API call start/pause/resume/cancel/status.
 #pragma once
 
 #include <cstdint>
@@ -80,7 +81,7 @@ struct JobOptions {
   std::optional<double> park_x_mm, park_y_mm;  // XY park point (none: XY stay)
   double travel_speed_mm_s = 100.0;
   double z_max_mm = 1e9;     // travel limit of Z (logical = machine coordinates)
-  int settle_ms = 100;       // dwell before a pause/resume position is taken
+  int settle_ms = 500;       // dwell before a pause/resume position is taken
   int lines_per_pump = 256;  // bounds one pump's work on the I/O thread
 };
 
