@@ -248,8 +248,8 @@ TEST_F(Jobs, PauseResumeInTheMiddleOfTheBenchyAndCancel) {
   ASSERT_EQ(r["state"], "printing") << r.dump();
   const json& rp = r["resume_position"];
   ASSERT_TRUE(rp.is_object()) << r.dump();
-  // Back at the same place: the same step on X Y Z, and the encoders (0.49 um per count) within
-  // one count of the reading at the pause.
+  // Back at the same place: the same step on X Y Z; the encoders (0.49 um per count) against their
+  // reading at the pause.
   const double count_mm = 0.49e-3;
   for (int i = 0; i < 3; ++i) {
     EXPECT_NEAR(rp["pos_mm"][i].get<double>(), pp["pos_mm"][i].get<double>(), 1e-9) << "axis " << i;
