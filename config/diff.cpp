@@ -23,6 +23,7 @@ std::vector<std::string> changed_sections(const MachineConfig& a, const MachineC
   check(a.simulator == b.simulator, "simulator");
   check(a.sockets == b.sockets, "sockets");
   check(a.recorder == b.recorder, "recorder");
+  check(a.jobs == b.jobs, "jobs");
   check(a.logging == b.logging, "logging");
   return out;
 }

@@ -339,6 +339,20 @@ void write_runtime(Writer& w, const MachineConfig& c) {
   w.integer("keep_files", c.recorder.keep_files);
   w.end();
 
+  w.begin("jobs");
+  w.str("directory", c.jobs.directory);
+  w.num("max_file_size_mb", c.jobs.max_file_size_mb);
+  w.num("pause_retract_mm", c.jobs.pause_retract_mm);
+  w.num("retract_speed_mm_s", c.jobs.retract_speed_mm_s);
+  w.num("prime_extra_mm", c.jobs.prime_extra_mm);
+  w.num("lift_mm", c.jobs.lift_mm);
+  w.num("z_speed_mm_s", c.jobs.z_speed_mm_s);
+  if (c.jobs.park_x_mm) w.num("park_x_mm", *c.jobs.park_x_mm);
+  if (c.jobs.park_y_mm) w.num("park_y_mm", *c.jobs.park_y_mm);
+  w.num("travel_speed_mm_s", c.jobs.travel_speed_mm_s);
+  w.num("settle_ms", c.jobs.settle_ms);
+  w.end();
+
   w.begin("logging");
   w.word("level", enum_name(log_level_names(), c.logging.level));
   w.str("file", c.logging.file);

@@ -409,6 +409,23 @@ struct RecorderConfig {
   bool operator==(const RecorderConfig&) const = default;
 };
 
+// Print jobs from files (daemon/print_job.hpp, docs/jobs.md): the folder and the pause/cancel moves.
+struct JobsConfig {
+  std::string directory = "${STATE_DIR}/gcodes";  // the job folder (created when missing)
+  double max_file_size_mb = 512.0;                 // uploads above this are refused
+  double pause_retract_mm = 1.0;                   // filament pulled back on pause/cancel
+  double retract_speed_mm_s = 30.0;
+  double prime_extra_mm = 0.0;                     // pushed on resume beyond the retract
+  double lift_mm = 5.0;                            // Z raise on pause/cancel (within Z's travel)
+  double z_speed_mm_s = 10.0;
+  // XY park point on pause/cancel. Unset: Marlin's NOZZLE_PARK_POINT default (X min + 10,
+  // Y max - 10) on Cartesian and CoreXY machines; on a delta XY stay (only Z is raised).
+  std::optional<double> park_x_mm, park_y_mm;
+  double travel_speed_mm_s = 100.0;
+  double settle_ms = 500.0;                        // dwell before a pause/resume position is taken
+  bool operator==(const JobsConfig&) const = default;
+};
+
 // Same order as spdlog::level::level_enum (the daemon casts between them).
 enum class LogLevel { trace, debug, info, warn, error, critical, off };
 
@@ -495,6 +512,7 @@ struct MachineConfig {
   std::vector<FanConfig> fans;
   SocketsConfig sockets;
   RecorderConfig recorder;
+  JobsConfig jobs;
   LoggingConfig logging;
 
   bool operator==(const MachineConfig&) const = default;

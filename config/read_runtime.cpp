@@ -147,6 +147,26 @@ void read_io(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   r.integer_as("keep_files", cfg.recorder.keep_files, 1, 100000);
   r.finish();
 
+  MapReader j = root.sub("jobs");
+  read_path(j, "directory", cfg.jobs.directory, diag);
+  j.number("max_file_size_mb", cfg.jobs.max_file_size_mb, Range::closed(0.001, 1e6));
+  j.number("pause_retract_mm", cfg.jobs.pause_retract_mm, Range::closed(0.0, 50.0));
+  j.number("retract_speed_mm_s", cfg.jobs.retract_speed_mm_s, Range::positive());
+  j.number("prime_extra_mm", cfg.jobs.prime_extra_mm, Range::closed(0.0, 50.0));
+  j.number("lift_mm", cfg.jobs.lift_mm, Range::closed(0.0, 1000.0));
+  j.number("z_speed_mm_s", cfg.jobs.z_speed_mm_s, Range::positive());
+  if (j.has("park_x_mm")) {
+    double v = 0.0;
+    if (j.number("park_x_mm", v, Range::any())) cfg.jobs.park_x_mm = v;
+  }
+  if (j.has("park_y_mm")) {
+    double v = 0.0;
+    if (j.number("park_y_mm", v, Range::any())) cfg.jobs.park_y_mm = v;
+  }
+  j.number("travel_speed_mm_s", cfg.jobs.travel_speed_mm_s, Range::positive());
+  j.number("settle_ms", cfg.jobs.settle_ms, Range::closed(0.0, 10000.0));
+  j.finish();
+
   MapReader l = root.sub("logging");
   l.choice("level", cfg.logging.level, log_level_names());
   l.string("file", cfg.logging.file);

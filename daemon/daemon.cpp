@@ -126,16 +126,15 @@ Result<std::unique_ptr<engine::CommandExecutor>> Daemon::make_recorded_executor(
   return std::unique_ptr<engine::CommandExecutor>(std::move(stack->executor));
 }
 
-void Daemon::start_print(const Client& owner) {
+void Daemon::start_print(const std::string& owner_name) {
   if (!recorder_ || print_open_) return;
-  if (Status s = recorder_->start_print(owner.session->name()); !s) {
+  if (Status s = recorder_->start_print(owner_name); !s) {
     spdlog::warn("flight recorder: cannot start recording the print: {}", s.error().to_string());
     return;
   }
   print_open_ = true;
   recorder_->writer(recorder::Stream::io)
-      .event(recorder::EventKind::print_start, machine_clock_->now_ns(), -1, 0.0,
-             owner.session->name());
+      .event(recorder::EventKind::print_start, machine_clock_->now_ns(), -1, 0.0, owner_name);
 }
 
 void Daemon::end_print() {
@@ -169,6 +168,7 @@ Status Daemon::start() {
   }
   std::string warnings;
   if (Status s = start_machine(std::move(*executor), &warnings); !s) return s;
+  open_jobs();
   for (size_t b = 0, e; b < warnings.size(); b = e + 1) {
     e = warnings.find('\n', b);
     if (e == std::string::npos) e = warnings.size();
@@ -404,7 +404,7 @@ void Daemon::process_marlin_line(Client& c, std::string_view line) {
     }
     if (c.replies.empty()) {
       std::string answer;
-      answer_query(cmd, answer);
+      answer_query(cmd, answer, c.id);
       c.session->send_line(answer);
     } else {
       auto slot = std::make_shared<ReplySlot>();
@@ -436,7 +436,7 @@ void Daemon::flush_replies(Client& c) {
   while (!c.replies.empty()) {
     ReplySlot& r = *c.replies.front();
     if (r.is_query) {
-      answer_query(r.query, r.text);
+      answer_query(r.query, r.text, c.id);
     } else if (!r.ready) {
       break;
     }
@@ -445,18 +445,30 @@ void Daemon::flush_replies(Client& c) {
   }
 }
 
+namespace {
+// Marlin's SD-card commands, answered by the job controller (docs/jobs.md).
+bool is_sd_command(const gcode::Command& cmd) {
+  if (cmd.letter != 'M') return false;
+  switch (cmd.code) {
+    case 20: case 21: case 23: case 24: case 25: case 26: case 27: case 32: case 524: return true;
+    default: return false;
+  }
+}
+}  // namespace
+
 bool Daemon::is_query(const gcode::Command& cmd) {
   if (cmd.empty()) return true;
   return cmd.letter == 'M' && (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 ||
-                               cmd.code == 117 || cmd.code == 73 || cmd.code == 155);
+                               cmd.code == 117 || cmd.code == 73 || cmd.code == 155 || is_sd_command(cmd));
 }
 
-bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply) {
+bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply, uint64_t client_id) {
   if (cmd.empty()) {
     reply = "ok";
     return true;
   }
   if (cmd.letter != 'M') return false;
+  if (is_sd_command(cmd)) return answer_sd_command(cmd, reply, client_id);
   const engine::MachineStatus s = machine_->status();
   char buf[256];
   switch (cmd.code) {
@@ -511,18 +523,14 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
   const uint64_t cid = c.id;
   if (machine_->status().state == engine::MachineState::kEmergencyStopped)
     return "Printer halted (emergency stop); restart feedloopd to clear";
-  if (owner_ != 0 && owner_ != cid) {
-    const Client* o = find_client(owner_);
-    return "busy: the print is owned by " +
-           (o ? o->session->name() : std::string("another client"));
-  }
+  if (owner_ != 0 && owner_ != cid) return "busy: the print is owned by " + owner_name();
   if (owner_ != cid) {
     owner_ = cid;
     spdlog::info("{} owns the print", c.session->name());
   }
   owner_last_activity_ns_ = clock_.now_ns();
   if (recorder_) {
-    start_print(c);
+    start_print(c.session->name());
     recorder_->writer(recorder::Stream::io).gcode_line(machine_clock_->now_ns(), source, text);
   }
   const uint64_t ticket = next_ticket_++;
@@ -607,7 +615,7 @@ void Daemon::run_script_step(std::shared_ptr<Script> s) {
       return;
     }
     std::string answer;
-    if (answer_query(*cmd, answer)) {
+    if (answer_query(*cmd, answer, c->id)) {
       s->results.push_back({{"line", text}, {"ok", true}, {"reply", answer}});
       continue;
     }
@@ -756,7 +764,8 @@ json Daemon::status() const {
             {"device_loops", device_loops_json(s.device_loops, engine::joint_names(cfg_))}}},
           {"links", links_json(s.links)},
           {"clients", clients_.size()},
-          {"owner", o ? json(o->session->name()) : json(nullptr)},
+          {"owner", owner_ == kJobOwner ? json(owner_name()) : o ? json(o->session->name()) : json(nullptr)},
+          {"job", job_status_json()},
           {"progress_percent", progress_percent_},
           {"message", display_message_},
           {"config_reloads", reloads_},
@@ -785,9 +794,14 @@ std::shared_ptr<const std::string> Daemon::status_text() {
 void Daemon::tick() {
   if (shutting_down_) return;
   retry_parked();
+  flush_internal();
+  if (job_) job_->pump();
   const int64_t now = clock_.now_ns();
-  // Ownership ends after the owner has been idle long enough.
-  if (owner_ != 0 && machine_->idle()) {
+  // Ownership ends after the owner has been idle long enough; a job owns the print while it
+  // sends commands (printing and its pause/resume/cancel moves; not while paused).
+  if (owner_ == kJobOwner) {
+    if (!job_ || !job_->sending()) owner_ = 0;
+  } else if (owner_ != 0 && machine_->idle()) {
     const Client* o = find_client(owner_);
     if (!o || (o->in_flight == 0 && !o->parked &&
                now - owner_last_activity_ns_ > ns_from_seconds(options_.ownership_idle_s))) {
@@ -848,7 +862,7 @@ void Daemon::tick() {
     spdlog::warn("command rejected: {}", summary);
   // The print ends when nobody owns the machine any more and it has stopped.
   if (print_open_ && owner_ == 0 && machine_->idle() && pending_.empty()) end_print();
-  if (reload_requested_ && machine_->idle() && pending_.empty()) reload_config();
+  if (reload_requested_ && machine_->idle() && pending_.empty() && !(job_ && job_->active())) reload_config();
   timer_.expires_after(kTickInterval);
   timer_.async_wait([this](const boost::system::error_code& ec) {
     if (!ec) tick();
@@ -906,6 +920,7 @@ void Daemon::reload_config() {
     request_shutdown("reload failure");
     return;
   }
+  open_jobs();
   ++reloads_;
   spdlog::info("config reloaded: '{}'", cfg_.name);
   notifier_.ready();

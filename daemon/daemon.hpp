@@ -29,8 +29,10 @@
 #include "core/clock.hpp"
 #include "core/result.hpp"
 #include "daemon/client_session.hpp"
+#include "daemon/job_files.hpp"
 #include "daemon/json_api.hpp"
 #include "daemon/listeners.hpp"
+#include "daemon/print_job.hpp"
 #include "daemon/repeat_filter.hpp"
 #include "daemon/watchdog.hpp"
 #include "engine/machine.hpp"
@@ -54,7 +56,10 @@ struct DaemonOptions {
   int status_period_ms = 10;
 };
 
-class Daemon final : public JsonApiBackend {
+// Print jobs (daemon/print_job.hpp, docs/jobs.md): the daemon reads a file of the job folder into
+// the same submit path the clients use; while the job sends commands it owns the print (its own
+// owner id, kJobOwner), so the print goes on when the client that started it disconnects.
+class Daemon final : public JsonApiBackend, private JobSink {
  public:
   Daemon(config::MachineConfig cfg, DaemonOptions options);
   ~Daemon() override;
@@ -83,8 +88,31 @@ class Daemon final : public JsonApiBackend {
   void run_script(ClientSession& client, std::string script,
                   std::function<void(nlohmann::json, std::string)> done) override;
   void emergency_stop(const std::string& reason) override;
+  std::optional<MethodResult> call_method(ClientSession& client, const std::string& method,
+                                          const nlohmann::json& params) override;
+
+  // The job controller's interface for the web API (web/) and tests: the calls the JSON API's
+  // files.* / job.* methods make. `requester`: the client id asking (0: none, e.g. the web API).
+  // I/O thread only.
+  Result<std::vector<JobFileInfo>> job_files_list() const;
+  Result<JobFileInfo> job_file_upload(const std::string& name, std::string_view content);
+  Status job_file_delete(const std::string& name);
+  Status job_start(const std::string& name, uint64_t requester = 0);
+  Status job_pause();
+  Status job_resume(uint64_t requester = 0);
+  Status job_cancel();
+  JobStatus job_status() const;
+  nlohmann::json job_status_json() const;
+
+  // The narrow heater hook (the heaters' module connects here): a heater's target, and every
+  // heater off. Today they set the simulated heaters' targets through the machine's queue, in
+  // order behind the commands already in it. I/O thread.
+  enum class Heater { kHotend, kBed };
+  void set_heater_target(Heater heater, double target_c);
+  void all_heaters_off() override;
 
  private:
+  static constexpr uint64_t kJobOwner = UINT64_MAX;  // the owner id of a print job
   enum class Kind { kMarlin, kJson };
   struct Parked {
     uint64_t ticket;
@@ -129,8 +157,21 @@ class Daemon final : public JsonApiBackend {
   void on_marlin_line(Client& c, std::string_view line, bool too_long);
   void process_marlin_line(Client& c, std::string_view line);
   // Answers queries at once; returns true if `cmd` was one.
-  bool answer_query(const gcode::Command& cmd, std::string& reply);
+  // `client_id`: who asks (the SD-card commands check print ownership; 0: no client).
+  bool answer_query(const gcode::Command& cmd, std::string& reply, uint64_t client_id = 0);
   static bool is_query(const gcode::Command& cmd);
+  // Marlin's SD-card commands (M20 M21 M23 M24 M25 M26 M27 M32 M524) on the job folder.
+  bool answer_sd_command(const gcode::Command& cmd, std::string& reply, uint64_t client_id);
+  // JobSink
+  Offer offer(const gcode::Command& cmd, std::string_view text, std::function<void(const Status&)> done,
+              std::string* why) override;
+  engine::MachineStatus machine_status() const override { return machine_->status(); }
+  int64_t now_ns() const override { return clock_.now_ns(); }
+  void open_jobs();
+  // Commands of the daemon's own (heater hook) waiting for room in the machine's queue.
+  void flush_internal();
+  // Who owns the print, for an error text.
+  std::string owner_name() const;
   // Sends the ready answers at the front of c.replies (queries are answered there).
   void flush_replies(Client& c);
   // Ownership + submit. Returns an error text when refused; parks when the queue is full.
@@ -150,7 +191,7 @@ class Daemon final : public JsonApiBackend {
   void close_recorder();
   // The executor with the recorder's taps in it.
   Result<std::unique_ptr<engine::CommandExecutor>> make_recorded_executor();
-  void start_print(const Client& owner);
+  void start_print(const std::string& owner_name);
   void end_print();
   std::string firmware_info() const;
 
@@ -199,6 +240,10 @@ class Daemon final : public JsonApiBackend {
     bool stale = true;
   };
   StatusSnapshot snapshot_;
+
+  std::unique_ptr<JobFiles> job_files_;
+  std::unique_ptr<PrintJob> job_;
+  std::deque<std::pair<gcode::Command, std::string>> internal_backlog_;
 };
 
 }  // namespace feedloop::daemon

@@ -155,11 +155,15 @@ void dispatch(JsonApiBackend& backend, ClientSession& client, const json& req,
     if (params.contains("reason") && params["reason"].is_string()) reason = params["reason"];
     backend.emergency_stop(reason);
     respond(result_of(id, {{"stopped", true}}));
+  } else if (std::optional<MethodResult> r = backend.call_method(client, method, params)) {
+    if (r->code != 0) respond(json_rpc_error(id, r->code, r->error));
+    else respond(result_of(id, std::move(r->result)));
   } else {
     respond(json_rpc_error(id, -32601,
                            "unknown method '" + valid_utf8(method) +
                                "' (known: info, status, subscribe, unsubscribe, "
-                               "gcode, emergency_stop)"));
+                               "gcode, emergency_stop, files.list, files.upload, files.delete, "
+                               "job.start, job.pause, job.resume, job.cancel, job.status)"));
   }
 }
 

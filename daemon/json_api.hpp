@@ -12,6 +12,8 @@
 //   gcode {script}            -> runs the lines as this client (print ownership applies); the
 //                                response comes when every line has executed: {results:[...]}
 //   emergency_stop {reason}
+//   files.list, files.upload {filename, content | content_base64}, files.delete {filename},
+//   job.start {filename}, job.pause, job.resume, job.cancel, job.status  (docs/jobs.md)
 // `status` is served from a snapshot (JsonApiBackend::status_text): the daemon serialises the
 // status at most once per period (and after each completed command) and every client gets that
 // same text, spliced into its reply; the snapshot carries {"snapshot": {"seq", "period_ms"}}.
@@ -25,12 +27,20 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 
 namespace feedloop::daemon {
 
 class ClientSession;
+
+// The answer of a method a backend adds (files.*, job.*): a result, or an error with its code.
+struct MethodResult {
+  nlohmann::json result;
+  int code = 0;  // 0: success; else a JSON-RPC error code (-32602 invalid params, -32000 machine)
+  std::string error;
+};
 
 // What the JSON API needs from the rest of the daemon.
 class JsonApiBackend {
@@ -47,6 +57,11 @@ class JsonApiBackend {
   virtual void run_script(ClientSession& client, std::string script,
                           std::function<void(nlohmann::json result, std::string error)> done) = 0;
   virtual void emergency_stop(const std::string& reason) = 0;
+  // Further methods (the daemon's files.* and job.*); nullopt: no such method.
+  virtual std::optional<MethodResult> call_method(ClientSession& /*client*/, const std::string& /*method*/,
+                                                  const nlohmann::json& /*params*/) {
+    return std::nullopt;
+  }
 };
 
 struct Subscription {

@@ -83,6 +83,13 @@ constexpr ParamRule kAdvanced[] = {non_negative('X'), non_negative('Y'), non_neg
                                    non_negative('E'), range('J', 0.01, 0.3), non_negative('S'),
                                    non_negative('T'), non_negative('B')};
 // M220 feedrate override percent (B backs up, R restores); M221 flow percent for extruder T.
+// Marlin's SD-card commands (the daemon's job folder, docs/jobs.md): M20 L long names, T
+// timestamps, F folders (listing flags); M24 S<byte> T<ms> (resume position, Marlin's
+// POWER_LOSS_RECOVERY); M26 S byte position; M27 S auto-report seconds, C current file name.
+constexpr ParamRule kFileList[] = {flag('L'), flag('T'), flag('F')};
+constexpr ParamRule kFileStart[] = {non_negative('S'), non_negative('T')};
+constexpr ParamRule kFilePosition[] = {{'S', K::kNumber, 0.0, 1e15, false, true}};
+constexpr ParamRule kFileReport[] = {non_negative('S'), flag('C')};
 constexpr ParamRule kFeedOverride[] = {range('S', 1, 1000), flag('B'), flag('R')};
 constexpr ParamRule kFlowOverride[] = {range('S', 0, 1000), index('T')};
 // Tool change T<n>: F feedrate for the swap, S1 = no move.
@@ -103,6 +110,15 @@ constexpr CodeRule kRules[] = {
     {'G', 90, "absolute positioning", {}},
     {'G', 91, "relative positioning", {}},
     {'G', 92, "set position", kSetPosition},
+    {'M', 18, "disable steppers (M84)", kMotorsOff},
+    {'M', 20, "list files", kFileList},
+    {'M', 21, "init file storage", {}},
+    {'M', 23, "select file", {}},
+    {'M', 24, "start or resume file print", kFileStart},
+    {'M', 25, "pause file print", {}},
+    {'M', 26, "set file position", kFilePosition},
+    {'M', 27, "report file print status", kFileReport},
+    {'M', 32, "select and start file", {}},
     {'M', 73, "set print progress", kProgress},
     {'M', 82, "absolute extrusion", {}},
     {'M', 83, "relative extrusion", {}},
@@ -128,6 +144,7 @@ constexpr CodeRule kRules[] = {
     {'M', 221, "flow override", kFlowOverride},
     {'M', 303, "PID autotune", kAutotune},
     {'M', 400, "wait for moves to finish", {}},
+    {'M', 524, "abort file print", {}},
 };
 constexpr CodeRule kToolRule{'T', 0, "select tool", kToolChange};
 

@@ -76,10 +76,11 @@ Status Interpreter::execute(const gcode::Command& c) {
       case 82: st_.e_mode = EMode::absolute; return {};
       case 83: st_.e_mode = EMode::relative; return {};
       case 220:
-        if (c.has('S')) {
-          if (!(c.get('S') > 0.0)) return fail(c, "speed factor S must be > 0 %");
-          st_.speed_factor = c.get('S') / 100.0;
-        }
+        // Marlin's M220 (gcode/config/M220.cpp): B backs the factor up, R restores it, then S.
+        if (c.has('S') && !(c.get('S') > 0.0)) return fail(c, "speed factor S must be > 0 %");
+        if (c.has('B')) st_.saved_speed_factor = st_.speed_factor;
+        if (c.has('R')) st_.speed_factor = st_.saved_speed_factor;
+        if (c.has('S')) st_.speed_factor = c.get('S') / 100.0;
         return {};
       case 221:
         if (c.has('S')) {

@@ -2,7 +2,7 @@
 //   G0/G1 lines, G2/G3 arcs (I J or R, split within config.arc_tolerance_mm), G4 dwell,
 //   G10/G11 firmware retraction (M207/M208 set it), G17 (only the XY plane), G20/G21 units,
 //   G28 home (simulated: a move to config.home_position_mm), G90/G91, G92 (incl. G92 E0),
-//   M82/M83, M220/M221 overrides, M400 (a moves_done event the caller can wait on),
+//   M82/M83, M220/M221 overrides (M220 B/R back up/restore), M400 (a moves_done event the caller can wait on),
 //   M201/M203 per-axis limits, M204 P/R/T/S as Marlin 2 defines them (P printing moves, R
 //   E-only retract moves, T travel moves, S legacy = P and T), M205 J junction deviation.
 //   M205 X/Y/Z/E (classic jerk) are recorded but not used for planning: Marlin 2 ignores them
@@ -34,6 +34,7 @@ struct MachineState {
   double unit_mm = 1.0;           // 25.4 after G20
   double feedrate_mm_s = 25.0;    // last F
   double speed_factor = 1.0;      // M220 S / 100
+  double saved_speed_factor = 1.0;  // M220 B backs speed_factor up here, M220 R restores it
   double flow_factor = 1.0;       // M221 S / 100
   double print_accel_mm_s2 = 0.0, retract_accel_mm_s2 = 0.0, travel_accel_mm_s2 = 0.0;  // M204
   Vec4 max_axis_velocity_mm_s{};  // M203

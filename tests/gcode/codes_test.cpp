@@ -77,6 +77,16 @@ const std::vector<Valid>& valid_cases() {
       {"M205 X8 Y8 Z0.4 E4.5", 'M', 205, {{'X', 8}, {'Y', 8}, {'Z', 0.4}, {'E', 4.5}}},
       {"M205 J0.013 S0 T0 B20000", 'M', 205, {{'J', 0.013}, {'S', 0}, {'T', 0}, {'B', 20000}}},
       {"M220 S150", 'M', 220, {{'S', 150}}},
+      {"M18 X E", 'M', 18, {}, "XE"},
+      {"M20 L", 'M', 20, {}, "L"},
+      {"M21", 'M', 21, {}},
+      {"M23 benchy.gcode", 'M', 23, {}},
+      {"M24", 'M', 24, {}},
+      {"M25", 'M', 25, {}},
+      {"M26 S1024", 'M', 26, {{'S', 1024}}},
+      {"M27 C", 'M', 27, {}, "C"},
+      {"M32 !benchy.gcode#", 'M', 32, {}},
+      {"M524", 'M', 524, {}},
       {"M220 B", 'M', 220, {}, "B"},
       {"M221 S95 T0", 'M', 221, {{'S', 95}, {'T', 0}}},
       {"M400", 'M', 400, {}},
@@ -108,7 +118,9 @@ TEST(Codes, TheTableCoversExactlyTheIssueList) {
       "G0",   "G1",   "G2",   "G3",   "G4",   "G10",  "G11",  "G20",  "G21",  "G28",
       "G90",  "G91",  "G92",  "M73",  "M82",  "M83",  "M84",  "M104", "M105", "M106",
       "M107", "M109", "M110", "M112", "M114", "M115", "M117", "M140", "M190", "M201",
-      "M203", "M204", "M205", "M220", "M221", "M400", "M155", "M303"};
+      "M203", "M204", "M205", "M220", "M221", "M400", "M155", "M303",
+      // issue 16 (print jobs): M18 and Marlin's SD-card commands
+      "M18",  "M20",  "M21",  "M23",  "M24",  "M25",  "M26",  "M27",  "M32",  "M524"};
   std::set<std::string> table, tested;
   for (const CodeRule& r : all_code_rules()) table.insert(r.letter + std::to_string(r.code));
   for (const Valid& v : valid_cases()) tested.insert(v.letter + std::to_string(v.code));

@@ -92,6 +92,23 @@ TEST(Interpreter, SpeedAndFlowOverrides) {
   EXPECT_DOUBLE_EQ(r.interp.state().speed_factor, 0.5);
 }
 
+TEST(Interpreter, SpeedOverrideBackupAndRestore) {
+  Rig r(test::cartesian_config());
+  ASSERT_TRUE(r.run("M220 S80"));
+  ASSERT_TRUE(r.run("M220 B S120"));  // backs 80 % up, then sets 120 %
+  EXPECT_DOUBLE_EQ(r.interp.state().speed_factor, 1.2);
+  ASSERT_TRUE(r.run("G1 X100 F6000"));  // 100 mm/s requested -> 120 mm/s
+  ASSERT_TRUE(r.run("M220 R"));
+  EXPECT_DOUBLE_EQ(r.interp.state().speed_factor, 0.8);
+  ASSERT_TRUE(r.run("G1 X0"));
+  r.planner.flush();
+  ASSERT_EQ(r.rec.moves.size(), 2u);
+  EXPECT_NEAR(r.rec.moves[0].v_cruise_mm_s, 120.0, 1e-9);
+  EXPECT_NEAR(r.rec.moves[1].v_cruise_mm_s, 80.0, 1e-9);
+  EXPECT_FALSE(r.run("M220 B S0").ok());  // refused whole: the backup is not taken either
+  EXPECT_DOUBLE_EQ(r.interp.state().saved_speed_factor, 0.8);
+}
+
 TEST(Interpreter, DwellAndWaitAreEvents) {
   Rig r(test::cartesian_config());
   ASSERT_TRUE(r.run("G1 X30 F6000"));

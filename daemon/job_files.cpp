@@ -1,0 +1,163 @@
+#include "daemon/job_files.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+
+#include "core/utf8.hpp"
+
+namespace feedloop::daemon {
+
+namespace {
+constexpr size_t kMaxNameBytes = 255;  // NAME_MAX on Linux file systems
+
+bool has_gcode_extension(std::string_view name) {
+  // The extensions Marlin's SD listing and Moonraker's file manager accept for G-code.
+  for (std::string_view ext : {".gcode", ".gco", ".g", ".gc"}) {
+    if (name.size() > ext.size()) {
+      std::string_view tail = name.substr(name.size() - ext.size());
+      bool same = true;
+      for (size_t i = 0; i < ext.size(); ++i)
+        if (static_cast<char>(std::tolower(static_cast<unsigned char>(tail[i]))) != ext[i])
+          same = false;
+      if (same) return true;
+    }
+  }
+  return false;
+}
+
+std::string errno_text(int err) {
+  return std::strerror(err);
+}
+
+Result<JobFileInfo> info_of(const std::string& path, std::string_view name) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    const int err = errno;
+    if (err == ENOENT) return Error{"no job file named '" + std::string(name) + "'"};
+    return Error{"cannot read job file '" + std::string(name) + "': " + errno_text(err)};
+  }
+  if (!S_ISREG(st.st_mode)) return Error{"'" + std::string(name) + "' is not a regular file"};
+  JobFileInfo info;
+  info.name = std::string(name);
+  info.size_bytes = static_cast<uint64_t>(st.st_size);
+  info.modified_unix_s = static_cast<double>(st.st_mtim.tv_sec) + st.st_mtim.tv_nsec * 1e-9;
+  return info;
+}
+}  // namespace
+
+JobFiles::JobFiles(std::string directory, uint64_t max_file_size_bytes)
+    : directory_(std::move(directory)), max_size_(max_file_size_bytes) {}
+
+Status JobFiles::open() {
+  std::error_code ec;
+  std::filesystem::create_directories(directory_, ec);
+  if (ec) return Error{"jobs.directory '" + directory_ + "': cannot create it: " + ec.message()};
+  if (!std::filesystem::is_directory(directory_, ec))
+    return Error{"jobs.directory '" + directory_ + "' is not a directory"};
+  ::chmod(directory_.c_str(), 0750);
+  return Status::Ok();
+}
+
+Status JobFiles::validate_name(std::string_view name) {
+  if (name.empty()) return Error{"file name is empty"};
+  if (name.size() > kMaxNameBytes)
+    return Error{"file name is " + std::to_string(name.size()) + " bytes long (at most " +
+                 std::to_string(kMaxNameBytes) + ")"};
+  size_t bad = 0;
+  for (size_t i = 0; i < name.size();) {
+    const auto b = static_cast<unsigned char>(name[i]);
+    const std::string at = " at byte " + std::to_string(i + 1);
+    if (b == 0) return Error{"file name has a NUL byte" + at};
+    if (b < 0x20 || b == 0x7f) return Error{"file name has a control character" + at};
+    if (b == '/' || b == '\\')
+      return Error{"file name has a path separator" + at + " (one name, no folders)"};
+    const size_t n = utf8_sequence_length(name, i, &bad);
+    if (n == 0) return Error{"file name is not valid UTF-8" + at};
+    i += n;
+  }
+  if (name.front() == '.')
+    return Error{"file name starts with '.' (hidden names and '..' are refused)"};
+  if (!has_gcode_extension(name)) return Error{"file name must end in .gcode, .gco, .gc or .g"};
+  return Status::Ok();
+}
+
+std::string JobFiles::path_of(std::string_view name) const {
+  return directory_ + "/" + std::string(name);
+}
+
+Result<std::vector<JobFileInfo>> JobFiles::list() const {
+  std::vector<JobFileInfo> out;
+  std::error_code ec;
+  std::filesystem::directory_iterator it(directory_, ec);
+  if (ec) return Error{"cannot list jobs.directory '" + directory_ + "': " + ec.message()};
+  for (const auto& entry : it) {
+    const std::string name = entry.path().filename().string();
+    if (!validate_name(name)) continue;
+    auto info = info_of(entry.path().string(), name);
+    if (info) out.push_back(std::move(*info));
+  }
+  std::sort(out.begin(), out.end(),
+            [](const JobFileInfo& a, const JobFileInfo& b) { return a.name < b.name; });
+  return out;
+}
+
+Result<JobFileInfo> JobFiles::stat(std::string_view name) const {
+  if (Status s = validate_name(name); !s) return s.error();
+  return info_of(path_of(name), name);
+}
+
+Result<JobFileInfo> JobFiles::write(std::string_view name, std::string_view content) {
+  if (Status s = validate_name(name); !s) return s.error();
+  if (content.size() > max_size_)
+    return Error{"file '" + std::string(name) + "' is " + std::to_string(content.size()) +
+                 " bytes, above jobs.max_file_size_mb (" + std::to_string(max_size_) + " bytes)"};
+  const std::string final_path = path_of(name);
+  std::string tmp = directory_ + "/.upload-XXXXXX";
+  const int fd = ::mkstemp(tmp.data());
+  if (fd < 0)
+    return Error{"cannot create a file in jobs.directory '" + directory_ +
+                 "': " + errno_text(errno)};
+  ::fchmod(fd, 0640);
+  size_t off = 0;
+  while (off < content.size()) {
+    const ssize_t n = ::write(fd, content.data() + off, content.size() - off);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = errno;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      return Error{"cannot write job file '" + std::string(name) + "': " + errno_text(err)};
+    }
+    off += static_cast<size_t>(n);
+  }
+  if (::fsync(fd) != 0 || ::close(fd) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    return Error{"cannot write job file '" + std::string(name) + "': " + errno_text(err)};
+  }
+  if (::rename(tmp.c_str(), final_path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    return Error{"cannot store job file '" + std::string(name) + "': " + errno_text(err)};
+  }
+  return info_of(final_path, name);
+}
+
+Status JobFiles::remove(std::string_view name) {
+  if (Status s = validate_name(name); !s) return s;
+  if (::unlink(path_of(name).c_str()) != 0) {
+    const int err = errno;
+    if (err == ENOENT) return Error{"no job file named '" + std::string(name) + "'"};
+    return Error{"cannot delete job file '" + std::string(name) + "': " + errno_text(err)};
+  }
+  return Status::Ok();
+}
+
+}  // namespace feedloop::daemon

@@ -1,0 +1,528 @@
+#include "daemon/print_job.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+#include "gcode/parser.hpp"
+
+namespace feedloop::daemon {
+
+const char* to_string(JobState s) {
+  switch (s) {
+    case JobState::kIdle:
+      return "idle";
+    case JobState::kReady:
+      return "ready";
+    case JobState::kPrinting:
+      return "printing";
+    case JobState::kPausing:
+      return "pausing";
+    case JobState::kPaused:
+      return "paused";
+    case JobState::kResuming:
+      return "resuming";
+    case JobState::kCancelling:
+      return "cancelling";
+    case JobState::kComplete:
+      return "complete";
+    case JobState::kCancelled:
+      return "cancelled";
+    case JobState::kError:
+      return "error";
+  }
+  return "unknown";
+}
+
+namespace {
+constexpr size_t kMaxLineBytes = 4096;  // a longer line is an error (the sockets' limit is 1024)
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+// Numbers for generated G-code: enough digits for one encoder count, no exponent.
+std::string num(double v) {
+  return fmt("%.5f", v);
+}
+}  // namespace
+
+PrintJob::PrintJob(JobFiles& files, JobOptions options, JobSink& sink)
+    : files_(files), options_(options), sink_(sink), alive_(std::make_shared<bool>(true)) {}
+
+PrintJob::~PrintJob() {
+  *alive_ = false;
+  close_file();
+}
+
+bool PrintJob::active() const {
+  return state_ == JobState::kPrinting || state_ == JobState::kPausing ||
+         state_ == JobState::kPaused || state_ == JobState::kResuming ||
+         state_ == JobState::kCancelling;
+}
+
+Result<JobFileInfo> PrintJob::select(std::string_view name) {
+  if (active())
+    return Error{"a print job is active ('" + file_ + "', " + to_string(state_) +
+                 "): cancel it first"};
+  auto info = files_.stat(name);
+  if (!info) return info.error();
+  close_file();
+  file_ = info->name;
+  size_ = info->size_bytes;
+  start_byte_ = 0;
+  state_ = JobState::kReady;
+  message_.clear();
+  return info;
+}
+
+Status PrintJob::set_start_byte(uint64_t byte) {
+  if (state_ != JobState::kReady)
+    return Error{"no file selected, or the job has started (M26 needs M23 first)"};
+  if (byte > size_)
+    return Error{"position " + std::to_string(byte) + " is past the end of '" + file_ + "' (" +
+                 std::to_string(size_) + " bytes)"};
+  start_byte_ = byte;
+  return Status::Ok();
+}
+
+Status PrintJob::open_file(uint64_t start_byte) {
+  close_file();
+  const std::string path = files_.path_of(file_);
+  fp_ = std::fopen(path.c_str(), "rb");
+  if (!fp_) return Error{"cannot open job file '" + file_ + "': " + std::strerror(errno)};
+  read_offset_ = 0;
+  line_number_ = 0;
+  eof_ = false;
+  if (start_byte > 0) {
+    // M26 S: Marlin seeks to the byte; a byte inside a line skips the rest of that line here, so
+    // no half command is ever executed.
+    if (std::fseek(fp_, static_cast<long>(start_byte - 1), SEEK_SET) != 0)
+      return Error{"cannot seek in '" + file_ + "': " + std::strerror(errno)};
+    read_offset_ = start_byte - 1;
+    const int c = std::fgetc(fp_);
+    ++read_offset_;
+    if (c != '\n' && c != EOF) read_line();  // the partial line
+    line_number_ = 0;                        // unknown after a seek: lines count from here
+  }
+  return Status::Ok();
+}
+
+void PrintJob::close_file() {
+  if (fp_) std::fclose(fp_);
+  fp_ = nullptr;
+}
+
+bool PrintJob::read_line() {
+  line_.clear();
+  if (!fp_ || eof_) return false;
+  bool any = false;
+  for (;;) {
+    const int c = std::fgetc(fp_);
+    if (c == EOF) {
+      eof_ = true;
+      break;
+    }
+    any = true;
+    ++read_offset_;
+    if (c == '\n') break;
+    if (line_.size() <= kMaxLineBytes) line_.push_back(static_cast<char>(c));
+  }
+  if (!any) return false;
+  ++line_number_;
+  if (!line_.empty() && line_.back() == '\r') line_.pop_back();
+  return true;
+}
+
+Status PrintJob::start(std::string_view name) {
+  if (active())
+    return Error{"a print job is active ('" + file_ + "', " + to_string(state_) +
+                 "): cancel it first"};
+  if (!name.empty()) {
+    auto info = select(name);
+    if (!info) return info.error();
+  }
+  if (file_.empty() || state_ == JobState::kIdle) return Error{"no file selected"};
+  if (state_ != JobState::kReady) {  // a finished job: run its file again from the top
+    auto info = select(std::string(file_));
+    if (!info) return info.error();
+  }
+  if (Status s = open_file(start_byte_); !s) return s;
+  const engine::MachineStatus ms = sink_.machine_status();
+  print_time_start_s_ = ms.planned_until_s;
+  planned_at_last_submit_s_ = ms.planned_until_s;
+  excluded_print_time_s_ = 0.0;
+  bytes_submitted_ = start_byte_;
+  lines_submitted_ = 0;
+  in_flight_ = 0;
+  held_.reset();
+  sequence_.clear();
+  phase_ = Phase::kNone;
+  modes_ = Modes{};
+  pause_pos_ = JobPosition{};
+  resume_pos_ = JobPosition{};
+  cancel_after_pause_ = false;
+  parked_ = false;
+  message_.clear();
+  started_ns_ = sink_.now_ns();
+  ended_ns_ = 0;
+  paused_total_ns_ = 0;
+  pauses_ = 0;
+  state_ = JobState::kPrinting;
+  pump();
+  return Status::Ok();
+}
+
+Status PrintJob::pause() {
+  if (state_ == JobState::kPaused || state_ == JobState::kPausing)
+    return Status::Ok();  // M25 twice: no-op
+  if (state_ != JobState::kPrinting)
+    return Error{std::string("no print to pause (job ") + to_string(state_) + ")"};
+  state_ = JobState::kPausing;
+  phase_ = Phase::kPauseWait;
+  ++pauses_;
+  paused_since_ns_ = sink_.now_ns();
+  pump();
+  return Status::Ok();
+}
+
+Status PrintJob::resume() {
+  if (state_ == JobState::kResuming || state_ == JobState::kPrinting) return Status::Ok();
+  if (state_ != JobState::kPaused)
+    return Error{std::string("no paused print to resume (job ") + to_string(state_) + ")"};
+  state_ = JobState::kResuming;
+  phase_ = Phase::kResumeBack;
+  const JobPosition& p = pause_pos_;
+  // Marlin's resume_print (feature/pause.cpp): back over the part in XY, then down, then prime.
+  add_sequence("G21");
+  add_sequence("G90");
+  if (parked_) {
+    add_sequence("G1 X" + num(p.pos_mm[0]) + " Y" + num(p.pos_mm[1]) + " F" +
+                 num(options_.travel_speed_mm_s * 60.0));
+    add_sequence("G1 Z" + num(p.pos_mm[2]) + " F" + num(options_.z_speed_mm_s * 60.0));
+    const double push = options_.pause_retract_mm + options_.prime_extra_mm;
+    if (push > 0.0) {
+      add_sequence("G91");
+      add_sequence("G1 E" + num(push) + " F" + num(options_.retract_speed_mm_s * 60.0));
+      add_sequence("G90");
+    }
+    add_sequence("G92 E" + num(p.pos_mm[3]));
+  }
+  add_sequence("G4 P" + std::to_string(options_.settle_ms));
+  add_sequence("M400");
+  pump();
+  return Status::Ok();
+}
+
+Status PrintJob::cancel() {
+  if (!active()) return Error{std::string("no print to cancel (job ") + to_string(state_) + ")"};
+  if (state_ == JobState::kCancelling) return Status::Ok();
+  if (state_ == JobState::kPausing) {  // finish parking first, then cancel (no half sequence)
+    cancel_after_pause_ = true;
+    return Status::Ok();
+  }
+  if (state_ == JobState::kPaused) paused_total_ns_ += sink_.now_ns() - paused_since_ns_;
+  if (state_ == JobState::kResuming) parked_ = false;  // partly back over the part: park again
+  state_ = JobState::kCancelling;
+  phase_ = Phase::kCancelWait;
+  sequence_.clear();  // a resume in progress stops at a move boundary too
+  held_.reset();
+  pump();
+  return Status::Ok();
+}
+
+void PrintJob::add_sequence(std::string line) {
+  sequence_.push_back(std::move(line));
+}
+
+std::function<void(const Status&)> PrintJob::completion(bool from_file, int64_t line,
+                                                        std::string text) {
+  std::weak_ptr<bool> alive = alive_;
+  return [this, alive, from_file, line, text = std::move(text)](const Status& st) {
+    auto a = alive.lock();
+    if (!a || !*a) return;
+    if (in_flight_ > 0) --in_flight_;
+    if (!st) {
+      if (from_file) {
+        fail(file_ + ":" + std::to_string(line) + ": " + st.error().to_string());
+      } else {
+        // A refused move of the job's own (e.g. a park point outside the travel): reported, the
+        // sequence goes on (the nozzle stays where it is).
+        message_ = "'" + text + "': " + st.error().to_string();
+      }
+    }
+    pump();
+  };
+}
+
+void PrintJob::track_modes(const gcode::Command& c) {
+  if (c.letter == 'G') {
+    if (c.code == 90 || c.code == 91) {
+      modes_.relative_xyz = c.code == 91;
+      modes_.e_mode = 0;  // Marlin: G90/G91 also set E's mode
+    } else if (c.code == 20 || c.code == 21) {
+      modes_.inches = c.code == 20;
+    } else if (c.code <= 3 && c.has('F')) {
+      modes_.feed_units_min = c.get('F');
+    }
+  } else if (c.letter == 'M' && (c.code == 82 || c.code == 83)) {
+    modes_.e_mode = c.code == 82 ? 1 : 2;
+  }
+}
+
+void PrintJob::feed() {
+  for (int n = 0; n < options_.lines_per_pump && state_ == JobState::kPrinting; ++n) {
+    if (!held_) {
+      if (!read_line()) return;
+      if (line_.size() > kMaxLineBytes) {
+        fail(file_ + ":" + std::to_string(line_number_) + ": line longer than " +
+             std::to_string(kMaxLineBytes) + " bytes");
+        return;
+      }
+      auto cmd = gcode::parse_line(line_, SourceLocation{file_, static_cast<int>(line_number_), 0});
+      if (!cmd) {
+        fail(cmd.error().to_string());
+        return;
+      }
+      if (cmd->empty()) {  // blank or comment: nothing to execute
+        bytes_submitted_ = read_offset_;
+        continue;
+      }
+      if (cmd->is('M', 25) || cmd->is('M', 601)) {
+        // A pause in the file (Marlin's M25 in an SD print; M601, PrusaSlicer's pause print):
+        // the job pauses itself there, and resume goes on with the next line.
+        bytes_submitted_ = read_offset_;
+        (void)pause();  // printing: it cannot fail
+        return;
+      }
+      held_ = std::move(*cmd);
+      held_text_ = line_;
+      held_line_ = line_number_;
+      held_end_offset_ = read_offset_;
+    }
+    std::string why;
+    const auto offer = sink_.offer(*held_, held_text_, completion(true, held_line_, {}), &why);
+    if (offer == JobSink::Offer::kFull) return;  // the machine's queue is full: next pump
+    if (offer == JobSink::Offer::kRefused) {
+      fail(file_ + ":" + std::to_string(held_line_) + ": " + why);
+      return;
+    }
+    ++in_flight_;
+    track_modes(*held_);
+    bytes_submitted_ = held_end_offset_;
+    ++lines_submitted_;
+    held_.reset();
+    planned_at_last_submit_s_ = sink_.machine_status().planned_until_s;
+  }
+}
+
+void PrintJob::send_sequence() {
+  while (!sequence_.empty()) {
+    const std::string& text = sequence_.front();
+    auto cmd =
+        gcode::parse_line(text, SourceLocation{"job", static_cast<int>(++sequence_number_), 0});
+    if (!cmd) {  // cannot happen for the lines built here; reported rather than trusted
+      message_ = cmd.error().to_string();
+      sequence_.pop_front();
+      continue;
+    }
+    std::string why;
+    const auto offer = sink_.offer(*cmd, text, completion(false, 0, text), &why);
+    if (offer == JobSink::Offer::kFull) return;
+    if (offer == JobSink::Offer::kRefused) {
+      message_ = "'" + text + "': " + why;
+      sequence_.clear();
+      if (state_ != JobState::kError) finish(JobState::kError);
+      return;
+    }
+    ++in_flight_;
+    sequence_.pop_front();
+  }
+}
+
+void PrintJob::pump() {
+  if (!active()) return;
+  if (state_ == JobState::kPrinting) {
+    feed();
+    if (state_ == JobState::kPrinting && eof_ && !held_ && in_flight_ == 0 &&
+        sink_.machine_status().state == engine::MachineState::kIdle)
+      finish(JobState::kComplete);
+    return;
+  }
+  send_sequence();
+  if (!sequence_.empty() || in_flight_ > 0 || phase_ == Phase::kNone) return;
+  on_phase_done();
+}
+
+JobPosition PrintJob::take_position() const {
+  const engine::MachineStatus s = sink_.machine_status();
+  JobPosition p;
+  p.valid = true;
+  for (int i = 0; i < 4; ++i) {
+    p.pos_mm[i] = s.pos_mm[i];
+    p.step_count[i] = s.step_count[i];
+    p.encoder_mm[i] = s.encoder_mm[i];
+  }
+  return p;
+}
+
+void PrintJob::park_lines(const engine::MachineStatus& at, bool retract) {
+  add_sequence("G21");
+  if (retract && options_.pause_retract_mm > 0.0) {
+    add_sequence("G91");
+    add_sequence("G1 E" + num(-options_.pause_retract_mm) + " F" +
+                 num(options_.retract_speed_mm_s * 60.0));
+  }
+  add_sequence("G90");
+  // Marlin's nozzle park: Z up by the raise, never above Z's travel (NOZZLE_PARK_Z_RAISE_MIN).
+  const double z = std::min(at.pos_mm[2] + options_.lift_mm, options_.z_max_mm);
+  if (z > at.pos_mm[2]) add_sequence("G1 Z" + num(z) + " F" + num(options_.z_speed_mm_s * 60.0));
+  if (options_.park_x_mm || options_.park_y_mm) {
+    std::string move = "G1";
+    if (options_.park_x_mm) move += " X" + num(*options_.park_x_mm);
+    if (options_.park_y_mm) move += " Y" + num(*options_.park_y_mm);
+    add_sequence(move + " F" + num(options_.travel_speed_mm_s * 60.0));
+  }
+  add_sequence("M400");
+}
+
+void PrintJob::on_phase_done() {
+  switch (phase_) {
+    case Phase::kPauseWait:
+      // The file's queued commands have executed; wait for their motion, then settle.
+      exclude_from_s_ = -1.0;
+      phase_ = Phase::kPauseSettled;
+      add_sequence("M400");
+      add_sequence("G4 P" + std::to_string(options_.settle_ms));
+      add_sequence("M400");
+      pump();
+      return;
+    case Phase::kPauseSettled: {
+      pause_pos_ = take_position();
+      saved_modes_ = modes_;
+      const engine::MachineStatus s = sink_.machine_status();
+      exclude_from_s_ = s.planned_until_s;
+      phase_ = Phase::kPauseParked;
+      park_lines(s, true);
+      parked_ = true;
+      pump();
+      return;
+    }
+    case Phase::kPauseParked:
+      phase_ = Phase::kNone;
+      state_ = JobState::kPaused;
+      if (cancel_after_pause_) {
+        cancel_after_pause_ = false;
+        (void)cancel();  // paused and active: it cannot fail
+      }
+      return;
+    case Phase::kResumeBack: {
+      resume_pos_ = take_position();
+      const engine::MachineStatus s = sink_.machine_status();
+      if (exclude_from_s_ >= 0.0) excluded_print_time_s_ += s.planned_until_s - exclude_from_s_;
+      exclude_from_s_ = -1.0;
+      // Klipper's RESTORE_GCODE_STATE: the modes and the feedrate the file left.
+      phase_ = Phase::kResumeDone;
+      add_sequence(saved_modes_.relative_xyz ? "G91" : "G90");
+      if (saved_modes_.e_mode == 1) add_sequence("M82");
+      if (saved_modes_.e_mode == 2) add_sequence("M83");
+      if (saved_modes_.inches) add_sequence("G20");
+      if (saved_modes_.feed_units_min) add_sequence("G1 F" + num(*saved_modes_.feed_units_min));
+      pump();
+      return;
+    }
+    case Phase::kResumeDone:
+      phase_ = Phase::kNone;
+      parked_ = false;
+      paused_total_ns_ += sink_.now_ns() - paused_since_ns_;
+      state_ = JobState::kPrinting;
+      pump();
+      return;
+    case Phase::kCancelWait: {
+      // Everything of the file that was queued has executed: heaters off behind it, then park.
+      sink_.all_heaters_off();
+      phase_ = Phase::kCancelParked;
+      if (!parked_) park_lines(sink_.machine_status(), true);
+      parked_ = true;
+      pump();
+      return;
+    }
+    case Phase::kCancelParked:
+      phase_ = Phase::kNone;
+      finish(JobState::kCancelled);
+      return;
+    case Phase::kNone:
+      return;
+  }
+}
+
+void PrintJob::fail(const std::string& message) {
+  if (!active()) return;
+  message_ = message;
+  held_.reset();
+  sequence_.clear();
+  sink_.all_heaters_off();
+  finish(JobState::kError);
+}
+
+void PrintJob::finish(JobState end) {
+  if (state_ == JobState::kPaused) paused_total_ns_ += sink_.now_ns() - paused_since_ns_;
+  state_ = end;
+  phase_ = Phase::kNone;
+  ended_ns_ = sink_.now_ns();
+  close_file();
+}
+
+double PrintJob::job_print_time_s(const engine::MachineStatus& s) const {
+  double excluded = excluded_print_time_s_;
+  if (exclude_from_s_ >= 0.0) excluded += std::max(0.0, s.print_time_s - exclude_from_s_);
+  return std::max(0.0, s.print_time_s - print_time_start_s_ - excluded);
+}
+
+JobStatus PrintJob::status() const {
+  JobStatus j;
+  j.state = state_;
+  j.file = file_;
+  j.size_bytes = size_;
+  j.bytes_submitted = bytes_submitted_;
+  j.lines_submitted = lines_submitted_;
+  j.lines_read = static_cast<uint64_t>(std::max<int64_t>(0, line_number_));
+  j.pauses = pauses_;
+  j.message = message_;
+  j.pause_position = pause_pos_;
+  j.resume_position = resume_pos_;
+  if (state_ == JobState::kIdle || state_ == JobState::kReady) return j;
+  j.progress_bytes =
+      size_ > 0 ? static_cast<double>(bytes_submitted_) / static_cast<double>(size_) : 1.0;
+  const int64_t now = ended_ns_ != 0 ? ended_ns_ : sink_.now_ns();
+  j.elapsed_s = static_cast<double>(now - started_ns_) * 1e-9;
+  int64_t paused = paused_total_ns_;
+  if (state_ == JobState::kPaused || state_ == JobState::kResuming || state_ == JobState::kPausing)
+    paused += now - paused_since_ns_;
+  j.paused_s = static_cast<double>(paused) * 1e-9;
+  if (state_ == JobState::kComplete) {
+    j.progress_bytes = 1.0;
+  }
+  const engine::MachineStatus s = sink_.machine_status();
+  j.print_time_s = job_print_time_s(s);
+  // The planner's estimate: the print time planned for the bytes handed over so far, scaled to
+  // the whole file (the rest of the file is assumed to print at the same time per byte).
+  const double planned_s =
+      std::max(0.0, planned_at_last_submit_s_ - print_time_start_s_ - excluded_print_time_s_);
+  const double bytes_done =
+      static_cast<double>(bytes_submitted_ - std::min(bytes_submitted_, start_byte_));
+  const double bytes_all = static_cast<double>(size_ - std::min(size_, start_byte_));
+  if (state_ == JobState::kComplete) {
+    j.estimated_total_s = j.print_time_s;
+  } else if (bytes_done > 0.0 && planned_s > 0.0) {
+    j.estimated_total_s = std::max(planned_s * bytes_all / bytes_done, j.print_time_s);
+  }
+  j.estimated_remaining_s = std::max(0.0, j.estimated_total_s - j.print_time_s);
+  j.progress_time =
+      j.estimated_total_s > 0.0 ? std::min(1.0, j.print_time_s / j.estimated_total_s) : 0.0;
+  return j;
+}
+
+}  // namespace feedloop::daemon

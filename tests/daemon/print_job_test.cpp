@@ -1,0 +1,397 @@
+// The job folder (JobFiles) and the job controller (PrintJob) on their own, in virtual time: the
+// machine is a fake JobSink whose queue the test works off with the real G-code interpreter, so
+// positions, modes and E are the planner's own.
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+
+#include <cmath>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "../planner/planner_test_util.hpp"
+#include "daemon/job_files.hpp"
+#include "daemon/print_job.hpp"
+#include "daemon_fixture.hpp"
+
+namespace feedloop::daemon {
+namespace {
+
+using planner::kE;
+
+// The machine: a queue of `capacity` commands, executed when the test says so.
+struct FakeMachine final : JobSink {
+  planner::test::Rig rig{planner::test::cartesian_config()};
+  size_t capacity = 3;
+  struct Queued {
+    gcode::Command cmd;
+    std::string text;
+    std::function<void(const Status&)> done;
+  };
+  std::deque<Queued> queue;
+  std::vector<std::string> executed;  // texts, in order
+  uint64_t full_answers = 0;
+  int heaters_off = 0;
+  size_t queued_at_heaters_off = 99;
+  size_t executed_at_heaters_off = 0;
+  double print_time_s = 0.0;
+  int64_t clock_ns = 0;
+  bool refuse = false;
+
+  Offer offer(const gcode::Command& cmd, std::string_view text,
+              std::function<void(const Status&)> done, std::string* why) override {
+    if (refuse) {
+      *why = "refused by the test";
+      return Offer::kRefused;
+    }
+    if (queue.size() >= capacity) {
+      ++full_answers;
+      return Offer::kFull;
+    }
+    queue.push_back({cmd, std::string(text), std::move(done)});
+    return Offer::kAccepted;
+  }
+  // Executes the oldest queued command; its completion may queue more.
+  bool step() {
+    if (queue.empty()) return false;
+    Queued q = std::move(queue.front());
+    queue.pop_front();
+    const planner::Vec4 before = rig.interp.state().machine_mm;
+    Status st = rig.interp.execute(q.cmd);
+    const planner::Vec4 after = rig.interp.state().machine_mm;
+    const double d = std::hypot(after[0] - before[0], after[1] - before[1], after[2] - before[2]);
+    print_time_s += d / rig.interp.state().feedrate_mm_s;
+    if (q.cmd.is('G', 4)) print_time_s += q.cmd.get('P') / 1000.0;
+    clock_ns += 1'000'000;
+    executed.push_back(q.text);
+    q.done(st);
+    return true;
+  }
+  void run(int max_steps = 1'000'000) {
+    while (max_steps-- > 0 && step()) {
+    }
+  }
+  engine::MachineStatus machine_status() const override {
+    engine::MachineStatus s;
+    s.state = queue.empty() ? engine::MachineState::kIdle : engine::MachineState::kBusy;
+    for (int i = 0; i < 4; ++i) {
+      s.pos_mm[i] = rig.interp.state().logical_mm[static_cast<size_t>(i)];
+      s.step_count[i] = std::llround(rig.interp.state().machine_mm[static_cast<size_t>(i)] * 80.0);
+      s.encoder_mm[i] = rig.interp.state().machine_mm[static_cast<size_t>(i)];
+    }
+    s.print_time_s = print_time_s;
+    s.planned_until_s = print_time_s;
+    return s;
+  }
+  int64_t now_ns() const override { return clock_ns; }
+  void all_heaters_off() override {
+    ++heaters_off;
+    queued_at_heaters_off = queue.size();
+    executed_at_heaters_off = executed.size();
+  }
+};
+
+class PrintJobTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = testing::make_temp_dir("jobs");
+    ASSERT_FALSE(dir_.empty());
+    files_ = std::make_unique<JobFiles>(dir_ + "/gcodes", 64 * 1024);
+    ASSERT_TRUE(files_->open().ok());
+    options_.park_x_mm = 5.0;
+    options_.park_y_mm = 210.0;
+    options_.z_max_mm = 250.0;
+    options_.pause_retract_mm = 1.5;
+    options_.prime_extra_mm = 0.2;
+  }
+  void TearDown() override {
+    std::error_code ec;
+    std::filesystem::remove_all(dir_, ec);
+  }
+  // A small print: home, modes, a square spiral of extruding moves with comments and blanks.
+  static std::string part(int moves) {
+    std::ostringstream g;
+    g << "; a test part\nG28\nG90\nM83\nG1 Z0.3 F600\nG1 X20 Y20 F6000\n\n";
+    for (int i = 0; i < moves; ++i) {
+      const double x = 20.0 + (i % 4 == 1 || i % 4 == 2 ? 40.0 : 0.0) + 0.1 * i;
+      const double y = 20.0 + (i % 4 >= 2 ? 40.0 : 0.0) + 0.1 * i;
+      g << "G1 X" << x << " Y" << y << " E0.8 F" << (i % 2 ? 1800 : 2400) << " ; move " << i
+        << "\n";
+      if (i % 10 == 9) g << "G1 Z" << 0.3 + 0.2 * (i / 10 + 1) << "\n";
+    }
+    g << "G1 Z20 F600\n";
+    return g.str();
+  }
+  std::vector<std::string> command_lines(const std::string& text) {
+    std::vector<std::string> out;
+    std::istringstream in(text);
+    for (std::string l; std::getline(in, l);) {
+      auto c = gcode::parse_line(l, SourceLocation{"t", 1, 0});
+      if (c && !c->empty()) out.push_back(l);
+    }
+    return out;
+  }
+
+  std::string dir_;
+  std::unique_ptr<JobFiles> files_;
+  JobOptions options_;
+};
+
+TEST_F(PrintJobTest, FileNamesAreCheckedBeforeAnyFileSystemCall) {
+  const std::pair<std::string, std::string> bad[] = {
+      {"../escape.gcode", "path separator at byte 3"},
+      {"a/b.gcode", "path separator at byte 2"},
+      {std::string("nul\0x.gcode", 11), "NUL byte at byte 4"},
+      {"bad\xff.gcode", "not valid UTF-8 at byte 4"},
+      {"tab\t.gcode", "control character at byte 4"},
+      {".hidden.gcode", "starts with '.'"},
+      {"..", "starts with '.'"},
+      {"notes.txt", "must end in"},
+      {"", "empty"},
+      {std::string(250, 'a') + ".gcode", "256 bytes long"},
+  };
+  for (const auto& [name, why] : bad) {
+    Status s = JobFiles::validate_name(name);
+    ASSERT_FALSE(s.ok()) << name;
+    EXPECT_NE(s.error().message.find(why), std::string::npos) << s.error().message;
+    EXPECT_FALSE(files_->write(name, "G28\n").ok());
+  }
+  EXPECT_TRUE(JobFiles::validate_name("Benchy ü 0.2mm.gcode").ok());
+  EXPECT_TRUE(JobFiles::validate_name("CUBE.GCO").ok());
+  EXPECT_FALSE(std::filesystem::exists(dir_ + "/escape.gcode"));
+}
+
+TEST_F(PrintJobTest, UploadListDeleteAndSizeLimit) {
+  ASSERT_TRUE(files_->write("b.gcode", "G28\nG1 X1\n").ok());
+  auto a = files_->write("a.gcode", std::string(1000, ';'));
+  ASSERT_TRUE(a.ok());
+  EXPECT_EQ(a->size_bytes, 1000u);
+  // Above the limit: refused, and nothing (not even the temporary) is left.
+  auto big = files_->write("big.gcode", std::string(64 * 1024 + 1, 'G'));
+  ASSERT_FALSE(big.ok());
+  EXPECT_NE(big.error().message.find("65537 bytes"), std::string::npos) << big.error().message;
+  std::ofstream(dir_ + "/gcodes/stray.bin") << "x";  // not a G-code name: not listed
+  auto list = files_->list();
+  ASSERT_TRUE(list.ok());
+  ASSERT_EQ(list->size(), 2u);
+  EXPECT_EQ((*list)[0].name, "a.gcode");
+  EXPECT_EQ((*list)[1].name, "b.gcode");
+  EXPECT_EQ((*list)[1].size_bytes, 10u);
+  size_t entries = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir_ + "/gcodes"))
+    entries += e.path().filename() != "" ? 1 : 0;
+  EXPECT_EQ(entries, 3u);  // a, b, stray: no temporary left behind
+  struct stat st {};
+  ASSERT_EQ(::stat((dir_ + "/gcodes/a.gcode").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0640u);
+  ASSERT_TRUE(files_->remove("a.gcode").ok());
+  Status again = files_->remove("a.gcode");
+  ASSERT_FALSE(again.ok());
+  EXPECT_NE(again.error().message.find("no job file named 'a.gcode'"), std::string::npos);
+}
+
+TEST_F(PrintJobTest, RunsAFileFromStartToEndPacedByTheQueue) {
+  const std::string text = part(60);
+  ASSERT_TRUE(files_->write("part.gcode", text).ok());
+  FakeMachine m;
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  EXPECT_EQ(job.state(), JobState::kPrinting);
+  EXPECT_EQ(m.queue.size(), 3u);  // no more than the queue takes
+  while (m.step()) job.pump();
+  job.pump();
+  EXPECT_EQ(job.state(), JobState::kComplete);
+  EXPECT_EQ(m.executed, command_lines(text));  // every command, in order, nothing else
+  EXPECT_GT(m.full_answers, 0u);
+  const JobStatus s = job.status();
+  EXPECT_EQ(s.bytes_submitted, text.size());
+  EXPECT_DOUBLE_EQ(s.progress_bytes, 1.0);
+  EXPECT_NEAR(s.print_time_s, m.print_time_s, 1e-9);
+  EXPECT_EQ(m.heaters_off, 0);
+}
+
+TEST_F(PrintJobTest, ProgressAndEstimateComeFromThePlannedTime) {
+  const std::string text = part(200);
+  ASSERT_TRUE(files_->write("part.gcode", text).ok());
+  FakeMachine m;
+  m.capacity = 8;
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  for (int i = 0; i < 120; ++i) m.step();
+  const JobStatus mid = job.status();
+  ASSERT_EQ(mid.state, JobState::kPrinting);
+  EXPECT_GT(mid.progress_bytes, 0.3);
+  EXPECT_LT(mid.progress_bytes, 0.95);
+  m.run();
+  job.pump();
+  const double total = m.print_time_s;
+  // The estimate at that point (planned time per byte, scaled to the file) against the real total.
+  EXPECT_NEAR(mid.estimated_total_s, total, 0.15 * total)
+      << "mid " << mid.estimated_total_s << " total " << total;
+  EXPECT_NEAR(mid.estimated_remaining_s, mid.estimated_total_s - mid.print_time_s, 1e-9);
+  EXPECT_GT(mid.progress_time, 0.2);
+  const JobStatus end = job.status();
+  EXPECT_EQ(end.state, JobState::kComplete);
+  EXPECT_NEAR(end.estimated_total_s, total, 1e-9);
+  EXPECT_DOUBLE_EQ(end.estimated_remaining_s, 0.0);
+}
+
+// Pause in the middle, resume: the machine returns to the recorded X Y Z E with the file's modes
+// and feedrate, and the print ends exactly where the same file ends without a pause.
+TEST_F(PrintJobTest, PauseParksAndResumeRestoresPositionModesAndFeedrate) {
+  const std::string text = part(80);
+  ASSERT_TRUE(files_->write("part.gcode", text).ok());
+  FakeMachine plain;
+  {
+    PrintJob job(*files_, options_, plain);
+    ASSERT_TRUE(job.start("part.gcode").ok());
+    plain.run();
+    job.pump();
+    ASSERT_EQ(job.state(), JobState::kComplete);
+  }
+  FakeMachine m;
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  for (int i = 0; i < 40; ++i) m.step();
+  ASSERT_TRUE(job.pause().ok());
+  EXPECT_EQ(job.state(), JobState::kPausing);
+  const size_t file_lines_before = m.executed.size() + m.queue.size();
+  m.run();
+  EXPECT_EQ(job.state(), JobState::kPaused);
+  const JobStatus p = job.status();
+  ASSERT_TRUE(p.pause_position.valid);
+  // The pause position is where the last queued file command left the machine.
+  const std::vector<std::string> lines = command_lines(text);
+  EXPECT_EQ(std::vector<std::string>(m.executed.begin(),
+                                     m.executed.begin() + static_cast<long>(file_lines_before)),
+            std::vector<std::string>(lines.begin(),
+                                     lines.begin() + static_cast<long>(file_lines_before)));
+  // Parked: retracted by 1.5 mm, Z up 5 mm, at the park point.
+  const auto& st = m.rig.interp.state();
+  EXPECT_DOUBLE_EQ(st.logical_mm[0], 5.0);
+  EXPECT_DOUBLE_EQ(st.logical_mm[1], 210.0);
+  EXPECT_NEAR(st.logical_mm[2], p.pause_position.pos_mm[2] + 5.0, 1e-9);
+  EXPECT_NEAR(st.logical_mm[kE], p.pause_position.pos_mm[3] - 1.5, 1e-9);
+  // Another client moves the machine and changes modes while paused: resume puts them back.
+  for (const char* l : {"G91", "M82", "G1 X10 F300"}) {
+    m.queue.push_back(
+        {*gcode::parse_line(l, SourceLocation{"other", 1, 0}), l, [](const Status&) {}});
+  }
+  m.run();
+  ASSERT_TRUE(job.resume().ok());
+  // Run up to the end of the return sequence: the job measures the return position there.
+  while (job.state() == JobState::kResuming && m.step()) {
+  }
+  const JobStatus r = job.status();
+  ASSERT_TRUE(r.resume_position.valid);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_NEAR(r.resume_position.pos_mm[i], p.pause_position.pos_mm[i], 1e-9) << "axis " << i;
+    EXPECT_EQ(r.resume_position.step_count[i] - p.pause_position.step_count[i],
+              i == 3 ? std::llround(0.2 * 80) : 0)
+        << "axis " << i;  // E: the prime beyond the retract is extruded; X Y Z: the same step
+  }
+  m.run();
+  job.pump();
+  EXPECT_EQ(job.state(), JobState::kComplete);
+  EXPECT_FALSE(m.rig.interp.state().relative_xyz);
+  EXPECT_TRUE(m.rig.interp.state().e_relative());
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(st.logical_mm[i], plain.rig.interp.state().logical_mm[i], 1e-9);
+  EXPECT_NEAR(st.logical_mm[kE], plain.rig.interp.state().logical_mm[kE], 1e-9);
+  // The feedrate the file left (F2400 or F1800 of the last move before the pause) was restored:
+  // the file's next moves without F ran at it. The Z moves have no F: compare the last feedrate.
+  EXPECT_DOUBLE_EQ(st.feedrate_mm_s, plain.rig.interp.state().feedrate_mm_s);
+  EXPECT_EQ(job.status().pauses, 1u);
+  EXPECT_EQ(m.heaters_off, 0);  // heaters held on pause
+}
+
+TEST_F(PrintJobTest, CancelLetsQueuedCommandsFinishThenHeatersOffAndPark) {
+  ASSERT_TRUE(files_->write("part.gcode", part(80)).ok());
+  FakeMachine m;
+  m.capacity = 5;
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  for (int i = 0; i < 30; ++i) m.step();
+  const size_t submitted = m.executed.size() + m.queue.size();
+  ASSERT_TRUE(job.cancel().ok());
+  EXPECT_EQ(job.state(), JobState::kCancelling);
+  EXPECT_EQ(m.heaters_off, 0);  // not before the queued commands have run
+  m.run();
+  EXPECT_EQ(job.state(), JobState::kCancelled);
+  EXPECT_EQ(m.heaters_off, 1);
+  EXPECT_EQ(m.executed_at_heaters_off, submitted);  // right behind the file's last queued command
+  EXPECT_EQ(m.queued_at_heaters_off, 0u);
+  EXPECT_DOUBLE_EQ(m.rig.interp.state().logical_mm[0], 5.0);
+  EXPECT_DOUBLE_EQ(m.rig.interp.state().logical_mm[1], 210.0);
+  EXPECT_FALSE(job.active());
+  EXPECT_FALSE(job.cancel().ok());
+  // Cancel while paused: the heaters go off, no second park.
+  ASSERT_TRUE(job.start().ok());
+  for (int i = 0; i < 20; ++i) m.step();
+  ASSERT_TRUE(job.pause().ok());
+  m.run();
+  ASSERT_EQ(job.state(), JobState::kPaused);
+  const size_t before = m.executed.size();
+  ASSERT_TRUE(job.cancel().ok());
+  m.run();
+  EXPECT_EQ(job.state(), JobState::kCancelled);
+  EXPECT_EQ(m.heaters_off, 2);
+  EXPECT_EQ(m.executed.size(), before);
+}
+
+TEST_F(PrintJobTest, ABadLineEndsTheJobWithItsLocationAndHeatersOff) {
+  ASSERT_TRUE(files_->write("bad.gcode", "G28\nG1 X10 F3000\nG1 X20 Q\nG1 X30\n").ok());
+  FakeMachine m;
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("bad.gcode").ok());
+  m.run();
+  EXPECT_EQ(job.state(), JobState::kError);
+  EXPECT_NE(job.status().message.find("bad.gcode:3"), std::string::npos) << job.status().message;
+  EXPECT_EQ(m.heaters_off, 1);
+  EXPECT_EQ(m.executed.size(), 2u);  // the lines before it ran, nothing after
+  // A move the machine refuses (outside the travel) also ends it, naming the line.
+  ASSERT_TRUE(files_->write("far.gcode", "G28\nG1 X10 F3000\nG1 X999\nG1 X30\n").ok());
+  ASSERT_TRUE(job.start("far.gcode").ok());
+  m.run();
+  EXPECT_EQ(job.state(), JobState::kError);
+  EXPECT_NE(job.status().message.find("far.gcode:3"), std::string::npos) << job.status().message;
+}
+
+TEST_F(PrintJobTest, SelectStartByteAndRefusals) {
+  const std::string text = "G28\nG1 X10 F3000\nG1 X20\nG1 X30\n";
+  ASSERT_TRUE(files_->write("s.gcode", text).ok());
+  FakeMachine m;
+  PrintJob job(*files_, options_, m);
+  EXPECT_FALSE(job.start().ok());  // nothing selected
+  EXPECT_FALSE(job.pause().ok());
+  EXPECT_FALSE(job.resume().ok());
+  auto missing = job.select("nope.gcode");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("no job file named 'nope.gcode'"), std::string::npos);
+  ASSERT_TRUE(job.select("s.gcode").ok());
+  EXPECT_FALSE(job.set_start_byte(text.size() + 1).ok());
+  // M26 S6 falls inside "G1 X10 F3000": that line is skipped whole, the next one is first.
+  ASSERT_TRUE(job.set_start_byte(6).ok());
+  ASSERT_TRUE(job.start().ok());
+  EXPECT_FALSE(job.start("s.gcode").ok());  // one job at a time
+  EXPECT_FALSE(job.select("s.gcode").ok());
+  m.run();
+  EXPECT_EQ(job.state(), JobState::kComplete);
+  EXPECT_EQ(m.executed, (std::vector<std::string>{"G1 X20", "G1 X30"}));
+}
+
+TEST_F(PrintJobTest, ARefusedOfferEndsTheJob) {
+  ASSERT_TRUE(files_->write("s.gcode", "G28\nG1 X10 F3000\n").ok());
+  FakeMachine m;
+  m.refuse = true;
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("s.gcode").ok());
+  EXPECT_EQ(job.state(), JobState::kError);
+  EXPECT_NE(job.status().message.find("s.gcode:1: refused by the test"), std::string::npos)
+      << job.status().message;
+}
+
+}  // namespace
+}  // namespace feedloop::daemon
