@@ -11,6 +11,10 @@
 #include "gcode/parser.hpp"
 #include "recorder/options_from_config.hpp"
 #include "recorder/replay.hpp"
+#include "web/database.hpp"
+#include "web/file_store.hpp"
+#include "web/http_server.hpp"
+#include "web/moonraker_api.hpp"
 
 namespace feedloop::daemon {
 
@@ -186,10 +190,13 @@ Status Daemon::open_channels() {
                                       [this](auto session) { add_client(std::move(session), Kind::kJson); });
       !s)
     return s;
-  return pty_.open(pty_link_, [this](auto session) { add_client(std::move(session), Kind::kMarlin); });
+  if (Status s = pty_.open(pty_link_, [this](auto session) { add_client(std::move(session), Kind::kMarlin); }); !s)
+    return s;
+  return open_web();
 }
 
 void Daemon::close_channels() {
+  close_web();
   gcode_listener_.close();
   api_listener_.close();
   pty_.close();
@@ -716,6 +723,7 @@ std::shared_ptr<const std::string> Daemon::status_text() {
 void Daemon::tick() {
   if (shutting_down_) return;
   retry_parked();
+  feed_job();
   const int64_t now = clock_.now_ns();
   // Ownership ends after the owner has been idle long enough.
   if (owner_ != 0 && machine_->idle()) {
