@@ -176,7 +176,7 @@ void read_io(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   w.string("api_key", cfg.web.api_key);
   for (auto [key, out] : {std::pair{"ui_dir", &cfg.web.ui_dir}, std::pair{"page_dir", &cfg.web.page_dir},
                           std::pair{"uplot_dir", &cfg.web.uplot_dir}})
-    if (w.has(key)) read_path(w, key, *out, diag);
+    if (w.string(key, *out) && !out->empty()) read_path(w, key, *out, diag);  // "": none
   read_path(w, "files_dir", cfg.web.files_dir, diag);
   read_path(w, "database", cfg.web.database, diag);
   w.finish();
