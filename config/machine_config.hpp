@@ -410,8 +410,8 @@ struct WebConfig {
   std::vector<std::string> trusted_clients;  // CIDR ranges allowed without the API key
   std::string api_key;                       // X-Api-Key for everyone else (empty: none)
   std::string ui_dir;                        // the UI's static files, served at / (empty: none)
-  std::string page_dir;                      // feedloop's own page, served at /feedloop/
-  std::string uplot_dir;                     // uPlot's dist/, served at /feedloop/uplot/
+  std::string page_dir;                      // feedloop's own page, served at /server/feedloop/page/
+  std::string uplot_dir;                     // uPlot's dist/, served at /server/feedloop/page/uplot/
   std::string files_dir = "${STATE_DIR}/files";  // roots gcodes/ and config/ (uploads)
   std::string database = "${STATE_DIR}/web.sqlite";     // server.database.* (SQLite)
   bool operator==(const WebConfig&) const = default;

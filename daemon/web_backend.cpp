@@ -4,9 +4,10 @@
 // A print job reads its file line by line and submits each command through the daemon's
 // submit() as the web's internal client, so print ownership, the machine's queue (flow control)
 // and the flight recorder apply as for a host on the socket. At most kJobInFlight lines are
-// waiting for the machine at once. PAUSE stops feeding lines (the moves already queued finish,
-// as Klipper's PAUSE lets the lookahead queue run out); RESUME feeds again; CANCEL_PRINT stops
-// for good. The job is complete once the file is read and the machine is idle.
+// waiting for the machine at once, and no line is read while the machine holds more than
+// kJobAheadS of planned motion (or kJobQueueDepth commands). PAUSE stops feeding lines (the moves
+// already queued finish, as Klipper's PAUSE lets the lookahead queue run out); RESUME feeds again;
+// CANCEL_PRINT stops for good. The job is complete once the file is read and the machine is idle.
 #include <spdlog/spdlog.h>
 
 #include <filesystem>
@@ -27,6 +28,8 @@ using nlohmann::json;
 
 namespace {
 constexpr int kJobInFlight = 4;
+constexpr uint32_t kJobQueueDepth = 8;  // commands waiting in the machine's queue
+constexpr double kJobAheadS = 2.0;      // planned motion not yet executed
 constexpr const char* kWebVersion = "0.1.0";
 
 // The web's own client: it has no connection; replies go to the web API through callbacks.
@@ -81,9 +84,10 @@ Status Daemon::open_web() {
   c.last_progress_ns = clock_.now_ns();
   web_client_id_ = id;
   job_ = std::make_unique<WebJob>();
-  spdlog::info("web: http://{}:{}/ (UI: {}), feedloop's page at /feedloop/, files in {}",
-               cfg_.web.address, web_server_->port(),
-               cfg_.web.ui_dir.empty() ? "none" : cfg_.web.ui_dir, *files_dir);
+  spdlog::info(
+      "web: http://{}:{}/ (UI: {}), feedloop's page at /server/feedloop/page/, files in {}",
+      cfg_.web.address, web_server_->port(), cfg_.web.ui_dir.empty() ? "none" : cfg_.web.ui_dir,
+      *files_dir);
   return Status::Ok();
 }
 
@@ -240,6 +244,12 @@ void Daemon::feed_job() {
   if (!c) return;
   std::string line;
   while (!job_->eof && job_->in_flight < kJobInFlight && !c->parked) {
+    // Read ahead of the machine by a bounded amount, as Klipper's virtual_sdcard does (its
+    // lookahead holds about 2 s of moves): a pause then stops the motion within that.
+    const engine::MachineStatus ms = machine_->status();
+    if (ms.queue_depth >= kJobQueueDepth ||
+        (ms.moving && ms.planned_until_s - ms.print_time_s > kJobAheadS))
+      break;
     if (!std::getline(*job_->in, line)) {
       job_->eof = true;
       job_->position = job_->size;

@@ -82,6 +82,10 @@ const char* HttpServer::mime_type(std::string_view path) {
 
 namespace {
 
+// feedloop's page: under /server/ because the UIs' service workers answer every other page path
+// with their own index.html (Mainsail's leaves /server, /printer, /api... to the network).
+constexpr std::string_view kPagePrefix = "/server/feedloop/page/";
+
 std::string static_file_in(const ServerOptions& o, std::string_view raw_path) {
   std::string path = url_decode(raw_path, false);
   if (path.find('\0') != std::string::npos || path.find("/../") != std::string::npos ||
@@ -93,12 +97,16 @@ std::string static_file_in(const ServerOptions& o, std::string_view raw_path) {
   auto under = [&](std::string_view prefix) {
     return path.size() >= prefix.size() && path.compare(0, prefix.size(), prefix) == 0;
   };
-  if (under("/feedloop/uplot/") && !o.uplot_dir.empty()) {
-    dir = o.uplot_dir;
-    rest = path.substr(16);
-  } else if ((path == "/feedloop" || under("/feedloop/")) && !o.page_dir.empty()) {
-    dir = o.page_dir;
-    rest = path.size() > 10 ? path.substr(10) : std::string();
+  if (under(kPagePrefix)) {
+    const std::string_view uplot = "uplot/";
+    rest = path.substr(kPagePrefix.size());
+    if (rest.compare(0, uplot.size(), uplot) == 0) {
+      dir = o.uplot_dir;
+      rest = rest.substr(uplot.size());
+    } else {
+      dir = o.page_dir;
+    }
+    if (dir.empty()) return {};
   } else if (!o.ui_dir.empty()) {
     dir = o.ui_dir;
     rest = path.substr(1);
@@ -129,6 +137,16 @@ http::response<http::string_body> text_response(unsigned version, bool keep_aliv
   res.set(http::field::cache_control, "no-cache");
   res.keep_alive(keep_alive);
   res.body() = std::move(body);
+  res.prepare_payload();
+  return res;
+}
+
+http::response<http::string_body> redirect(unsigned version, bool keep_alive,
+                                           const std::string& to) {
+  http::response<http::string_body> res{http::status::moved_permanently, version};
+  res.set(http::field::server, "feedloop");
+  res.set(http::field::location, to);
+  res.keep_alive(keep_alive);
   res.prepare_payload();
   return res;
 }
@@ -352,6 +370,16 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
         return send(text_response(version, false, http::status::unauthorized, "application/json",
                                   error_json(401, "Unauthorized")));
       }
+    }
+    if (r.path.rfind(kPagePrefix, 0) == 0 ||
+        r.path == kPagePrefix.substr(0, kPagePrefix.size() - 1)) {
+      if (r.path.size() < kPagePrefix.size())
+        return send(redirect(version, keep_alive, std::string(kPagePrefix)));
+      const std::string file = static_file_in(shared_->options, r.path);
+      if (file.empty())
+        return send(text_response(version, keep_alive, http::status::not_found, "text/plain",
+                                  "not found\n"));
+      return send_file(version, keep_alive, file, HttpServer::mime_type(file));
     }
     if (r.path == "/websocket") {
       if (!websocket::is_upgrade(req)) {

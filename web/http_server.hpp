@@ -1,8 +1,9 @@
 // The web server: HTTP/1.1 and WebSocket (Boost.Beast) on the daemon's Asio I/O thread. It serves
 // the UI's static files (Mainsail at /, index.html for unknown page paths), feedloop's page at
-// /feedloop/ (uPlot at /feedloop/uplot/), and the Moonraker API (web/moonraker_api.hpp) over HTTP
-// routes and /websocket. Nothing here touches the machine's threads: the API reads snapshots and
-// submits G-code through the daemon like any client.
+// /server/feedloop/page/ (uPlot at /server/feedloop/page/uplot/; under /server/ so that the UIs'
+// service workers leave it alone, and behind the same access check as the API), and the Moonraker
+// API (web/moonraker_api.hpp) over HTTP routes and /websocket. Nothing here touches the machine's
+// threads: the API reads snapshots and submits G-code through the daemon like any client.
 //
 // Hostile input is bounded: at most max_connections at once (more are closed at accept), request
 // headers 16 KiB, request bodies 1 MiB (uploads max_upload_bytes), WebSocket messages
