@@ -71,7 +71,10 @@ function updateTables(status) {
   const current = layerSelect.value;
   layerSelect.innerHTML = zs.map((z) => `<option value="${z}">${z.toFixed(2)} mm</option>`).join('');
   if (chosenLayer !== null) layerSelect.value = current;
-  else if (zs.length) layerSelect.value = String(zs[zs.length - 1]);
+  else if (zs.length) {  // the layer with the most points until one is chosen
+    const best = tr.layers.reduce((a, l) => (l.points > a.points ? l : a), tr.layers[0]);
+    layerSelect.value = String(best.z_mm);
+  }
 }
 
 layerSelect.addEventListener('change', () => { chosenLayer = Number(layerSelect.value); drawMap(chosenLayer); });
