@@ -464,8 +464,7 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
 
 HttpServer::HttpServer(asio::io_context& io, MoonrakerApi& api, AccessPolicy access,
                        ServerOptions options)
-    : io_(io),
-      api_(api),
+    : api_(api),
       acceptor_(io),
       timer_(io),
       shared_(std::make_shared<Shared>()),

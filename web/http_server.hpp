@@ -71,7 +71,6 @@ class HttpServer {
   void accept();
   void arm_tick();
 
-  boost::asio::io_context& io_;
   MoonrakerApi& api_;
   boost::asio::ip::tcp::acceptor acceptor_;
   boost::asio::steady_timer timer_;
