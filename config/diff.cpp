@@ -22,6 +22,7 @@ std::vector<std::string> changed_sections(const MachineConfig& a, const MachineC
   check(a.mcus == b.mcus, "mcus");
   check(a.simulator == b.simulator, "simulator");
   check(a.sockets == b.sockets, "sockets");
+  check(a.web == b.web, "web");
   check(a.recorder == b.recorder, "recorder");
   check(a.jobs == b.jobs, "jobs");
   check(a.logging == b.logging, "logging");

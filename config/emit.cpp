@@ -332,6 +332,19 @@ void write_runtime(Writer& w, const MachineConfig& c) {
   w.str("pty_link", c.sockets.pty_link);
   w.end();
 
+  w.begin("web");
+  w.boolean("enabled", c.web.enabled);
+  w.str("address", c.web.address);
+  w.integer("port", c.web.port);
+  w.list("trusted_clients", c.web.trusted_clients);
+  w.str("api_key", c.web.api_key);
+  w.str("ui_dir", c.web.ui_dir);
+  w.str("page_dir", c.web.page_dir);
+  w.str("uplot_dir", c.web.uplot_dir);
+  w.str("files_dir", c.web.files_dir);
+  w.str("database", c.web.database);
+  w.end();
+
   w.begin("recorder");
   w.boolean("enabled", c.recorder.enabled);
   w.str("directory", c.recorder.directory);

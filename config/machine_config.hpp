@@ -401,6 +401,22 @@ struct SocketsConfig {
   bool operator==(const SocketsConfig&) const = default;
 };
 
+// The HTTP + WebSocket server for Mainsail/Fluidd (Moonraker's API; docs/web.md). Off unless
+// enabled. Relative paths are taken from the daemon's working directory.
+struct WebConfig {
+  bool enabled = false;
+  std::string address = "127.0.0.1";
+  int port = 7125;
+  std::vector<std::string> trusted_clients;  // CIDR ranges allowed without the API key
+  std::string api_key;                       // X-Api-Key for everyone else (empty: none)
+  std::string ui_dir;                        // the UI's static files, served at / (empty: none)
+  std::string page_dir;                      // feedloop's own page, served at /server/feedloop/page/
+  std::string uplot_dir;                     // uPlot's dist/, served at /server/feedloop/page/uplot/
+  std::string files_dir = "${STATE_DIR}/files";  // roots gcodes/ and config/ (uploads)
+  std::string database = "${STATE_DIR}/web.sqlite";     // server.database.* (SQLite)
+  bool operator==(const WebConfig&) const = default;
+};
+
 struct RecorderConfig {
   bool enabled = true;
   std::string directory = "${STATE_DIR}/recordings";
@@ -511,6 +527,7 @@ struct MachineConfig {
   std::vector<HeaterConfig> heaters;  // in file order
   std::vector<FanConfig> fans;
   SocketsConfig sockets;
+  WebConfig web;
   RecorderConfig recorder;
   JobsConfig jobs;
   LoggingConfig logging;

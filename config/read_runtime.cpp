@@ -1,11 +1,30 @@
 // Config sections `simulator` (plant simulator and its optional unmodelled effects), `sockets`,
 // `recorder` and `logging`.
+#include <boost/asio/ip/address.hpp>
+#include <boost/asio/ip/network_v4.hpp>
+#include <boost/asio/ip/network_v6.hpp>
+
 #include "config/enum_names.hpp"
 #include "config/config.hpp"
 #include "config/sections.hpp"
 
 namespace feedloop::config::detail {
 namespace {
+
+// "a.b.c.d/n", "x::y/n" or a single address (web.trusted_clients).
+bool valid_cidr(const std::string& text) {
+  boost::system::error_code ec;
+  if (text.find('/') == std::string::npos) {
+    boost::asio::ip::make_address(text, ec);
+    return !ec;
+  }
+  if (text.find(':') != std::string::npos) {
+    boost::asio::ip::make_network_v6(text, ec);
+    return !ec;
+  }
+  boost::asio::ip::make_network_v4(text, ec);
+  return !ec;
+}
 
 // An effect section: absent = off; present = on unless `enabled: false`. Its parameters are
 // checked either way, so a disabled effect with a typo still reports it.
@@ -139,6 +158,28 @@ void read_io(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   read_path(so, "api_socket", cfg.sockets.api_socket, diag);
   read_path(so, "pty_link", cfg.sockets.pty_link, diag);
   so.finish();
+
+  MapReader w = root.sub("web");
+  w.boolean("enabled", cfg.web.enabled);
+  if (w.string("address", cfg.web.address)) {
+    boost::system::error_code ec;
+    boost::asio::ip::make_address(cfg.web.address, ec);
+    if (ec) diag.add(w.get("address").Mark(), w.key_path("address") + ": '" + cfg.web.address + "' is not an IP address");
+  }
+  w.integer_as("port", cfg.web.port, 1, 65535);
+  if (w.string_list("trusted_clients", cfg.web.trusted_clients)) {
+    for (const std::string& c : cfg.web.trusted_clients)
+      if (!valid_cidr(c))
+        diag.add(w.get("trusted_clients").Mark(),
+                 w.key_path("trusted_clients") + ": '" + c + "' is not an address range (e.g. 192.168.1.0/24)");
+  }
+  w.string("api_key", cfg.web.api_key);
+  for (auto [key, out] : {std::pair{"ui_dir", &cfg.web.ui_dir}, std::pair{"page_dir", &cfg.web.page_dir},
+                          std::pair{"uplot_dir", &cfg.web.uplot_dir}})
+    if (w.string(key, *out) && !out->empty()) read_path(w, key, *out, diag);  // "": none
+  read_path(w, "files_dir", cfg.web.files_dir, diag);
+  read_path(w, "database", cfg.web.database, diag);
+  w.finish();
 
   MapReader r = root.sub("recorder");
   r.boolean("enabled", cfg.recorder.enabled);

@@ -14,6 +14,10 @@
 #include "gcode/parser.hpp"
 #include "recorder/options_from_config.hpp"
 #include "recorder/replay.hpp"
+#include "web/database.hpp"
+#include "web/file_store.hpp"
+#include "web/http_server.hpp"
+#include "web/moonraker_api.hpp"
 
 namespace feedloop::daemon {
 
@@ -226,11 +230,13 @@ Status Daemon::open_channels() {
           [this](auto session) { add_client(std::move(session), Kind::kJson); });
       !s)
     return s;
-  return pty_.open(pty_link_,
-                   [this](auto session) { add_client(std::move(session), Kind::kMarlin); });
+  if (Status s = pty_.open(pty_link_, [this](auto session) { add_client(std::move(session), Kind::kMarlin); }); !s)
+    return s;
+  return open_web();
 }
 
 void Daemon::close_channels() {
+  close_web();
   gcode_listener_.close();
   api_listener_.close();
   pty_.close();
@@ -796,6 +802,7 @@ void Daemon::tick() {
   retry_parked();
   flush_internal();
   if (job_) job_->pump();
+  feed_job();
   const int64_t now = clock_.now_ns();
   // Ownership ends after the owner has been idle long enough; a job owns the print while it
   // sends commands (printing and its pause/resume/cancel moves; not while paused).

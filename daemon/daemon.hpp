@@ -19,6 +19,7 @@
 #include <boost/asio.hpp>
 
 #include <deque>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <memory>
@@ -39,6 +40,14 @@
 #include "gcode/host_protocol.hpp"
 #include "recorder/engine_recording.hpp"
 #include "recorder/recorder.hpp"
+#include "web/printer_backend.hpp"
+
+namespace feedloop::web {
+class Database;
+class FileStore;
+class HttpServer;
+class MoonrakerApi;
+}  // namespace feedloop::web
 
 namespace feedloop::daemon {
 
@@ -59,7 +68,7 @@ struct DaemonOptions {
 // Print jobs (daemon/print_job.hpp, docs/jobs.md): the daemon reads a file of the job folder into
 // the same submit path the clients use; while the job sends commands it owns the print (its own
 // owner id, kJobOwner), so the print goes on when the client that started it disconnects.
-class Daemon final : public JsonApiBackend, private JobSink {
+class Daemon final : public JsonApiBackend, public web::PrinterBackend, private JobSink {
  public:
   Daemon(config::MachineConfig cfg, DaemonOptions options);
   ~Daemon() override;
@@ -110,6 +119,24 @@ class Daemon final : public JsonApiBackend, private JobSink {
   enum class Heater { kHotend, kBed };
   void set_heater_target(Heater heater, double target_c);
   void all_heaters_off() override;
+
+  // web::PrinterBackend (daemon/web_backend.cpp): the web server's view of the printer. Print
+  // jobs stream a file from the web's gcodes folder through the same submit path as every
+  // client (print ownership applies); heaters are the machine's status.
+  web::PrinterInfo printer_info() const override;
+  engine::MachineStatus machine_status() const override;
+  engine::ServoStatus servo_status() const override;
+  web::JobStatus job_status() const override;
+  void run_gcode(std::string script, std::function<void(bool ok, std::string response)> done) override;
+  std::string start_job(const std::string& path, const std::string& filename) override;
+  std::string pause_job() override;
+  std::string resume_job() override;
+  std::string cancel_job() override;
+  void restart() override;
+  // The web server's port (0: not running); tests use port 0 and read it here.
+  uint16_t web_port() const;
+  const web::MoonrakerApi* web_api() const { return web_api_.get(); }
+  const web::HttpServer* web_server() const { return web_server_.get(); }
 
  private:
   static constexpr uint64_t kJobOwner = UINT64_MAX;  // the owner id of a print job
@@ -194,6 +221,10 @@ class Daemon final : public JsonApiBackend, private JobSink {
   void start_print(const std::string& owner_name);
   void end_print();
   std::string firmware_info() const;
+  Status open_web();
+  void close_web();
+  void feed_job();  // submits the job's next lines while the machine's queue has room
+  void end_job(web::JobState state, const std::string& message);
 
   config::MachineConfig cfg_;
   DaemonOptions options_;
@@ -244,6 +275,24 @@ class Daemon final : public JsonApiBackend, private JobSink {
   std::unique_ptr<JobFiles> job_files_;
   std::unique_ptr<PrintJob> job_;
   std::deque<std::pair<gcode::Command, std::string>> internal_backlog_;
+  // The web server (web.enabled) and its print job.
+  std::unique_ptr<web::Database> web_db_;
+  std::unique_ptr<web::FileStore> web_files_;
+  std::unique_ptr<web::MoonrakerApi> web_api_;
+  std::unique_ptr<web::HttpServer> web_server_;
+  uint64_t web_client_id_ = 0;  // the web's internal client: it owns what the web submits
+  struct WebJob {
+    web::JobState state = web::JobState::standby;
+    std::string filename;
+    std::unique_ptr<std::ifstream> in;
+    uint64_t size = 0, position = 0;
+    int64_t line = 0;
+    int in_flight = 0;
+    bool eof = false;
+    int64_t start_ns = 0, end_ns = 0, paused_since_ns = 0, paused_total_ns = 0;
+    std::string message;
+  };
+  std::unique_ptr<WebJob> web_job_;
 };
 
 }  // namespace feedloop::daemon

@@ -23,11 +23,11 @@ here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 
 # Every target and its corpus folder.
 all=(fuzz_gcode_parser fuzz_json_api fuzz_daemon_channels fuzz_mcu_host fuzz_mcu_device
-  fuzz_recording_reader fuzz_config_loader)
+  fuzz_recording_reader fuzz_config_loader fuzz_web_api)
 declare -A corpus_of=(
   [fuzz_gcode_parser]=gcode [fuzz_json_api]=json_api [fuzz_daemon_channels]=daemon_channels
   [fuzz_mcu_host]=mcu_host [fuzz_mcu_device]=mcu_device [fuzz_recording_reader]=recording
-  [fuzz_config_loader]=config)
+  [fuzz_config_loader]=config [fuzz_web_api]=web_api)
 
 targets=()
 while [[ $# -gt 0 ]]; do

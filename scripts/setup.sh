@@ -7,13 +7,15 @@ PACKAGES=(
   build-essential cmake ninja-build pkg-config git python3
   libeigen3-dev libusb-1.0-0-dev libboost-dev libspdlog-dev libyaml-cpp-dev
   libgtest-dev libgmock-dev libsystemd-dev libfftw3-dev nlohmann-json3-dev
+  libsqlite3-dev                      # the web server's database (server.database.*)
   clang libclang-rt-14-dev            # libFuzzer + sanitizer runtimes
   printrun                            # pronsole: the serial host used in the pty test
   systemd                             # systemd-analyze verify of the unit
   socat xz-utils
   gnuplot-nox                         # the identification report's plots (ident fit --out DIR)
 )
-OPTIONAL=(rt-tests stress-ng)         # servo-latency benchmark only
+OPTIONAL=(rt-tests stress-ng          # servo-latency benchmark only
+  chromium nodejs npm)                # the browser test (ctest -L browser) only
 
 missing=()
 for p in "${PACKAGES[@]}" "${OPTIONAL[@]}"; do
@@ -30,4 +32,4 @@ export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends "${PACKAGES[@]}" >/dev/null
 $SUDO apt-get install -y -qq --no-install-recommends "${OPTIONAL[@]}" >/dev/null || \
-  echo "setup: optional packages (${OPTIONAL[*]}) unavailable; the latency benchmark will skip them"
+  echo "setup: optional packages (${OPTIONAL[*]}) unavailable; the latency benchmark and the browser test will skip"

@@ -22,9 +22,9 @@ cmake --build build -j"$JOBS"
 # Tests labelled `long` (the whole corpus on the simulated printer, ~15 min of CPU) are not run
 # here: `ctest --test-dir build -L long` (README, "Tests").
 stage "tests"
-ctest --test-dir build -j"$JOBS" --output-on-failure --timeout 600 -LE "realtime|long"
+ctest --test-dir build -j"$JOBS" --output-on-failure --timeout 600 -LE "realtime|long|browser"
 stage "tests on the wall clock, one at a time"
-ctest --test-dir build --output-on-failure --timeout 600 -L realtime -LE long
+ctest --test-dir build --output-on-failure --timeout 600 -L realtime -LE "long|browser"
 
 if [ "${1:-}" = "--fast" ]; then exit 0; fi
 
@@ -35,8 +35,8 @@ cmake -S . -B build-san -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE
 cmake --build build-san -j"$JOBS"
 stage "tests under sanitizers"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
-ctest --test-dir build-san -j"$JOBS" --output-on-failure --timeout 900 -LE "slow|realtime|long"
-ctest --test-dir build-san --output-on-failure --timeout 900 -L realtime -LE "slow|long"
+ctest --test-dir build-san -j"$JOBS" --output-on-failure --timeout 900 -LE "slow|realtime|long|browser"
+ctest --test-dir build-san --output-on-failure --timeout 900 -L realtime -LE "slow|long|browser"
 
 stage "fuzz (short run of every target)"
 bash fuzz/run.sh build-san 10  # fuzz/README.md; 10 s each (the long runs are separate)

@@ -1,0 +1,232 @@
+// The web server on a socket (web/http_server.hpp) with a fake printer: static files with
+// Mainsail's fallback, the WebSocket API, and hostile clients (a malformed HTTP request, a huge
+// WebSocket message, a huge body, more connections than allowed, a reader that never reads):
+// each is refused or dropped, and the server goes on answering. The I/O loop's largest delay
+// during the load is printed (timing is not asserted; bench/ holds the figures).
+#include <gtest/gtest.h>
+
+#include <boost/asio.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "tests/web/fake_printer.hpp"
+#include "web/http_server.hpp"
+
+namespace feedloop::web {
+namespace {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = asio::ip::tcp;
+using nlohmann::json;
+
+struct Server {
+  Server() {
+    dir =
+        std::filesystem::temp_directory_path() / ("web_server_test_" + std::to_string(::getpid()));
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir / "ui" / "assets");
+    std::ofstream(dir / "ui" / "index.html") << "<html>mainsail</html>";
+    std::ofstream(dir / "ui" / "assets" / "app.js") << "console.log(1)";
+    files = std::make_unique<FileStore>(*FileStore::open((dir / "files").string()));
+    db = Database::open(":memory:").value();
+    api = std::make_unique<MoonrakerApi>(printer, *files, *db, MoonrakerApi::Options{});
+    ServerOptions o;
+    o.port = 0;
+    o.ui_dir = (dir / "ui").string();
+    o.max_connections = 32;
+    o.max_ws_queue_bytes = 256 * 1024;
+    server = std::make_unique<HttpServer>(io, *api, *AccessPolicy::create({}, "key"), o);
+    EXPECT_TRUE(server->start());
+    // The I/O loop's delay: a 1 ms timer, its worst lateness.
+    arm_probe();
+    thread = std::thread([this] { io.run(); });
+  }
+  ~Server() {
+    asio::post(io, [this] {
+      server->stop();
+      probe.cancel();
+    });
+    io.stop();
+    thread.join();
+    std::filesystem::remove_all(dir);
+  }
+  void arm_probe() {
+    const auto due = std::chrono::steady_clock::now() + std::chrono::milliseconds(1);
+    probe.expires_at(due);
+    probe.async_wait([this, due](const boost::system::error_code& ec) {
+      if (ec) return;
+      const double late_ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - due).count();
+      if (late_ms > max_late_ms) max_late_ms = late_ms;
+      arm_probe();
+    });
+  }
+  // Runs fn on the I/O thread and waits.
+  template <class F>
+  auto on_io(F fn) {
+    std::promise<decltype(fn())> p;
+    asio::post(io, [&] { p.set_value(fn()); });
+    return p.get_future().get();
+  }
+  std::filesystem::path dir;
+  asio::io_context io;
+  asio::steady_timer probe{io};
+  std::atomic<double> max_late_ms{0.0};
+  testing::FakePrinter printer;
+  std::unique_ptr<FileStore> files;
+  std::unique_ptr<Database> db;
+  std::unique_ptr<MoonrakerApi> api;
+  std::unique_ptr<HttpServer> server;
+  std::thread thread;
+};
+
+http::response<http::string_body> get(uint16_t port, const std::string& target) {
+  asio::io_context ctx;
+  beast::tcp_stream s(ctx);
+  s.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+  http::request<http::empty_body> req{http::verb::get, target, 11};
+  req.set(http::field::host, "127.0.0.1");
+  http::write(s, req);
+  beast::flat_buffer b;
+  http::response<http::string_body> res;
+  http::read(s, b, res);
+  return res;
+}
+
+struct WsClient {
+  explicit WsClient(uint16_t port) : ws(ctx) {
+    beast::get_lowest_layer(ws).connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+    ws.handshake("127.0.0.1", "/websocket");
+  }
+  // Sends a request and reads until its reply (skipping notifications).
+  json call(const std::string& method, const json& params, int id) {
+    ws.write(asio::buffer(
+        json{{"jsonrpc", "2.0"}, {"method", method}, {"params", params}, {"id", id}}.dump()));
+    for (;;) {
+      beast::flat_buffer b;
+      ws.read(b);
+      json j = json::parse(beast::buffers_to_string(b.data()));
+      if (j.is_object() && j.contains("id") && j["id"] == id) return j;
+    }
+  }
+  asio::io_context ctx;
+  websocket::stream<beast::tcp_stream> ws;
+};
+
+TEST(WebServer, ServesTheUiWithMainsailsFallbackAndTheApi) {
+  Server s;
+  const uint16_t port = s.server->port();
+  auto r = get(port, "/");
+  EXPECT_EQ(r.result_int(), 200);
+  EXPECT_EQ(r.body(), "<html>mainsail</html>");
+  r = get(port, "/console");  // a page path of the history-mode router
+  EXPECT_EQ(r.body(), "<html>mainsail</html>");
+  r = get(port, "/assets/app.js");
+  EXPECT_EQ(r[http::field::content_type], "text/javascript");
+  EXPECT_EQ(get(port, "/assets/missing.js").result_int(), 404);
+  EXPECT_EQ(get(port, "/../../etc/passwd").result_int(), 404);
+  r = get(port, "/server/info");
+  EXPECT_EQ(json::parse(r.body())["result"]["klippy_state"], "ready");
+  r = get(port, "/printer/objects/query?extruder=target");
+  EXPECT_EQ(json::parse(r.body())["result"]["status"]["extruder"].size(), 1u);
+  EXPECT_EQ(get(port, "/server/nothing/here").result_int(), 404);
+  WsClient c(port);
+  EXPECT_EQ(
+      c.call("server.connection.identify", {{"client_name", "test"}}, 0)["result"]["connection_id"],
+      1);
+}
+
+TEST(WebServer, HostileClientsAreRefusedAndTheServerGoesOn) {
+  Server s;
+  const uint16_t port = s.server->port();
+  // Malformed HTTP.
+  {
+    asio::io_context ctx;
+    tcp::socket sock(ctx);
+    sock.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+    asio::write(sock, asio::buffer(std::string("GARBAGE \x01\x02 HTTP/9\r\n\r\n")));
+    std::string reply(64, '\0');
+    boost::system::error_code ec;
+    const size_t n = sock.read_some(asio::buffer(reply), ec);
+    EXPECT_EQ(reply.substr(0, std::min<size_t>(n, 12)), "HTTP/1.1 400");
+  }
+  // A body over the limit.
+  {
+    asio::io_context ctx;
+    beast::tcp_stream st(ctx);
+    st.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+    http::request<http::string_body> req{http::verb::post, "/server/database/item", 11};
+    req.set(http::field::content_type, "application/json");
+    req.body() = std::string(3 << 20, 'x');
+    req.prepare_payload();
+    boost::system::error_code ec;
+    http::write(st, req, ec);
+    beast::flat_buffer b;
+    http::response<http::string_body> res;
+    http::read(st, b, res, ec);
+    EXPECT_EQ(res.result_int(), 413);
+  }
+  // A WebSocket message over 1 MiB closes that socket only.
+  {
+    WsClient big(port);
+    boost::system::error_code ec;
+    big.ws.write(asio::buffer(std::string(2 << 20, ' ')), ec);
+    beast::flat_buffer b;
+    big.ws.read(b, ec);
+    EXPECT_TRUE(ec);
+  }
+  // More connections than allowed: the extra ones are closed at once.
+  std::vector<std::unique_ptr<WsClient>> many;
+  for (int i = 0; i < 40; ++i) {
+    try {
+      many.push_back(std::make_unique<WsClient>(port));
+    } catch (const std::exception&) {
+    }
+  }
+  EXPECT_LE(many.size(), 32u);
+  many.clear();
+  // A reader that never reads: it subscribes, floods requests and does not read the replies.
+  {
+    WsClient slow(port);
+    const std::string req = json{
+        {"jsonrpc", "2.0"},
+        {"method", "printer.objects.query"},
+        {"params", {{"objects", {{"configfile", nullptr}, {"feedloop_servo", nullptr}}}}},
+        {"id", 1}}.dump();
+    boost::system::error_code ec;
+    for (int i = 0;
+         i < 20000 && !ec && s.on_io([&] { return s.server->stats().slow_readers_dropped; }) == 0;
+         ++i)
+      slow.ws.write(asio::buffer(req), ec);
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const ServerStats st = s.on_io([&] { return s.server->stats(); });
+  EXPECT_GE(st.refused_over_limit, 8u);
+  EXPECT_GE(st.slow_readers_dropped, 1u);
+  EXPECT_GE(st.bad_requests, 2u);
+  // And it still answers.
+  WsClient after(port);
+  EXPECT_EQ(after.call("server.info", json::object(), 3)["result"]["klippy_connected"], true);
+  EXPECT_EQ(get(port, "/").result_int(), 200);
+  std::printf(
+      "web load: accepted %llu, refused %llu, slow readers dropped %llu, bad requests %llu, "
+      "I/O loop max delay %.2f ms\n",
+      static_cast<unsigned long long>(st.accepted),
+      static_cast<unsigned long long>(st.refused_over_limit),
+      static_cast<unsigned long long>(st.slow_readers_dropped),
+      static_cast<unsigned long long>(st.bad_requests), s.max_late_ms.load());
+}
+
+}  // namespace
+}  // namespace feedloop::web

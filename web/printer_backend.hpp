@@ -1,0 +1,63 @@
+// What the web API (Moonraker's, for Mainsail and Fluidd) needs from the printer: one small
+// interface the daemon implements (daemon/daemon.cpp, "web backend"). Everything is called on
+// the daemon's I/O thread; callbacks come back on it.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "engine/machine.hpp"
+
+namespace feedloop::web {
+
+// Klipper's print_stats states (klippy/extras/print_stats.py).
+enum class JobState { standby, printing, paused, complete, cancelled, error };
+const char* to_string(JobState s);
+
+struct JobStatus {
+  JobState state = JobState::standby;
+  std::string filename;  // relative to the gcodes root
+  uint64_t file_position = 0;
+  uint64_t file_size = 0;
+  double print_duration_s = 0.0;  // time spent printing (not paused)
+  double total_duration_s = 0.0;  // since the start
+  double filament_used_mm = 0.0;
+  std::string message;  // why it ended in error
+};
+
+struct PrinterInfo {
+  std::string name;
+  std::string kinematics;  // cartesian, corexy, delta
+  std::string version;
+  double axis_min_mm[3] = {0, 0, 0};
+  double axis_max_mm[3] = {0, 0, 0};
+  double max_velocity_mm_s = 0.0;
+  double max_accel_mm_s2 = 0.0;
+  double square_corner_velocity_mm_s = 5.0;
+  double min_cruise_ratio = 0.5;
+  double servo_period_s = 0.001;
+  bool simulated = false;
+};
+
+class PrinterBackend {
+ public:
+  virtual ~PrinterBackend() = default;
+  virtual PrinterInfo printer_info() const = 0;
+  virtual engine::MachineStatus machine_status() const = 0;
+  virtual engine::ServoStatus servo_status() const = 0;
+  virtual JobStatus job_status() const = 0;
+  // Runs G-code lines one after the other; `done(ok, response)` once all have run (or the first
+  // failed): response holds the lines the printer answered (M105, M114...) or the error.
+  virtual void run_gcode(std::string script,
+                         std::function<void(bool ok, std::string response)> done) = 0;
+  // Print jobs. Each returns an error text ("" on success).
+  virtual std::string start_job(const std::string& path, const std::string& filename) = 0;
+  virtual std::string pause_job() = 0;
+  virtual std::string resume_job() = 0;
+  virtual std::string cancel_job() = 0;
+  virtual void emergency_stop(const std::string& reason) = 0;
+  // Klipper's RESTART: rebuilds the machine (clears an emergency stop) once it is idle.
+  virtual void restart() = 0;
+};
+
+}  // namespace feedloop::web
