@@ -110,7 +110,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   Status job_pause();
   Status job_resume(uint64_t requester = 0);
   Status job_cancel();
-  JobStatus job_status() const;
+  JobStatus print_job_status() const;
   nlohmann::json job_status_json() const;
 
   // The narrow heater hook (the heaters' module connects here): a heater's target, and every
@@ -192,7 +192,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   // JobSink
   Offer offer(const gcode::Command& cmd, std::string_view text, std::function<void(const Status&)> done,
               std::string* why) override;
-  engine::MachineStatus machine_status() const override { return machine_->status(); }
+  // machine_status(): declared once above (both interfaces ask the same of the daemon).
   int64_t now_ns() const override { return clock_.now_ns(); }
   void open_jobs();
   // Commands of the daemon's own (heater hook) waiting for room in the machine's queue.

@@ -218,7 +218,7 @@ Status Daemon::job_cancel() {
   return job_->cancel();
 }
 
-JobStatus Daemon::job_status() const {
+JobStatus Daemon::print_job_status() const {
   return job_ ? job_->status() : JobStatus{};
 }
 
