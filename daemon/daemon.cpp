@@ -662,6 +662,7 @@ json Daemon::status() const {
   if (auto it = clients_.find(owner_); it != clients_.end()) o = &it->second;
   return {{"state", engine::to_string(s.state)},
           {"position_mm", {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
+          {"homed_axes", std::string(s.homed_axes)},
           {"temperatures_c",
            {{"hotend", s.hotend_c}, {"hotend_target", s.hotend_target_c}, {"bed", s.bed_c}, {"bed_target", s.bed_target_c}}},
           {"queue", {{"depth", s.queue_depth}, {"capacity", s.queue_capacity}}},

@@ -15,7 +15,7 @@ namespace feedloop::protocol {
 // "Versioning"): a device answers IDENTIFY with the version both speak (the host's, when it is in
 // [kMinProtocolVersion, kProtocolVersion]), so a v1 host still works with a v2 device.
 // Version 2 adds the device loop's messages (CONFIGURE_LOOP, QUEUE_TARGET, LOOP_REPORT, LOOP_EVENT).
-inline constexpr uint16_t kProtocolVersion = 2;
+inline constexpr uint16_t kProtocolVersion = 3;
 inline constexpr uint16_t kMinProtocolVersion = 1;
 
 enum class MsgType : uint8_t {
@@ -30,6 +30,9 @@ enum class MsgType : uint8_t {
   kStatusQuery = 0x08,   // -
   kConfigureLoop = 0x09, // v2: u8 axis, activation_clock, loop parameters (loop_messages.hpp)
   kQueueTarget = 0x0A,   // v2: u8 axis, n, first clock, zz first pos_nm, n-1 x (dclock, zz dpos_nm)
+  // v3 endstops (endstop_messages.hpp; ids 0x10-0x14 host->device, 0x90-0x94 device->host)
+  kEndstopHome = 0x10,   // v3: u8 axis, u8 trigger_level, var sample_ticks (0: disarm), u8 sample_count
+  kEndstopQuery = 0x11,  // v3: u8 axis
   // device -> host
   kIdentifyResponse = 0x81,  // u16 version, clock_hz, u8 axis, u8 name_len, name
   kClockResponse = 0x84,     // token, clock
@@ -38,6 +41,8 @@ enum class MsgType : uint8_t {
   kErrorReport = 0x89,       // u8 code, clock, zz detail
   kLoopReport = 0x8A,        // v2: u8 axis, telemetry of the device loop (loop_messages.hpp)
   kLoopEvent = 0x8B,         // v2: u8 axis, u8 kind, clock, zz a, zz b
+  kEndstopTrigger = 0x90,    // v3: u8 axis, trigger_clock, zz trigger_steps, stop_clock, zz stop_steps
+  kEndstopState = 0x91,      // v3: u8 axis, u8 pin, u8 armed, u8 triggered
 };
 
 enum class McuError : uint8_t {

@@ -220,7 +220,7 @@ Track run_move(bool with_loop) {
     }
   }
   EXPECT_EQ(rig.session->state(), McuState::kReady) << (rig.session->error() ? rig.session->error()->message : "");
-  EXPECT_EQ(rig.session->negotiated_version(), 2);
+  EXPECT_EQ(rig.session->negotiated_version(), protocol::kProtocolVersion);
   std::printf("%s: plant slip events %lld (lost full steps %lld), loop slip events %d\n", with_loop ? "closed" : "open",
               static_cast<long long>(rig.axis->slip_events()), static_cast<long long>(rig.axis->lost_full_steps()),
               rig.count(device::LoopEventKind::kSlip));
