@@ -90,7 +90,6 @@ class HomingSequence {
   int64_t move_start_steps_ = 0, move_steps_total_ = 0, move_steps_sent_ = 0;
   int64_t last_step_clock_ = 0;
   bool have_last_clock_ = false, streaming_ = false;
-  double first_trigger_offset_mm_ = 0.0;
   int64_t first_trigger_steps_ = 0;
   double query_sent_s_ = 0.0;
 };

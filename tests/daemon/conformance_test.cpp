@@ -1,8 +1,12 @@
 // Marlin behaviour a host sees through the daemon, each case naming the Marlin source it follows.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <regex>
+#include <thread>
+
+#include <nlohmann/json.hpp>
 
 #include "tests/daemon/daemon_fixture.hpp"
 #include "tests/daemon/line_client.hpp"
@@ -26,16 +30,20 @@ TEST_F(Conformance, M114CountsAreTheSteppersStepCounters) {
   auto pos = c.read_until("X:", 5000);
   ASSERT_TRUE(pos);
   std::smatch m;
-  ASSERT_TRUE(std::regex_match(*pos, m, std::regex(R"(X:12\.50 Y:3\.00 Z:0\.30 E:0\.00 Count X:(-?\d+) Y:(-?\d+) Z:(-?\d+))")))
+  ASSERT_TRUE(std::regex_match(
+      *pos, m,
+      std::regex(R"(X:12\.50 Y:3\.00 Z:0\.30 E:0\.00 Count X:(-?\d+) Y:(-?\d+) Z:(-?\d+))")))
       << *pos;
   const config::MachineConfig cfg = config::default_config();
-  const double spm[3] = {cfg.axis("x")->steps_per_mm, cfg.axis("y")->steps_per_mm, cfg.axis("z")->steps_per_mm};
+  const double spm[3] = {cfg.axis("x")->steps_per_mm, cfg.axis("y")->steps_per_mm,
+                         cfg.axis("z")->steps_per_mm};
   const double mm[3] = {12.5, 3.0, 0.3};
   // The simulated printer runs closed loop: the steppers' counts carry the PI correction that
   // puts the carriage (its encoder) on the target, so they differ from mm x steps/mm by a little.
   for (int a = 0; a < 3; ++a) {
     EXPECT_GT(std::stoll(m[a + 1]), 0) << *pos;
-    EXPECT_NEAR(static_cast<double>(std::stoll(m[a + 1])), mm[a] * spm[a], 0.03 * mm[a] * spm[a] + 2.0)
+    EXPECT_NEAR(static_cast<double>(std::stoll(m[a + 1])), mm[a] * spm[a],
+                0.03 * mm[a] * spm[a] + 2.0)
         << "axis " << a << ": " << *pos;
   }
   EXPECT_EQ(c.read_line(), "ok");
@@ -76,6 +84,65 @@ TEST_F(Conformance, RefusedLinesGetAnErrorAndTheirOk) {
   EXPECT_EQ(c.read_line(), "ok");
   ASSERT_TRUE(c.send_line("G1 X 30 F3000"));  // Marlin/src/gcode/parser.cpp: blanks skipped
   EXPECT_EQ(c.read_line(), "ok");
+}
+
+// The shipped default printer refuses motion before homing, as Klipper ("Must home axis first",
+// klippy/kinematics/cartesian.py) and Marlin with NO_MOTION_BEFORE_HOMING do; M84 (Marlin
+// M18_M84.cpp: the disabled axes are no longer trusted) asks for homing again. The JSON API's
+// status says which axes are homed (Moonraker's toolhead.homed_axes).
+class ShippedDefault : public DaemonFixture {
+  void customize(config::MachineConfig& cfg) override {
+    cfg.planner.allow_moves_before_homing =
+        config::default_config().planner.allow_moves_before_homing;
+  }
+};
+
+TEST_F(ShippedDefault, MoveBeforeHomingIsRefusedUntilG28) {
+  EXPECT_FALSE(config::default_config().planner.allow_moves_before_homing);
+  auto homed_axes = [&]() -> std::string {
+    LineClient api;
+    if (!api.connect_unix(daemon_->api_socket_path())) return "?";
+    api.send_line(R"({"jsonrpc":"2.0","id":1,"method":"status"})");
+    for (int i = 0; i < 50; ++i) {
+      auto line = api.read_line(5000);
+      if (!line) return "?";
+      auto j = nlohmann::json::parse(*line, nullptr, false);
+      if (j.is_object() && j.contains("id")) return j["result"].value("homed_axes", "?");
+    }
+    return "?";
+  };
+  // The status is a snapshot taken at most status_period_ms ago: poll until it shows `want`.
+  auto wait_homed = [&](const std::string& want) {
+    std::string got;
+    for (int i = 0; i < 60; ++i) {
+      got = homed_axes();
+      if (got == want) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return got;
+  };
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  EXPECT_EQ(wait_homed(""), "");
+  ASSERT_TRUE(c.send_line("G1 X5 Y5 F3000"));
+  auto e = c.read_line();
+  ASSERT_TRUE(e);
+  EXPECT_NE(e->find("Must home axis first (XY not homed"), std::string::npos) << *e;
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("G1 E1 F300"));  // the extruder needs no homing
+  EXPECT_EQ(c.read_until("ok", 5000), "ok");
+  for (const char* line : {"G28", "G1 X5 Y5 F3000", "M400"}) {
+    ASSERT_TRUE(c.send_line(line));
+    ASSERT_EQ(c.read_until("ok", 20000), "ok") << line;
+  }
+  EXPECT_EQ(wait_homed("xyz"), "xyz");
+  ASSERT_TRUE(c.send_line("M84"));
+  EXPECT_EQ(c.read_until("ok", 5000), "ok");
+  EXPECT_EQ(wait_homed(""), "");
+  ASSERT_TRUE(c.send_line("G1 X6"));
+  auto e2 = c.read_line();
+  ASSERT_TRUE(e2);
+  EXPECT_NE(e2->find("Must home axis first (X not homed"), std::string::npos) << *e2;
 }
 
 }  // namespace
