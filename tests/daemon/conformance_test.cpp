@@ -30,20 +30,16 @@ TEST_F(Conformance, M114CountsAreTheSteppersStepCounters) {
   auto pos = c.read_until("X:", 5000);
   ASSERT_TRUE(pos);
   std::smatch m;
-  ASSERT_TRUE(std::regex_match(
-      *pos, m,
-      std::regex(R"(X:12\.50 Y:3\.00 Z:0\.30 E:0\.00 Count X:(-?\d+) Y:(-?\d+) Z:(-?\d+))")))
+  ASSERT_TRUE(std::regex_match(*pos, m, std::regex(R"(X:12\.50 Y:3\.00 Z:0\.30 E:0\.00 Count X:(-?\d+) Y:(-?\d+) Z:(-?\d+))")))
       << *pos;
   const config::MachineConfig cfg = config::default_config();
-  const double spm[3] = {cfg.axis("x")->steps_per_mm, cfg.axis("y")->steps_per_mm,
-                         cfg.axis("z")->steps_per_mm};
+  const double spm[3] = {cfg.axis("x")->steps_per_mm, cfg.axis("y")->steps_per_mm, cfg.axis("z")->steps_per_mm};
   const double mm[3] = {12.5, 3.0, 0.3};
   // The simulated printer runs closed loop: the steppers' counts carry the PI correction that
   // puts the carriage (its encoder) on the target, so they differ from mm x steps/mm by a little.
   for (int a = 0; a < 3; ++a) {
     EXPECT_GT(std::stoll(m[a + 1]), 0) << *pos;
-    EXPECT_NEAR(static_cast<double>(std::stoll(m[a + 1])), mm[a] * spm[a],
-                0.03 * mm[a] * spm[a] + 2.0)
+    EXPECT_NEAR(static_cast<double>(std::stoll(m[a + 1])), mm[a] * spm[a], 0.03 * mm[a] * spm[a] + 2.0)
         << "axis " << a << ": " << *pos;
   }
   EXPECT_EQ(c.read_line(), "ok");
