@@ -1,4 +1,8 @@
-// Batch mode (see batch.hpp). Threads: the calling thread reads, parses, plans and steps its
+// Batch mode (see batch.hpp). The driver is the daemon's: each command goes through
+// engine::Machine's planner stage (Machine::execute_inline: the same dispatch the planner thread
+// runs, heaters and waits included) into a BatchExecutor, the executor without a servo stage:
+// interpreter -> lookahead -> joint segments -> steps, as fast as the CPU allows.
+// Threads: the calling thread reads, parses, plans and steps its
 // joints; with threads = 2 a worker receives every PlannedMove through a blocking SPSC queue
 // (core/blocking_spsc_queue.hpp: a side that waits sleeps on a futex, it does not spin) and steps
 // the other joints. Each thread has its own JointEmitter and StepPipeline (joint_mask), and both
@@ -13,7 +17,9 @@
 #include <thread>
 
 #include "core/blocking_spsc_queue.hpp"
+#include "core/clock.hpp"
 #include "drivers/protocol/frame.hpp"
+#include "engine/machine.hpp"
 #include "gcode/line_splitter.hpp"
 #include "gcode/parser.hpp"
 #include "planner/interpreter.hpp"
@@ -84,7 +90,9 @@ class StepWorker {
              planner::JointSink* tap)
       : queue_(kQueueMoves, kWakeMoves), stepper_(kin, period_s, steps, tap), steps_(steps) {}
   ~StepWorker() { finish(); }
-  void start() { thread_ = std::thread([this] { run(); }); }
+  void start() {
+    thread_ = std::thread([this] { run(); });
+  }
   void push(const planner::PlannedMove& m) { queue_.push(m); }
   void finish() {
     if (!thread_.joinable()) return;
@@ -111,6 +119,7 @@ class MoveDispatch final : public planner::MoveSink {
  public:
   MoveDispatch(MoveStepper& local, StepWorker* worker, bool step)
       : local_(local), worker_(worker), step_(step) {}
+  void set_worker(StepWorker* worker) { worker_ = worker; }
   void on_move(const planner::PlannedMove& m) override {
     ++moves;
     if (!step_) return;
@@ -132,6 +141,61 @@ struct CountingBatchSink final : stepgen::BatchSink {
   }
 };
 
+// The planner stage's back end in batch mode: what MotionExecutor does on the planner thread
+// (interpreter, lookahead, joint segments), with the steps made at once instead of by a servo
+// stage on a clock.
+class BatchExecutor final : public CommandExecutor {
+ public:
+  BatchExecutor(const planner::PlannerConfig& pcfg, const StepPipelineParams& sp, bool threaded,
+                bool step, const BatchOptions& options)
+      : kin_(planner::make_kinematics(pcfg)),
+        steps_(sp, &batches_),
+        local_(*kin_, pcfg.servo_period_s, steps_, options.segment_tap),
+        dispatch_(local_, nullptr, step),
+        planner_(pcfg, dispatch_),
+        interp_(pcfg, *kin_, planner_) {
+    batches_.tap = worker_batches_.tap = options.batch_tap;
+    if (threaded) {
+      StepPipelineParams wp = sp;
+      wp.joint_mask = kWorkerJoints;
+      worker_steps_ = std::make_unique<StepPipeline>(wp, &worker_batches_);
+      worker_ = std::make_unique<StepWorker>(*kin_, pcfg.servo_period_s, *worker_steps_,
+                                             options.segment_tap);
+      dispatch_.set_worker(worker_.get());
+      worker_->start();
+    }
+  }
+  Status execute(const gcode::Command& cmd, const std::atomic<bool>& /*cancel*/) override {
+    return interp_.execute(cmd);
+  }
+  void position(double out_mm[4]) const override {
+    const planner::Vec4& p = interp_.state().logical_mm;
+    for (int i = 0; i < 4; ++i) out_mm[i] = p[static_cast<size_t>(i)];
+  }
+  // End of input: the lookahead's tail, the open runs, the worker.
+  void finish() {
+    planner_.flush();
+    steps_.flush();
+    if (worker_) worker_->finish();
+  }
+  uint64_t moves() const { return dispatch_.moves; }
+  double print_time_s() const { return planner_.print_time_s(); }
+  const StepPipeline& owner(int joint) const {
+    return steps_.owns(joint) ? steps_ : *worker_steps_;
+  }
+
+ private:
+  std::unique_ptr<planner::Kinematics> kin_;
+  CountingBatchSink batches_, worker_batches_;
+  StepPipeline steps_;
+  MoveStepper local_;
+  std::unique_ptr<StepPipeline> worker_steps_;
+  std::unique_ptr<StepWorker> worker_;
+  MoveDispatch dispatch_;
+  planner::Planner planner_;
+  planner::Interpreter interp_;
+};
+
 }  // namespace
 
 Result<BatchSummary> run_batch(const std::string& gcode_path, const config::MachineConfig& cfg,
@@ -146,7 +210,6 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
 
   const planner::PlannerConfig pcfg = planner_config(cfg);
   if (Status s = pcfg.validate(); !s) return s.error();
-  const auto kin = planner::make_kinematics(pcfg);
   const bool threaded = options.threads >= 2 && options.last_stage >= BatchStage::step_times;
   StepPipelineParams sp;
   sp.steps_per_mm = steps_per_mm(cfg);
@@ -155,22 +218,13 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
   sp.joint_mask = threaded ? kMainJoints : (kMainJoints | kWorkerJoints);
   sp.compress = options.last_stage >= BatchStage::compression;
   sp.encode = options.last_stage >= BatchStage::output;
-  CountingBatchSink batches, worker_batches;
-  batches.tap = worker_batches.tap = options.batch_tap;
-  StepPipeline steps(sp, &batches);
-  MoveStepper local(*kin, pcfg.servo_period_s, steps, options.segment_tap);
-  std::unique_ptr<StepPipeline> worker_steps;
-  std::unique_ptr<StepWorker> worker;
-  if (threaded) {
-    StepPipelineParams wp = sp;
-    wp.joint_mask = kWorkerJoints;
-    worker_steps = std::make_unique<StepPipeline>(wp, &worker_batches);
-    worker = std::make_unique<StepWorker>(*kin, pcfg.servo_period_s, *worker_steps, options.segment_tap);
-    worker->start();
-  }
-  MoveDispatch sink(local, worker.get(), options.last_stage >= BatchStage::step_times);
-  planner::Planner planner(pcfg, sink);
-  planner::Interpreter interp(pcfg, *kin, planner);
+  auto owned = std::make_unique<BatchExecutor>(
+      pcfg, sp, threaded, options.last_stage >= BatchStage::step_times, options);
+  BatchExecutor& exec = *owned;
+  VirtualClock clock;  // batch mode has no servo stage: nothing advances it
+  MachineOptions mo;
+  mo.servo_rate_hz = 1.0 / pcfg.servo_period_s;
+  Machine machine(mo, clock, std::move(owned));
 
   BatchSummary sum;
   sum.file = gcode_path;
@@ -198,7 +252,7 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
     ++sum.commands;
     if (cmd.unknown) ++sum.unknown_commands;
     if (options.last_stage == BatchStage::parse) return;
-    if (Status s = interp.execute(cmd); !s) {
+    if (Status s = machine.execute_inline(cmd); !s) {
       ++sum.rejected;
       note(s.error().to_string());
     }
@@ -214,14 +268,12 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
     if (options.on_progress) options.on_progress(file_bytes > 0 ? read_bytes / file_bytes : 1.0);
   }
   splitter.finish(on_line);
-  planner.flush();
-  steps.flush();
-  if (worker) worker->finish();
+  exec.finish();
 
-  sum.moves = sink.moves;
-  sum.print_time_s = planner.print_time_s();
+  sum.moves = exec.moves();
+  sum.print_time_s = exec.print_time_s();
   for (int j = 0; j < kJoints; ++j) {
-    const StepPipeline& owner = steps.owns(j) ? steps : *worker_steps;
+    const StepPipeline& owner = exec.owner(j);
     sum.joints[static_cast<size_t>(j)] = owner.stats(j);
     const JointStepStats& s = sum.joints[static_cast<size_t>(j)];
     sum.total_steps += s.steps;
@@ -230,7 +282,8 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
     sum.wire_bytes += s.body_bytes + s.batches * (2 + protocol::kFrameOverhead);
   }
   sum.wire_bytes_per_step =
-      sum.total_steps ? static_cast<double>(sum.wire_bytes) / static_cast<double>(sum.total_steps) : 0.0;
+      sum.total_steps ? static_cast<double>(sum.wire_bytes) / static_cast<double>(sum.total_steps)
+                      : 0.0;
   sum.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   sum.cpu_s = process_cpu_s() - cpu0;
   return sum;

@@ -5,6 +5,7 @@
 #include <algorithm>  // std::min
 #include <chrono>     // wait_for
 #include <cstdio>     // snprintf
+#include <thread>
 
 #include "engine/realtime.hpp"
 
@@ -83,6 +84,21 @@ bool Machine::try_submit(uint64_t ticket, const gcode::Command& cmd) {
   wake_cv_.notify_one();
   return true;
 }
+
+void Machine::inject_stall(int64_t duration_ns) {
+  planner_stall_ns_.store(duration_ns, std::memory_order_relaxed);
+  servo_stall_ns_.store(duration_ns, std::memory_order_release);
+}
+
+namespace {
+// Takes a pending stall request and sleeps it out (real time only: a virtual clock's stall is
+// the caller's jump of now_ns, run_simulated's HostStall).
+void take_stall(std::atomic<int64_t>& request_ns) {
+  if (request_ns.load(std::memory_order_relaxed) == 0) return;
+  const int64_t ns = request_ns.exchange(0, std::memory_order_acq_rel);
+  if (ns > 0) std::this_thread::sleep_for(std::chrono::nanoseconds(ns));
+}
+}  // namespace
 
 void Machine::emergency_stop(const std::string& reason) {
   estop_.store(true);
@@ -171,9 +187,37 @@ Status Machine::execute_machine_command(const gcode::Command& cmd) {
   return Status::Ok();
 }
 
+// The planner stage's one entry for a command, whichever thread runs it (the planner thread in
+// real and virtual time, the caller in batch mode): the machine's own commands (heaters, waits)
+// here, the rest to the executor; the outcome counted.
+Status Machine::dispatch(const gcode::Command& cmd) {
+  Status st;
+  if (estop_.load()) {
+    st = Error{"machine is emergency-stopped; restart the daemon (or send M999) to clear"};
+  } else if (cmd.is('M', 104) || cmd.is('M', 109) || cmd.is('M', 140) || cmd.is('M', 190) ||
+             (cmd.is('G', 10) && cmd.has('P'))) {
+    st = execute_machine_command(cmd);
+  } else {
+    st = executor_->execute(cmd, cancel_);
+  }
+  if (st) {
+    executed_.fetch_add(1, std::memory_order_relaxed);
+  } else {
+    rejected_.fetch_add(1, std::memory_order_relaxed);
+    set_error(st.error().to_string());
+  }
+  return st;
+}
+
+Status Machine::execute_inline(const gcode::Command& cmd) {
+  if (started_) return Error{"execute_inline: the machine's threads are running"};
+  return dispatch(cmd);
+}
+
 void Machine::planner_main() {
   int64_t last_heater_ns = clock_.now_ns();
   while (!stopping_.load()) {
+    take_stall(planner_stall_ns_);
     Queued q;
     // Busy from before the command leaves the queue: the servo thread reads the queue, then this
     // flag (servo_main), so it never sees neither while a command is on its way to the executor.
@@ -195,25 +239,40 @@ void Machine::planner_main() {
       publish_status();
       continue;
     }
-    Status st;
-    if (estop_.load()) {
-      st = Error{"machine is emergency-stopped; restart the daemon (or send M999) to clear"};
-    } else if (q.cmd.is('M', 104) || q.cmd.is('M', 109) || q.cmd.is('M', 140) ||
-               q.cmd.is('M', 190) || (q.cmd.is('G', 10) && q.cmd.has('P'))) {
-      st = execute_machine_command(q.cmd);
-    } else {
-      st = executor_->execute(q.cmd, cancel_);
-    }
-    if (st) {
-      executed_.fetch_add(1);
-    } else {
-      rejected_.fetch_add(1);
-      set_error(st.error().to_string());
-    }
+    const Status st = dispatch(q.cmd);
     executing_.store(false);
     publish_status();
     if (on_done_) on_done_(CommandDone{q.ticket, st});
   }
+}
+
+// One servo period, whoever calls it (servo_main on the clock, servo_cycle_inline in one-thread
+// runs): the lateness counted, a lost period reported, the executor's cycle, the status published.
+void Machine::servo_tick(ServoStatus& st, int64_t wake_ns, int64_t late_ns, int64_t period_ns) {
+  st.latency.add(late_ns);
+  ++st.cycles;
+  if (late_ns > period_ns) {
+    st.deadline_misses += static_cast<uint64_t>(late_ns / period_ns);
+    executor_->on_deadline_miss(wake_ns, late_ns);  // e.g. into the flight recorder
+  }
+  executor_->servo_cycle(wake_ns, cancel_.load(std::memory_order_relaxed));
+  st.last_wake_ns = wake_ns;
+  servo_status_.store(st);
+  servo_last_cycle_ns_.store(wake_ns, std::memory_order_release);
+}
+
+Status Machine::servo_cycle_inline(int64_t now_ns) {
+  if (started_) return Error{"servo_cycle_inline: the machine's threads are running"};
+  const auto period_ns = static_cast<int64_t>(1e9 / options_.servo_rate_hz);
+  const int64_t due_ns =
+      inline_servo_.last_wake_ns == 0 ? now_ns : inline_servo_.last_wake_ns + period_ns;
+  servo_tick(inline_servo_, now_ns, now_ns - due_ns, period_ns);
+  return Status::Ok();
+}
+
+void Machine::idle_tick_inline() {
+  if (started_) return;
+  executor_->idle_tick(cancel_);
 }
 
 void Machine::servo_main() {
@@ -229,20 +288,13 @@ void Machine::servo_main() {
       servo_last_cycle_ns_.store(clock_.now_ns(), std::memory_order_release);
       continue;
     }
+    take_stall(servo_stall_ns_);  // before the sleep: the stall makes this cycle late
     clock_.sleep_until_ns(deadline);
     const int64_t wake = clock_.now_ns();
     const int64_t late_ns = wake - deadline;
-    st.latency.add(late_ns);
-    ++st.cycles;
-    if (late_ns > period_ns) {  // a whole period lost: count it and do not try to catch up
-      st.deadline_misses += static_cast<uint64_t>(late_ns / period_ns);
+    if (late_ns > period_ns)  // a whole period lost: counted (servo_tick), no catching up
       deadline += (late_ns / period_ns) * period_ns;
-      executor_->on_deadline_miss(wake, late_ns);  // e.g. into the flight recorder
-    }
-    executor_->servo_cycle(wake, cancel_.load(std::memory_order_relaxed));
-    st.last_wake_ns = wake;
-    servo_status_.store(st);
-    servo_last_cycle_ns_.store(wake, std::memory_order_release);
+    servo_tick(st, wake, late_ns, period_ns);
     deadline += period_ns;
   }
 }

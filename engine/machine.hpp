@@ -45,23 +45,24 @@ struct MachineStatus {
   uint64_t commands_executed = 0;
   uint64_t commands_rejected = 0;
   // Motion (filled by the executor)
-  bool moving = false;              // print time is anchored on the machine clock
-  double print_time_s = 0.0;        // print time being executed now
-  double planned_until_s = 0.0;     // end of the last planned segment
+  bool moving = false;           // print time is anchored on the machine clock
+  double print_time_s = 0.0;     // print time being executed now
+  double planned_until_s = 0.0;  // end of the last planned segment
   uint64_t moves_planned = 0;
-  uint64_t segments_queued = 0;     // joint segments waiting for the servo thread
-  uint64_t motion_starts = 0;       // times motion started from rest
-  uint64_t lost_step_events = 0;    // closed loop: slips detected (and made up)
+  uint64_t segments_queued = 0;   // joint segments waiting for the servo thread
+  uint64_t motion_starts = 0;     // times motion started from rest
+  uint64_t lost_step_events = 0;  // closed loop: slips detected (and made up)
   // Tracking error e_t measured from the encoders: |r - x_enc| over the joints with an encoder
   // (x and y on the gantry: the thesis's e_t), at each fresh report while motion runs.
   double tracking_error_mean_mm = 0.0, tracking_error_max_mm = 0.0;
   uint64_t tracking_error_samples = 0;
-  uint64_t late_cycles = 0;         // sampled path: the plan paused for a late servo cycle
-  double encoder_mm[4] = {0, 0, 0, 0};  // latest encoder reading per joint from the MCUs (NaN: none)
-  uint64_t encoder_samples = 0;         // encoder samples received from the MCUs
-  int64_t step_count[4] = {0, 0, 0, 0};  // each joint's step counter (the executor steps them)
-  bool has_step_count = false;           // false: this executor makes no steps
-  LinkTelemetrySet links;               // each MCU link (frames, retransmissions, round trips)
+  uint64_t late_cycles = 0;  // sampled path: the plan paused for a late servo cycle
+  double encoder_mm[4] = {0, 0, 0,
+                          0};    // latest encoder reading per joint from the MCUs (NaN: none)
+  uint64_t encoder_samples = 0;  // encoder samples received from the MCUs
+  int64_t step_count[4] = {0, 0, 0, 0};   // each joint's step counter (the executor steps them)
+  bool has_step_count = false;            // false: this executor makes no steps
+  LinkTelemetrySet links;                 // each MCU link (frames, retransmissions, round trips)
   DeviceLoopTelemetrySet device_loops{};  // each joint's device loop (e, y, correction, tick cost)
   char last_error[192] = {};
 };
@@ -108,7 +109,9 @@ class CommandExecutor {
   // Virtual time only: may the servo thread advance time now? It must not run past the motion
   // the planner is still producing (that would cut the motion into pieces), but must advance
   // when the planner has nothing more to give. `planner_busy`: a command is queued or executing.
-  virtual bool may_advance_virtual(bool planner_busy) const { return !planner_busy || motion_pending(); }
+  virtual bool may_advance_virtual(bool planner_busy) const {
+    return !planner_busy || motion_pending();
+  }
   // Fills the motion fields of a status snapshot. Any thread.
   virtual void motion_status(MachineStatus& /*s*/) const {}
 };
@@ -116,7 +119,7 @@ class CommandExecutor {
 struct MachineOptions {
   double servo_rate_hz = 1000.0;
   size_t command_queue_capacity = 64;
-  int realtime_priority = 80;   // SCHED_FIFO priority of the servo thread (0 = do not try)
+  int realtime_priority = 80;  // SCHED_FIFO priority of the servo thread (0 = do not try)
   bool lock_memory = true;
   // Heater simulation (the simulated printer has no real heaters).
   double heater_slew_c_s = 40.0;
@@ -146,10 +149,28 @@ class Machine {
   // Stops motion safely: cancels queued commands, stops the threads, waits for them.
   void stop();
 
+  // Batch mode (no threads: never start()ed): runs one command on the calling thread through the
+  // planner stage's own dispatch (planner_main), so batch, virtual and real time share it. There
+  // is no servo stage: an executor that needs one (MotionExecutor) must be run with start().
+  Status execute_inline(const gcode::Command& cmd);
+
+  // One-thread runs (never start()ed; run_simulated: deterministic virtual time): the caller
+  // interleaves execute_inline() with one servo period at a time, at its own virtual now_ns
+  // (a gap of more than a period counts as deadline misses, as on the clock), and lets the
+  // planner stage do its idle work (release the lookahead's tail).
+  Status servo_cycle_inline(int64_t now_ns);
+  void idle_tick_inline();
+
   // I/O thread only. Returns false (and keeps `cmd`) when the queue is full.
   bool try_submit(uint64_t ticket, const gcode::Command& cmd);
   // Any thread. Latches kEmergencyStopped; queued commands are cancelled.
   void emergency_stop(const std::string& reason);
+
+  // Fault injection (the real-time lateness test, `docs/decisions.md` "Host stalls"): the planner
+  // and servo threads each sleep `duration_ns` at their next turn, as a host that is descheduled
+  // does (with simulated MCUs the servo thread is also the link's I/O, so that stops too). Any
+  // thread; a second request before the first is taken replaces it.
+  void inject_stall(int64_t duration_ns);
 
   MachineStatus status() const;
   ServoStatus servo_status() const { return servo_status_.load(); }
@@ -167,6 +188,8 @@ class Machine {
   };
   void planner_main();
   void servo_main();
+  void servo_tick(ServoStatus& st, int64_t wake_ns, int64_t late_ns, int64_t period_ns);
+  Status dispatch(const gcode::Command& cmd);  // the planner stage: machine commands or executor
   Status execute_machine_command(const gcode::Command& cmd);  // heaters, waits
   void publish_status();
   void set_error(const std::string& message);
@@ -181,6 +204,7 @@ class Machine {
   std::condition_variable wake_cv_;
 
   std::atomic<bool> stopping_{false};
+  std::atomic<int64_t> planner_stall_ns_{0}, servo_stall_ns_{0};  // inject_stall, not yet taken
   std::atomic<bool> cancel_{false};
   std::atomic<bool> estop_{false};
   std::atomic<bool> executing_{false};
@@ -190,6 +214,7 @@ class Machine {
   HeaterSim hotend_, bed_;  // planner thread only
   Seqlock<MachineStatus> status_;
   Seqlock<ServoStatus> servo_status_;
+  ServoStatus inline_servo_;  // the caller's, in one-thread runs
   std::atomic<int64_t> servo_last_cycle_ns_{0};
 
   std::mutex error_mutex_;  // protects last_error_

@@ -1,14 +1,17 @@
-// run_simulated (see sim_run.hpp): the motion executor with the MCU bridge (sessions, mock
-// transports, virtual MCUs, plants) built by the daemon's own factory, driven in virtual time
-// from one thread: commands are executed on the planner side, and servo_cycle() runs every
-// period in between, exactly as Machine's two threads interleave them in virtual time, but
-// deterministically (the same input gives the same samples, bit for bit).
+// run_simulated (see sim_run.hpp): the daemon's engine::Machine around the motion executor and
+// the MCU bridge (sessions, mock transports, virtual MCUs, plants) built by the daemon's own
+// factory, driven in virtual time from one thread: commands go through the machine's planner
+// stage (Machine::execute_inline, heaters and waits included) and its servo stage runs one
+// period at a time in between (Machine::servo_cycle_inline), as the machine's two threads
+// interleave them, but deterministically (the same input gives the same samples, bit for bit).
 #include "engine/sim_run.hpp"
 
 #include <cmath>
 #include <sstream>
 
+#include "core/clock.hpp"
 #include "engine/executor_factory.hpp"
+#include "engine/machine.hpp"
 #include "engine/mcu_bridge.hpp"
 #include "engine/motion_executor.hpp"
 #include "gcode/parser.hpp"
@@ -22,7 +25,11 @@ class Recorder final : public TelemetryTap {
  public:
   Recorder(SimRunResult& out, McuBridge& bridge, bool keep, std::vector<LostStepInjection> inject,
            std::vector<EncoderGlitchInjection> glitches)
-      : out_(out), bridge_(bridge), keep_(keep), inject_(std::move(inject)), glitches_(std::move(glitches)) {}
+      : out_(out),
+        bridge_(bridge),
+        keep_(keep),
+        inject_(std::move(inject)),
+        glitches_(std::move(glitches)) {}
   void on_servo_sample(const ServoSample& s) override {
     for (LostStepInjection& i : inject_)
       if (i.steps != 0 && s.print_time_s >= i.at_s) {
@@ -64,7 +71,8 @@ class Recorder final : public TelemetryTap {
 
 }  // namespace
 
-Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::vector<std::string>& gcode_lines,
+Result<SimRunResult> run_simulated(const config::MachineConfig& cfg,
+                                   const std::vector<std::string>& gcode_lines,
                                    const SimRunOptions& options) {
   MotionOptions mo = motion_options(cfg);
   mo.max_buffered_s = 1e6;       // execute() never waits for the servo: this thread runs both
@@ -72,9 +80,12 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   mo.settle_tail_s = 0.0;        // options.settle_s keeps the cycles running instead
   auto stack = make_motion_stack(cfg, mo);
   if (!stack.ok()) return stack.error();
-  if (!stack.value().bridge) return Error{"run_simulated: the config has no MCUs (use the mock transport)"};
+  if (!stack.value().bridge)
+    return Error{"run_simulated: the config has no MCUs (use the mock transport)"};
   MotionExecutor& ex = *stack.value().executor;
   McuBridge& bridge = *stack.value().bridge;
+  VirtualClock clock;  // the caller's now_ns below is the time; nothing sleeps on this clock
+  Machine machine(machine_options(cfg), clock, std::move(stack.value().executor));
 
   SimRunResult out;
   if (options.keep_samples) out.samples.reserve(1 << 16);
@@ -86,7 +97,6 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   const int64_t period_ns = static_cast<int64_t>(std::llround(period_s * 1e9));
   int64_t now_ns = 1'000'000'000;
   const int64_t end_ns = now_ns + static_cast<int64_t>(options.timeout_s * 1e9);
-  std::atomic<bool> cancel{false};
   size_t next_stall = 0;
   int64_t ready_ns = -1;
   auto cycle = [&] {
@@ -96,13 +106,14 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
       now_ns += static_cast<int64_t>(std::llround(options.stalls[next_stall].duration_s * 1e9));
       ++next_stall;
     }
-    ex.servo_cycle(now_ns, false);
+    (void)machine.servo_cycle_inline(now_ns);  // never fails: the machine is not started
   };
   while (!bridge.ready() && now_ns < end_ns) cycle();
   if (!bridge.ready()) {
     char why[256] = "";
     if (bridge.fault()) bridge.fault_message(why, sizeof why);
-    return Error{std::string("run_simulated: the simulated MCUs did not become ready") + (why[0] ? ": " : "") + why};
+    return Error{std::string("run_simulated: the simulated MCUs did not become ready") +
+                 (why[0] ? ": " : "") + why};
   }
   ready_ns = now_ns;
 
@@ -117,14 +128,10 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
       if (out.error.empty()) out.error = cmd.error().message;
       continue;
     }
-    const gcode::Command& c = cmd.value();
-    if (c.is('M', 104) || c.is('M', 109) || c.is('M', 140) || c.is('M', 190)) {  // heaters: Machine's
-      ++out.commands;
-      continue;
-    }
-    if (Status st = ex.execute(c, cancel); !st) {
+    if (Status st = machine.execute_inline(cmd.value()); !st) {
       ++out.rejected;
-      if (out.error.empty()) out.error = "line " + std::to_string(line_no) + ": " + st.error().message;
+      if (out.error.empty())
+        out.error = "line " + std::to_string(line_no) + ": " + st.error().message;
       continue;
     }
     ++out.commands;
@@ -136,7 +143,7 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
       ex.motion_status(s);
     }
   }
-  ex.idle_tick(cancel);  // releases the lookahead's tail
+  machine.idle_tick_inline();  // releases the lookahead's tail
   while (ex.motion_pending() && now_ns < end_ns) cycle();
   const int64_t settle_end = now_ns + static_cast<int64_t>(options.settle_s * 1e9);
   while (now_ns < settle_end) cycle();
@@ -149,13 +156,15 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg, const std::
   out.tracking_error_samples = s.tracking_error_samples;
   out.device_loops = s.device_loops;
   if (out.error.empty() && s.last_error[0] != '\0') out.error = s.last_error;
-  if (ex.motion_pending() && out.error.empty()) out.error = "motion did not finish within the timeout";
+  if (ex.motion_pending() && out.error.empty())
+    out.error = "motion did not finish within the timeout";
   if (SimulatedPlant* plant = bridge.plant())
     for (int j = 0; j < 3; ++j) {
       out.lost_full_steps[static_cast<size_t>(j)] = plant->lost_full_steps(j);
       out.slip_events[static_cast<size_t>(j)] = plant->slip_events(j);
     }
   out.late_cycles = s.late_cycles;
+  out.deadline_misses = machine.servo_status().deadline_misses;
   ex.set_telemetry(nullptr);
   return out;
 }

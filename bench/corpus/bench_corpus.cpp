@@ -3,14 +3,18 @@
 // two ways (issue 13 item 6):
 //   batch   engine::run_simulated, what `feedloop batch FILE --simulate` runs (one thread);
 //   daemon  a fresh `feedloopd --virtual-time`, the file streamed by `feedloop print` as a user
-//           would, then the machine's figures read from the JSON status.
+//           would, then the machine's figures read from the JSON status;
+//   realtime the same on the wall clock (not in the default ways: it takes the print's own time;
+//           `--only cube20 --ways batch,realtime` compares the real-time daemon's e_t with batch
+//           mode's, issue 13: within 10 %).
 // Per file and way: lines, lost-step events, e_t from the encoders (mean, max), faults, rejected
 // lines, steps the plant lost (batch: the simulator's ground truth), the device loops' |e| max and
 // tick cost, print time and wall time. Cartesian files run on the embedded default
 // (config/examples/cartesian_sim.yaml), `*delta*` files on config/examples/delta_sim.yaml,
 // `*corexy*` files on config/examples/corexy_sim.yaml (none in the corpus today).
 //
-//   build/bench/corpus/bench_corpus [--corpus DIR] [--only SUBSTRING] [--ways batch,daemon]
+//   build/bench/corpus/bench_corpus [--corpus DIR] [--only SUBSTRING] [--ways
+//   batch,daemon,realtime]
 //        [--large] [--feedloopd PATH] [--feedloop PATH] [--json FILE]
 // --large also unpacks benchy_x12_cartesian_LARGE.gcode.xz into a temporary directory (xz) and
 // runs it (1.8 M lines, about 12 times the benchy). Exit status 1 when any run slipped, faulted
@@ -53,7 +57,7 @@ double since_s(Clock::time_point t0) {
 struct Args {
   std::string corpus = std::string(FEEDLOOP_SHARED_DIR) + "/gcode";
   std::string only;
-  bool batch = true, daemon = true, large = false;
+  bool batch = true, daemon = true, realtime = false, large = false;
   std::string json_path;
   std::string feedloopd = FEEDLOOPD_PATH, feedloop = FEEDLOOP_PATH;
 };
@@ -206,9 +210,10 @@ std::string tail(const std::string& path, size_t bytes) {
   return text.size() > bytes ? text.substr(text.size() - bytes) : text;
 }
 
-Row run_daemon(const Args& a, const std::string& file, const std::string& config_path) {
+Row run_daemon(const Args& a, const std::string& file, const std::string& config_path,
+               bool virtual_time) {
   Row r;
-  r.way = "daemon";
+  r.way = virtual_time ? "daemon" : "realtime";
   r.lines = read_lines(file).size();
   std::string tmpl = (fs::temp_directory_path() / "feedloop-bench-corpus-XXXXXX").string();
   if (::mkdtemp(tmpl.data()) == nullptr) {
@@ -216,7 +221,8 @@ Row run_daemon(const Args& a, const std::string& file, const std::string& config
     return r;
   }
   const std::string dir = tmpl;
-  std::vector<std::string> dargs{a.feedloopd, "--virtual-time", "--log-level", "warn"};
+  std::vector<std::string> dargs{a.feedloopd, "--log-level", "warn"};
+  if (virtual_time) dargs.push_back("--virtual-time");
   if (!config_path.empty()) dargs.insert(dargs.end(), {"--config", config_path});
   const pid_t daemon = spawn(dargs, dir, dir + "/feedloopd.log");
   const auto t0 = Clock::now();
@@ -299,11 +305,12 @@ int main(int argc, char** argv) {
       const std::string w = argv[++i];
       a.batch = w.find("batch") != std::string::npos;
       a.daemon = w.find("daemon") != std::string::npos;
+      a.realtime = w.find("realtime") != std::string::npos;
     } else {
-      std::fprintf(
-          stderr,
-          "usage: bench_corpus [--corpus DIR] [--only SUBSTRING] [--ways batch,daemon] [--large] "
-          "[--feedloopd PATH] [--feedloop PATH] [--json FILE]\n");
+      std::fprintf(stderr,
+                   "usage: bench_corpus [--corpus DIR] [--only SUBSTRING] [--ways "
+                   "batch,daemon,realtime] [--large] "
+                   "[--feedloopd PATH] [--feedloop PATH] [--json FILE]\n");
       return 2;
     }
   }
@@ -338,7 +345,9 @@ int main(int argc, char** argv) {
   }
 
   std::printf(
-      "bench_corpus: every corpus file on the simulated printer of its config, virtual time\n");
+      "bench_corpus: every corpus file on the simulated printer of its config (batch, daemon: "
+      "virtual "
+      "time; realtime: the wall clock)\n");
   std::printf("%-42s %-24s %-6s %8s %6s %8s %9s %9s %6s %7s %9s %8s %8s %8s\n", "file", "machine",
               "way", "lines", "rej", "lost-stp", "e_t mean", "e_t max", "faults", "plant",
               "loop |e|", "tick us", "print s", "wall s");
@@ -355,9 +364,9 @@ int main(int argc, char** argv) {
       rows.push_back(r);
       continue;
     }
-    for (int way = 0; way < 2; ++way) {
-      if ((way == 0 && !a.batch) || (way == 1 && !a.daemon)) continue;
-      Row r = way == 0 ? run_batch(f.string(), cfg) : run_daemon(a, f.string(), cfg);
+    for (int way = 0; way < 3; ++way) {
+      if ((way == 0 && !a.batch) || (way == 1 && !a.daemon) || (way == 2 && !a.realtime)) continue;
+      Row r = way == 0 ? run_batch(f.string(), cfg) : run_daemon(a, f.string(), cfg, way == 1);
       r.file = f.filename().string();
       r.machine = machine_name(cfg);
       print_row(r);
@@ -367,6 +376,17 @@ int main(int argc, char** argv) {
   if (!large_dir.empty()) {
     std::error_code ec;
     fs::remove_all(large_dir, ec);
+  }
+  // The real-time daemon against batch mode (virtual time), file by file.
+  for (const Row& rt : rows) {
+    if (rt.way != "realtime") continue;
+    for (const Row& b : rows)
+      if (b.way == "batch" && b.file == rt.file && b.et_mean_mm > 0)
+        std::printf(
+            "%s: e_t real-time daemon / batch: mean %.4f / %.4f mm = %.3f, max %.4f / %.4f mm = "
+            "%.3f\n",
+            rt.file.c_str(), rt.et_mean_mm, b.et_mean_mm, rt.et_mean_mm / b.et_mean_mm,
+            rt.et_max_mm, b.et_max_mm, b.et_max_mm > 0 ? rt.et_max_mm / b.et_max_mm : 0.0);
   }
   const bool all_clean =
       std::all_of(rows.begin(), rows.end(), [](const Row& r) { return r.clean(); });

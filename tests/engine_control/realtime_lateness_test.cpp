@@ -1,0 +1,228 @@
+// Issue 13, on the wall clock: the daemon's machine (engine::Machine, its planner and servo
+// threads, ordinary scheduling, no SCHED_FIFO) prints on the simulated printer with the PI on the
+// MCUs (control.loop: device) while the test stalls the host: Machine::inject_stall() puts the
+// planner and the servo thread (which is also the simulated link's I/O) to sleep for 5, 20, 50
+// and 90 ms, 100 times each. The machine's threads get the daemon's scheduling (the servo thread
+// SCHED_FIFO where allowed); without it, on a machine loaded to 3x its cores, wake-ups 50-140 ms
+// late came on top of the injected stalls and ran the MCUs' 100 ms of queue out. The virtual MCUs
+// run every tick of the gap on their own clock when the link is serviced again, as a real MCU runs
+// through a host's stall. The carriages (the plant's ground truth) must follow the stall-free run's
+// trajectory, compared at equal print time; a 300 ms stall (more than the 100 ms queue lead) must
+// end in a controlled stop that names the stall. lateness_test.cpp is the same in virtual time
+// (exact stalls, bit-comparable runs).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "config/config.hpp"
+#include "core/clock.hpp"
+#include "engine/executor_factory.hpp"
+#include "engine/machine.hpp"
+#include "engine/mcu_bridge.hpp"
+#include "engine/motion_executor.hpp"
+#include "engine/simulated_plant.hpp"
+#include "gcode/parser.hpp"
+
+namespace feedloop::engine {
+namespace {
+
+// ~13 s of motion: a zig-zag of corners and straights, long enough for 100 stalls of 90 ms.
+std::vector<std::string> program() {
+  std::vector<std::string> p = {"G90", "G1 X10 Y10 F6000"};
+  for (int i = 0; i < 45; ++i)
+    p.push_back("G1 X" + std::to_string(10 + (i % 2) * 40) + " Y" + std::to_string(10 + (i % 60)) +
+                " F9000");
+  p.push_back("G4 P200");
+  return p;
+}
+
+struct Point {
+  double print_time_s, x_mm, y_mm;
+};
+
+// Servo thread: the plant's carriages at each cycle (the bridge has advanced the plant to the
+// cycle's time). The vector is reserved up front: no allocation on the servo thread.
+class CarriageTap final : public TelemetryTap {
+ public:
+  explicit CarriageTap(McuBridge& bridge) : bridge_(bridge) { points.reserve(1 << 16); }
+  void on_servo_sample(const ServoSample& s) override {
+    SimulatedPlant* plant = bridge_.plant();
+    if (plant == nullptr || points.size() == points.capacity()) return;
+    points.push_back({s.print_time_s, plant->carriage_mm(0), plant->carriage_mm(1)});
+  }
+  void on_servo_event(const ServoEvent& e) override {
+    if (e.kind == ServoEventKind::kDeadlineMiss)
+      misses_seen.fetch_add(1, std::memory_order_relaxed);
+  }
+  std::vector<Point> points;
+  std::atomic<int> misses_seen{0};
+
+ private:
+  McuBridge& bridge_;
+};
+
+struct RunResult {
+  std::vector<Point> points;
+  MachineStatus status;
+  uint64_t deadline_misses = 0;
+  uint64_t motion_starts = 0;
+  int stalls = 0;
+};
+
+// One print on the wall clock; `stall_ms` > 0: `count` stalls of that length from 0.3 s of motion
+// on, each followed by 1 ms + up to 20 ms of normal running.
+RunResult print_with_stalls(double stall_ms, int count) {
+  config::MachineConfig cfg = config::default_config();
+  cfg.control.mode = config::ControlMode::pi;
+  cfg.control.loop = config::ControlLoop::device;
+  auto stack = make_motion_stack(cfg, motion_options(cfg));
+  EXPECT_TRUE(stack.ok());
+  if (!stack.ok()) return {};
+  std::shared_ptr<McuBridge> bridge = stack.value().bridge;
+  CarriageTap tap(*bridge);
+  stack.value().executor->set_telemetry(&tap);
+  MonotonicClock clock;
+  MachineOptions mo = machine_options(cfg);
+  // The daemon's own settings: SCHED_FIFO for the servo thread where the process may have it
+  // (as root, or with CAP_SYS_NICE / an rtprio limit), else the scheduler's default.
+  mo.lock_memory = false;
+  Machine machine(mo, clock, std::move(stack.value().executor));
+  EXPECT_TRUE(machine.start(nullptr).ok());
+
+  // Wait for the MCUs, then queue the program (the queue is short: retry while it is full).
+  for (int i = 0; i < 400 && !bridge->ready(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  EXPECT_TRUE(bridge->ready());
+  uint64_t ticket = 0;
+  std::thread feeder([&] {
+    int line_no = 0;
+    for (const std::string& line : program()) {
+      auto cmd = gcode::parse_line(line, SourceLocation{"rt_lateness", ++line_no, 0});
+      if (!cmd.ok()) continue;
+      while (!machine.try_submit(++ticket, cmd.value()))
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  });
+
+  RunResult out;
+  if (stall_ms > 0) {
+    while (!machine.status().moving) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> gap_ms(0.0, 20.0);
+    for (int k = 0; k < count; ++k) {
+      machine.inject_stall(static_cast<int64_t>(stall_ms * 1e6));
+      ++out.stalls;
+      std::this_thread::sleep_for(
+          std::chrono::microseconds(static_cast<int64_t>((stall_ms + 1.0 + gap_ms(rng)) * 1e3)));
+      if (machine.status().state == MachineState::kError) break;
+    }
+  }
+  feeder.join();
+  // Until the motion has ended (or stopped on a fault), then a little settling.
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  for (int i = 0; i < 6000 && !machine.idle(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  out.status = machine.status();
+  out.deadline_misses = machine.servo_status().deadline_misses;
+  out.motion_starts = out.status.motion_starts;
+  machine.stop();
+  out.points = tap.points;
+  return out;
+}
+
+// The reference's carriage position at print time t (linear between its 1 ms samples).
+bool reference_at(const std::vector<Point>& ref, double t, double& x, double& y) {
+  auto it = std::lower_bound(ref.begin(), ref.end(), t,
+                             [](const Point& p, double v) { return p.print_time_s < v; });
+  if (it == ref.begin() || it == ref.end()) return false;
+  const Point &b = *it, &a = *(it - 1);
+  if (b.print_time_s - a.print_time_s > 0.005 || b.print_time_s <= a.print_time_s) return false;
+  const double w = (t - a.print_time_s) / (b.print_time_s - a.print_time_s);
+  x = a.x_mm + w * (b.x_mm - a.x_mm);
+  y = a.y_mm + w * (b.y_mm - a.y_mm);
+  return true;
+}
+
+// The largest carriage difference of `run` from `ref` at equal print time; `compared`: samples.
+double largest_difference_mm(const RunResult& run, const RunResult& ref, size_t& compared) {
+  compared = 0;
+  double worst_mm = 0.0;
+  for (const Point& p : run.points) {
+    double x, y;
+    if (!reference_at(ref.points, p.print_time_s, x, y)) continue;
+    ++compared;
+    worst_mm = std::max({worst_mm, std::fabs(p.x_mm - x), std::fabs(p.y_mm - y)});
+  }
+  return worst_mm;
+}
+
+TEST(RealtimeLateness, StallsShorterThanTheLeadChangeNothing) {
+  const RunResult base = print_with_stalls(0.0, 0);
+  ASSERT_STREQ(base.status.last_error, "");
+  ASSERT_GT(base.points.size(), 5000u);
+  ASSERT_EQ(base.motion_starts, 1u);
+  std::printf(
+      "stall-free run: %zu servo samples, %llu deadline misses (scheduler), e_t mean %.3f max %.3f "
+      "mm\n",
+      base.points.size(), static_cast<unsigned long long>(base.deadline_misses),
+      base.status.tracking_error_mean_mm, base.status.tracking_error_max_mm);
+  // Two stall-free runs on the wall clock are not identical either: the MCUs' microstep rounding
+  // of the loop's correction falls at other ticks (lateness_test.cpp). That is the floor.
+  const RunResult again = print_with_stalls(0.0, 0);
+  size_t compared = 0;
+  const double floor_mm = largest_difference_mm(again, base, compared);
+  std::printf("a second stall-free run: largest carriage difference %.2f um (%zu samples)\n",
+              floor_mm * 1e3, compared);
+  const double microstep_mm = 1.0 / 94.314;
+  // Seen: 9.9-13.3 um between stall-free runs, and the same range with stalls: a microstep and
+  // what the plant does with it. The bound: one and a half microsteps, with or without stalls.
+  const double bound_mm = 1.5 * microstep_mm;
+  EXPECT_LE(floor_mm, bound_mm);
+  for (double stall_ms : {5.0, 20.0, 50.0, 90.0}) {
+    const RunResult run = print_with_stalls(stall_ms, 100);
+    EXPECT_STREQ(run.status.last_error, "") << stall_ms << " ms";
+    EXPECT_EQ(run.stalls, 100);
+    EXPECT_EQ(run.motion_starts, 1u) << "the motion stopped and restarted";
+    EXPECT_EQ(run.status.lost_step_events, 0u);
+    const double worst_mm = largest_difference_mm(run, base, compared);
+    std::printf(
+        "stalls of %4.0f ms x %d: %llu deadline misses, %zu samples compared, largest carriage "
+        "difference %.2f um, e_t mean %.3f max %.3f mm\n",
+        stall_ms, run.stalls, static_cast<unsigned long long>(run.deadline_misses), compared,
+        worst_mm * 1e3, run.status.tracking_error_mean_mm, run.status.tracking_error_max_mm);
+    EXPECT_GE(run.deadline_misses, 100u);  // the stalls happened
+    EXPECT_GT(compared, 3000u);
+    // No further from the stall-free run than a second stall-free run is.
+    EXPECT_LE(worst_mm, bound_mm) << stall_ms << " ms";
+  }
+}
+
+TEST(RealtimeLateness, AStallLongerThanTheLeadEndsInAControlledStopThatNamesIt) {
+  const RunResult run = print_with_stalls(300.0, 1);
+  std::printf("300 ms stall: %s\n", run.status.last_error);
+  EXPECT_EQ(run.status.state, MachineState::kError);
+  EXPECT_NE(std::string(run.status.last_error).find("host stalled"), std::string::npos)
+      << run.status.last_error;
+  // Nothing jumps: the carriage speed stays within what the axes can do (the device's ramp).
+  double max_v = 0.0;
+  for (size_t i = 1; i < run.points.size(); ++i) {
+    const Point &a = run.points[i - 1], &b = run.points[i];
+    if (b.print_time_s > a.print_time_s)
+      max_v = std::max(max_v, std::fabs(b.x_mm - a.x_mm) / (b.print_time_s - a.print_time_s));
+  }
+  std::printf("largest carriage speed around the stop: %.1f mm/s\n", max_v);
+  EXPECT_LT(max_v, 300.0);  // x's max_velocity_mm_s
+}
+
+}  // namespace
+}  // namespace feedloop::engine
