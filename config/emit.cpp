@@ -81,6 +81,7 @@ void write_motion(Writer& w, const MachineConfig& c) {
   w.num("junction_deviation_mm", p.junction_deviation_mm);
   w.num("square_corner_velocity_mm_s", p.square_corner_velocity_mm_s);
   w.num("min_cruise_ratio", p.min_cruise_ratio);
+  w.boolean("allow_moves_before_homing", p.allow_moves_before_homing);
   w.word("cornering", enum_name(cornering_names(), p.cornering));
   w.num("max_speed_change_mm_s", p.max_speed_change_mm_s);
   w.begin("sharp_corner");

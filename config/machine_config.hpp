@@ -87,6 +87,8 @@ struct PlannerConfig {
   double max_jerk_mm_s3 = 100000.0;  // scurve only
   int lookahead_moves = 128;
   double arc_tolerance_mm = 0.005;   // chordal deviation when splitting G2/G3
+  // false: moves before G28 are refused ("Must home axis first"); true: the machine starts homed.
+  bool allow_moves_before_homing = false;
   bool operator==(const PlannerConfig&) const = default;
 };
 

@@ -32,6 +32,7 @@ void read_planner(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   p.number("max_jerk_mm_s3", pl.max_jerk_mm_s3, Range::positive());
   p.integer_as("lookahead_moves", pl.lookahead_moves, 2, 100000);
   p.number("arc_tolerance_mm", pl.arc_tolerance_mm, Range::open_closed(0.0, 10.0));
+  p.boolean("allow_moves_before_homing", pl.allow_moves_before_homing);
   p.finish();
 }
 

@@ -736,8 +736,8 @@ json Daemon::status() const {
   const Client* o = nullptr;
   if (auto it = clients_.find(owner_); it != clients_.end()) o = &it->second;
   return {{"state", engine::to_string(s.state)},
-          {"position_mm",
-           {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
+          {"position_mm", {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
+          {"homed_axes", std::string(s.homed_axes)},
           {"temperatures_c",
            {{"hotend", s.hotend_c},
             {"hotend_target", s.hotend_target_c},

@@ -70,6 +70,7 @@ planner::PlannerConfig planner_config(const config::MachineConfig& cfg) {
   p.max_jerk_mm_s3 = cfg.planner.max_jerk_mm_s3;
   p.lookahead_moves = static_cast<size_t>(std::max(2, cfg.planner.lookahead_moves));
   p.arc_tolerance_mm = cfg.planner.arc_tolerance_mm;
+  p.allow_moves_before_homing = cfg.planner.allow_moves_before_homing;
   p.servo_period_s = 1.0 / cfg.servo.rate_hz;
   return p;
 }

@@ -185,6 +185,7 @@ void Machine::publish_status() {
   }
   if (executor_) {
     executor_->position(s.pos_mm);
+    executor_->homed_axes(s.homed_axes);
     executor_->motion_status(s);
   }
   fill_thermal(s);

@@ -12,6 +12,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
+#include <cstring>  // memcpy
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -37,6 +38,7 @@ const char* to_string(MachineState s);
 struct MachineStatus {
   MachineState state = MachineState::kIdle;
   double pos_mm[4] = {0, 0, 0, 0};  // X Y Z E of the last executed command (planned position)
+  char homed_axes[4] = {};           // "" .. "xyz": homed since the last G28 (M18/M84 clear it)
   double hotend_c = 0, hotend_target_c = 0, bed_c = 0,
          bed_target_c = 0;  // the first T and B heater
   // Heaters and fans (engine/thermal_loop.hpp); temp_report: Marlin's "T:210.0 /210.0 B:.. @:..
@@ -94,6 +96,9 @@ class CommandExecutor {
   virtual Status execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) = 0;
   // Planned position X Y Z E after the last executed command.
   virtual void position(double out_mm[4]) const = 0;
+  // The homed axes, lower-case in xyz order ("" .. "xyz"; out holds 4 chars). An executor without
+  // a homing state moves anywhere: "xyz".
+  virtual void homed_axes(char out[4]) const { std::memcpy(out, "xyz", 4); }
   // Planner thread, when idle: e.g. release the lookahead's tail after a pause in the input.
   virtual void idle_tick(const std::atomic<bool>& /*cancel*/) {}
   // Servo thread, once per period. RT-safe.

@@ -73,6 +73,7 @@ class ManeuverExecutor final : public CommandExecutor, private planner::MoveSink
 
   Status execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) override;
   void position(double out_mm[4]) const override;
+  void homed_axes(char out[4]) const override { interp_->homed_axes(out); }
   void idle_tick(const std::atomic<bool>& cancel) override;
   void servo_cycle(int64_t now_ns, bool cancel) override;
   bool motion_pending() const override;

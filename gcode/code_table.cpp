@@ -46,7 +46,8 @@ constexpr ParamRule kSetPosition[] = {num('X'), num('Y'), num('Z'), num('E')};
 // C/D minutes to the next change.
 constexpr ParamRule kProgress[] = {range('P', 0, 100), non_negative('R'), range('Q', 0, 100),
                                    non_negative('S'), non_negative('C'), non_negative('D')};
-// M84 disable steppers: axis flags, S = inactivity timeout in seconds.
+// M18/M84 disable steppers: axis flags, S = inactivity timeout in seconds (Marlin: M18 is an
+// alias of M84; without S the axes are disabled and must be homed again, planner/interpreter.cpp).
 constexpr ParamRule kMotorsOff[] = {flag('X'), flag('Y'), flag('Z'), flag('E'),
                                     non_negative('S')};
 // M104/M109 hotend temperature: S target degC (M109: wait for heating), R (M109: wait for

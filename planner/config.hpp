@@ -85,6 +85,10 @@ struct PlannerConfig {
   double arc_tolerance_mm = 0.01;  // chordal tolerance of G2/G3 segments
   double servo_period_s = 0.001;   // delta joint output: one cubic Hermite piece per period
   double homing_velocity_mm_s = 50.0;
+  // Moves of an axis before it is homed (G28) are refused (Klipper: "Must home axis first";
+  // Marlin: NO_MOTION_BEFORE_HOMING). true restores the old behaviour: the machine starts homed
+  // at home_position_mm (config planner.allow_moves_before_homing).
+  bool allow_moves_before_homing = false;
 
   // Firmware retraction defaults (Marlin), changed by M207/M208.
   double retract_length_mm = 3.0;

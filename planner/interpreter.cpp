@@ -36,6 +36,29 @@ Interpreter::Interpreter(const PlannerConfig& config, const Kinematics& kinemati
   st_.retract_zlift_mm = config.retract_zlift_mm;
   st_.unretract_extra_mm = config.unretract_extra_mm;
   st_.unretract_velocity_mm_s = config.unretract_velocity_mm_s;
+  for (bool& h : st_.homed) h = config.allow_moves_before_homing;
+}
+
+void Interpreter::homed_axes(char out[4]) const {
+  int n = 0;
+  for (int i = 0; i < 3; ++i)
+    if (st_.homed[i]) out[n++] = static_cast<char>('x' + i);
+  out[n] = '\0';
+}
+
+Status Interpreter::check_homed(const Vec4& from, const Vec4& to, const gcode::Command& c) const {
+  if (cfg_.allow_moves_before_homing) return {};
+  const bool delta = cfg_.kinematics == KinematicsKind::delta;
+  const bool xyz = from[0] != to[0] || from[1] != to[1] || from[2] != to[2];
+  std::string missing;
+  for (int i = 0; i < 3; ++i) {
+    // A delta's carriages all move for any XYZ move: every tower must be homed.
+    const bool moves = delta ? xyz : from[i] != to[i];
+    if (moves && !st_.homed[i]) missing += kAxisLetter[i];
+  }
+  if (missing.empty()) return {};
+  return fail(c, "move rejected, nothing executed: Must home axis first (" + missing +
+                     " not homed; send G28, or set planner.allow_moves_before_homing: true)");
 }
 
 Status Interpreter::fail(const gcode::Command& c, std::string message) {
@@ -89,6 +112,7 @@ Status Interpreter::execute(const gcode::Command& c) {
         }
         return {};
       case 400: planner_.wait_for_moves(c.where.line); return {};
+      case 18: case 84: return motors_off(c);
       case 201: case 203: case 204: case 205: case 207: case 208: return limits(c);
       default: ++ignored_; return {};
     }
@@ -126,6 +150,7 @@ double Interpreter::accel_for(const Vec4& from, const Vec4& to) const {
 Status Interpreter::check(const Vec4& from, const Vec4& to, const gcode::Command& c) const {
   const bool xyz = from[0] != to[0] || from[1] != to[1] || from[2] != to[2];
   if (!xyz) return {};
+  if (Status s = check_homed(from, to, c); !s) return s;
   Status s = kin_.check_segment({from[0], from[1], from[2]}, {to[0], to[1], to[2]});
   if (!s) return fail(c, "move rejected, nothing executed: " + s.error().message);
   return {};
@@ -192,9 +217,14 @@ Status Interpreter::home(const gcode::Command& c) {
     homed[i] = !any || c.has(kAxisLetter[i]);
     if (homed[i]) to[i] = cfg_.home_position_mm[i];
   }
-  if (Status s = check(st_.machine_mm, to, c); !s) return s;
+  // The homing move itself needs no homed axes; the target must still be reachable.
+  if (Status s = kin_.check_segment({st_.machine_mm[0], st_.machine_mm[1], st_.machine_mm[2]}, {to[0], to[1], to[2]}); !s)
+    return fail(c, "move rejected, nothing executed: " + s.error().message);
   push(to, cfg_.homing_velocity_mm_s, st_.travel_accel_mm_s2, c.where.line);
   planner_.mark_homed(c.where.line);
+  // A delta homes its three towers together (Klipper: G28 on a delta always homes all).
+  const bool delta = cfg_.kinematics == KinematicsKind::delta;
+  for (int i = 0; i < 3; ++i) st_.homed[i] = st_.homed[i] || homed[i] || delta;
   // After homing, logical == machine on the homed axes (G92 offsets of those axes are cleared).
   for (int i = 0; i < 3; ++i) {
     if (!homed[i]) continue;
@@ -244,6 +274,22 @@ Status Interpreter::set_position(const gcode::Command& c) {
     if (i < 3) st_.offset_mm[i] = st_.machine_mm[i] - st_.hop_mm * (i == kZ) - v;
     st_.logical_mm[i] = v;  // E: the machine E is unchanged, only the logical origin moves
   }
+  return {};
+}
+
+// M18/M84: without S, the motors are switched off and their axes lose their position: Marlin
+// (gcode/control/M18_M84.cpp) disables the steppers and marks the axes untrusted, so they must be
+// homed again. Axis letters select the axes (a delta's towers go together); M84 S<seconds> only
+// sets the idle timeout and changes nothing here. E needs no homing.
+Status Interpreter::motors_off(const gcode::Command& c) {
+  if (c.has('S') && !c.has('X') && !c.has('Y') && !c.has('Z') && !c.has('E')) return {};
+  if (cfg_.allow_moves_before_homing) return {};  // the old behaviour: position kept
+  const bool any = c.has('X') || c.has('Y') || c.has('Z');
+  const bool only_e = c.has('E') && !any;
+  if (only_e) return {};
+  const bool delta = cfg_.kinematics == KinematicsKind::delta;
+  for (int i = 0; i < 3; ++i)
+    if (!any || delta || c.has(kAxisLetter[i])) st_.homed[i] = false;
   return {};
 }
 

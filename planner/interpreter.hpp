@@ -1,12 +1,17 @@
 // The G-code machine state and its execution: turns gcode::Commands into planner moves.
 //   G0/G1 lines, G2/G3 arcs (I J or R, split within config.arc_tolerance_mm), G4 dwell,
 //   G10/G11 firmware retraction (M207/M208 set it), G17 (only the XY plane), G20/G21 units,
-//   G28 home (simulated: a move to config.home_position_mm), G90/G91, G92 (incl. G92 E0),
+//   G28 home (simulated: a move to config.home_position_mm; marks the axes homed), G90/G91, G92
+//   (incl. G92 E0), M18/M84 (motors off: the axes are no longer homed, as in Marlin),
 //   M82/M83, M220/M221 overrides (M220 B/R back up/restore), M400 (a moves_done event the caller can wait on),
 //   M201/M203 per-axis limits, M204 P/R/T/S as Marlin 2 defines them (P printing moves, R
 //   E-only retract moves, T travel moves, S legacy = P and T), M205 J junction deviation.
 //   M205 X/Y/Z/E (classic jerk) are recorded but not used for planning: Marlin 2 ignores them
 //   too when CLASSIC_JERK is off (junction deviation is the cornering model then).
+// Travel limits act only on homed axes: before G28 a move of an unhomed X/Y/Z axis is refused with
+// a clear error (Klipper's "Must home axis first"; on a delta every tower must be homed), unless
+// config.allow_moves_before_homing (then the machine starts homed, the old behaviour). E needs no
+// homing.
 // Every command is validated completely before anything changes: a rejected command (unreachable
 // or out-of-travel target, bad arc, unsupported form) returns an Error with the source location
 // and leaves the state and the planner untouched. Commands that are not about motion (heaters,
@@ -45,6 +50,7 @@ struct MachineState {
   double hop_mm = 0.0;            // Z lift applied by G10
   double retract_length_mm = 0.0, retract_velocity_mm_s = 0.0, retract_zlift_mm = 0.0;
   double unretract_extra_mm = 0.0, unretract_velocity_mm_s = 0.0;
+  bool homed[3] = {false, false, false};  // X Y Z since the last G28 (and no M18/M84 since)
   bool e_relative() const { return e_mode == EMode::relative || (e_mode == EMode::follow_xyz && relative_xyz); }
 };
 
@@ -56,6 +62,8 @@ class Interpreter {
   const MachineState& state() const { return st_; }
   uint64_t ignored() const { return ignored_; }
   uint64_t moves() const { return moves_; }
+  // The homed axes as lower-case letters in xyz order ("" .. "xyz"): out holds 4 chars.
+  void homed_axes(char out[4]) const;
 
  private:
   Status linear(const gcode::Command& c);
@@ -63,6 +71,9 @@ class Interpreter {
   Status home(const gcode::Command& c);
   Status retract(const gcode::Command& c, bool recover);
   Status set_position(const gcode::Command& c);
+  Status motors_off(const gcode::Command& c);
+  // Error unless every X/Y/Z axis that moves between from and to is homed.
+  Status check_homed(const Vec4& from, const Vec4& to, const gcode::Command& c) const;
   Status limits(const gcode::Command& c);
   // Logical target of a G0-G3 line (unchanged axes stay), and its machine coordinates.
   Vec4 logical_target(const gcode::Command& c) const;

@@ -36,7 +36,7 @@ Path star_path(double cx_mm, double cy_mm, double outer_mm, double inner_mm) {
 }
 
 std::vector<std::string> path_gcode(const Path& path, double speed_mm_s, double z_mm) {
-  std::vector<std::string> g{"G21", "G90", "M83"};
+  std::vector<std::string> g{"G21", "G90", "M83", "G28"};  // homed first (the default refuses moves before)
   const auto& v0 = path.vertices_mm.front();
   char buf[96];
   if (z_mm >= 0.0) {

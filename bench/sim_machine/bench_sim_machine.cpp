@@ -38,7 +38,7 @@ struct Figures {
 // A square spiral: steady printing-like motion on every motor.
 std::string program(bool delta) {
   std::ostringstream g;
-  g << "G90\nG1 Z5 F600\n";
+  g << "G90\nG28\nG1 Z5 F600\n";  // homed first (the default refuses moves before)
   for (int i = 0; i < 40; ++i) {
     const double r = 5.0 + i * 1.0;
     const double c = delta ? 0.0 : 100.0;

@@ -23,6 +23,11 @@ class MotorPort {
   virtual void set_enabled(double t_s, bool enabled) = 0;
   // Encoder reading at t_s, in counts of the encoder's resolution (signed, carriage side).
   virtual int64_t read_encoder_counts(double t_s) = 0;
+  // The endstop input's level at t_s (protocol v3 homing). A motor without an endstop reads 0.
+  virtual bool read_endstop(double t_s) {
+    (void)t_s;
+    return false;
+  }
 };
 
 }  // namespace feedloop::device

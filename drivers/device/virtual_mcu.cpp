@@ -5,6 +5,7 @@
 #include <cmath>    // floor
 #include <cstring>  // memcpy
 
+#include "drivers/protocol/endstop_messages.hpp"
 #include "drivers/protocol/loop_messages.hpp"
 #include "drivers/stepgen/run_codec.hpp"
 
@@ -145,6 +146,7 @@ void VirtualMcu::stop(McuError code, int64_t detail) {
     a.run_head = a.run_count = 0;
     a.have_queued_end = false;
     a.extra_left = 0;
+    a.es_armed = a.es_triggered = false;
     a.loop.init(static_cast<float>(params_.clock_hz));
     if (status_.enabled && a.port != nullptr) a.port->set_enabled(true_time_at(now_clock_), false);
   }
@@ -189,6 +191,7 @@ double VirtualMcu::next_event_time() const {
     if (a.run_count > 0 && a.next_step_clock < e) e = a.next_step_clock;
     if (a.extra_left != 0 && a.extra_next_clock < e) e = a.extra_next_clock;
     if (a.loop.next_tick_clock() < e) e = a.loop.next_tick_clock();
+    if (a.es_armed && !a.es_triggered && a.es_next_clock < e) e = a.es_next_clock;
   }
   if (encoder_period_ticks_ > 0 && next_sample_clock_ < e) e = next_sample_clock_;
   if (status_.enabled && watchdog_ticks_ > 0 && !loop_stopping_ && last_host_clock_ + watchdog_ticks_ < e)
@@ -227,6 +230,12 @@ void VirtualMcu::run_until(double t_s) {
         what = 4;
         axis = i;
       }
+    for (int i = 0; i < num_axes_; ++i)
+      if (axes_[i].es_armed && !axes_[i].es_triggered && axes_[i].es_next_clock < e) {
+        e = axes_[i].es_next_clock;
+        what = 6;
+        axis = i;
+      }
     if (status_.enabled && watchdog_ticks_ > 0 && !loop_stopping_ && last_host_clock_ + watchdog_ticks_ < e) {
       e = last_host_clock_ + watchdog_ticks_;
       what = 3;
@@ -239,6 +248,8 @@ void VirtualMcu::run_until(double t_s) {
       do_extra_step(axes_[axis]);
     } else if (what == 4) {
       loop_tick(axis);
+    } else if (what == 6) {
+      endstop_sample(axis);
     } else if (what == 2) {
       for (int i = 0; i < num_axes_; ++i) {
         Axis& a = axes_[i];
@@ -424,6 +435,9 @@ void VirtualMcu::handle_queue_steps(MsgReader& r) {
     if (runs++ == 0) first_step = p + run.interval_ticks;
     p = stepgen::run_end_clock(p, run);
   }
+  // After an endstop trigger the motor's steps stay stopped until the host disarms it: the steps
+  // it queued before it learnt of the trigger are dropped (Klipper: trsync stops the stepper).
+  if (a.es_triggered) return;
   if (a.have_queued_end && dec.first_clock() < a.queued_end_clock) {
     stop(McuError::kBatchOverlap, a.queued_end_clock - dec.first_clock());
     return;
@@ -448,6 +462,69 @@ void VirtualMcu::handle_queue_steps(MsgReader& r) {
   }
   a.queued_end_clock = p;
   a.have_queued_end = true;
+  sync_status();
+}
+
+void VirtualMcu::handle_endstop_home(const uint8_t* p, size_t n) {
+  protocol::EndstopHomeMsg m;
+  if (!protocol::decode_endstop_home(p, n, m) || m.axis >= num_axes_ || m.sample_count == 0) {
+    send_error(McuError::kBadMessage, static_cast<int64_t>(MsgType::kEndstopHome));
+    return;
+  }
+  Axis& a = axes_[m.axis];
+  a.es_triggered = false;
+  a.es_seen = 0;
+  a.es_armed = m.sample_ticks > 0;
+  a.es_level = m.trigger_level != 0 ? 1 : 0;
+  a.es_count = m.sample_count;
+  a.es_ticks = m.sample_ticks;
+  a.es_next_clock = now_clock_ + a.es_ticks;
+}
+
+void VirtualMcu::handle_endstop_query(const uint8_t* p, size_t n) {
+  protocol::EndstopQueryMsg m;
+  if (!protocol::decode_endstop_query(p, n, m) || m.axis >= num_axes_) {
+    send_error(McuError::kBadMessage, static_cast<int64_t>(MsgType::kEndstopQuery));
+    return;
+  }
+  const Axis& a = axes_[m.axis];
+  protocol::EndstopStateMsg s;
+  s.axis = m.axis;
+  s.pin = a.port != nullptr && a.port->read_endstop(true_time_at(now_clock_)) ? 1 : 0;
+  s.armed = a.es_armed ? 1 : 0;
+  s.triggered = a.es_triggered ? 1 : 0;
+  uint8_t buf[16];
+  const size_t len = protocol::encode_endstop_state(s, buf, sizeof buf);
+  if (len > 0) send_msg(buf, len);
+}
+
+void VirtualMcu::endstop_sample(int axis) {
+  Axis& a = axes_[axis];
+  const int64_t at = a.es_next_clock;
+  a.es_next_clock += a.es_ticks;
+  const bool pin = a.port != nullptr && a.port->read_endstop(true_time_at(at));
+  if ((pin ? 1 : 0) != a.es_level) {
+    a.es_seen = 0;
+    return;
+  }
+  if (a.es_seen++ == 0) {
+    a.es_first_clock = at;
+    a.es_first_steps = a.st.position_steps;
+  }
+  if (a.es_seen < a.es_count) return;
+  // Confirmed: stop this motor's steps now (its queue is flushed) and report.
+  a.run_head = a.run_count = 0;
+  a.have_queued_end = false;
+  a.es_triggered = true;
+  protocol::EndstopTriggerMsg m;
+  m.axis = static_cast<uint8_t>(axis);
+  m.trigger_clock = a.es_first_clock;
+  m.trigger_steps = a.es_first_steps;
+  m.stop_clock = at;
+  m.stop_steps = a.st.position_steps;
+  uint8_t buf[48];
+  const size_t len = protocol::encode_endstop_trigger(m, buf, sizeof buf);
+  if (len > 0) send_msg(buf, len);
   sync_status();
 }
 
@@ -551,6 +628,15 @@ void VirtualMcu::on_payload(const uint8_t* p, size_t n) {
       return;
     case MsgType::kStatusQuery:
       send_status();
+      return;
+    case MsgType::kEndstopHome:
+    case MsgType::kEndstopQuery:
+      if (negotiated_version_ < 3) {  // a v1/v2 session does not know them
+        send_error(McuError::kBadMessage, static_cast<int64_t>(type));
+        return;
+      }
+      if (type == MsgType::kEndstopHome) handle_endstop_home(p, n);
+      else handle_endstop_query(p, n);
       return;
     default:
       send_error(McuError::kBadMessage, static_cast<int64_t>(type));

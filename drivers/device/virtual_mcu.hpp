@@ -6,6 +6,7 @@
 //  - executes a queue of compressed step runs (drivers/stepgen/step_run.hpp) at their clocks,
 //    calling device::MotorPort::step with the true time of each step,
 //  - samples its encoder every encoder_period_ticks and reports batches of samples,
+//  - (v3) samples an armed endstop and stops that motor's steps at its trigger (homing),
 //  - answers identify / clock queries / status queries, enables and disables the driver,
 //  - stops (queue flushed, driver disabled, error reported) on a queue underrun (a batch whose
 //    first step is already in the past), a watchdog timeout (no message from the host for
@@ -138,10 +139,19 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
     AxisLoop loop;
     int32_t extra_left = 0, extra_n = 0, extra_k = 0;
     int64_t extra_start = 0, extra_span = 0, extra_next_clock = 0;
+    // Endstop (protocol v3): sampled every endstop_ticks while armed; after endstop_count
+    // consecutive triggered samples the motor's steps stop and the trigger is reported.
+    bool es_armed = false, es_triggered = false;
+    uint8_t es_level = 1, es_count = 1, es_seen = 0;
+    int64_t es_ticks = 0, es_next_clock = 0;
+    int64_t es_first_clock = 0, es_first_steps = 0;
   };
   void handle_queue_steps(protocol::MsgReader& r);
   void handle_configure_loop(const uint8_t* p, size_t n);
   void handle_queue_target(const uint8_t* p, size_t n);
+  void handle_endstop_home(const uint8_t* p, size_t n);
+  void handle_endstop_query(const uint8_t* p, size_t n);
+  void endstop_sample(int axis);
   void loop_tick(int axis);
   void do_extra_step(Axis& a);
   void send_loop_events(int axis);

@@ -158,6 +158,35 @@ size_t McuSession::take_loop_events(protocol::LoopEventMsg* out, size_t cap) {
   return k;
 }
 
+namespace {
+// Pops up to cap messages from a ring.
+template <typename T, size_t N>
+size_t take_ring(std::array<T, N>& ring, size_t& head, size_t& count, T* out, size_t cap) {
+  size_t k = 0;
+  while (k < cap && count > 0) {
+    out[k++] = ring[head];
+    head = (head + 1) % N;
+    --count;
+  }
+  return k;
+}
+template <typename T, size_t N>
+void put_ring(std::array<T, N>& ring, size_t& head, size_t& count, const T& m) {
+  if (count == N) {  // nobody takes them: keep the newest
+    head = (head + 1) % N;
+    --count;
+  }
+  ring[(head + count++) % N] = m;
+}
+}  // namespace
+
+size_t McuSession::take_endstop_triggers(protocol::EndstopTriggerMsg* out, size_t cap) {
+  return take_ring(es_triggers_, es_trigger_head_, es_trigger_count_, out, cap);
+}
+size_t McuSession::take_endstop_states(protocol::EndstopStateMsg* out, size_t cap) {
+  return take_ring(es_states_, es_state_head_, es_state_count_, out, cap);
+}
+
 void McuSession::set_enabled(bool on) {
   const uint8_t m[2] = {static_cast<uint8_t>(MsgType::kEnable), static_cast<uint8_t>(on ? 1 : 0)};
   enqueue(m, sizeof m);
@@ -422,6 +451,24 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
         ++loop_dropped_;
       }
       loop_events_[(event_head_ + event_count_++) % kLoopMessages] = m;
+      return;
+    }
+    case MsgType::kEndstopTrigger: {
+      protocol::EndstopTriggerMsg m;
+      if (!protocol::decode_endstop_trigger(p, n, m)) {
+        events_.push_back("MCU '" + p_.name + "': malformed endstop trigger");
+        return;
+      }
+      put_ring(es_triggers_, es_trigger_head_, es_trigger_count_, m);
+      return;
+    }
+    case MsgType::kEndstopState: {
+      protocol::EndstopStateMsg m;
+      if (!protocol::decode_endstop_state(p, n, m)) {
+        events_.push_back("MCU '" + p_.name + "': malformed endstop state");
+        return;
+      }
+      put_ring(es_states_, es_state_head_, es_state_count_, m);
       return;
     }
     case MsgType::kEncoderReport: {

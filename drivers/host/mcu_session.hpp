@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "drivers/clock_sync_channel.hpp"
+#include "drivers/protocol/endstop_messages.hpp"
 #include "drivers/protocol/loop_messages.hpp"
 #include "drivers/protocol/messages.hpp"
 #include "drivers/protocol/reliable_link.hpp"
@@ -136,6 +137,11 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   size_t take_loop_reports(protocol::LoopReportMsg* out, size_t cap);
   size_t take_loop_events(protocol::LoopEventMsg* out, size_t cap);
   uint64_t loop_messages_dropped() const { return loop_dropped_; }
+  // Endstops (protocol v3; endstop_messages.hpp): encode ENDSTOP_HOME / ENDSTOP_QUERY and send them
+  // with queue_message; the device's ENDSTOP_TRIGGER and ENDSTOP_STATE since the last call, oldest
+  // first (fixed rings of kEndstopMessages; the oldest are dropped when nobody takes them).
+  size_t take_endstop_triggers(protocol::EndstopTriggerMsg* out, size_t cap);
+  size_t take_endstop_states(protocol::EndstopStateMsg* out, size_t cap);
 
  private:
   void write_frame(const uint8_t* frame, size_t n) override;
@@ -189,6 +195,11 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   std::array<protocol::LoopEventMsg, kLoopMessages> loop_events_{};
   size_t event_head_ = 0, event_count_ = 0;
   uint64_t loop_dropped_ = 0;
+  static constexpr size_t kEndstopMessages = 16;
+  std::array<protocol::EndstopTriggerMsg, kEndstopMessages> es_triggers_{};
+  size_t es_trigger_head_ = 0, es_trigger_count_ = 0;
+  std::array<protocol::EndstopStateMsg, kEndstopMessages> es_states_{};
+  size_t es_state_head_ = 0, es_state_count_ = 0;
   std::vector<EncoderSample> samples_;
   uint64_t samples_dropped_ = 0;
   std::vector<std::string> events_;

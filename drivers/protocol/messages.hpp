@@ -33,6 +33,9 @@ enum class MsgType : uint8_t {
   kConfigureHeater = 0x0B,  // v3 heaters (heater_messages.hpp): u8 heater, sample/report/limits/watchdog
   kSetHeater = 0x0C,        // v3: u8 heater, u16 duty (0..65535): also the host's re-confirmation
   kSetFan = 0x0D,           // v3: u8 fan, u16 duty
+  // v3 endstops (endstop_messages.hpp; ids 0x10-0x14 host->device, 0x90-0x94 device->host)
+  kEndstopHome = 0x10,   // v3: u8 axis, u8 trigger_level, var sample_ticks (0: disarm), u8 sample_count
+  kEndstopQuery = 0x11,  // v3: u8 axis
   // device -> host
   kIdentifyResponse = 0x81,  // u16 version, clock_hz, u8 axis, u8 name_len, name
   kClockResponse = 0x84,     // token, clock
@@ -43,6 +46,8 @@ enum class MsgType : uint8_t {
   kLoopEvent = 0x8B,         // v2: u8 axis, u8 kind, clock, zz a, zz b
   kHeaterReport = 0x8C,      // v3: u8 heater, clock, u16 adc (0..65535), u16 duty applied
   kHeaterFault = 0x8D,       // v3: u8 heater, u8 reason, clock, u16 adc
+  kEndstopTrigger = 0x90,    // v3: u8 axis, trigger_clock, zz trigger_steps, stop_clock, zz stop_steps
+  kEndstopState = 0x91,      // v3: u8 axis, u8 pin, u8 armed, u8 triggered
 };
 
 enum class McuError : uint8_t {

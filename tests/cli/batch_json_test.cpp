@@ -22,7 +22,7 @@ class BatchJson : public ::testing::Test {
     dir_ = fs::temp_directory_path() / ("feedloop-batch-json-" + std::to_string(::getpid()));
     fs::create_directories(dir_);
     gcode_ = (dir_ / "square.gcode").string();
-    std::ofstream(gcode_) << "G21\nG90\nG1 X10 Y10 F3000\nG1 X30 Y10\nG1 X30 Y30\nG1 X10 Y30\nG1 X10 Y10\n";
+    std::ofstream(gcode_) << "G21\nG90\nG28\nG1 X10 Y10 F3000\nG1 X30 Y10\nG1 X30 Y30\nG1 X10 Y30\nG1 X10 Y10\n";
   }
   void TearDown() override { fs::remove_all(dir_); }
   // Runs `feedloop batch` and returns its exit code.

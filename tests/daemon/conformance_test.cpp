@@ -1,8 +1,12 @@
 // Marlin behaviour a host sees through the daemon, each case naming the Marlin source it follows.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <regex>
+#include <thread>
+
+#include <nlohmann/json.hpp>
 
 #include "tests/daemon/daemon_fixture.hpp"
 #include "tests/daemon/line_client.hpp"
@@ -76,6 +80,65 @@ TEST_F(Conformance, RefusedLinesGetAnErrorAndTheirOk) {
   EXPECT_EQ(c.read_line(), "ok");
   ASSERT_TRUE(c.send_line("G1 X 30 F3000"));  // Marlin/src/gcode/parser.cpp: blanks skipped
   EXPECT_EQ(c.read_line(), "ok");
+}
+
+// The shipped default printer refuses motion before homing, as Klipper ("Must home axis first",
+// klippy/kinematics/cartesian.py) and Marlin with NO_MOTION_BEFORE_HOMING do; M84 (Marlin
+// M18_M84.cpp: the disabled axes are no longer trusted) asks for homing again. The JSON API's
+// status says which axes are homed (Moonraker's toolhead.homed_axes).
+class ShippedDefault : public DaemonFixture {
+  void customize(config::MachineConfig& cfg) override {
+    cfg.planner.allow_moves_before_homing =
+        config::default_config().planner.allow_moves_before_homing;
+  }
+};
+
+TEST_F(ShippedDefault, MoveBeforeHomingIsRefusedUntilG28) {
+  EXPECT_FALSE(config::default_config().planner.allow_moves_before_homing);
+  auto homed_axes = [&]() -> std::string {
+    LineClient api;
+    if (!api.connect_unix(daemon_->api_socket_path())) return "?";
+    api.send_line(R"({"jsonrpc":"2.0","id":1,"method":"status"})");
+    for (int i = 0; i < 50; ++i) {
+      auto line = api.read_line(5000);
+      if (!line) return "?";
+      auto j = nlohmann::json::parse(*line, nullptr, false);
+      if (j.is_object() && j.contains("id")) return j["result"].value("homed_axes", "?");
+    }
+    return "?";
+  };
+  // The status is a snapshot taken at most status_period_ms ago: poll until it shows `want`.
+  auto wait_homed = [&](const std::string& want) {
+    std::string got;
+    for (int i = 0; i < 60; ++i) {
+      got = homed_axes();
+      if (got == want) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return got;
+  };
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  EXPECT_EQ(wait_homed(""), "");
+  ASSERT_TRUE(c.send_line("G1 X5 Y5 F3000"));
+  auto e = c.read_line();
+  ASSERT_TRUE(e);
+  EXPECT_NE(e->find("Must home axis first (XY not homed"), std::string::npos) << *e;
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("G1 E1 F300"));  // the extruder needs no homing
+  EXPECT_EQ(c.read_until("ok", 5000), "ok");
+  for (const char* line : {"G28", "G1 X5 Y5 F3000", "M400"}) {
+    ASSERT_TRUE(c.send_line(line));
+    ASSERT_EQ(c.read_until("ok", 20000), "ok") << line;
+  }
+  EXPECT_EQ(wait_homed("xyz"), "xyz");
+  ASSERT_TRUE(c.send_line("M84"));
+  EXPECT_EQ(c.read_until("ok", 5000), "ok");
+  EXPECT_EQ(wait_homed(""), "");
+  ASSERT_TRUE(c.send_line("G1 X6"));
+  auto e2 = c.read_line();
+  ASSERT_TRUE(e2);
+  EXPECT_NE(e2->find("Must home axis first (X not homed"), std::string::npos) << *e2;
 }
 
 }  // namespace

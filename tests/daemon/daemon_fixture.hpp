@@ -27,6 +27,8 @@ class DaemonFixture : public ::testing::Test {
     ASSERT_FALSE(dir_.empty());
     ::setenv("RUNTIME_DIRECTORY", dir_.c_str(), 1);  // the sockets belong in the runtime directory
     config::MachineConfig cfg = config::default_config();
+    // Most daemon tests send moves without G28; a test of homing itself sets this back to false.
+    cfg.planner.allow_moves_before_homing = true;
     cfg.sockets.unix_socket = dir_ + "/feedloop.sock";
     cfg.sockets.api_socket = dir_ + "/api.sock";
     cfg.sockets.pty_link = dir_ + "/ttyFeedloop";

@@ -26,7 +26,7 @@ inline std::string write_temp(const std::string& name, const std::string& text) 
 // A printing-like program: a spiral of short extruding moves around (cx, cy) with changing feed
 // rates, some retractions and travel moves, layer changes. max_r_mm keeps a delta inside its disc.
 inline std::string spiral_gcode(double cx, double cy, double max_r_mm, int moves) {
-  std::string g = "G21\nG90\nM83\nG1 Z0.3 F1200\n";
+  std::string g = "G21\nG90\nM83\nG28\nG1 Z0.3 F1200\n";  // homed first, as a slicer's start block
   char line[160];
   double z = 0.3;
   for (int i = 0; i < moves; ++i) {

@@ -48,6 +48,7 @@ std::vector<std::string> lines(std::initializer_list<const char*> l) { return {l
 // scheduling; these tests measure the loop as a real-time kernel runs it (4 ms).
 config::MachineConfig with_mode(config::ControlMode mode) {
   config::MachineConfig cfg = config::default_config();
+  cfg.planner.allow_moves_before_homing = true;  // this fixture never homes (docs/homing.md)
   cfg.control.mode = mode;
   cfg.control.command_lead_ms = 4.0;
   return cfg;

@@ -20,6 +20,7 @@ const std::string kPlant = "python3 " + std::string(FEEDLOOP_SOURCE_DIR) + "/tes
 
 config::MachineConfig with_plant(const std::string& options) {
   config::MachineConfig cfg = config::default_config();
+  cfg.planner.allow_moves_before_homing = true;  // this fixture never homes (docs/homing.md)
   cfg.simulator.external_plant = config::ExternalPlantConfig{kPlant + " " + options, {"x", "y"}, 500.0};
   return cfg;
 }

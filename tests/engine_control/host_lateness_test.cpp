@@ -39,6 +39,7 @@ std::vector<std::string> program() {
 
 config::MachineConfig host_loop_config(double lead_ms) {
   config::MachineConfig cfg = config::default_config();
+  cfg.planner.allow_moves_before_homing = true;  // this fixture never homes (docs/homing.md)
   cfg.control.mode = config::ControlMode::pi;
   cfg.control.loop = config::ControlLoop::host;
   cfg.control.command_lead_ms = lead_ms;

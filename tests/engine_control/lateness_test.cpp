@@ -30,6 +30,7 @@ std::vector<std::string> program() {
 
 config::MachineConfig device_loop_config() {
   config::MachineConfig cfg = config::default_config();
+  cfg.planner.allow_moves_before_homing = true;  // this fixture never homes (docs/homing.md)
   cfg.control.mode = config::ControlMode::pi;
   cfg.control.loop = config::ControlLoop::device;
   return cfg;

@@ -81,6 +81,7 @@ struct RunResult {
 // on, each followed by 1 ms + up to 20 ms of normal running.
 RunResult print_with_stalls(double stall_ms, int count) {
   config::MachineConfig cfg = config::default_config();
+  cfg.planner.allow_moves_before_homing = true;  // this test never homes (docs/homing.md)
   cfg.control.mode = config::ControlMode::pi;
   cfg.control.loop = config::ControlLoop::device;
   auto stack = make_motion_stack(cfg, motion_options(cfg));

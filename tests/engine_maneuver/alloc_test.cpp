@@ -23,6 +23,7 @@ TEST(DcServoAlloc, ServoCycleAllocatesNothing) {
 #else
   auto cfg = config::load_config_file(FEEDLOOP_SOURCE_DIR "/config/examples/dc_servo_sim.yaml");
   ASSERT_TRUE(cfg.ok()) << cfg.error().to_string();
+  cfg->planner.allow_moves_before_homing = true;  // this test never homes (docs/homing.md)
   ManeuverExecutorOptions o;
   o.max_buffered_s = 1e6;  // execute() never waits for the servo (same thread here)
   auto made = ManeuverExecutor::create(*cfg, o);

@@ -28,6 +28,7 @@ struct SimRig {
   int64_t period_ns = 1'000'000;
 
   explicit SimRig(const config::MachineConfig& c, const McuBridgeOptions& o = {}) : cfg(c) {
+    cfg.planner.allow_moves_before_homing = true;  // the rig's programs never home (docs/homing.md)
     auto b = make_mcu_bridge(cfg, o);
     EXPECT_TRUE(b.ok()) << (b.ok() ? "" : b.error().message);
     bridge = std::move(b.value());

@@ -50,6 +50,7 @@ const std::vector<Valid>& valid_cases() {
       {"M84", 'M', 84, {}},
       {"M84 X Y E", 'M', 84, {}, "XYE"},
       {"M84 S600", 'M', 84, {{'S', 600}}},
+      {"M18 Z", 'M', 18, {}, "Z"},  // Marlin: M18 is M84
       {"M104 S215", 'M', 104, {{'S', 215}}},
       {"M104 T1 S0", 'M', 104, {{'T', 1}, {'S', 0}}},
       {"M105", 'M', 105, {}},
@@ -116,7 +117,7 @@ TEST(Codes, EveryListedCodeParsesWithItsParameters) {
 TEST(Codes, TheTableCoversExactlyTheIssueList) {
   const std::set<std::string> listed = {
       "G0",   "G1",   "G2",   "G3",   "G4",   "G10",  "G11",  "G20",  "G21",  "G28",
-      "G90",  "G91",  "G92",  "M73",  "M82",  "M83",  "M84",  "M104", "M105", "M106",
+      "G90",  "G91",  "G92",  "M18",  "M73",  "M82",  "M83",  "M84",  "M104", "M105", "M106",
       "M107", "M109", "M110", "M112", "M114", "M115", "M117", "M140", "M190", "M201",
       "M203", "M204", "M205", "M220", "M221", "M400", "M155", "M303",
       // issue 16 (print jobs): M18 and Marlin's SD-card commands

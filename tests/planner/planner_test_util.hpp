@@ -21,6 +21,7 @@ inline PlannerConfig cartesian_config() {
   c.kinematics = KinematicsKind::cartesian;
   c.min_position_mm = {0.0, 0.0, 0.0, -1e12};
   c.max_position_mm = {220.0, 220.0, 250.0, 1e12};
+  c.allow_moves_before_homing = true;  // most tests never home (homing_state_test.cpp does)
   return c;
 }
 
@@ -33,6 +34,7 @@ inline PlannerConfig delta_config() {
   c.home_position_mm = {0.0, 0.0, 300.0, 0.0};
   c.max_axis_velocity_mm_s = {300.0, 300.0, 300.0, 120.0};
   c.max_axis_accel_mm_s2 = {3000.0, 3000.0, 3000.0, 5000.0};
+  c.allow_moves_before_homing = true;
   return c;
 }
 

@@ -39,6 +39,7 @@ std::vector<std::string> test_print() {
 // Open loop, so that a change of the simulated plant does not change the commanded steps.
 config::MachineConfig open_loop_config() {
   config::MachineConfig cfg = config::default_config();
+  cfg.planner.allow_moves_before_homing = true;  // this fixture never homes (docs/homing.md)
   cfg.control.mode = config::ControlMode::open_loop;
   return cfg;
 }
@@ -118,7 +119,9 @@ TEST(ReplayTest, SameConfigGivesABitIdenticalStepStreamAndZeroResidual) {
 // vector; valgrind), before the replay. Enable once the sampled path settles.
 TEST(ReplayTest, ClosedLoopPrintReplaysBitIdentically) {
   Recorded r;
-  record(r, config::default_config());  // PI on the encoders: the steps depend on the plant
+  config::MachineConfig pi_cfg = config::default_config();
+  pi_cfg.planner.allow_moves_before_homing = true;  // this fixture never homes (docs/homing.md)
+  record(r, pi_cfg);  // PI on the encoders: the steps depend on the plant
   auto rep = replay_print(r.run.logs);
   ASSERT_TRUE(rep.ok()) << rep.error().to_string();
   EXPECT_TRUE(rep->steps_identical()) << *rep->step_mismatch;

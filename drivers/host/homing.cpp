@@ -1,0 +1,259 @@
+// Homing sequence: see homing.hpp.
+#include "drivers/host/homing.hpp"
+
+#include <cmath>   // sqrt, isfinite, llround
+#include <cstdio>  // snprintf
+
+#include "drivers/protocol/endstop_messages.hpp"
+#include "drivers/stepgen/run_codec.hpp"
+
+namespace feedloop::drivers {
+
+namespace {
+bool positive(double v) {
+  return std::isfinite(v) && v > 0.0;
+}
+}  // namespace
+
+Status check_homing_params(const HomingParams& p) {
+  const std::string a = "homing of " + p.axis_name + ": ";
+  if (!positive(p.mm_per_step)) return Error{a + "mm_per_step must be > 0", {}};
+  if (!std::isfinite(p.position_endstop_mm))
+    return Error{a + "position_endstop must be finite", {}};
+  if (p.direction != 1 && p.direction != -1)
+    return Error{a + "direction must be -1 (min) or +1 (max)", {}};
+  if (!positive(p.max_travel_mm)) return Error{a + "max travel must be > 0", {}};
+  if (!positive(p.homing_speed_mm_s)) return Error{a + "homing_speed must be > 0", {}};
+  if (!positive(p.second_homing_speed_mm_s))
+    return Error{a + "second_homing_speed must be > 0", {}};
+  if (!positive(p.accel_mm_s2)) return Error{a + "acceleration must be > 0", {}};
+  if (p.second_touch && !positive(p.retract_dist_mm))
+    return Error{a + "retract_dist must be > 0 for a second touch", {}};
+  if (!positive(p.sample_period_s) || p.sample_period_s > 0.01)
+    return Error{a + "endstop sample period must be in (0, 10 ms]", {}};
+  if (p.sample_count < 1 || p.sample_count > 255)
+    return Error{a + "endstop sample_count must be in 1..255", {}};
+  // The MCU needs the sample_count samples to confirm: the carriage overshoots the trigger by
+  // speed * count * period before the steps stop; more than the retract would be a crash.
+  const double overshoot_mm = p.homing_speed_mm_s * p.sample_period_s * p.sample_count;
+  if (p.second_touch && overshoot_mm >= p.retract_dist_mm)
+    return Error{a + "homing_speed * sample time overshoots the retract distance", {}};
+  if (!positive(p.queue_ahead_s)) return Error{a + "queue_ahead must be > 0", {}};
+  return {};
+}
+
+double HomingSequence::Move::duration() const {
+  double ta = v / a, da = 0.5 * a * ta * ta, vp = v;
+  if (2.0 * da > d_mm) {
+    vp = std::sqrt(a * d_mm);
+    ta = vp / a;
+    da = 0.5 * d_mm;
+  }
+  return 2.0 * ta + (d_mm - 2.0 * da) / vp;
+}
+
+double HomingSequence::Move::time_at(double x) const {
+  double ta = v / a, da = 0.5 * a * ta * ta, vp = v;
+  if (2.0 * da > d_mm) {
+    vp = std::sqrt(a * d_mm);
+    ta = vp / a;
+    da = 0.5 * d_mm;
+  }
+  if (x <= da) return std::sqrt(2.0 * x / a);
+  if (x <= d_mm - da) return ta + (x - da) / vp;
+  const double rest = x < d_mm ? d_mm - x : 0.0;
+  return duration() - std::sqrt(2.0 * rest / a);
+}
+
+HomingSequence::HomingSequence(const HomingParams& params, McuSession& session)
+    : p_(params), session_(session) {}
+
+double HomingSequence::mcu_s(double host_s) const {
+  return session_.tick_map().ticks(host_s);
+}
+
+void HomingSequence::fail(std::string message) {
+  error_ = Error{std::move(message), {}};
+  phase_ = HomingPhase::kFailed;
+  streaming_ = false;
+  arm(false);
+}
+
+void HomingSequence::arm(bool on) {
+  protocol::EndstopHomeMsg m;
+  m.axis = p_.motor;
+  m.trigger_level = 1;
+  m.sample_ticks =
+      on ? static_cast<uint32_t>(std::llround(p_.sample_period_s * session_.mcu_clock_hz())) : 0;
+  if (on && m.sample_ticks == 0) m.sample_ticks = 1;
+  m.sample_count = static_cast<uint8_t>(p_.sample_count);
+  uint8_t buf[16];
+  const size_t n = protocol::encode_endstop_home(m, buf, sizeof buf);
+  if (n > 0) session_.queue_message(buf, n);
+}
+
+Status HomingSequence::start(int64_t position_steps, double now_s) {
+  if (Status s = check_homing_params(p_); !s) return s;
+  if (!session_.ready()) return Error{"homing of " + p_.axis_name + ": the MCU is not ready", {}};
+  if (session_.negotiated_version() < 3)
+    return Error{"homing of " + p_.axis_name + ": the MCU speaks protocol " +
+                     std::to_string(session_.negotiated_version()) + ", endstops need 3",
+                 {}};
+  // Stale triggers and states of an earlier sequence are not this one's.
+  protocol::EndstopTriggerMsg t[16];
+  while (session_.take_endstop_triggers(t, 16) > 0) {
+  }
+  protocol::EndstopStateMsg st[16];
+  while (session_.take_endstop_states(st, 16) > 0) {
+  }
+  pos_steps_ = position_steps;
+  error_.reset();
+  result_ = {};
+  phase_ = HomingPhase::kApproach;
+  arm(true);
+  begin_move(p_.direction * p_.max_travel_mm, p_.homing_speed_mm_s, now_s);
+  return {};
+}
+
+void HomingSequence::begin_move(double distance_mm, double speed_mm_s, double now_s) {
+  move_.dir = distance_mm >= 0.0 ? 1 : -1;
+  move_.d_mm = std::abs(distance_mm);
+  move_.v = speed_mm_s;
+  move_.a = p_.accel_mm_s2;
+  move_.t0 = now_s + p_.queue_ahead_s;
+  move_start_steps_ = pos_steps_;
+  move_steps_total_ = static_cast<int64_t>(std::floor(move_.d_mm / p_.mm_per_step));
+  move_steps_sent_ = 0;
+  have_last_clock_ = false;
+  streaming_ = true;
+  stream(now_s);
+}
+
+void HomingSequence::stream(double now_s) {
+  if (!streaming_) return;
+  const double horizon_s = now_s + p_.queue_ahead_s;
+  while (move_steps_sent_ < move_steps_total_) {
+    uint8_t msg[protocol::kMaxPayload];
+    msg[0] = static_cast<uint8_t>(protocol::MsgType::kQueueSteps);
+    msg[1] = p_.motor;
+    const int64_t first = have_last_clock_ ? last_step_clock_ : std::llround(mcu_s(move_.t0));
+    stepgen::RunEncoder enc;
+    enc.begin(msg + 2, protocol::kMaxPayload - 2, static_cast<uint64_t>(first));
+    int64_t prev = first;
+    int count = 0;
+    while (move_steps_sent_ < move_steps_total_ && count < 64) {
+      // Step k is taken when the ideal position passes (k - 1/2) steps (round to nearest).
+      const double x_mm = (static_cast<double>(move_steps_sent_) + 0.5) * p_.mm_per_step;
+      const double ts = move_.t0 + move_.time_at(x_mm);
+      if (ts > horizon_s) break;
+      int64_t c = std::llround(mcu_s(ts));
+      if (c <= prev) c = prev + 1;
+      stepgen::StepRun run;
+      run.interval_ticks = c - prev;
+      run.count = 1;
+      run.direction = static_cast<int8_t>(move_.dir);
+      if (!enc.append(run)) break;
+      prev = c;
+      ++move_steps_sent_;
+      ++count;
+    }
+    if (count == 0) break;
+    session_.queue_message(msg, 2 + enc.size());
+    last_step_clock_ = prev;
+    have_last_clock_ = true;
+    pos_steps_ += static_cast<int64_t>(count) * move_.dir;
+  }
+}
+
+bool HomingSequence::move_done(double now_s, double margin_s) const {
+  // Every step sent and the last one executed, with a margin for the link's latency.
+  return move_steps_sent_ >= move_steps_total_ && now_s > move_.t0 + move_.duration() + margin_s;
+}
+
+HomingPhase HomingSequence::poll(double now_s) {
+  if (phase_ == HomingPhase::kIdle || phase_ == HomingPhase::kDone ||
+      phase_ == HomingPhase::kFailed)
+    return phase_;
+  if (session_.state() == McuState::kFailed) {
+    fail("homing of " + p_.axis_name +
+         " stopped: " + (session_.error() ? session_.error()->message : "MCU failed"));
+    return phase_;
+  }
+  protocol::EndstopTriggerMsg trig[4];
+  const size_t nt = session_.take_endstop_triggers(trig, 4);
+  for (size_t i = 0; i < nt && phase_ != HomingPhase::kFailed && phase_ != HomingPhase::kDone;
+       ++i) {
+    if (trig[i].axis != p_.motor) continue;
+    if (phase_ != HomingPhase::kApproach && phase_ != HomingPhase::kSecondTouch) continue;  // stale
+    streaming_ = false;
+    pos_steps_ = trig[i].stop_steps;  // the MCU's word: what it executed before it stopped
+    arm(false);
+    if (phase_ == HomingPhase::kApproach) {
+      first_trigger_steps_ = trig[i].trigger_steps;
+      if (!p_.second_touch) {
+        result_.trigger_steps = trig[i].trigger_steps;
+      } else {
+        phase_ = HomingPhase::kRetract;
+        begin_move(-p_.direction * p_.retract_dist_mm, p_.homing_speed_mm_s, now_s);
+        continue;
+      }
+    } else {
+      result_.trigger_steps = trig[i].trigger_steps;
+    }
+    result_.stop_steps = trig[i].stop_steps;
+    result_.position_mm =
+        p_.position_endstop_mm +
+        static_cast<double>(result_.stop_steps - result_.trigger_steps) * p_.mm_per_step;
+    result_.first_trigger_mm =
+        p_.position_endstop_mm +
+        static_cast<double>(first_trigger_steps_ - result_.trigger_steps) * p_.mm_per_step;
+    phase_ = HomingPhase::kDone;
+    return phase_;
+  }
+  if (phase_ == HomingPhase::kFailed || phase_ == HomingPhase::kDone) return phase_;
+  stream(now_s);
+  switch (phase_) {
+    case HomingPhase::kApproach:
+    case HomingPhase::kSecondTouch:
+      if (move_done(now_s, 0.1)) {  // 0.1 s for a trigger report to arrive
+        char buf[96];
+        std::snprintf(buf, sizeof buf, " after full movement (%.3f mm)", move_.d_mm);
+        fail("No trigger on " + p_.axis_name + buf);  // Klipper's wording (homing.py)
+      }
+      break;
+    case HomingPhase::kRetract:
+      if (move_done(now_s, 0.02)) {
+        protocol::EndstopQueryMsg q;
+        q.axis = p_.motor;
+        uint8_t buf[8];
+        const size_t n = protocol::encode_endstop_query(q, buf, sizeof buf);
+        if (n > 0) session_.queue_message(buf, n);
+        query_sent_s_ = now_s;
+        phase_ = HomingPhase::kCheckRelease;
+      }
+      break;
+    case HomingPhase::kCheckRelease: {
+      protocol::EndstopStateMsg st[4];
+      const size_t ns = session_.take_endstop_states(st, 4);
+      for (size_t i = 0; i < ns; ++i) {
+        if (st[i].axis != p_.motor) continue;
+        if (st[i].pin != 0) {
+          fail("Endstop " + p_.axis_name + " still triggered after retract");  // Klipper's wording
+          return phase_;
+        }
+        phase_ = HomingPhase::kSecondTouch;
+        arm(true);
+        begin_move(p_.direction * 2.0 * p_.retract_dist_mm, p_.second_homing_speed_mm_s, now_s);
+        return phase_;
+      }
+      if (now_s - query_sent_s_ > 1.0)
+        fail("homing of " + p_.axis_name + ": the MCU did not answer the endstop query");
+      break;
+    }
+    default:
+      break;
+  }
+  return phase_;
+}
+
+}  // namespace feedloop::drivers

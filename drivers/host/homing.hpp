@@ -1,0 +1,97 @@
+// Homing of one motor against its endstop through an McuSession (protocol v3,
+// endstop_messages.hpp), the sequence Klipper's homing.py runs: a fast approach at homing_speed
+// until the switch triggers, a retract of homing_retract_dist, a check that the switch released
+// ("Endstop x still triggered after retract"), and a slow second touch at second_homing_speed. The
+// MCU stops the steps at the trigger and reports the step position of the first triggered sample;
+// the host derives the motor's position from it: at that step position the carriage was at
+// position_endstop_mm (Klipper: the trigger time's step position, stepper.get_past_mcu_position).
+//
+// The sequencer streams its own steps (single-step runs, queue_ahead_s ahead of the MCU clock),
+// from rest, trapezoidal (accel_mm_s2). Driven by poll(now_s) after session.poll(now_s).
+// Owner: the thread that owns the session. Not real-time (it allocates nothing per step, but builds
+// error strings).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "core/result.hpp"
+#include "drivers/host/mcu_session.hpp"
+
+namespace feedloop::drivers {
+
+struct HomingParams {
+  std::string axis_name = "x";       // in messages
+  uint8_t motor = 0;                 // motor index on the MCU
+  double mm_per_step = 0.005;        // (the joint's) mm per step
+  double position_endstop_mm = 0.0;  // where the switch triggers
+  int direction = -1;                // -1: the switch is at the low end (a min endstop), +1: max
+  double max_travel_mm =
+      300.0;  // the fast approach's longest move ("No trigger ... after full movement")
+  double homing_speed_mm_s = 50.0;  // Klipper's homing_speed default: 5 mm/s; printers use 20-50
+  double second_homing_speed_mm_s = 5.0;
+  double retract_dist_mm = 5.0;  // Klipper's homing_retract_dist default
+  double accel_mm_s2 = 1000.0;
+  double sample_period_s = 50e-6;  // endstop sampling on the MCU
+  int sample_count = 4;  // consecutive samples to confirm (Klipper: ENDSTOP_SAMPLE_COUNT 4)
+  double queue_ahead_s = 0.1;
+  bool second_touch = true;  // false: only the fast approach (Klipper: retract_dist 0)
+};
+
+Status check_homing_params(const HomingParams& p);
+
+enum class HomingPhase { kIdle, kApproach, kRetract, kCheckRelease, kSecondTouch, kDone, kFailed };
+
+struct HomingResult {
+  int64_t trigger_steps = 0;  // the step position at the (final) trigger
+  int64_t stop_steps = 0;     // where the motor stopped
+  // The motor's position at stop_steps: position_endstop + (stop - trigger) * mm_per_step.
+  double position_mm = 0.0;
+  double first_trigger_mm = 0.0;  // the fast approach's trigger, in the final frame (diagnostics)
+};
+
+class HomingSequence {
+ public:
+  HomingSequence(const HomingParams& params, McuSession& session);
+  // Starts from the motor's current step position (as the host knows it) at host time now_s.
+  Status start(int64_t position_steps, double now_s);
+  // Advances the sequence; returns the phase after this call.
+  HomingPhase poll(double now_s);
+  HomingPhase phase() const { return phase_; }
+  const std::optional<Error>& error() const { return error_; }
+  const HomingResult& result() const { return result_; }
+  // The host's idea of the motor's step position (follows the steps it queued and the stops).
+  int64_t position_steps() const { return pos_steps_; }
+
+ private:
+  struct Move {
+    double d_mm = 0.0, v = 0.0, a = 0.0;  // |distance|, speed, acceleration
+    int dir = 1;
+    double t0 = 0.0;                    // MCU-clock seconds of its start
+    double time_at(double x_mm) const;  // from t0, for 0 <= x <= d
+    double duration() const;
+  };
+  void begin_move(double distance_mm, double speed_mm_s, double now_s);
+  void stream(double now_s);
+  bool move_done(double now_s, double margin_s) const;
+  void arm(bool on);
+  void fail(std::string message);
+  double mcu_s(double host_s) const;
+
+  HomingParams p_;
+  McuSession& session_;
+  HomingPhase phase_ = HomingPhase::kIdle;
+  std::optional<Error> error_;
+  HomingResult result_;
+  int64_t pos_steps_ = 0;
+  // The move being streamed.
+  Move move_;
+  int64_t move_start_steps_ = 0, move_steps_total_ = 0, move_steps_sent_ = 0;
+  int64_t last_step_clock_ = 0;
+  bool have_last_clock_ = false, streaming_ = false;
+  int64_t first_trigger_steps_ = 0;
+  double query_sent_s_ = 0.0;
+};
+
+}  // namespace feedloop::drivers

@@ -1,0 +1,122 @@
+// Protocol v3: endstop messages (docs/protocol.md, "Protocol v3: endstops"). Header-only,
+// allocation-free encoders/decoders for both sides. The trigger is handled on the MCU, as in
+// Klipper's endstop_home / trsync (klippy/mcu.py, src/endstop.c): the device samples the switch
+// every sample_ticks, and after sample_count consecutive triggered samples it stops that motor's
+// steps (its queue is flushed, and further QUEUE_STEPS for it are dropped until the host disarms)
+// and reports the clock and step position of the first triggered sample. The host computes the
+// position from those (drivers/host/homing.hpp).
+//   host -> device  ENDSTOP_HOME     arm (sample_ticks > 0) or disarm (sample_ticks == 0) one motor
+//                   ENDSTOP_QUERY    the pin's state now (M119)
+//   device -> host  ENDSTOP_TRIGGER  the trigger (once per arming)
+//                   ENDSTOP_STATE    the answer to ENDSTOP_QUERY
+// Every encode_* returns the size (type byte included), 0 when it does not fit; every decode_*
+// takes the whole payload and returns false on a wrong type, truncation or trailing bytes.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "drivers/protocol/messages.hpp"
+
+namespace feedloop::protocol {
+
+struct EndstopHomeMsg {
+  uint8_t axis = 0;
+  uint8_t trigger_level = 1;  // pin value that means "triggered"
+  uint32_t sample_ticks = 0;  // sampling period; 0 disarms (and ends a triggered state)
+  uint8_t sample_count = 1;   // consecutive triggered samples needed (debounce), >= 1
+};
+
+struct EndstopQueryMsg {
+  uint8_t axis = 0;
+};
+
+struct EndstopTriggerMsg {
+  uint8_t axis = 0;
+  int64_t trigger_clock = 0;  // first triggered sample
+  int64_t trigger_steps = 0;  // the motor's step position at that sample
+  int64_t stop_clock = 0;     // when the steps were stopped (after sample_count samples)
+  int64_t stop_steps = 0;     // the step position the motor stopped at
+};
+
+struct EndstopStateMsg {
+  uint8_t axis = 0;
+  uint8_t pin = 0;  // the pin's level now (MotorPort::read_endstop)
+  uint8_t armed = 0;
+  uint8_t triggered = 0;  // armed and tripped, waiting for the host to disarm
+};
+
+inline size_t encode_endstop_home(const EndstopHomeMsg& m, uint8_t* buf, size_t cap) {
+  MsgWriter w(buf, cap);
+  w.u8(static_cast<uint8_t>(MsgType::kEndstopHome))
+      .u8(m.axis)
+      .u8(m.trigger_level)
+      .var(m.sample_ticks)
+      .u8(m.sample_count);
+  return w.ok() ? w.size() : 0;
+}
+inline bool decode_endstop_home(const uint8_t* p, size_t n, EndstopHomeMsg& out) {
+  MsgReader r(p, n);
+  if (r.u8() != static_cast<uint8_t>(MsgType::kEndstopHome)) return false;
+  out.axis = r.u8();
+  out.trigger_level = r.u8();
+  const uint64_t ticks = r.var();
+  out.sample_count = r.u8();
+  if (ticks > UINT32_MAX) return false;
+  out.sample_ticks = static_cast<uint32_t>(ticks);
+  return r.ok() && r.at_end();
+}
+
+inline size_t encode_endstop_query(const EndstopQueryMsg& m, uint8_t* buf, size_t cap) {
+  MsgWriter w(buf, cap);
+  w.u8(static_cast<uint8_t>(MsgType::kEndstopQuery)).u8(m.axis);
+  return w.ok() ? w.size() : 0;
+}
+inline bool decode_endstop_query(const uint8_t* p, size_t n, EndstopQueryMsg& out) {
+  MsgReader r(p, n);
+  if (r.u8() != static_cast<uint8_t>(MsgType::kEndstopQuery)) return false;
+  out.axis = r.u8();
+  return r.ok() && r.at_end();
+}
+
+inline size_t encode_endstop_trigger(const EndstopTriggerMsg& m, uint8_t* buf, size_t cap) {
+  MsgWriter w(buf, cap);
+  w.u8(static_cast<uint8_t>(MsgType::kEndstopTrigger))
+      .u8(m.axis)
+      .var(static_cast<uint64_t>(m.trigger_clock))
+      .zz(m.trigger_steps)
+      .var(static_cast<uint64_t>(m.stop_clock))
+      .zz(m.stop_steps);
+  return w.ok() ? w.size() : 0;
+}
+inline bool decode_endstop_trigger(const uint8_t* p, size_t n, EndstopTriggerMsg& out) {
+  MsgReader r(p, n);
+  if (r.u8() != static_cast<uint8_t>(MsgType::kEndstopTrigger)) return false;
+  out.axis = r.u8();
+  out.trigger_clock = static_cast<int64_t>(r.var());
+  out.trigger_steps = r.zz();
+  out.stop_clock = static_cast<int64_t>(r.var());
+  out.stop_steps = r.zz();
+  return r.ok() && r.at_end();
+}
+
+inline size_t encode_endstop_state(const EndstopStateMsg& m, uint8_t* buf, size_t cap) {
+  MsgWriter w(buf, cap);
+  w.u8(static_cast<uint8_t>(MsgType::kEndstopState))
+      .u8(m.axis)
+      .u8(m.pin)
+      .u8(m.armed)
+      .u8(m.triggered);
+  return w.ok() ? w.size() : 0;
+}
+inline bool decode_endstop_state(const uint8_t* p, size_t n, EndstopStateMsg& out) {
+  MsgReader r(p, n);
+  if (r.u8() != static_cast<uint8_t>(MsgType::kEndstopState)) return false;
+  out.axis = r.u8();
+  out.pin = r.u8();
+  out.armed = r.u8();
+  out.triggered = r.u8();
+  return r.ok() && r.at_end();
+}
+
+}  // namespace feedloop::protocol
