@@ -28,7 +28,8 @@ struct MachineRig {
   std::mutex mu;
   uint64_t ticket = 0;
   MachineRig() {
-    const config::MachineConfig& cfg = config::default_config();
+    config::MachineConfig cfg = config::default_config();
+    cfg.planner.allow_moves_before_homing = true;  // moves without G28 (docs/homing.md)
     auto ex = make_executor(cfg);
     m = std::make_unique<Machine>(machine_options(cfg), clock, std::move(ex.value()));
     m->set_thermal(std::move(make_thermal_loop(cfg).value()));
