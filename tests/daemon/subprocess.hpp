@@ -24,11 +24,14 @@ class Subprocess {
       : log_path_(log_path) {
     int in[2];
     if (::pipe(in) != 0) return;
+    // Emptied here, before the child exists: truncated by the child, a reused log could still show
+    // the previous process's "ready" to wait_for_output (a flake under load).
+    if (const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644); fd >= 0) ::close(fd);
     pid_ = ::fork();
     if (pid_ == 0) {
       ::dup2(in[0], 0);
       ::close(in[1]);
-      const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
       ::dup2(fd, 1);
       ::dup2(fd, 2);
       for (const std::string& e : env) ::putenv(const_cast<char*>(e.c_str()));
