@@ -349,7 +349,7 @@ int print_command(const std::vector<std::string>& args) {
         }
         if (!r.value("last_error", "").empty())
           std::printf("  fault             %s\n", r["last_error"].get<std::string>().c_str());
-        if (r.contains("motion")) std::printf("  motion            %s\n", r["motion"].dump().c_str());
+        // The rest of the status (every motion figure, links, heaters) is the JSON API's `status`.
       }
     }
   }
