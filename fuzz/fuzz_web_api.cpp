@@ -31,6 +31,11 @@ struct World {
     files = std::make_unique<web::FileStore>(web::FileStore::open(dir.string()).value());
     db = web::Database::open(":memory:").value();
   }
+  ~World() {  // the scratch folder goes with the process (at a normal exit)
+    files.reset();
+    std::error_code ec;
+    std::filesystem::remove_all(dir, ec);
+  }
   std::filesystem::path dir;
   std::unique_ptr<web::FileStore> files;
   std::unique_ptr<web::Database> db;
