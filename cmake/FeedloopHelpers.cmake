@@ -18,4 +18,16 @@ function(feedloop_add_test name)
   endif()
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
     PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+  # The sanitizer stage of scripts/test.sh runs only the tests without these labels, and builds
+  # only what it runs (target `sanitizer_tests`, top-level CMakeLists.txt).
+  set(_skipped_under_sanitizers slow realtime long browser)
+  set(_runs_under_sanitizers TRUE)
+  foreach(label IN LISTS T_LABELS)
+    if(label IN_LIST _skipped_under_sanitizers)
+      set(_runs_under_sanitizers FALSE)
+    endif()
+  endforeach()
+  if(_runs_under_sanitizers)
+    set_property(GLOBAL APPEND PROPERTY FEEDLOOP_SANITIZER_TESTS ${name})
+  endif()
 endfunction()
