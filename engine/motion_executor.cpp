@@ -175,6 +175,7 @@ void MotionExecutor::drop_queued_moves() {
   if (telemetry_.anchored.load()) steps_.flush();
   publish_step_counts();
   telemetry_.anchored.store(false);
+  motion_maps_held_ = false;
 }
 
 void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
@@ -242,9 +243,11 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
       return;
     }
     if (!anchored && !backend_->ready()) return;  // motion waits for the MCUs and their clocks
-    std::array<stepgen::TickMap, kJoints> maps;
-    for (int j = 0; j < kJoints; ++j) maps[static_cast<size_t>(j)] = backend_->tick_map(j);
-    steps_.set_clock_maps(maps);
+    if (!motion_maps_held_) {  // else the motion's clock frame (sampled_cycle) stays in force
+      std::array<stepgen::TickMap, kJoints> maps;
+      for (int j = 0; j < kJoints; ++j) maps[static_cast<size_t>(j)] = backend_->tick_map(j);
+      steps_.set_clock_maps(maps);
+    }
   }
   if (cancel || control_fault_.load(std::memory_order_relaxed)) {  // drop everything not yet turned into steps
     drop_queued_moves();
@@ -358,6 +361,7 @@ void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now
   next_sample_s_ = first.start_time_s + plan_shift_s_;  // servo time (monotonic across stops)
   offset_s_ = now_s + command_lead_s() - next_sample_s_;
   steps_.set_time_offset_s(offset_s_);
+  if (device_loop_) hold_clock_frame(next_sample_s_);
   control_->reset_feedforward(at);
   has_e_ = {};  // e_t restarts from this motion's encoder reports
   prime_pending_ = true;  // the preview fills once the moves are on the timeline (sampled_cycle)
@@ -439,6 +443,48 @@ bool MotionExecutor::host_feedback(double now_s, uint64_t n_enc, double enc_time
     return false;
   }
   return true;
+}
+
+// The frame through the clock sync's estimate `live` (host time -> ticks) at servo time t_s: servo
+// time -> ticks, t_s on a whole tick, the rate rounded to whole ticks per second (1 Hz: 0.014 ppm
+// of a 72 MHz clock; the 20 us tolerance only after 20 minutes). Two estimates a fraction of a
+// hertz apart (the clock sync's noise) then give the same frame, and the frame is kept in servo
+// time, whose values are the same in every run: host time's large values would cost each tick
+// its last thousandth, differently in every run, and flip a step's rounding here and there.
+stepgen::TickMap MotionExecutor::frame_through(const stepgen::TickMap& live, double t_s) const {
+  stepgen::TickMap m;
+  m.ticks_per_s = std::round(live.ticks_per_s);
+  m.offset_ticks = std::round(live.ticks(t_s + offset_s_)) - m.ticks_per_s * t_s;
+  return m;
+}
+
+// The motion's clock frame (motion_executor.hpp), from its first sample at servo time t0_s.
+void MotionExecutor::hold_clock_frame(double t0_s) {
+  for (int j = 0; j < kJoints; ++j) {
+    const stepgen::TickMap frame = frame_through(backend_->tick_map(j), t0_s);
+    motion_maps_[static_cast<size_t>(j)] = frame;
+    motion_start_clock_[static_cast<size_t>(j)].store(std::llround(frame.ticks(t0_s)), std::memory_order_relaxed);
+  }
+  steps_.set_print_maps(motion_maps_);
+  motion_maps_held_ = true;
+}
+
+// Replaces a joint's frame when the clock sync's estimate at servo time t_s has moved more than
+// the tolerance away from it (an MCU clock drifting from its estimated rate, a better estimate):
+// a step of at most that size in the joint's timing, then the frame holds again.
+void MotionExecutor::refresh_clock_frame(double t_s) {
+  bool changed = false;
+  for (int j = 0; j < kJoints; ++j) {
+    const stepgen::TickMap live = backend_->tick_map(j);
+    stepgen::TickMap& held = motion_maps_[static_cast<size_t>(j)];
+    if (std::fabs(live.ticks(t_s + offset_s_) - held.ticks(t_s)) <= kClockFrameTolerance_s * live.ticks_per_s)
+      continue;
+    held = frame_through(live, t_s);
+    changed = true;
+  }
+  if (!changed) return;
+  steps_.set_print_maps(motion_maps_);
+  clock_frame_refreshes_.fetch_add(1, std::memory_order_relaxed);
 }
 
 void MotionExecutor::sampled_cycle(double now_s) {
@@ -596,6 +642,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
   }
   while (next_sample_s_ + period_s <= print_now_s + lead_s + 1e-9 && !(plan_empty && next_sample_s_ >= stop_s)) {
     const double t_s = next_sample_s_ + period_s;
+    if (device_loop_) refresh_clock_frame(t_s);
     control::FeedforwardInput ahead;
     reference(t_s + preview * period_s, ahead);
     control::JointArray u_ff{}, u{};
@@ -629,11 +676,16 @@ void MotionExecutor::sampled_cycle(double now_s) {
     s.u_mm = u;
     last_command_mm_ = u;
     next_sample_s_ = t_s;
-    if (device_loop_) {  // r(t) to the MCUs' loops, in the encoders' frame, on the host clock
+    if (device_loop_) {  // r(t) to the MCUs' loops, in the encoders' frame, in the clock frame
       for (int j = 0; j < kJoints; ++j) {
         const size_t i = static_cast<size_t>(j);
-        if (backend_->device_loop(j)) backend_->queue_target(j, t_s + offset_s_, s.r_mm[i] - encoder_offset_mm_[i]);
+        if (!backend_->device_loop(j)) continue;
+        const auto clock = static_cast<int64_t>(std::llround(motion_maps_[i].ticks(t_s)));
+        backend_->queue_target(j, clock, s.r_mm[i] - encoder_offset_mm_[i]);
       }
+      // The steps' runs close on the sample grid, not where this cycle happened to wake: the
+      // same plan gives the same step ticks however the host was scheduled.
+      steps_.flush_due(t_s);
     }
   }
   if (device_loop_) {
@@ -645,7 +697,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
       tap_->on_servo_event(events[k]);
     }
   }
-  steps_.flush_due(print_now_s + lead_s);
+  if (!device_loop_) steps_.flush_due(print_now_s + lead_s);
   // Print time as the planner counts it: it stands at the plan's end while the loop holds.
   const double print_plan_s = plan_empty ? std::min(print_now_s - plan_shift_s_, executed_end_s_)
                                          : print_now_s - plan_shift_s_;
@@ -660,6 +712,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
   if (plan_empty && next_sample_s_ >= stop_s && print_now_s >= next_sample_s_) {
     steps_.flush();
     anchored = false;
+    motion_maps_held_ = false;
     publish_step_counts();  // the counts a waiter reads once the motion has ended
   }
   telemetry_.anchored.store(anchored);

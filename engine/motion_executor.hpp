@@ -100,6 +100,14 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   const MotionTelemetry& telemetry() const { return telemetry_; }
   const StepPipeline& steps() const { return steps_; }  // servo thread owns it
   uint64_t moves() const { return interp_->moves(); }
+  // Device loop: the MCU tick on which the latest motion's first command sample of `joint` falls
+  // (its clock frame, motion_executor.hpp); 0 before any. Any thread.
+  int64_t motion_start_clock(int joint) const {
+    return motion_start_clock_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
+  }
+  // Device loop: how often a motion's clock frame was replaced mid-motion (the clock sync's
+  // estimate moved more than kClockFrameTolerance_s). Servo thread's figure, read relaxed.
+  uint64_t clock_frame_refreshes() const { return clock_frame_refreshes_.load(std::memory_order_relaxed); }
 
  private:
   void on_move(const planner::PlannedMove& m) override;
@@ -186,6 +194,19 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   double next_sample_s_ = 0.0;   // servo time of the last command sample (segment end)
   double plan_shift_s_ = 0.0;    // servo time - plan (print) time: grows when a move arrives
                                  // while the loop holds the position after the plan's end
+  // The device loop's clock frame (docs/decisions.md, "One motion, one clock frame"): from a
+  // motion's start the steps and r(t) go through these servo time -> MCU tick maps, taken from
+  // the clock sync at the start (its first sample on a whole tick) and replaced only when the
+  // live estimate has moved more than kClockFrameTolerance_s away from them. So a host stall or a
+  // late clock reply does not move a single step tick; the MCUs' own clocks pace the motion.
+  static constexpr double kClockFrameTolerance_s = 20e-6;
+  std::array<std::atomic<int64_t>, kJoints> motion_start_clock_{};
+  std::array<stepgen::TickMap, kJoints> motion_maps_{};
+  bool motion_maps_held_ = false;
+  std::atomic<uint64_t> clock_frame_refreshes_{0};  // written by the servo thread only
+  stepgen::TickMap frame_through(const stepgen::TickMap& live, double t_s) const;
+  void hold_clock_frame(double t0_s);
+  void refresh_clock_frame(double t_s);
   control::JointArray encoder_offset_mm_{};   // joint position - encoder reading, set at resync
   control::JointArray last_command_mm_{};     // the motor command the steps follow (sampled path)
   std::array<unsigned long long, 4> encoder_reports_seen_{};
