@@ -516,7 +516,7 @@ bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply, uint64_
                       "// pressure_advance: %.6f\n// pressure_advance_smooth_time: %.6f\nok",
                       s.pressure_advance_s, s.pressure_advance_smooth_time_s);
       else
-        std::snprintf(buf, sizeof buf, "echo:Advance K=%.2f\nok", s.pressure_advance_s);
+        std::snprintf(buf, sizeof buf, "echo:Advance K=%.3f\nok", s.pressure_advance_s);
       reply = buf;
       return true;
     case 117:
