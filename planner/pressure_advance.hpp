@@ -55,9 +55,10 @@ class PressureAdvance {
   // window changes only here: Klipper, too, flushes the motion before a new smooth time acts).
   void restart(double e_mm, double smooth_time_s);
   // Appends the E pieces of a move, its times shifted by `time_offset_s` (the caller's time base).
-  // Moves arrive in time order. Returns false when the move starts before the output already
-  // committed could take it into account (a late move: the output continues without a jump from
-  // where it is, the move's advance starts late). RT-safe.
+  // Moves arrive in time order. Returns false (and counts it in late_moves()) when the move starts
+  // less than h after the output already emitted: that output assumed rest, so e_adv steps by the
+  // part of the move's advance already inside the window, spread over the next Hermite piece (the
+  // executors avoid it: they take moves h early and start a motion h late). RT-safe.
   bool push(const PlannedMove& m, double time_offset_s = 0.0);
   // e_adv(t) and its derivative. RT-safe.
   double position_mm(double t_s) const;
