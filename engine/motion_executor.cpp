@@ -19,6 +19,16 @@ MotionExecutor::MotionExecutor(const planner::PlannerConfig& pcfg, const StepPip
       steps_(sp, batches_.get()) {
   interp_ = std::make_unique<planner::Interpreter>(pcfg_, *kin_, planner_);
   timeline_ = std::make_unique<planner::MoveTimeline>(options_.timeline_capacity);
+  no_extruder_.next = &steps_;
+  pa_advance_s_.store(interp_->state().pressure_advance_s);
+  pa_smooth_time_s_.store(interp_->state().pressure_advance_smooth_time_s);
+}
+
+// A motion starts from rest: the advance is on for it when its first move has K > 0 (and the
+// extruder makes steps); the window is that move's smooth time.
+void MotionExecutor::pa_restart(const planner::PlannedMove& first) {
+  pa_active_ = first.pressure_advance_s > 0.0 && steps_.params().steps_per_mm[3] > 0.0;
+  if (pa_active_) pa_.restart(first.start_mm[3], first.pressure_advance_smooth_time_s);
 }
 
 void MotionExecutor::set_control(std::unique_ptr<ServoControl> control) {
@@ -42,6 +52,9 @@ Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool
   if (motion) wait_for_room(cancel);
   Status st = interp_->execute(cmd);
   planner_queued_.store(planner_.queued());
+  pa_advance_s_.store(interp_->state().pressure_advance_s, std::memory_order_relaxed);
+  pa_smooth_time_s_.store(interp_->state().pressure_advance_smooth_time_s,
+                          std::memory_order_relaxed);
   if (st && wait_until_s_ >= 0.0) wait_print_time(wait_until_s_, cancel);  // M400
   return st;
 }
@@ -57,8 +70,13 @@ void MotionExecutor::idle_tick(const std::atomic<bool>& cancel) {
   // Release the lookahead's tail when the input pauses, or before the machine runs dry (the
   // held moves contain the deceleration the released ones rely on).
   const auto quiet = std::chrono::steady_clock::now() - last_command_;
+  // (The pressure advance takes moves up to a smooth time earlier.)
+  const double pa_s = interp_->state().pressure_advance_s > 0.0
+                          ? interp_->state().pressure_advance_smooth_time_s
+                          : 0.0;
   const bool running_dry =
-      telemetry_.anchored.load() && planned_end_s_.load() - executing_print_time_s() < 2.0 * options_.lead_s;
+      telemetry_.anchored.load() &&
+      planned_end_s_.load() - executing_print_time_s() < 2.0 * options_.lead_s + pa_s;
   if (running_dry || quiet > std::chrono::duration<double>(options_.input_pause_flush_s)) planner_.flush();
   planner_queued_.store(planner_.queued());
 }
@@ -75,6 +93,8 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
   s.moving = telemetry_.anchored.load(std::memory_order_relaxed);
   s.print_time_s = telemetry_.print_time_s.load(std::memory_order_relaxed);
   s.planned_until_s = planned_end_s_.load(std::memory_order_relaxed);
+  s.pressure_advance_s = pa_advance_s_.load(std::memory_order_relaxed);
+  s.pressure_advance_smooth_time_s = pa_smooth_time_s_.load(std::memory_order_relaxed);
   s.moves_planned = moves_emitted_.load(std::memory_order_relaxed);
   s.segments_queued = pushed_.load() - popped_.load();
   s.motion_starts = telemetry_.anchors.load(std::memory_order_relaxed);
@@ -261,7 +281,10 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
   while (const planner::PlannedMove* front = queue_.front()) {
     if (!anchored) {  // motion starts from rest: its print time runs lead_s from now
       if (resync_) resync_to(*front);
-      offset_s_ = horizon_s - front->start_time_s;
+      pa_restart(*front);
+      // With the advance, the extruder starts moving half a window before the first move.
+      offset_s_ = horizon_s + pa_half_window_s() - front->start_time_s;
+      if (pa_active_) pa_.set_emitted_from(front->start_time_s - pa_half_window_s());
       steps_.set_time_offset_s(offset_s_);
       anchored = true;
       // Published before the first pop: a waiter (M400) must never see the queue empty and
@@ -269,9 +292,14 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
       telemetry_.anchored.store(true);
       telemetry_.anchors.fetch_add(1, std::memory_order_relaxed);
     }
-    if (front->start_time_s + offset_s_ > horizon_s) break;
-    emitter_.emit(*front, steps_);  // joint segments straight into step generation
-    executed_end_s_ = std::max(executed_end_s_, front->end_time_s());
+    if (front->start_time_s + offset_s_ > horizon_s + pa_half_window_s()) break;
+    if (pa_active_) {  // the extruder's segments come from the advance below
+      emitter_.emit(*front, no_extruder_);
+      pa_.push(*front);
+    } else {
+      emitter_.emit(*front, steps_);  // joint segments straight into step generation
+    }
+    executed_end_s_ = std::max(executed_end_s_, front->end_time_s() + pa_half_window_s());
     if (tap_ != nullptr) timeline_->push(*front);
     queue_.try_pop(current_);
     popped_.fetch_add(1, std::memory_order_release);
@@ -279,6 +307,15 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
   }
   if (!anchored) return;
   const double print_now_s = now_s - offset_s_;
+  if (pa_active_) {
+    // e_adv up to the horizon, as far as the moves known allow (half a window before their end);
+    // once nothing more is queued anywhere, the rest after the last move is certain.
+    const bool drained = queue_.empty() && planner_queued_.load() == 0;
+    const double known_s = pa_.input_end_s() + (drained ? 1.0 : -1.0) * pa_.half_window_s();
+    pa_.emit_until(std::min(print_now_s + options_.lead_s, known_s), pcfg_.servo_period_s,
+                   [this](const JointSegment& s) { steps_.on_joint_segment(3, s); });
+    pa_.trim_before(print_now_s);  // the telemetry below samples e_adv now
+  }
   steps_.flush_due(print_now_s + options_.lead_s);
   telemetry_.print_time_s.store(print_now_s, std::memory_order_relaxed);
   if (tap_ != nullptr) {  // F = 1: the command is the plan
@@ -317,6 +354,7 @@ bool MotionExecutor::reference(double t_s, control::FeedforwardInput& out) const
   const bool covered = timeline_->sample(t_s - plan_shift_s_, c);
   if (timeline_->size() == 0) return false;
   out = input_at(c);
+  if (pa_active_) out.r_mm[3] = pa_.position_mm(t_s - pa_base_shift_s_);  // e_adv
   return covered;
 }
 
@@ -360,6 +398,11 @@ void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now
   }
   next_sample_s_ = first.start_time_s + plan_shift_s_;  // servo time (monotonic across stops)
   offset_s_ = now_s + command_lead_s() - next_sample_s_;
+  // Pressure advance: the extruder starts moving half a window before the first move, so the plan
+  // starts that much later; pa time = servo time - pa_base_shift_s_ = plan time from here.
+  pa_restart(first);
+  plan_shift_s_ += pa_half_window_s();
+  pa_base_shift_s_ = plan_shift_s_;
   steps_.set_time_offset_s(offset_s_);
   if (device_loop_) hold_clock_frame(next_sample_s_);
   control_->reset_feedforward(at);
@@ -504,13 +547,20 @@ void MotionExecutor::sampled_cycle(double now_s) {
   }
   const double print_now_s = now_s - offset_s_;
   // Moves into the timeline as far as this cycle's newest sample and its preview reach.
-  const double need_s = print_now_s + lead_s + (preview + 2) * period_s;
+  // The pressure advance needs the plan half a window (h) further.
+  const double pa_h_s = pa_half_window_s();
+  const double need_s = print_now_s + lead_s + (preview + 2) * period_s + pa_h_s;
   while (const planner::PlannedMove* front = queue_.front()) {
     if (front->start_time_s + plan_shift_s_ > need_s) break;
     const planner::PlannedMove& m = *front;
     // A move planned after the plan had run out while the loop was still holding the position:
     // the plan's clock stood still meanwhile, so the rest of the plan moves later by the gap.
-    if (m.start_time_s + plan_shift_s_ < next_sample_s_ - 1e-9) plan_shift_s_ = next_sample_s_ - m.start_time_s;
+    // With the advance, later still: e_adv up to the newest sample (and its preview) assumed rest
+    // after the plan's end; a move starting at s changes e_adv from s - h on.
+    const double pa_late_s = pa_active_ ? pa_h_s + preview * period_s : 0.0;
+    if (m.start_time_s + plan_shift_s_ < next_sample_s_ + pa_late_s - 1e-9)
+      plan_shift_s_ = next_sample_s_ + pa_late_s - m.start_time_s;
+    if (pa_active_) pa_.push(m, plan_shift_s_ - pa_base_shift_s_);
     timeline_->push(m);  // in plan time
     executed_end_s_ = std::max(executed_end_s_, m.end_time_s());  // plan time
     queue_.try_pop(current_);
@@ -603,7 +653,8 @@ void MotionExecutor::sampled_cycle(double now_s) {
   // decelerating knots would read as r running out while it moves).
   const bool pi_loop = control_->closed_loop() || device_loop_;
   const double hold_s = pi_loop ? options_.control_settle_s : 0.0;
-  const double stop_s = executed_end_s_ + plan_shift_s_ + preview * period_s + hold_s;  // servo time
+  const double stop_s = executed_end_s_ + plan_shift_s_ + preview * period_s + hold_s +
+                        pa_half_window_s();  // servo time (the extruder's advance ends h later)
   // A late cycle (the thread woke more than the lead late, on a machine without real-time
   // scheduling): the samples still to come would be due in the past, and steps in the past stop
   // the MCU (queue underrun). Instead the plan pauses: the motor holds its last command over the
@@ -638,6 +689,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
     }
     next_sample_s_ += gap_s;
     plan_shift_s_ += gap_s;
+    pa_base_shift_s_ += gap_s;  // the extruder's advance pauses with the plan
     late_cycles_.fetch_add(1, std::memory_order_relaxed);
   }
   while (next_sample_s_ + period_s <= print_now_s + lead_s + 1e-9 && !(plan_empty && next_sample_s_ >= stop_s)) {
@@ -688,6 +740,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
       steps_.flush_due(t_s);
     }
   }
+  if (pa_active_) pa_.trim_before(next_sample_s_ - pa_base_shift_s_);
   if (device_loop_) {
     backend_->flush_targets(/*end_of_motion=*/plan_empty && next_sample_s_ >= stop_s);
     ServoEvent events[8];

@@ -23,6 +23,12 @@
 // (mcu_time = print_time + offset); steps are generated and batches closed `lead_s` ahead of
 // their execution (Klipper queues >= 100 ms ahead). When the queue runs dry and the last segment
 // has been executed, the anchor is released and the next motion re-anchors.
+//
+// Pressure advance (planner/pressure_advance.hpp): when the first move of a motion from rest has
+// K > 0, the extruder joint follows e_adv(t) instead of e(t) until the motion ends. e_adv(t)
+// needs the plan up to t + smooth_time/2, so moves are taken smooth_time/2 earlier (exact path)
+// or smooth_time earlier (sampled path), the motion starts smooth_time/2 later, and the extruder
+// ends smooth_time/2 after the last move. With K = 0 nothing changes (the same steps).
 #pragma once
 
 #include <array>
@@ -35,14 +41,15 @@
 #include "core/spsc_queue.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/machine.hpp"
-#include "engine/servo_control.hpp"
-#include "engine/telemetry_tap.hpp"
 #include "engine/servo_backend.hpp"
+#include "engine/servo_control.hpp"
 #include "engine/step_pipeline.hpp"
+#include "engine/telemetry_tap.hpp"
 #include "planner/interpreter.hpp"
 #include "planner/joint_output.hpp"
 #include "planner/kinematics.hpp"
 #include "planner/lookahead.hpp"
+#include "planner/pressure_advance.hpp"
 #include "planner/sampler.hpp"
 
 namespace feedloop::engine {
@@ -147,6 +154,21 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   bool resync_ = true;
   void drop_queued_moves();
   planner::PlannedMove current_;  // the move most recently handed to step generation
+  // Pressure advance (servo thread): active for the current motion from rest.
+  planner::PressureAdvance pa_;
+  bool pa_active_ = false;
+  double pa_base_shift_s_ = 0.0;  // sampled path: pa time = servo time - this (holds pause it)
+  double pa_half_window_s() const { return pa_active_ ? pa_.half_window_s() : 0.0; }
+  void pa_restart(const planner::PlannedMove& first);
+  // The joints but the extruder go to step generation; the extruder's come from pa_.
+  struct NoExtruder final : planner::JointSink {
+    planner::JointSink* next = nullptr;
+    void on_joint_segment(int joint, const JointSegment& s) override {
+      if (joint != 3) next->on_joint_segment(joint, s);
+    }
+  } no_extruder_;
+  // The planner thread's pressure advance (M900 / SET_PRESSURE_ADVANCE), for the status.
+  std::atomic<double> pa_advance_s_{0.0}, pa_smooth_time_s_{0.0};
   // Sampled path (servo thread).
   void sampled_cycle(double now_s);
   void start_sampled(const planner::PlannedMove& first, double now_s);
