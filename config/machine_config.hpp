@@ -53,7 +53,7 @@ struct AxisConfig {
   double max_mm = kUnlimited;
   double max_velocity_mm_s = 300.0;
   double max_accel_mm_s2 = 3000.0;
-  std::optional<HomingConfig> homing;    // none: G28 is the planner's move to the home position
+  std::optional<HomingConfig> homing;  // none: G28 is the planner's move to the home position
   bool operator==(const AxisConfig&) const = default;
 };
 

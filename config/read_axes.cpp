@@ -55,16 +55,19 @@ void read_homing(MapReader& a, AxisConfig& axis, Diagnostics& diag) {
       diag.add(h.key_mark("position_endstop_mm"),
                h.path() + ".position_endstop_mm " + format_number(c.position_endstop_mm) +
                    " mm must lie within the travel " + format_number(axis.min_mm) + " .. " +
-                   format_number(axis.max_mm) + " mm (Klipper: position_endstop in position_min .. position_max)");
+                   format_number(axis.max_mm) +
+                   " mm (Klipper: position_endstop in position_min .. position_max)");
     if (has_travel && c.max_travel_mm > 10.0 * range_mm)
-      diag.add(h.key_mark("max_travel_mm"), h.path() + ".max_travel_mm " + format_number(c.max_travel_mm) +
-                                                " mm is not plausible (at most 10 x the travel range, " +
-                                                format_number(10.0 * range_mm) + " mm)");
+      diag.add(h.key_mark("max_travel_mm"),
+               h.path() + ".max_travel_mm " + format_number(c.max_travel_mm) +
+                   " mm is not plausible (at most 10 x the travel range, " +
+                   format_number(10.0 * range_mm) + " mm)");
   }
   if (has_speed && c.homing_speed_mm_s > axis.max_velocity_mm_s)
-    diag.add(h.key_mark("homing_speed_mm_s"),
-             h.path() + ".homing_speed_mm_s " + format_number(c.homing_speed_mm_s) +
-                 " mm/s is above the axis's max_velocity_mm_s " + format_number(axis.max_velocity_mm_s));
+    diag.add(h.key_mark("homing_speed_mm_s"), h.path() + ".homing_speed_mm_s " +
+                                                  format_number(c.homing_speed_mm_s) +
+                                                  " mm/s is above the axis's max_velocity_mm_s " +
+                                                  format_number(axis.max_velocity_mm_s));
   if (c.second_homing_speed_mm_s > c.homing_speed_mm_s)
     diag.add(h.key_mark("second_homing_speed_mm_s"),
              h.path() + ".second_homing_speed_mm_s " + format_number(c.second_homing_speed_mm_s) +
@@ -75,10 +78,12 @@ void read_homing(MapReader& a, AxisConfig& axis, Diagnostics& diag) {
              h.path() + ": homing_speed_mm_s " + format_number(c.homing_speed_mm_s) +
                  " mm/s overshoots the trip point by " +
                  format_number(std::round(c.homing_speed_mm_s * kEndstopConfirmS * 1e6) / 1e6) +
-                 " mm before the MCU confirms it, more than retract_dist_mm " + format_number(c.retract_dist_mm));
+                 " mm before the MCU confirms it, more than retract_dist_mm " +
+                 format_number(c.retract_dist_mm));
   if (std::isfinite(range_mm) && c.retract_dist_mm >= range_mm)
-    diag.add(h.key_mark("retract_dist_mm"), h.path() + ".retract_dist_mm " + format_number(c.retract_dist_mm) +
-                                                " mm is not less than the travel range " + format_number(range_mm) + " mm");
+    diag.add(h.key_mark("retract_dist_mm"),
+             h.path() + ".retract_dist_mm " + format_number(c.retract_dist_mm) +
+                 " mm is not less than the travel range " + format_number(range_mm) + " mm");
   h.finish();
   axis.homing = c;
 }
@@ -159,10 +164,13 @@ void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& d
                    " steps/s); lower one of them");
     if (a.has("homing")) {
       if (is_e)
-        diag.add(a.key_mark("homing"), a.path() + ": the extruder has no endstop (homing is for the motion axes)");
+        diag.add(a.key_mark("homing"),
+                 a.path() + ": the extruder has no endstop (homing is for the motion axes)");
       else if (kinematics_known && cfg.kinematics == Kinematics::corexy)
-        diag.add(a.key_mark("homing"), a.path() + ".homing: homing through endstops is implemented for kinematics "
-                                       "cartesian and delta, not corexy (docs/homing.md)");
+        diag.add(a.key_mark("homing"),
+                 a.path() +
+                     ".homing: homing through endstops is implemented for kinematics "
+                     "cartesian and delta, not corexy (docs/homing.md)");
       else
         read_homing(a, axis, diag);
     } else {

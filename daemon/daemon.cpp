@@ -464,8 +464,9 @@ bool is_sd_command(const gcode::Command& cmd) {
 
 bool Daemon::is_query(const gcode::Command& cmd) {
   if (cmd.empty()) return true;
-  return cmd.letter == 'M' && (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 || cmd.code == 119 ||
-                               cmd.code == 117 || cmd.code == 73 || cmd.code == 155 || is_sd_command(cmd));
+  return cmd.letter == 'M' &&
+         (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 || cmd.code == 119 ||
+          cmd.code == 117 || cmd.code == 73 || cmd.code == 155 || is_sd_command(cmd));
 }
 
 bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply, uint64_t client_id) {
@@ -749,11 +750,13 @@ static json homing_json(const engine::MachineStatus& s) {
   json pos = json::object(), sw = json::object();
   for (int i = 0; i < 3; ++i) {
     const std::string axis(1, "xyz"[i]);
-    pos[axis] = std::isfinite(s.homed_position_mm[i]) ? json(s.homed_position_mm[i]) : json(nullptr);
+    pos[axis] =
+        std::isfinite(s.homed_position_mm[i]) ? json(s.homed_position_mm[i]) : json(nullptr);
     if (s.endstop[i] >= 0)
       sw[axis + (s.endstop_at_max[i] ? "_max" : "_min")] = s.endstop[i] == 1 ? "TRIGGERED" : "open";
   }
-  return {{"homed_position_mm", pos}, {"homings", s.homings}, {"running", s.homing}, {"endstops", sw}};
+  return {
+      {"homed_position_mm", pos}, {"homings", s.homings}, {"running", s.homing}, {"endstops", sw}};
 }
 
 json Daemon::status() const {
@@ -762,7 +765,8 @@ json Daemon::status() const {
   const Client* o = nullptr;
   if (auto it = clients_.find(owner_); it != clients_.end()) o = &it->second;
   return {{"state", engine::to_string(s.state)},
-          {"position_mm", {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
+          {"position_mm",
+           {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
           {"homed_axes", std::string(s.homed_axes)},
           {"homing", homing_json(s)},
           {"temperatures_c",
@@ -797,7 +801,9 @@ json Daemon::status() const {
             {"device_loops", device_loops_json(s.device_loops, engine::joint_names(cfg_))}}},
           {"links", links_json(s.links)},
           {"clients", clients_.size()},
-          {"owner", owner_ == kJobOwner ? json(owner_name()) : o ? json(o->session->name()) : json(nullptr)},
+          {"owner", owner_ == kJobOwner ? json(owner_name())
+                    : o                 ? json(o->session->name())
+                                        : json(nullptr)},
           {"job", job_status_json()},
           {"progress_percent", progress_percent_},
           {"message", display_message_},
@@ -874,7 +880,8 @@ void Daemon::tick() {
         std::string where;
         for (int i = 0; i < 3; ++i)
           if (std::isfinite(ms.homed_position_mm[i]))
-            where += fmt::format("{}{} {:.4f} mm", where.empty() ? "" : ", ", "xyz"[i], ms.homed_position_mm[i]);
+            where += fmt::format("{}{} {:.4f} mm", where.empty() ? "" : ", ", "xyz"[i],
+                                 ms.homed_position_mm[i]);
         spdlog::info("homed through the endstops ({} G28 so far): {}", ms.homings, where);
       }
       if (now >= next_heater_log_ns_) {

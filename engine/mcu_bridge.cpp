@@ -236,8 +236,10 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
       hp.second_touch = h.retract_dist_mm > 0.0;
       hp.accel_mm_s2 = a->max_accel_mm_s2;
       hp.queue_ahead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
-      if (Status st = drivers::check_homing_params(hp); !st) return Error{"axes." + names[js] + ".homing: " + st.error().message};
-      homing_[js] = std::make_unique<drivers::HomingSequence>(hp, *mcus_[static_cast<size_t>(joint_mcu_[js])]->session);
+      if (Status st = drivers::check_homing_params(hp); !st)
+        return Error{"axes." + names[js] + ".homing: " + st.error().message};
+      homing_[js] = std::make_unique<drivers::HomingSequence>(
+          hp, *mcus_[static_cast<size_t>(joint_mcu_[js])]->session);
       endstop_max_[js] = hp.direction > 0;
     }
   }
@@ -253,7 +255,8 @@ bool McuBridge::begin_joint_homing(int j, double now_s) {
   const size_t js = static_cast<size_t>(j);
   drivers::McuSession& session = *mcus_[static_cast<size_t>(joint_mcu_[js])]->session;
   if (loop_link_.enabled(j)) {
-    loop_link_.disable(j, session, static_cast<int64_t>(std::llround(session.tick_map().ticks(now_s + 0.01))));
+    loop_link_.disable(j, session,
+                       static_cast<int64_t>(std::llround(session.tick_map().ticks(now_s + 0.01))));
     loops_configured_ = false;
   }
   if (ports_[js]) ports_[js]->homing = true;
@@ -273,7 +276,8 @@ bool McuBridge::start_pending_homings(double now_s) {
     if ((homing_mask_ & bit) == 0 || (homing_started_ & bit) != 0) continue;
     bool mcu_busy = false;
     for (int k = 0; k < kJoints; ++k)
-      if ((homing_started_ >> k & 1u) != 0 && joint_mcu_[static_cast<size_t>(k)] == joint_mcu_[static_cast<size_t>(j)] &&
+      if ((homing_started_ >> k & 1u) != 0 &&
+          joint_mcu_[static_cast<size_t>(k)] == joint_mcu_[static_cast<size_t>(j)] &&
           homing_[static_cast<size_t>(k)]->running())
         mcu_busy = true;
     if (mcu_busy) continue;
@@ -292,7 +296,8 @@ bool McuBridge::start_homing(unsigned joint_mask, double host_s, char* why, size
   if (joint_mask == 0) return refuse("no axis to home", "");
   for (int j = 0; j < kJoints; ++j)
     if ((joint_mask >> j & 1u) != 0 && !homing_[static_cast<size_t>(j)])
-      return refuse(": no endstop (axes.<name>.homing) on this axis", joint_names_[static_cast<size_t>(j)]);
+      return refuse(": no endstop (axes.<name>.homing) on this axis",
+                    joint_names_[static_cast<size_t>(j)]);
   const double now_s = host_s - epoch_s_;
   homing_mask_ = joint_mask;
   homing_started_ = 0;
@@ -318,7 +323,8 @@ void McuBridge::abort_homing(const char* why) {
 
 void McuBridge::end_homing(HomingState state) {
   for (int j = 0; j < kJoints; ++j)
-    if ((homing_mask_ >> j & 1u) != 0 && ports_[static_cast<size_t>(j)]) ports_[static_cast<size_t>(j)]->homing = false;
+    if ((homing_mask_ >> j & 1u) != 0 && ports_[static_cast<size_t>(j)])
+      ports_[static_cast<size_t>(j)]->homing = false;
   homing_state_ = state;
 }
 
@@ -337,9 +343,11 @@ void McuBridge::poll_homing(double now_s) {
     drivers::HomingSequence& h = *homing_[js];
     const drivers::HomingPhase ph = h.poll(now_s);
     if (ph == drivers::HomingPhase::kFailed) {
-      std::snprintf(homing_error_, sizeof homing_error_, "%s", h.error() ? h.error()->message.c_str() : "homing failed");
+      std::snprintf(homing_error_, sizeof homing_error_, "%s",
+                    h.error() ? h.error()->message.c_str() : "homing failed");
       for (int k = 0; k < kJoints; ++k)
-        if ((homing_started_ >> k & 1u) != 0 && k != j) homing_[static_cast<size_t>(k)]->abort("another axis failed");
+        if ((homing_started_ >> k & 1u) != 0 && k != j)
+          homing_[static_cast<size_t>(k)]->abort("another axis failed");
       log(homing_error_);  // rare: allocates
       end_homing(HomingState::kFailed);
       return;
@@ -364,8 +372,9 @@ void McuBridge::poll_homing(double now_s) {
     const drivers::HomingResult& r = homing_[js]->result();
     homed_mm_[js].store(r.position_mm, std::memory_order_relaxed);
     first_touch_mm_[js].store(r.first_trigger_mm, std::memory_order_relaxed);
-    homed_truth_mm_[js].store(plant_ && mcus_[static_cast<size_t>(joint_mcu_[js])]->vmcu ? plant_->carriage_mm(j) : NAN,
-                              std::memory_order_relaxed);
+    homed_truth_mm_[js].store(
+        plant_ && mcus_[static_cast<size_t>(joint_mcu_[js])]->vmcu ? plant_->carriage_mm(j) : NAN,
+        std::memory_order_relaxed);
     homing_count_[js].fetch_add(1, std::memory_order_relaxed);
     endstop_state_[js].store(1, std::memory_order_relaxed);  // it stopped on its switch
   }
@@ -382,8 +391,10 @@ void McuBridge::poll_endstops(double now_s) {
     for (size_t n; (n = m->session->take_endstop_states(st, 8)) > 0;)
       for (size_t i = 0; i < n; ++i)
         for (int j = 0; j < kJoints; ++j)
-          if (joint_mcu_[static_cast<size_t>(j)] == mi && joint_motor_[static_cast<size_t>(j)] == st[i].axis)
-            endstop_state_[static_cast<size_t>(j)].store(st[i].pin != 0 ? 1 : 0, std::memory_order_relaxed);
+          if (joint_mcu_[static_cast<size_t>(j)] == mi &&
+              joint_motor_[static_cast<size_t>(j)] == st[i].axis)
+            endstop_state_[static_cast<size_t>(j)].store(st[i].pin != 0 ? 1 : 0,
+                                                         std::memory_order_relaxed);
   }
   if (now_s < next_endstop_query_s_) return;
   next_endstop_query_s_ = now_s + 0.1;

@@ -33,13 +33,13 @@
 
 #include "config/machine_config.hpp"
 #include "core/result.hpp"
+#include "core/seqlock.hpp"
 #include "drivers/device/virtual_mcu.hpp"
 #include "drivers/host/homing.hpp"
 #include "drivers/host/mcu_session.hpp"
 #include "drivers/transport/mock_transport.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/device_loop_link.hpp"
-#include "core/seqlock.hpp"
 #include "engine/servo_backend.hpp"
 #include "engine/simulated_plant.hpp"
 
@@ -71,10 +71,10 @@ struct JointTiming {
 
 // One joint's last homing through its endstop (simulation adds the plant's ground truth).
 struct HomingReport {
-  double homed_mm = NAN;        // the host's homed motor position (HomingResult::position_mm)
+  double homed_mm = NAN;          // the host's homed motor position (HomingResult::position_mm)
   double true_carriage_mm = NAN;  // the simulated carriage's true position then (NaN: real MCU)
-  double first_touch_mm = NAN;  // the fast approach's trigger, in the final frame
-  uint64_t count = 0;           // homings of this joint so far
+  double first_touch_mm = NAN;    // the fast approach's trigger, in the final frame
+  uint64_t count = 0;             // homings of this joint so far
 };
 
 class McuBridge final : public stepgen::BatchSink, public ServoBackend {

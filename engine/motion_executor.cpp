@@ -71,8 +71,8 @@ bool MotionExecutor::faulted() const {
 
 bool MotionExecutor::motion_pending() const {
   const int h = homing_req_.load();
-  return planner_queued_.load() > 0 || pushed_.load() != popped_.load() || telemetry_.anchored.load() ||
-         h == kHomingRequested || h == kHomingRunning;
+  return planner_queued_.load() > 0 || pushed_.load() != popped_.load() ||
+         telemetry_.anchored.load() || h == kHomingRequested || h == kHomingRunning;
 }
 
 void MotionExecutor::pause_for_machine() {
@@ -134,7 +134,8 @@ Status MotionExecutor::home(const gcode::Command& cmd, const std::atomic<bool>& 
     }
     // The servo thread aborts a running homing on cancel; should it be gone already (the machine
     // stopping), do not wait for it forever.
-    if (seen_cancel && std::chrono::steady_clock::now() - cancelled_at > std::chrono::seconds(1) && !inline_driver_) {
+    if (seen_cancel && std::chrono::steady_clock::now() - cancelled_at > std::chrono::seconds(1) &&
+        !inline_driver_) {
       homing_req_.store(kNoHoming);
       interp_->set_unhomed(axes);
       return Error{"G28: cancelled during homing", cmd.where};
@@ -156,7 +157,8 @@ Status MotionExecutor::home(const gcode::Command& cmd, const std::atomic<bool>& 
     if (!nozzle.ok()) {
       homing_req_.store(kNoHoming);
       interp_->set_unhomed(axes);
-      return Error{"G28: the homed carriages have no nozzle position: " + nozzle.error().message, cmd.where};
+      return Error{"G28: the homed carriages have no nozzle position: " + nozzle.error().message,
+                   cmd.where};
     }
     for (int i = 0; i < 3; ++i) at[static_cast<size_t>(i)] = nozzle.value()[static_cast<size_t>(i)];
   } else {
@@ -176,7 +178,8 @@ Status MotionExecutor::home(const gcode::Command& cmd, const std::atomic<bool>& 
 void MotionExecutor::after_homing() {
   resync_ = true;
   for (int j = 0; j < kJoints; ++j)
-    if (const int64_t c = backend_->homing_last_step_clock(j); c != INT64_MIN) steps_.restart_stream(j, c);
+    if (const int64_t c = backend_->homing_last_step_clock(j); c != INT64_MIN)
+      steps_.restart_stream(j, c);
 }
 
 // Servo thread, while a homing is requested or runs (no motion is anchored: the planner waited).
@@ -201,7 +204,8 @@ void MotionExecutor::homing_cycle(double now_s, bool cancel) {
     case ServoBackend::HomingState::kRunning:
       return;
     case ServoBackend::HomingState::kDone:
-      for (int j = 0; j < kJoints; ++j) homed_joint_mm_[static_cast<size_t>(j)] = backend_->homed_position_mm(j);
+      for (int j = 0; j < kJoints; ++j)
+        homed_joint_mm_[static_cast<size_t>(j)] = backend_->homed_position_mm(j);
       after_homing();
       homing_req_.store(kHomingDone, std::memory_order_release);
       return;
@@ -240,7 +244,8 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
       s.endstop_at_max[j] = backend_->endstop_at_max(j);
     }
   }
-  for (size_t i = 0; i < 3; ++i) s.homed_position_mm[i] = homed_axis_mm_[i].load(std::memory_order_relaxed);
+  for (size_t i = 0; i < 3; ++i)
+    s.homed_position_mm[i] = homed_axis_mm_[i].load(std::memory_order_relaxed);
   s.homings = homings_.load(std::memory_order_relaxed);
   s.homing = homing_req_.load(std::memory_order_relaxed) != kNoHoming;
   if (control_fault_.load()) std::snprintf(s.last_error, sizeof s.last_error, "%s", control_fault_text_);
@@ -399,7 +404,8 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
       return;
     }
     if (!anchored && !backend_->ready()) return;  // motion waits for the MCUs and their clocks
-    if (const int h = homing_req_.load(std::memory_order_acquire); h == kHomingRequested || h == kHomingRunning) {
+    if (const int h = homing_req_.load(std::memory_order_acquire);
+        h == kHomingRequested || h == kHomingRunning) {
       homing_cycle(now_s, cancel);
       return;
     }

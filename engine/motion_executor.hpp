@@ -25,8 +25,8 @@
 // has been executed, the anchor is released and the next motion re-anchors.
 #pragma once
 
-#include <array>
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <functional>
@@ -128,11 +128,17 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   Status home(const gcode::Command& cmd, const std::atomic<bool>& cancel);
   void homing_cycle(double now_s, bool cancel);  // servo thread
   void after_homing();                           // servo thread
-  enum HomingRequest : int { kNoHoming = 0, kHomingRequested, kHomingRunning, kHomingDone, kHomingFailed };
+  enum HomingRequest : int {
+    kNoHoming = 0,
+    kHomingRequested,
+    kHomingRunning,
+    kHomingDone,
+    kHomingFailed
+  };
   std::atomic<int> homing_req_{kNoHoming};
   std::atomic<unsigned> homing_mask_{0};
-  std::array<double, kJoints> homed_joint_mm_{};  // servo thread writes before kHomingDone
-  char homing_error_[192] = {};                    // servo thread writes before kHomingFailed
+  std::array<double, kJoints> homed_joint_mm_{};        // servo thread writes before kHomingDone
+  char homing_error_[192] = {};                         // servo thread writes before kHomingFailed
   std::array<std::atomic<double>, 3> homed_axis_mm_{};  // status: each axis's last homed position
   std::atomic<uint64_t> homings_{0};
 

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "drivers/device/heater_board.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/thermal_config.hpp"
 #include "planner/kinematics.hpp"
@@ -16,7 +17,6 @@
 #include "sim/gantry_axis.hpp"
 #include "sim/gantry_params.hpp"
 #include "sim/thermal_plant.hpp"
-#include "drivers/device/heater_board.hpp"
 #include "thermal/sensor.hpp"
 
 namespace feedloop::engine {
@@ -73,9 +73,11 @@ class SimulatedPrinter final : public SimulatedPlant {
   device::MotorPort* motor(int joint) override {
     if (joint < 0 || joint >= kJoints) return nullptr;
     if (external_port_[static_cast<size_t>(joint)]) return external_port_[static_cast<size_t>(joint)];
-    if (delta_endstop_ports_[static_cast<size_t>(joint)]) return delta_endstop_ports_[static_cast<size_t>(joint)].get();
+    if (delta_endstop_ports_[static_cast<size_t>(joint)])
+      return delta_endstop_ports_[static_cast<size_t>(joint)].get();
     if (delta_) return joint < 3 ? &delta_->carriage_port(joint) : nullptr;
-    if (endstop_ports_[static_cast<size_t>(joint)]) return endstop_ports_[static_cast<size_t>(joint)].get();
+    if (endstop_ports_[static_cast<size_t>(joint)])
+      return endstop_ports_[static_cast<size_t>(joint)].get();
     return gantries_[static_cast<size_t>(joint)].get();
   }
   double encoder_mm_per_count(int joint) const override {
@@ -238,10 +240,13 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
       for (int j = 0; j < 3; ++j) {
         const config::HomingConfig& h = *cfg.axis(names[static_cast<size_t>(j)])->homing;
         const double d = cfg.simulator.endstops.start_distance_mm;
-        q[static_cast<size_t>(j)] = h.position_endstop_mm + (h.direction == config::EndstopSide::min ? d : -d);
+        q[static_cast<size_t>(j)] =
+            h.position_endstop_mm + (h.direction == config::EndstopSide::min ? d : -d);
       }
       auto n = kin->forward(q);
-      if (!n.ok()) return Error{"simulated delta: no nozzle position below the endstops: " + n.error().message};
+      if (!n.ok())
+        return Error{"simulated delta: no nozzle position below the endstops: " +
+                     n.error().message};
       dp.initial_nozzle_mm = Eigen::Vector3d(n.value()[0], n.value()[1], n.value()[2]);
     }
     dp.seed = cfg.simulator.seed;
@@ -264,7 +269,8 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
       auto sw = sim::EndstopSwitch::create(sp);
       if (!sw.ok()) return Error{"simulated endstop of " + names[js] + ": " + sw.error().message};
       out->switches_[js] = std::make_unique<sim::EndstopSwitch>(std::move(sw.value()));
-      out->delta_endstop_ports_[js] = std::make_unique<DeltaEndstopPort>(*out->delta_, j, *out->switches_[js]);
+      out->delta_endstop_ports_[js] =
+          std::make_unique<DeltaEndstopPort>(*out->delta_, j, *out->switches_[js]);
     }
   } else {
     for (int j = 0; j < 3; ++j) {
@@ -272,13 +278,15 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
       auto p = simulated_gantry_params(cfg, j);
       if (!p) return p.error();
       const config::AxisConfig* ac = cfg.axis(names[js]);
-      const bool has_switch = ac != nullptr && ac->homing && cfg.kinematics == config::Kinematics::cartesian;
+      const bool has_switch =
+          ac != nullptr && ac->homing && cfg.kinematics == config::Kinematics::cartesian;
       if (has_switch && !cfg.planner.allow_moves_before_homing) {
         // The machine must home: the carriage starts near its switch (a short G28), on the travel
         // side of it. With moves allowed before homing it starts at 0, where the planner does.
         const config::HomingConfig& h = *ac->homing;
         const double d = cfg.simulator.endstops.start_distance_mm;
-        p.value().initial_pos_mm = h.position_endstop_mm + (h.direction == config::EndstopSide::min ? d : -d);
+        p.value().initial_pos_mm =
+            h.position_endstop_mm + (h.direction == config::EndstopSide::min ? d : -d);
       }
       auto g = sim::GantryAxis::create(p.value());
       if (!g.ok()) return Error{"simulated axis " + names[js] + ": " + g.error().message};
@@ -294,7 +302,8 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
         auto sw = sim::EndstopSwitch::create(sp);
         if (!sw.ok()) return Error{"simulated endstop of " + names[js] + ": " + sw.error().message};
         out->switches_[js] = std::make_unique<sim::EndstopSwitch>(std::move(sw.value()));
-        out->endstop_ports_[js] = std::make_unique<sim::EndstopAxis>(*out->gantries_[js], *out->switches_[js]);
+        out->endstop_ports_[js] =
+            std::make_unique<sim::EndstopAxis>(*out->gantries_[js], *out->switches_[js]);
       }
     }
   }

@@ -26,10 +26,12 @@ Status check_homing_params(const HomingParams& p) {
   if (!positive(p.homing_speed_mm_s)) return bad("homing_speed must be > 0");
   if (!positive(p.second_homing_speed_mm_s)) return bad("second_homing_speed must be > 0");
   if (!positive(p.accel_mm_s2)) return bad("acceleration must be > 0");
-  if (p.second_touch && !positive(p.retract_dist_mm)) return bad("retract_dist must be > 0 for a second touch");
+  if (p.second_touch && !positive(p.retract_dist_mm))
+    return bad("retract_dist must be > 0 for a second touch");
   if (!positive(p.sample_period_s) || p.sample_period_s > 0.01)
     return bad("endstop sample period must be in (0, 10 ms]");
-  if (p.sample_count < 1 || p.sample_count > 255) return bad("endstop sample_count must be in 1..255");
+  if (p.sample_count < 1 || p.sample_count > 255)
+    return bad("endstop sample_count must be in 1..255");
   // The MCU needs the sample_count samples to confirm: the carriage overshoots the trigger by
   // speed * count * period before the steps stop; more than the retract would be a crash.
   const double overshoot_mm = p.homing_speed_mm_s * p.sample_period_s * p.sample_count;
@@ -70,7 +72,9 @@ double HomingSequence::mcu_s(double host_s) const {
 }
 
 void HomingSequence::abort(const char* why) {
-  if (phase_ == HomingPhase::kDone || phase_ == HomingPhase::kFailed || phase_ == HomingPhase::kIdle) return;
+  if (phase_ == HomingPhase::kDone || phase_ == HomingPhase::kFailed ||
+      phase_ == HomingPhase::kIdle)
+    return;
   fail(std::string("homing of ") + p_.axis_name + " aborted: " + why);
 }
 

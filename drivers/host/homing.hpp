@@ -59,7 +59,10 @@ class HomingSequence {
   // Advances the sequence; returns the phase after this call.
   HomingPhase poll(double now_s);
   HomingPhase phase() const { return phase_; }
-  bool running() const { return phase_ != HomingPhase::kIdle && phase_ != HomingPhase::kDone && phase_ != HomingPhase::kFailed; }
+  bool running() const {
+    return phase_ != HomingPhase::kIdle && phase_ != HomingPhase::kDone &&
+           phase_ != HomingPhase::kFailed;
+  }
   // Stops a running sequence (another axis failed, the MCU faulted): no more steps are streamed
   // and the endstop is disarmed; the phase becomes kFailed with `why` in the error.
   void abort(const char* why);

@@ -163,12 +163,14 @@ TEST_F(ShippedDefault, M119ReportsTheSwitchesAndTheStatusTheHomedPositions) {
   EXPECT_EQ(m119(), "Reporting endstop status\nx_min: open\ny_min: open\nz_min: open\nok\n");
   ASSERT_TRUE(c.send_line("G28"));
   ASSERT_EQ(c.read_until("ok", 20000), "ok");
-  EXPECT_EQ(m119(), "Reporting endstop status\nx_min: TRIGGERED\ny_min: TRIGGERED\nz_min: TRIGGERED\nok\n");
+  EXPECT_EQ(m119(),
+            "Reporting endstop status\nx_min: TRIGGERED\ny_min: TRIGGERED\nz_min: TRIGGERED\nok\n");
   for (const char* line : {"G1 X10 F3000", "M400", "G4 P300"}) {
     ASSERT_TRUE(c.send_line(line));
     ASSERT_EQ(c.read_until("ok", 20000), "ok") << line;
   }
-  EXPECT_EQ(m119(), "Reporting endstop status\nx_min: open\ny_min: TRIGGERED\nz_min: TRIGGERED\nok\n");
+  EXPECT_EQ(m119(),
+            "Reporting endstop status\nx_min: open\ny_min: TRIGGERED\nz_min: TRIGGERED\nok\n");
   LineClient api;
   ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
   nlohmann::json homing;
