@@ -54,6 +54,17 @@ void write_axes(Writer& w, const MachineConfig& c) {
     if (std::isfinite(a.max_mm)) w.num("max_mm", a.max_mm);
     w.num("max_velocity_mm_s", a.max_velocity_mm_s);
     w.num("max_accel_mm_s2", a.max_accel_mm_s2);
+    if (a.homing) {
+      const HomingConfig& h = *a.homing;
+      w.begin("homing");
+      w.word("direction", enum_name(endstop_side_names(), h.direction));
+      w.num("position_endstop_mm", h.position_endstop_mm);
+      w.num("homing_speed_mm_s", h.homing_speed_mm_s);
+      w.num("second_homing_speed_mm_s", h.second_homing_speed_mm_s);
+      w.num("retract_dist_mm", h.retract_dist_mm);
+      w.num("max_travel_mm", h.max_travel_mm);
+      w.end();
+    }
     w.end();
   }
   w.end();
@@ -298,6 +309,11 @@ void write_runtime(Writer& w, const MachineConfig& c) {
   w.integer("seed", static_cast<long long>(s.seed));
   w.num("encoder_noise_um", s.encoder_noise_um);
   w.num("sample_delay_us", s.sample_delay_us);
+  w.begin("endstops");
+  w.num("sigma_um", s.endstops.sigma_um);
+  w.num("hysteresis_um", s.endstops.hysteresis_um);
+  w.num("start_distance_mm", s.endstops.start_distance_mm);
+  w.end();
   w.begin("effects");
   const SimEffectsConfig& fx = s.effects;
   write_effect(w, "coulomb_friction", fx.coulomb_friction,

@@ -33,6 +33,10 @@ inline const EnumNames<Kinematics>& kinematics_names() {
                                           {"delta", Kinematics::delta}};
   return n;
 }
+inline const EnumNames<EndstopSide>& endstop_side_names() {
+  static const EnumNames<EndstopSide> n = {{"min", EndstopSide::min}, {"max", EndstopSide::max}};
+  return n;
+}
 inline const EnumNames<Drive>& drive_names() {
   static const EnumNames<Drive> n = {{"stepper", Drive::stepper}, {"dc_servo", Drive::dc_servo}};
   return n;

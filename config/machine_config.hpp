@@ -27,6 +27,21 @@ struct EncoderConfig {
   bool operator==(const EncoderConfig&) const = default;
 };
 
+// Homing through an endstop switch (axes.<name>.homing; docs/homing.md). Klipper's stepper keys
+// (position_endstop, homing_speed, second_homing_speed, homing_retract_dist, homing_positive_dir)
+// with their defaults; max_travel_mm is the fast approach's longest move (Klipper: 1.5 x the
+// travel range). Read once at the edge into drivers::HomingParams (engine/mcu_bridge.cpp).
+enum class EndstopSide { min, max };
+struct HomingConfig {
+  EndstopSide direction = EndstopSide::min;  // the switch's end of the travel
+  double position_endstop_mm = 0.0;          // where the switch triggers (default: min_mm / max_mm)
+  double homing_speed_mm_s = 5.0;            // Klipper's default
+  double second_homing_speed_mm_s = 2.5;     // Klipper's default: homing_speed / 2
+  double retract_dist_mm = 5.0;              // Klipper's homing_retract_dist; 0: no second touch
+  double max_travel_mm = 0.0;                // default 1.5 x (max_mm - min_mm)
+  bool operator==(const HomingConfig&) const = default;
+};
+
 // One motor axis: x, y, z, e (cartesian/corexy) or carriage A, B, C, e (delta). For corexy, x and
 // y describe the two motors and the travel limits are Cartesian.
 struct AxisConfig {
@@ -38,6 +53,7 @@ struct AxisConfig {
   double max_mm = kUnlimited;
   double max_velocity_mm_s = 300.0;
   double max_accel_mm_s2 = 3000.0;
+  std::optional<HomingConfig> homing;  // none: G28 is the planner's move to the home position
   bool operator==(const AxisConfig&) const = default;
 };
 
@@ -391,11 +407,21 @@ struct ExternalPlantConfig {
   bool operator==(const ExternalPlantConfig&) const = default;
 };
 
+// The simulated endstop switches (sim/endstop.hpp), one on every axis with a homing section.
+struct SimEndstopsConfig {
+  double sigma_um = 2.0;           // trip point repeatability (1 sigma)
+  double hysteresis_um = 50.0;     // released only this far back past the trip point
+  double start_distance_mm = 2.0;  // power-on: the carriage this far from its switch (when the
+                                   // machine must home: planner.allow_moves_before_homing false)
+  bool operator==(const SimEndstopsConfig&) const = default;
+};
+
 struct SimulatorConfig {
   std::uint64_t seed = 1;
   double encoder_noise_um = 0.0;   // rms, added before quantisation to the encoder resolution
   double sample_delay_us = 0.0;    // encoder sample to report latency
   SimEffectsConfig effects;
+  SimEndstopsConfig endstops;
   std::optional<ExternalPlantConfig> external_plant;
   bool operator==(const SimulatorConfig&) const = default;
 };

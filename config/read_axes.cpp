@@ -2,6 +2,8 @@
 #include "config/enum_names.hpp"
 #include "config/sections.hpp"
 
+#include <cmath>  // isfinite, round
+
 namespace feedloop::config::detail {
 
 const std::vector<std::string>& required_axes(Kinematics k) {
@@ -23,6 +25,68 @@ constexpr double kMaxStepsPerMm = 1e6;        // 256 microsteps x 400 steps/turn
 constexpr double kMaxStepRateHz = 4e6;        // a step every 0.25 us: beyond any MCU step timer
 constexpr double kMaxAxisVelocityMmS = 10000; // 10 m/s
 constexpr double kMaxAxisAccelMmS2 = 1e6;     // 100 g
+// The MCU confirms a trigger after 4 samples 50 us apart (drivers/host/homing.hpp): the carriage
+// overshoots the trip point by homing_speed x 200 us before its steps stop.
+constexpr double kEndstopConfirmS = 4 * 50e-6;
+
+// axes.<name>.homing (Klipper's stepper homing keys, docs/homing.md). Defaults like Klipper's:
+// position_endstop at the switch's end of the travel, homing_speed 5 mm/s, second_homing_speed
+// half of it, retract 5 mm, the approach up to 1.5 x the travel range. Every check is reported at
+// the offending key (file:line:col).
+void read_homing(MapReader& a, AxisConfig& axis, Diagnostics& diag) {
+  MapReader h = a.sub("homing");
+  HomingConfig c;
+  const bool has_dir = h.choice("direction", c.direction, endstop_side_names());
+  const bool has_pos = h.number("position_endstop_mm", c.position_endstop_mm, Range::any());
+  // Klipper infers homing_positive_dir from a position_endstop at position_max.
+  if (!has_dir && has_pos && c.position_endstop_mm == axis.max_mm) c.direction = EndstopSide::max;
+  if (!has_pos) c.position_endstop_mm = c.direction == EndstopSide::min ? axis.min_mm : axis.max_mm;
+  const bool has_speed = h.number("homing_speed_mm_s", c.homing_speed_mm_s, Range::positive());
+  if (!h.number("second_homing_speed_mm_s", c.second_homing_speed_mm_s, Range::positive()))
+    c.second_homing_speed_mm_s = c.homing_speed_mm_s / 2.0;
+  h.number("retract_dist_mm", c.retract_dist_mm, Range::non_negative());
+  const double range_mm = axis.max_mm - axis.min_mm;
+  const bool has_travel = h.number("max_travel_mm", c.max_travel_mm, Range::positive());
+  if (!has_travel) c.max_travel_mm = std::isfinite(range_mm) ? 1.5 * range_mm : 0.0;
+  if (!std::isfinite(axis.min_mm) || !std::isfinite(axis.max_mm)) {
+    diag.add(h.mark(), h.path() + ": homing needs the axis's travel (min_mm and max_mm)");
+  } else {
+    if (!(c.position_endstop_mm >= axis.min_mm && c.position_endstop_mm <= axis.max_mm))
+      diag.add(h.key_mark("position_endstop_mm"),
+               h.path() + ".position_endstop_mm " + format_number(c.position_endstop_mm) +
+                   " mm must lie within the travel " + format_number(axis.min_mm) + " .. " +
+                   format_number(axis.max_mm) +
+                   " mm (Klipper: position_endstop in position_min .. position_max)");
+    if (has_travel && c.max_travel_mm > 10.0 * range_mm)
+      diag.add(h.key_mark("max_travel_mm"),
+               h.path() + ".max_travel_mm " + format_number(c.max_travel_mm) +
+                   " mm is not plausible (at most 10 x the travel range, " +
+                   format_number(10.0 * range_mm) + " mm)");
+  }
+  if (has_speed && c.homing_speed_mm_s > axis.max_velocity_mm_s)
+    diag.add(h.key_mark("homing_speed_mm_s"), h.path() + ".homing_speed_mm_s " +
+                                                  format_number(c.homing_speed_mm_s) +
+                                                  " mm/s is above the axis's max_velocity_mm_s " +
+                                                  format_number(axis.max_velocity_mm_s));
+  if (c.second_homing_speed_mm_s > c.homing_speed_mm_s)
+    diag.add(h.key_mark("second_homing_speed_mm_s"),
+             h.path() + ".second_homing_speed_mm_s " + format_number(c.second_homing_speed_mm_s) +
+                 " mm/s is above homing_speed_mm_s " + format_number(c.homing_speed_mm_s) +
+                 " (the second touch is the slow one)");
+  if (c.retract_dist_mm > 0.0 && c.homing_speed_mm_s * kEndstopConfirmS >= c.retract_dist_mm)
+    diag.add(h.key_mark(has_speed ? "homing_speed_mm_s" : "retract_dist_mm"),
+             h.path() + ": homing_speed_mm_s " + format_number(c.homing_speed_mm_s) +
+                 " mm/s overshoots the trip point by " +
+                 format_number(std::round(c.homing_speed_mm_s * kEndstopConfirmS * 1e6) / 1e6) +
+                 " mm before the MCU confirms it, more than retract_dist_mm " +
+                 format_number(c.retract_dist_mm));
+  if (std::isfinite(range_mm) && c.retract_dist_mm >= range_mm)
+    diag.add(h.key_mark("retract_dist_mm"),
+             h.path() + ".retract_dist_mm " + format_number(c.retract_dist_mm) +
+                 " mm is not less than the travel range " + format_number(range_mm) + " mm");
+  h.finish();
+  axis.homing = c;
+}
 
 // An upper plausibility bound, reported at the value.
 void at_most(MapReader& a, Diagnostics& diag, bool present, const char* key, double value, double max,
@@ -98,6 +162,20 @@ void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& d
                    format_number(axis.steps_per_mm * axis.max_velocity_mm_s) +
                    " steps/s, more than the step pipeline and the MCUs follow (" + format_number(kMaxStepRateHz) +
                    " steps/s); lower one of them");
+    if (a.has("homing")) {
+      if (is_e)
+        diag.add(a.key_mark("homing"),
+                 a.path() + ": the extruder has no endstop (homing is for the motion axes)");
+      else if (kinematics_known && cfg.kinematics == Kinematics::corexy)
+        diag.add(a.key_mark("homing"),
+                 a.path() +
+                     ".homing: homing through endstops is implemented for kinematics "
+                     "cartesian and delta, not corexy (docs/homing.md)");
+      else
+        read_homing(a, axis, diag);
+    } else {
+      a.sub("homing");  // known key, for suggestions
+    }
     a.finish();
     cfg.axes.push_back(axis);
   }

@@ -95,6 +95,13 @@ void read_simulator(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   s.integer_as("seed", sim.seed, 0, 9007199254740991);
   s.number("encoder_noise_um", sim.encoder_noise_um, Range::non_negative());
   s.number("sample_delay_us", sim.sample_delay_us, Range::closed(0.0, 1e6));
+  {  // the simulated endstop switches (sim/endstop.hpp), on every axis with a homing section
+    MapReader es = s.sub("endstops");
+    es.number("sigma_um", sim.endstops.sigma_um, Range::closed(0.0, 1000.0));
+    es.number("hysteresis_um", sim.endstops.hysteresis_um, Range::closed(0.0, 10000.0));
+    es.number("start_distance_mm", sim.endstops.start_distance_mm, Range::closed(0.0, 10000.0));
+    es.finish();
+  }
   MapReader e = s.sub("effects");
   SimEffectsConfig& fx = sim.effects;
   read_effect(e, "coulomb_friction", cfg, fx.coulomb_friction, diag,

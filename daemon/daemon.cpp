@@ -468,8 +468,8 @@ bool Daemon::is_query(const gcode::Command& cmd) {
   // commands before it have executed).
   const bool pa_report = cmd.code == 900 && !cmd.has('K') && !cmd.has('S');
   return cmd.letter == 'M' &&
-         (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 || cmd.code == 117 ||
-          cmd.code == 73 || cmd.code == 155 || pa_report || is_sd_command(cmd));
+         (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 || cmd.code == 119 ||
+          cmd.code == 117 || cmd.code == 73 || cmd.code == 155 || pa_report || is_sd_command(cmd));
 }
 
 bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply, uint64_t client_id) {
@@ -519,6 +519,19 @@ bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply, uint64_
         std::snprintf(buf, sizeof buf, "echo:Advance K=%.3f\nok", s.pressure_advance_s);
       reply = buf;
       return true;
+    case 119: {
+      // Marlin's M119 (gcode/host/M119.cpp, endstops.cpp report_states): "Reporting endstop
+      // status", one "x_min: open" / "x_min: TRIGGERED" line per switch, then ok. The states are
+      // the MCUs' answers to the ENDSTOP_QUERY the bridge sends every 100 ms (at most that old).
+      reply = "Reporting endstop status";
+      for (int i = 0; i < 3; ++i) {
+        if (s.endstop[i] < 0) continue;
+        reply += fmt::format("\n{}_{}: {}", "xyz"[i], s.endstop_at_max[i] ? "max" : "min",
+                             s.endstop[i] == 1 ? "TRIGGERED" : "open");
+      }
+      reply += "\nok";
+      return true;
+    }
     case 117:
       display_message_ = cmd.text;
       snapshot_.stale = true;
@@ -746,6 +759,21 @@ json device_loops_json(const engine::DeviceLoopTelemetrySet& set,
 }
 }  // namespace
 
+// Homing through the endstops (docs/homing.md): each axis's homed position from its switch (null:
+// not homed that way), the G28s done so, whether one runs, and the switches as last queried (M119).
+static json homing_json(const engine::MachineStatus& s) {
+  json pos = json::object(), sw = json::object();
+  for (int i = 0; i < 3; ++i) {
+    const std::string axis(1, "xyz"[i]);
+    pos[axis] =
+        std::isfinite(s.homed_position_mm[i]) ? json(s.homed_position_mm[i]) : json(nullptr);
+    if (s.endstop[i] >= 0)
+      sw[axis + (s.endstop_at_max[i] ? "_max" : "_min")] = s.endstop[i] == 1 ? "TRIGGERED" : "open";
+  }
+  return {
+      {"homed_position_mm", pos}, {"homings", s.homings}, {"running", s.homing}, {"endstops", sw}};
+}
+
 json Daemon::status() const {
   const engine::MachineStatus s = machine_->status();
   const engine::ServoStatus v = machine_->servo_status();
@@ -755,6 +783,7 @@ json Daemon::status() const {
           {"position_mm",
            {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
           {"homed_axes", std::string(s.homed_axes)},
+          {"homing", homing_json(s)},
           {"temperatures_c",
            {{"hotend", s.hotend_c},
             {"hotend_target", s.hotend_target_c},
@@ -863,6 +892,15 @@ void Daemon::tick() {
           continue;
         c.session->send_line(" " + format_temp_reply(ms).substr(3));
         c.next_autoreport_ns = now + c.autoreport_period_ns;
+      }
+      if (ms.homings != homings_logged_) {  // G28 through the endstops: where each axis homed
+        homings_logged_ = ms.homings;
+        std::string where;
+        for (int i = 0; i < 3; ++i)
+          if (std::isfinite(ms.homed_position_mm[i]))
+            where += fmt::format("{}{} {:.4f} mm", where.empty() ? "" : ", ", "xyz"[i],
+                                 ms.homed_position_mm[i]);
+        spdlog::info("homed through the endstops ({} G28 so far): {}", ms.homings, where);
       }
       if (now >= next_heater_log_ns_) {
         bool heating = false;

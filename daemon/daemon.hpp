@@ -253,6 +253,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   uint64_t owner_ = 0;  // client id owning the print, 0: none
   int64_t owner_last_activity_ns_ = 0;
   int64_t next_heater_log_ns_ = 0;  // the log's temperature line while heaters are on
+  uint64_t homings_logged_ = 0;     // the G28s through the endstops already in the log
   bool reload_requested_ = false;
   uint64_t reloads_ = 0;
   bool shutting_down_ = false;

@@ -115,6 +115,21 @@ void DeviceLoopLink::configure(int joint, drivers::McuSession& session, int64_t 
   j.telemetry.enabled = true;
 }
 
+void DeviceLoopLink::disable(int joint, drivers::McuSession& session, int64_t activation_clock) {
+  Joint& j = j_[static_cast<size_t>(joint)];
+  if (!j.params.enabled) return;
+  protocol::ConfigureLoopMsg m;
+  m.axis = j.motor;
+  m.activation_clock = activation_clock;
+  m.params = j.params;
+  m.params.enabled = false;
+  uint8_t buf[protocol::kMaxPayload];
+  const size_t n = protocol::encode_configure_loop(m, buf, sizeof buf);
+  if (n > 0) session.queue_message(buf, n);
+  j.pending_count = 0;
+  j.last_clock = INT64_MIN;
+}
+
 void DeviceLoopLink::push_target(int joint, drivers::McuSession& session, int64_t clock,
                                  double r_mm) {
   Joint& j = j_[static_cast<size_t>(joint)];

@@ -48,6 +48,9 @@ class DeviceLoopLink {
   // After every (re)identification: CONFIGURE_LOOP for each loop joint on its session, active from
   // activation_clock (an MCU clock of that session). Forgets the targets of a previous run.
   void configure(int joint, drivers::McuSession& session, int64_t activation_clock);
+  // CONFIGURE_LOOP with the loop disabled from activation_clock on (the device executes the host's
+  // steps only, and drops its queued targets): before a homing moves the axis with its own steps.
+  void disable(int joint, drivers::McuSession& session, int64_t activation_clock);
 
   // One sample of r (mm, the MCU's frame) at `clock` (that MCU's ticks, increasing). Knots go out
   // in messages of kKnotsPerMessage; flush() sends what is pending.

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <atomic>
+#include <cmath>  // NAN
 #include <condition_variable>
 #include <cstdint>
 #include <cstring>  // memcpy
@@ -39,6 +40,14 @@ struct MachineStatus {
   MachineState state = MachineState::kIdle;
   double pos_mm[4] = {0, 0, 0, 0};  // X Y Z E of the last executed command (planned position)
   char homed_axes[4] = {};           // "" .. "xyz": homed since the last G28 (M18/M84 clear it)
+  // Homing through the endstops (docs/homing.md): each axis's position from its last homing (NaN:
+  // never homed through a switch), the G28s done that way, whether one runs now, and each X Y Z
+  // joint's switch as last queried (M119: -1 none or unknown, 0 open, 1 triggered; min or max end).
+  double homed_position_mm[3] = {NAN, NAN, NAN};
+  uint64_t homings = 0;
+  bool homing = false;
+  int8_t endstop[3] = {-1, -1, -1};
+  bool endstop_at_max[3] = {false, false, false};
   double hotend_c = 0, hotend_target_c = 0, bed_c = 0,
          bed_target_c = 0;  // the first T and B heater
   // Heaters and fans (engine/thermal_loop.hpp); temp_report: Marlin's "T:210.0 /210.0 B:.. @:..

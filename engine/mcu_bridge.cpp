@@ -6,6 +6,7 @@
 #include <cstdio>     // snprintf
 
 #include "core/clock.hpp"  // ns_from_seconds
+#include "drivers/protocol/endstop_messages.hpp"
 #include "drivers/stepgen/run_codec.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/usb_transport.hpp"
@@ -42,12 +43,18 @@ struct McuBridge::JointPort final : device::MotorPort {
   JointTiming timing;
   int64_t swallow = 0;  // steps still to be lost (inject_lost_steps)
   int64_t encoder_offset_counts = 0;  // added to every encoder reading (inject_encoder_offset)
+  bool homing = false;  // a homing sequence streams this joint's steps (not matched with batches)
   void push(double t_s) {
     if (count == intended_s.size()) return;  // more in flight than tracked: timing not checked
     intended_s[(head + count) % intended_s.size()] = t_s;
     ++count;
   }
   void step(double t_s, int direction) override {
+    if (homing) {
+      ++timing.homing_steps;
+      plant->step(t_s, direction);
+      return;
+    }
     ++timing.steps_executed;
     if (count > 0) {
       timing.max_time_err_us = std::max(timing.max_time_err_us, std::fabs(t_s - intended_s[head]) * 1e6);
@@ -71,11 +78,16 @@ struct McuBridge::JointPort final : device::MotorPort {
   int64_t read_encoder_counts(double t_s) override {
     return plant->read_encoder_counts(t_s) + encoder_offset_counts;
   }
+  bool read_endstop(double t_s) override { return plant->read_endstop(t_s); }
 };
 
 McuBridge::McuBridge(const config::MachineConfig&, const McuBridgeOptions& options) : options_(options) {
   for (auto& e : encoder_mm_) e.store(NAN);
   for (auto& e : encoder_time_s_) e.store(NAN);
+  for (auto& e : homed_mm_) e.store(NAN);
+  for (auto& e : homed_truth_mm_) e.store(NAN);
+  for (auto& e : first_touch_mm_) e.store(NAN);
+  for (auto& e : endstop_state_) e.store(-1);
 }
 
 McuBridge::~McuBridge() = default;
@@ -202,7 +214,236 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
     loop_link_.set_joint(j, static_cast<uint8_t>(joint_motor_[js]), lp);
   }
   publish_loop_telemetry();  // which joints have a device loop, before any report
+  // Homing sequences for the joints with an endstop (axes.<name>.homing), built now so that a G28
+  // allocates nothing on the servo thread. Cartesian axes and delta carriages (each on its own
+  // switch); a corexy carriage's switch is not on one motor's own axis (docs/homing.md "Not done").
+  if (cfg.kinematics != config::Kinematics::corexy) {
+    for (int j = 0; j < 3; ++j) {
+      const size_t js = static_cast<size_t>(j);
+      const config::AxisConfig* a = cfg.axis(names[js]);
+      if (a == nullptr || !a->homing || joint_mcu_[js] < 0 || !(spm[js] > 0.0)) continue;
+      const config::HomingConfig& h = *a->homing;
+      drivers::HomingParams hp;
+      hp.axis_name = names[js];
+      hp.motor = static_cast<uint8_t>(joint_motor_[js]);
+      hp.mm_per_step = 1.0 / spm[js];
+      hp.position_endstop_mm = h.position_endstop_mm;
+      hp.direction = h.direction == config::EndstopSide::min ? -1 : 1;
+      hp.max_travel_mm = h.max_travel_mm;
+      hp.homing_speed_mm_s = h.homing_speed_mm_s;
+      hp.second_homing_speed_mm_s = h.second_homing_speed_mm_s;
+      hp.retract_dist_mm = h.retract_dist_mm;
+      hp.second_touch = h.retract_dist_mm > 0.0;
+      hp.accel_mm_s2 = a->max_accel_mm_s2;
+      hp.queue_ahead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
+      if (Status st = drivers::check_homing_params(hp); !st)
+        return Error{"axes." + names[js] + ".homing: " + st.error().message};
+      homing_[js] = std::make_unique<drivers::HomingSequence>(
+          hp, *mcus_[static_cast<size_t>(joint_mcu_[js])]->session);
+      endstop_max_[js] = hp.direction > 0;
+    }
+  }
   return Status::Ok();
+}
+
+// ---- homing -------------------------------------------------------------------------------------
+
+// One joint's sequence started: its device loop off (it would hold the carriage against the
+// homing's steps; the next motion configures it again, with targets in the re-based frame), its
+// steps not matched with the pipeline's batches.
+bool McuBridge::begin_joint_homing(int j, double now_s) {
+  const size_t js = static_cast<size_t>(j);
+  drivers::McuSession& session = *mcus_[static_cast<size_t>(joint_mcu_[js])]->session;
+  if (loop_link_.enabled(j)) {
+    loop_link_.disable(j, session,
+                       static_cast<int64_t>(std::llround(session.tick_map().ticks(now_s + 0.01))));
+    loops_configured_ = false;
+  }
+  if (ports_[js]) ports_[js]->homing = true;
+  homing_started_ |= 1u << j;
+  if (Status st = homing_[js]->start(0, now_s); !st) {
+    std::snprintf(homing_error_, sizeof homing_error_, "%s", st.error().message.c_str());  // rare
+    return false;
+  }
+  return true;
+}
+
+// Joints on different MCUs home together; joints sharing an MCU one after the other (the MCU's
+// ENDSTOP_TRIGGER / ENDSTOP_STATE answers are per MCU, drivers/host/homing.hpp).
+bool McuBridge::start_pending_homings(double now_s) {
+  for (int j = 0; j < kJoints; ++j) {
+    const unsigned bit = 1u << j;
+    if ((homing_mask_ & bit) == 0 || (homing_started_ & bit) != 0) continue;
+    bool mcu_busy = false;
+    for (int k = 0; k < kJoints; ++k)
+      if ((homing_started_ >> k & 1u) != 0 &&
+          joint_mcu_[static_cast<size_t>(k)] == joint_mcu_[static_cast<size_t>(j)] &&
+          homing_[static_cast<size_t>(k)]->running())
+        mcu_busy = true;
+    if (mcu_busy) continue;
+    if (!begin_joint_homing(j, now_s)) return false;
+  }
+  return true;
+}
+
+bool McuBridge::start_homing(unsigned joint_mask, double host_s, char* why, size_t cap) {
+  auto refuse = [&](const char* text, const std::string& axis) {
+    std::snprintf(why, cap, "%s%s", axis.c_str(), text);
+    return false;
+  };
+  if (homing_state_ == HomingState::kRunning) return refuse("a homing is already running", "");
+  if (phase_ != Phase::kRunning) return refuse("the MCUs are not ready", "");
+  if (joint_mask == 0) return refuse("no axis to home", "");
+  for (int j = 0; j < kJoints; ++j)
+    if ((joint_mask >> j & 1u) != 0 && !homing_[static_cast<size_t>(j)])
+      return refuse(": no endstop (axes.<name>.homing) on this axis",
+                    joint_names_[static_cast<size_t>(j)]);
+  const double now_s = host_s - epoch_s_;
+  homing_mask_ = joint_mask;
+  homing_started_ = 0;
+  homing_state_ = HomingState::kRunning;
+  homing_settle_until_s_ = -1.0;
+  homing_error_[0] = '\0';
+  if (!start_pending_homings(now_s)) {
+    std::snprintf(why, cap, "%s", homing_error_);
+    abort_homing("an axis could not start");
+    std::snprintf(homing_error_, sizeof homing_error_, "%s", why);
+    return false;
+  }
+  return true;
+}
+
+void McuBridge::abort_homing(const char* why) {
+  if (homing_state_ != HomingState::kRunning) return;
+  for (int j = 0; j < kJoints; ++j)
+    if ((homing_started_ >> j & 1u) != 0) homing_[static_cast<size_t>(j)]->abort(why);
+  std::snprintf(homing_error_, sizeof homing_error_, "homing aborted: %s", why);
+  end_homing(HomingState::kFailed);
+}
+
+void McuBridge::end_homing(HomingState state) {
+  for (int j = 0; j < kJoints; ++j)
+    if ((homing_mask_ >> j & 1u) != 0 && ports_[static_cast<size_t>(j)])
+      ports_[static_cast<size_t>(j)]->homing = false;
+  homing_state_ = state;
+}
+
+// Every homing joint's sequence advanced (after the sessions' poll); once all are done the
+// carriages get a moment to settle (the report's ground truth is taken at rest), then kDone. One
+// failure stops them all.
+void McuBridge::poll_homing(double now_s) {
+  bool all_done = true;
+  for (int j = 0; j < kJoints; ++j) {
+    const size_t js = static_cast<size_t>(j);
+    if ((homing_mask_ >> j & 1u) == 0) continue;
+    if ((homing_started_ >> j & 1u) == 0) {
+      all_done = false;
+      continue;
+    }
+    drivers::HomingSequence& h = *homing_[js];
+    const drivers::HomingPhase ph = h.poll(now_s);
+    if (ph == drivers::HomingPhase::kFailed) {
+      std::snprintf(homing_error_, sizeof homing_error_, "%s",
+                    h.error() ? h.error()->message.c_str() : "homing failed");
+      for (int k = 0; k < kJoints; ++k)
+        if ((homing_started_ >> k & 1u) != 0 && k != j)
+          homing_[static_cast<size_t>(k)]->abort("another axis failed");
+      log(homing_error_);  // rare: allocates
+      end_homing(HomingState::kFailed);
+      return;
+    }
+    if (ph != drivers::HomingPhase::kDone) all_done = false;
+  }
+  if (homing_started_ != homing_mask_) {
+    if (!start_pending_homings(now_s)) {
+      const std::string why = homing_error_;  // rare: allocates
+      abort_homing("an axis could not start");
+      std::snprintf(homing_error_, sizeof homing_error_, "%s", why.c_str());
+    }
+    return;
+  }
+  if (!all_done) return;
+  constexpr double kSettle_s = 0.15;  // the carriage rings out after the last stop
+  if (homing_settle_until_s_ < 0.0) homing_settle_until_s_ = now_s + kSettle_s;
+  if (now_s < homing_settle_until_s_) return;
+  for (int j = 0; j < kJoints; ++j) {
+    const size_t js = static_cast<size_t>(j);
+    if ((homing_mask_ >> j & 1u) == 0) continue;
+    const drivers::HomingResult& r = homing_[js]->result();
+    homed_mm_[js].store(r.position_mm, std::memory_order_relaxed);
+    first_touch_mm_[js].store(r.first_trigger_mm, std::memory_order_relaxed);
+    homed_truth_mm_[js].store(
+        plant_ && mcus_[static_cast<size_t>(joint_mcu_[js])]->vmcu ? plant_->carriage_mm(j) : NAN,
+        std::memory_order_relaxed);
+    homing_count_[js].fetch_add(1, std::memory_order_relaxed);
+    endstop_state_[js].store(1, std::memory_order_relaxed);  // it stopped on its switch
+  }
+  end_homing(HomingState::kDone);
+}
+
+// The switches' states for M119: ENDSTOP_QUERY to every joint with an endstop every 100 ms while
+// no homing runs (a homing takes the answers itself), the ENDSTOP_STATE answers read back.
+void McuBridge::poll_endstops(double now_s) {
+  if (homing_state_ == HomingState::kRunning) return;
+  for (auto& m : mcus_) {
+    protocol::EndstopStateMsg st[8];
+    const int mi = static_cast<int>(&m - &mcus_[0]);
+    for (size_t n; (n = m->session->take_endstop_states(st, 8)) > 0;)
+      for (size_t i = 0; i < n; ++i)
+        for (int j = 0; j < kJoints; ++j)
+          if (joint_mcu_[static_cast<size_t>(j)] == mi &&
+              joint_motor_[static_cast<size_t>(j)] == st[i].axis)
+            endstop_state_[static_cast<size_t>(j)].store(st[i].pin != 0 ? 1 : 0,
+                                                         std::memory_order_relaxed);
+  }
+  if (now_s < next_endstop_query_s_) return;
+  next_endstop_query_s_ = now_s + 0.1;
+  for (int j = 0; j < kJoints; ++j) {
+    const size_t js = static_cast<size_t>(j);
+    if (!homing_[js]) continue;
+    drivers::McuSession& s = *mcus_[static_cast<size_t>(joint_mcu_[js])]->session;
+    if (!s.ready() || s.negotiated_version() < 3) continue;
+    protocol::EndstopQueryMsg q;
+    q.axis = static_cast<uint8_t>(joint_motor_[js]);
+    uint8_t buf[8];
+    const size_t n = protocol::encode_endstop_query(q, buf, sizeof buf);
+    if (n > 0) s.queue_message(buf, n);
+  }
+}
+
+double McuBridge::homed_position_mm(int joint) const {
+  if (joint < 0 || joint >= kJoints) return NAN;
+  return homed_mm_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
+}
+
+int64_t McuBridge::homing_last_step_clock(int joint) const {
+  // Only the joints of the last homing (an earlier one's clock is long past the joint's stream).
+  if (!can_home(joint) || (homing_started_ >> joint & 1u) == 0) return INT64_MIN;
+  return homing_[static_cast<size_t>(joint)]->last_queued_clock();
+}
+
+void McuBridge::homing_error(char* out, size_t cap) const {
+  if (cap > 0) std::snprintf(out, cap, "%s", homing_error_);
+}
+
+int McuBridge::endstop_state(int joint) const {
+  if (joint < 0 || joint >= kJoints || !homing_[static_cast<size_t>(joint)]) return -1;
+  return endstop_state_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
+}
+
+bool McuBridge::endstop_at_max(int joint) const {
+  return joint >= 0 && joint < kJoints && endstop_max_[static_cast<size_t>(joint)];
+}
+
+HomingReport McuBridge::homing_report(int joint) const {
+  HomingReport r;
+  if (joint < 0 || joint >= kJoints) return r;
+  const size_t js = static_cast<size_t>(joint);
+  r.homed_mm = homed_mm_[js].load();
+  r.true_carriage_mm = homed_truth_mm_[js].load();
+  r.first_touch_mm = first_touch_mm_[js].load();
+  r.count = homing_count_[js].load();
+  return r;
 }
 
 // Host time -> the simulation's time line, which starts at the first start(): the virtual MCUs
@@ -265,6 +506,7 @@ void McuBridge::latch_fault(const std::string& message) {
       m->estop_sent = true;
     }
   next_restart_s_ = last_service_s_ + options_.restart_period_s;
+  abort_homing(message.c_str());
 }
 
 void McuBridge::fault_message(char* out, size_t cap) const {
@@ -543,7 +785,12 @@ void McuBridge::service(double host_s) {
       return;
     }
     case Phase::kRunning:
-      if (std::string why = describe_down(); !why.empty()) latch_fault(why + "; motion stopped");
+      if (std::string why = describe_down(); !why.empty()) {
+        latch_fault(why + "; motion stopped");
+        return;
+      }
+      if (homing_state_ == HomingState::kRunning) poll_homing(now_s);
+      poll_endstops(now_s);
       return;
     case Phase::kFaulted: {
       // Recover once every link is back and every MCU has stopped (queues flushed).

@@ -33,12 +33,13 @@
 
 #include "config/machine_config.hpp"
 #include "core/result.hpp"
+#include "core/seqlock.hpp"
 #include "drivers/device/virtual_mcu.hpp"
+#include "drivers/host/homing.hpp"
 #include "drivers/host/mcu_session.hpp"
 #include "drivers/transport/mock_transport.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/device_loop_link.hpp"
-#include "core/seqlock.hpp"
 #include "engine/servo_backend.hpp"
 #include "engine/simulated_plant.hpp"
 
@@ -65,6 +66,15 @@ struct JointTiming {
   uint64_t unexpected_steps = 0;   // executed steps that were never sent (must stay 0)
   uint64_t device_steps = 0;       // steps the device loop added (corrections, stop ramps)
   double max_time_err_us = 0.0;    // max |true step time - intended host time|
+  uint64_t homing_steps = 0;       // steps of a homing sequence (streamed by it, not the pipeline)
+};
+
+// One joint's last homing through its endstop (simulation adds the plant's ground truth).
+struct HomingReport {
+  double homed_mm = NAN;          // the host's homed motor position (HomingResult::position_mm)
+  double true_carriage_mm = NAN;  // the simulated carriage's true position then (NaN: real MCU)
+  double first_touch_mm = NAN;    // the fast approach's trigger, in the final frame
+  uint64_t count = 0;             // homings of this joint so far
 };
 
 class McuBridge final : public stepgen::BatchSink, public ServoBackend {
@@ -103,6 +113,22 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   const DeviceLoopTelemetry& device_loop_telemetry(int joint) const { return loop_link_.telemetry(joint); }
   // Reports that arrived while the buffer for take_device_reports() was full (not taken in time).
   uint64_t device_reports_dropped() const { return loop_link_.reports_overflow(); }
+
+  // Homing through the endstops (ServoBackend; docs/homing.md).
+  bool can_home(int joint) const override {
+    return joint >= 0 && joint < kJoints && homing_[static_cast<size_t>(joint)] != nullptr;
+  }
+  bool start_homing(unsigned joint_mask, double now_s, char* why, size_t cap) override;
+  void abort_homing(const char* why) override;
+  HomingState homing_state() const override { return homing_state_; }
+  double homed_position_mm(int joint) const override;
+  int64_t homing_last_step_clock(int joint) const override;
+  void homing_error(char* out, size_t cap) const override;
+  int endstop_state(int joint) const override;
+  bool endstop_at_max(int joint) const override;
+  // The last homing of `joint` (servo thread's data: read when it is not running, or after the
+  // G28 returned).
+  HomingReport homing_report(int joint) const;
 
   // stepgen::BatchSink (servo thread): StepBatch::axis is the joint index.
   void on_batch(const stepgen::StepBatch& batch) override;
@@ -187,6 +213,24 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   size_t device_report_count_ = 0;
   void publish_loop_telemetry();
   Seqlock<DeviceLoopTelemetrySet> loop_telemetry_;  // published when reports arrive
+
+  // Homing (servo thread; the sequences are built with the bridge: nothing allocates to start one).
+  void poll_homing(double now_s);
+  void poll_endstops(double now_s);
+  void end_homing(HomingState state);
+  bool begin_joint_homing(int joint, double now_s);
+  bool start_pending_homings(double now_s);
+  unsigned homing_started_ = 0;
+  std::array<std::unique_ptr<drivers::HomingSequence>, kJoints> homing_;
+  std::array<bool, kJoints> endstop_max_{};
+  unsigned homing_mask_ = 0;
+  HomingState homing_state_ = HomingState::kIdle;
+  double homing_settle_until_s_ = -1.0;
+  char homing_error_[192] = {};
+  std::array<std::atomic<double>, kJoints> homed_mm_{}, homed_truth_mm_{}, first_touch_mm_{};
+  std::array<std::atomic<uint64_t>, kJoints> homing_count_{};
+  std::array<std::atomic<int>, kJoints> endstop_state_{};  // -1 unknown, 0 open, 1 triggered
+  double next_endstop_query_s_ = 0.0;
 
   mutable std::mutex events_mutex_;  // taken only when an event happens (rare, not steady state)
   std::vector<std::string> events_;

@@ -22,6 +22,7 @@ MotionExecutor::MotionExecutor(const planner::PlannerConfig& pcfg, const StepPip
   no_extruder_.next = &steps_;
   pa_advance_s_.store(interp_->state().pressure_advance_s);
   pa_smooth_time_s_.store(interp_->state().pressure_advance_smooth_time_s);
+  for (auto& h : homed_axis_mm_) h.store(NAN);
 }
 
 // A motion starts from rest: the advance is on for it when its first move has K > 0 (and the
@@ -49,6 +50,7 @@ Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool
     return Error{std::string("motion stopped: ") + msg};
   }
   if (motion && control_fault_.load()) return Error{std::string("motion stopped: ") + control_fault_text_};
+  if (cmd.is('G', 28) && homes_through_endstops()) return home(cmd, cancel);
   if (motion) wait_for_room(cancel);
   Status st = interp_->execute(cmd);
   planner_queued_.store(planner_.queued());
@@ -86,7 +88,151 @@ bool MotionExecutor::faulted() const {
 }
 
 bool MotionExecutor::motion_pending() const {
-  return planner_queued_.load() > 0 || pushed_.load() != popped_.load() || telemetry_.anchored.load();
+  const int h = homing_req_.load();
+  return planner_queued_.load() > 0 || pushed_.load() != popped_.load() ||
+         telemetry_.anchored.load() || h == kHomingRequested || h == kHomingRunning;
+}
+
+void MotionExecutor::pause_for_machine() {
+  if (inline_driver_)
+    inline_driver_();
+  else
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+}
+
+// Every X/Y/Z joint has an endstop on its MCU (axes.<name>.homing): G28 homes through them.
+// Otherwise G28 stays the interpreter's move to the home position (batch mode, ideal plants).
+bool MotionExecutor::homes_through_endstops() const {
+  if (backend_ == nullptr || pcfg_.kinematics == planner::KinematicsKind::corexy) return false;
+  for (int j = 0; j < 3; ++j)
+    if (!backend_->can_home(j)) return false;
+  return true;
+}
+
+// G28 [X] [Y] [Z] through the endstops. Marlin and Klipper home the named axes (all without
+// letters); here the named joints home together, each on its own MCU (Marlin's QUICK_HOME does
+// X and Y together too). The homed position is the motor's where it stopped (Klipper's halt
+// position: position_endstop + the steps after the trigger), which the interpreter continues from.
+Status MotionExecutor::home(const gcode::Command& cmd, const std::atomic<bool>& cancel) {
+  for (char p = 'A'; p <= 'Z'; ++p)
+    if (cmd.has(p) && !std::isfinite(cmd.get(p)))
+      return Error{"G28: parameter is not a finite number", cmd.where};
+  // A delta homes its three towers together whatever the letters (Klipper's delta.py: G28 homes
+  // all); each carriage stops on its own switch.
+  const bool delta = pcfg_.kinematics == planner::KinematicsKind::delta;
+  const bool any = !delta && (cmd.has('X') || cmd.has('Y') || cmd.has('Z'));
+  bool axes[3];
+  unsigned mask = 0;
+  for (int i = 0; i < 3; ++i) {
+    axes[i] = !any || cmd.has(static_cast<char>('X' + i));
+    if (axes[i]) mask |= 1u << i;
+  }
+  struct Waiting {
+    std::atomic<bool>& w;
+    explicit Waiting(std::atomic<bool>& f) : w(f) { w = true; }
+    ~Waiting() { w = false; }
+  } waiting(waiting_);
+  // The motion before the G28 ends first (the lookahead's tail released).
+  planner_.flush();
+  planner_queued_.store(planner_.queued());
+  while (motion_pending()) {
+    if (cancel.load()) return Error{"G28: cancelled before homing", cmd.where};
+    pause_for_machine();
+  }
+  homing_mask_.store(mask);
+  homing_req_.store(kHomingRequested, std::memory_order_release);
+  auto cancelled_at = std::chrono::steady_clock::now();
+  bool seen_cancel = false;
+  for (;;) {
+    const int h = homing_req_.load(std::memory_order_acquire);
+    if (h == kHomingDone || h == kHomingFailed) break;
+    if (cancel.load() && !seen_cancel) {
+      seen_cancel = true;
+      cancelled_at = std::chrono::steady_clock::now();
+    }
+    // The servo thread aborts a running homing on cancel; should it be gone already (the machine
+    // stopping), do not wait for it forever.
+    if (seen_cancel && std::chrono::steady_clock::now() - cancelled_at > std::chrono::seconds(1) &&
+        !inline_driver_) {
+      homing_req_.store(kNoHoming);
+      interp_->set_unhomed(axes);
+      return Error{"G28: cancelled during homing", cmd.where};
+    }
+    pause_for_machine();
+  }
+  if (homing_req_.load(std::memory_order_acquire) == kHomingFailed) {
+    const std::string why = homing_error_;
+    homing_req_.store(kNoHoming);
+    interp_->set_unhomed(axes);
+    return Error{"G28: " + why + "; the axes are not homed", cmd.where};
+  }
+  planner::Vec4 at = interp_->state().machine_mm;
+  if (delta) {
+    // The carriages' homed heights (each tower's position_endstop: Klipper's per-tower endstop
+    // offsets) through the forward kinematics: where the nozzle is.
+    const planner::Joints q{homed_joint_mm_[0], homed_joint_mm_[1], homed_joint_mm_[2]};
+    Result<planner::Vec3> nozzle = kin_->forward(q);
+    if (!nozzle.ok()) {
+      homing_req_.store(kNoHoming);
+      interp_->set_unhomed(axes);
+      return Error{"G28: the homed carriages have no nozzle position: " + nozzle.error().message,
+                   cmd.where};
+    }
+    for (int i = 0; i < 3; ++i) at[static_cast<size_t>(i)] = nozzle.value()[static_cast<size_t>(i)];
+  } else {
+    for (int i = 0; i < 3; ++i)
+      if (axes[i]) at[static_cast<size_t>(i)] = homed_joint_mm_[static_cast<size_t>(i)];
+  }
+  for (int i = 0; i < 3; ++i)
+    if (axes[i]) homed_axis_mm_[static_cast<size_t>(i)].store(at[static_cast<size_t>(i)]);
+  interp_->set_homed(axes, at);
+  homings_.fetch_add(1);
+  homing_req_.store(kNoHoming);
+  return {};
+}
+
+// Servo thread, after a homing: the step generators restart at the homed positions (resync at the
+// next move's start), each homed joint's step stream after the homing's last step on its MCU.
+void MotionExecutor::after_homing() {
+  resync_ = true;
+  for (int j = 0; j < kJoints; ++j)
+    if (const int64_t c = backend_->homing_last_step_clock(j); c != INT64_MIN)
+      steps_.restart_stream(j, c);
+}
+
+// Servo thread, while a homing is requested or runs (no motion is anchored: the planner waited).
+void MotionExecutor::homing_cycle(double now_s, bool cancel) {
+  const int h = homing_req_.load(std::memory_order_acquire);
+  if (h == kHomingRequested) {
+    if (cancel) {
+      std::snprintf(homing_error_, sizeof homing_error_, "cancelled");
+      homing_req_.store(kHomingFailed, std::memory_order_release);
+      return;
+    }
+    if (telemetry_.anchored.load(std::memory_order_relaxed) || !queue_.empty()) return;
+    if (!backend_->start_homing(homing_mask_.load(), now_s, homing_error_, sizeof homing_error_)) {
+      homing_req_.store(kHomingFailed, std::memory_order_release);
+      return;
+    }
+    homing_req_.store(kHomingRunning, std::memory_order_release);
+    return;
+  }
+  if (cancel) backend_->abort_homing("cancelled");
+  switch (backend_->homing_state()) {
+    case ServoBackend::HomingState::kRunning:
+      return;
+    case ServoBackend::HomingState::kDone:
+      for (int j = 0; j < kJoints; ++j)
+        homed_joint_mm_[static_cast<size_t>(j)] = backend_->homed_position_mm(j);
+      after_homing();
+      homing_req_.store(kHomingDone, std::memory_order_release);
+      return;
+    default:
+      backend_->homing_error(homing_error_, sizeof homing_error_);
+      after_homing();
+      homing_req_.store(kHomingFailed, std::memory_order_release);
+      return;
+  }
 }
 
 void MotionExecutor::motion_status(MachineStatus& s) const {
@@ -113,7 +259,15 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
     backend_->links(s.links);
     backend_->device_loops(s.device_loops);
     if (backend_->fault()) backend_->fault_message(s.last_error, sizeof s.last_error);
+    for (int j = 0; j < 3; ++j) {
+      s.endstop[j] = static_cast<int8_t>(backend_->endstop_state(j));
+      s.endstop_at_max[j] = backend_->endstop_at_max(j);
+    }
   }
+  for (size_t i = 0; i < 3; ++i)
+    s.homed_position_mm[i] = homed_axis_mm_[i].load(std::memory_order_relaxed);
+  s.homings = homings_.load(std::memory_order_relaxed);
+  s.homing = homing_req_.load(std::memory_order_relaxed) != kNoHoming;
   if (control_fault_.load()) std::snprintf(s.last_error, sizeof s.last_error, "%s", control_fault_text_);
 }
 
@@ -185,7 +339,7 @@ void MotionExecutor::wait_print_time(double t_s, const std::atomic<bool>& cancel
   while (!cancel.load()) {
     if (!motion_pending()) return;
     if (telemetry_.anchored.load() && telemetry_.print_time_s.load() >= t_s) return;
-    std::this_thread::sleep_for(std::chrono::microseconds(500));
+    pause_for_machine();
   }
 }
 
@@ -260,9 +414,22 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
     if (backend_->fault()) {  // an MCU is gone or stopped: stop everything, resync afterwards
       drop_queued_moves();
       resync_ = true;
+      const int h = homing_req_.load(std::memory_order_acquire);
+      if (h == kHomingRequested || h == kHomingRunning) {  // the homing ends with the fault
+        backend_->abort_homing("MCU fault");
+        char msg[160];
+        backend_->fault_message(msg, sizeof msg);
+        std::snprintf(homing_error_, sizeof homing_error_, "homing stopped: %s", msg);
+        homing_req_.store(kHomingFailed, std::memory_order_release);
+      }
       return;
     }
     if (!anchored && !backend_->ready()) return;  // motion waits for the MCUs and their clocks
+    if (const int h = homing_req_.load(std::memory_order_acquire);
+        h == kHomingRequested || h == kHomingRunning) {
+      homing_cycle(now_s, cancel);
+      return;
+    }
     if (!motion_maps_held_) {  // else the motion's clock frame (sampled_cycle) stays in force
       std::array<stepgen::TickMap, kJoints> maps;
       for (int j = 0; j < kJoints; ++j) maps[static_cast<size_t>(j)] = backend_->tick_map(j);

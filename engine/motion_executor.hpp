@@ -31,10 +31,11 @@
 // ends smooth_time/2 after the last move. With K = 0 nothing changes (the same steps).
 #pragma once
 
-#include <array>
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -104,6 +105,11 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   // An observer of planned moves, servo samples and events (the recorder; benchmarks). Before start.
   void set_telemetry(TelemetryTap* tap) { tap_ = tap; }
 
+  // One-thread runs (engine/sim_run.cpp, test rigs): the caller's servo cycle, run by a command
+  // that waits for the machine (G28 through the endstops, M400) instead of sleeping: the same
+  // thread drives both stages there. Before start.
+  void set_inline_driver(std::function<void()> cycle) { inline_driver_ = std::move(cycle); }
+
   const MotionTelemetry& telemetry() const { return telemetry_; }
   const StepPipeline& steps() const { return steps_; }  // servo thread owns it
   uint64_t moves() const { return interp_->moves(); }
@@ -125,6 +131,31 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   double executing_print_time_s() const;
   // Planner thread: blocks while more than max_buffered_s of motion is queued.
   void wait_for_room(const std::atomic<bool>& cancel);
+  // Planner thread: lets the machine run for a moment (the inline driver's cycle, or a sleep).
+  void pause_for_machine();
+  std::function<void()> inline_driver_;
+
+  // G28 through the endstops (docs/homing.md): the planner thread waits until the motion before
+  // it has ended, asks the servo thread (homing_req_) and waits for the outcome; the servo thread
+  // runs the homing on the backend (the MCUs) with the step stream paused, then re-bases the step
+  // generators (resync) at the homed positions the interpreter continues from.
+  bool homes_through_endstops() const;
+  Status home(const gcode::Command& cmd, const std::atomic<bool>& cancel);
+  void homing_cycle(double now_s, bool cancel);  // servo thread
+  void after_homing();                           // servo thread
+  enum HomingRequest : int {
+    kNoHoming = 0,
+    kHomingRequested,
+    kHomingRunning,
+    kHomingDone,
+    kHomingFailed
+  };
+  std::atomic<int> homing_req_{kNoHoming};
+  std::atomic<unsigned> homing_mask_{0};
+  std::array<double, kJoints> homed_joint_mm_{};        // servo thread writes before kHomingDone
+  char homing_error_[192] = {};                         // servo thread writes before kHomingFailed
+  std::array<std::atomic<double>, 3> homed_axis_mm_{};  // status: each axis's last homed position
+  std::atomic<uint64_t> homings_{0};
 
   planner::PlannerConfig pcfg_;
   MotionOptions options_;

@@ -59,6 +59,34 @@ class ServoBackend {
   virtual void device_loops(DeviceLoopTelemetrySet& out) const { out = DeviceLoopTelemetrySet{}; }
   // The device loops' reports (LOOP_REPORT) since the last call, in arrival order. Servo thread.
   virtual size_t take_device_reports(DeviceLoopReport* /*out*/, size_t /*cap*/) { return 0; }
+
+  // Homing through the endstops (docs/homing.md; drivers/host/homing.hpp on each joint's MCU).
+  enum class HomingState { kIdle, kRunning, kDone, kFailed };
+  // `joint` has an endstop and a homing sequence. Any thread (fixed at construction).
+  virtual bool can_home(int /*joint*/) const { return false; }
+  // Servo thread, with no motion running: starts homing every joint in joint_mask (bit j) at host
+  // time now_s, the joints together. false (and the reason in why) when it cannot start.
+  virtual bool start_homing(unsigned /*joint_mask*/, double /*now_s*/, char* why, size_t cap) {
+    if (cap > 0) why[0] = '\0';
+    return false;
+  }
+  // Servo thread: stops a running homing (cancel, emergency stop); it ends kFailed.
+  virtual void abort_homing(const char* /*why*/) {}
+  // Servo thread: the homing's progress (service() advances it).
+  virtual HomingState homing_state() const { return HomingState::kIdle; }
+  // After kDone: each homed joint's motor position (mm) where it stopped. Servo thread.
+  virtual double homed_position_mm(int /*joint*/) const { return NAN; }
+  // After kDone or kFailed: the MCU clock of the last step the homing queued on `joint`'s MCU
+  // (INT64_MIN: none); the step stream continues after it. Servo thread.
+  virtual int64_t homing_last_step_clock(int /*joint*/) const { return INT64_MIN; }
+  // After kFailed: why (Klipper's wording where it has one). Servo thread.
+  virtual void homing_error(char* out, size_t cap) const {
+    if (cap > 0) out[0] = '\0';
+  }
+  // The endstop of `joint` as last queried (M119): -1 none or unknown, 0 open, 1 triggered; and
+  // whether it sits at the max end. Any thread.
+  virtual int endstop_state(int /*joint*/) const { return -1; }
+  virtual bool endstop_at_max(int /*joint*/) const { return false; }
 };
 
 }  // namespace feedloop::engine

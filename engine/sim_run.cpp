@@ -108,6 +108,11 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg,
     }
     (void)machine.servo_cycle_inline(now_ns);  // never fails: the machine is not started
   };
+  // A command that waits for the machine (G28 through the endstops, M400) runs its cycles here.
+  ex.set_inline_driver([&] {
+    cycle();
+    if (now_ns >= end_ns) machine.emergency_stop("run_simulated: timeout");  // the wait ends
+  });
   while (!bridge.ready() && now_ns < end_ns) cycle();
   if (!bridge.ready()) {
     char why[256] = "";

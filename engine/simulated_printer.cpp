@@ -7,15 +7,16 @@
 #include <string>
 #include <vector>
 
+#include "drivers/device/heater_board.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/thermal_config.hpp"
 #include "planner/kinematics.hpp"
 #include "sim/delta_plant.hpp"
+#include "sim/endstop.hpp"
 #include "sim/external_plant.hpp"
 #include "sim/gantry_axis.hpp"
 #include "sim/gantry_params.hpp"
 #include "sim/thermal_plant.hpp"
-#include "drivers/device/heater_board.hpp"
 #include "thermal/sensor.hpp"
 
 namespace feedloop::engine {
@@ -44,13 +45,39 @@ void apply_effects(const config::SimEffectsConfig& e, const std::string& axis,
     g.scale_error = {true, e.scale_error->scale};
 }
 
+// A delta carriage's motor port with the endstop switch at the top of its tower (Klipper's delta:
+// every carriage homes up to its own switch): the plant's port, and the switch read on the
+// carriage's true height.
+class DeltaEndstopPort final : public device::MotorPort {
+ public:
+  DeltaEndstopPort(sim::DeltaPlant& plant, int carriage, sim::EndstopSwitch& sw)
+      : plant_(&plant), port_(&plant.carriage_port(carriage)), carriage_(carriage), sw_(&sw) {}
+  void step(double t_s, int direction) override { port_->step(t_s, direction); }
+  void set_enabled(double t_s, bool enabled) override { port_->set_enabled(t_s, enabled); }
+  int64_t read_encoder_counts(double t_s) override { return port_->read_encoder_counts(t_s); }
+  bool read_endstop(double t_s) override {
+    plant_->advance_to(t_s);
+    return sw_->sample(plant_->carriage_mm(carriage_));
+  }
+
+ private:
+  sim::DeltaPlant* plant_;
+  device::MotorPort* port_;
+  int carriage_;
+  sim::EndstopSwitch* sw_;
+};
+
 // The plants of one machine: a GantryAxis per Cartesian joint, or one DeltaPlant.
 class SimulatedPrinter final : public SimulatedPlant {
  public:
   device::MotorPort* motor(int joint) override {
     if (joint < 0 || joint >= kJoints) return nullptr;
     if (external_port_[static_cast<size_t>(joint)]) return external_port_[static_cast<size_t>(joint)];
+    if (delta_endstop_ports_[static_cast<size_t>(joint)])
+      return delta_endstop_ports_[static_cast<size_t>(joint)].get();
     if (delta_) return joint < 3 ? &delta_->carriage_port(joint) : nullptr;
+    if (endstop_ports_[static_cast<size_t>(joint)])
+      return endstop_ports_[static_cast<size_t>(joint)].get();
     return gantries_[static_cast<size_t>(joint)].get();
   }
   double encoder_mm_per_count(int joint) const override {
@@ -95,6 +122,10 @@ class SimulatedPrinter final : public SimulatedPlant {
   sim::DeltaPlant* delta() const { return delta_.get(); }
 
   std::array<std::unique_ptr<sim::GantryAxis>, kJoints> gantries_;  // by joint (nullptr: none)
+  // The endstop switch on a gantry joint with a homing section, and the port that reads it.
+  std::array<std::unique_ptr<sim::EndstopSwitch>, kJoints> switches_;
+  std::array<std::unique_ptr<sim::EndstopAxis>, kJoints> endstop_ports_;
+  std::array<std::unique_ptr<DeltaEndstopPort>, kJoints> delta_endstop_ports_;
   std::unique_ptr<sim::DeltaPlant> delta_;
   std::unique_ptr<sim::ExternalPlant> external_;                       // simulator.external_plant
   std::array<sim::ExternalAxisPort*, kJoints> external_port_{};       // by joint (nullptr: built-in)
@@ -196,6 +227,28 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
     sim::DeltaPlantParams dp;
     dp.mm_per_step = 1.0 / spm[0];
     dp.initial_nozzle_mm = Eigen::Vector3d::Zero();  // where the planner starts
+    bool switches = true;  // every tower has a homing section: a switch at its top
+    for (int j = 0; j < 3; ++j) {
+      const config::AxisConfig* a = cfg.axis(names[static_cast<size_t>(j)]);
+      switches = switches && a != nullptr && a->homing;
+    }
+    if (switches && !cfg.planner.allow_moves_before_homing) {
+      // The machine must home: the carriages start start_distance_mm below their switches (a
+      // short G28), the nozzle where the planner's kinematics puts them.
+      const auto kin = planner::make_kinematics(planner_config(cfg));
+      planner::Joints q{};
+      for (int j = 0; j < 3; ++j) {
+        const config::HomingConfig& h = *cfg.axis(names[static_cast<size_t>(j)])->homing;
+        const double d = cfg.simulator.endstops.start_distance_mm;
+        q[static_cast<size_t>(j)] =
+            h.position_endstop_mm + (h.direction == config::EndstopSide::min ? d : -d);
+      }
+      auto n = kin->forward(q);
+      if (!n.ok())
+        return Error{"simulated delta: no nozzle position below the endstops: " +
+                     n.error().message};
+      dp.initial_nozzle_mm = Eigen::Vector3d(n.value()[0], n.value()[1], n.value()[2]);
+    }
     dp.seed = cfg.simulator.seed;
     dp.encoder.noise_um = cfg.simulator.encoder_noise_um;
     dp.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
@@ -204,15 +257,54 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
     out->delta_ = std::move(d.value());
     for (int j = 0; j < 3; ++j)
       out->encoder_mm_per_count_[static_cast<size_t>(j)] = dp.encoder.resolution_um * 1e-3;
+    for (int j = 0; switches && j < 3; ++j) {
+      const size_t js = static_cast<size_t>(j);
+      const config::HomingConfig& h = *cfg.axis(names[js])->homing;
+      sim::EndstopSwitchParams sp;
+      sp.position_mm = h.position_endstop_mm;
+      sp.at_min = h.direction == config::EndstopSide::min;
+      sp.sigma_mm = cfg.simulator.endstops.sigma_um * 1e-3;
+      sp.hysteresis_mm = cfg.simulator.endstops.hysteresis_um * 1e-3;
+      sp.seed = cfg.simulator.seed + 5000 + 1000 * js;
+      auto sw = sim::EndstopSwitch::create(sp);
+      if (!sw.ok()) return Error{"simulated endstop of " + names[js] + ": " + sw.error().message};
+      out->switches_[js] = std::make_unique<sim::EndstopSwitch>(std::move(sw.value()));
+      out->delta_endstop_ports_[js] =
+          std::make_unique<DeltaEndstopPort>(*out->delta_, j, *out->switches_[js]);
+    }
   } else {
     for (int j = 0; j < 3; ++j) {
       const size_t js = static_cast<size_t>(j);
       auto p = simulated_gantry_params(cfg, j);
       if (!p) return p.error();
+      const config::AxisConfig* ac = cfg.axis(names[js]);
+      const bool has_switch =
+          ac != nullptr && ac->homing && cfg.kinematics == config::Kinematics::cartesian;
+      if (has_switch && !cfg.planner.allow_moves_before_homing) {
+        // The machine must home: the carriage starts near its switch (a short G28), on the travel
+        // side of it. With moves allowed before homing it starts at 0, where the planner does.
+        const config::HomingConfig& h = *ac->homing;
+        const double d = cfg.simulator.endstops.start_distance_mm;
+        p.value().initial_pos_mm =
+            h.position_endstop_mm + (h.direction == config::EndstopSide::min ? d : -d);
+      }
       auto g = sim::GantryAxis::create(p.value());
       if (!g.ok()) return Error{"simulated axis " + names[js] + ": " + g.error().message};
       out->gantries_[js] = std::make_unique<sim::GantryAxis>(std::move(g.value()));
       out->encoder_mm_per_count_[js] = out->gantries_[js]->encoder_mm_per_count();
+      if (has_switch) {
+        sim::EndstopSwitchParams sp;
+        sp.position_mm = ac->homing->position_endstop_mm;
+        sp.at_min = ac->homing->direction == config::EndstopSide::min;
+        sp.sigma_mm = cfg.simulator.endstops.sigma_um * 1e-3;
+        sp.hysteresis_mm = cfg.simulator.endstops.hysteresis_um * 1e-3;
+        sp.seed = cfg.simulator.seed + 5000 + 1000 * js;
+        auto sw = sim::EndstopSwitch::create(sp);
+        if (!sw.ok()) return Error{"simulated endstop of " + names[js] + ": " + sw.error().message};
+        out->switches_[js] = std::make_unique<sim::EndstopSwitch>(std::move(sw.value()));
+        out->endstop_ports_[js] =
+            std::make_unique<sim::EndstopAxis>(*out->gantries_[js], *out->switches_[js]);
+      }
     }
   }
   if (const auto& ext = cfg.simulator.external_plant) {

@@ -39,6 +39,11 @@ void StepPipeline::set_position_mm(int joint, double pos_mm) {
     params_.observer->on_origin(joint, j.compressor.last_emitted_clock(), j.gen.position_steps());
 }
 
+void StepPipeline::restart_stream(int joint, int64_t last_step_clock) {
+  Joint& j = *joints_[static_cast<size_t>(joint)];
+  j.compressor.reset(last_step_clock, static_cast<double>(last_step_clock));
+}
+
 stepgen::TickMap StepPipeline::print_map(int joint) const {
   if (print_maps_direct_) return print_maps_[static_cast<size_t>(joint)];
   const stepgen::TickMap& h = host_maps_[static_cast<size_t>(joint)];

@@ -74,6 +74,10 @@ class StepPipeline final : public planner::JointSink {
   bool owns(int joint) const { return (params_.joint_mask >> joint) & 1u; }
   // Sets a joint's position without steps (start of a stream).
   void set_position_mm(int joint, double pos_mm);
+  // The joint's next stream continues after MCU clock last_step_clock: steps someone else queued
+  // on its MCU (a homing, drivers/host/homing.hpp) end there, and the MCU refuses a batch that
+  // starts before the end of what it holds. Call only when no steps are pending.
+  void restart_stream(int joint, int64_t last_step_clock);
   // Host time = print time + offset: re-anchors the print-time line on the host clock (the daemon
   // does this when motion starts from rest). Call only when no steps are pending.
   void set_time_offset_s(double offset_s);

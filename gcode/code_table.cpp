@@ -137,6 +137,7 @@ constexpr CodeRule kRules[] = {
     {'M', 114, "report position", kReportPosition},
     {'M', 115, "firmware info", {}},
     {'M', 117, "display message", {}},
+    {'M', 119, "report endstop states", {}},  // Marlin's M119 (docs/homing.md)
     {'M', 140, "set bed temperature", kBed},
     {'M', 155, "temperature auto-report", kAutoReport},
     {'M', 190, "wait for bed temperature", kBedWait},

@@ -1,6 +1,7 @@
 // G-code interpretation (see interpreter.hpp).
 #include "planner/interpreter.hpp"
 
+#include <algorithm>  // clamp
 #include <cmath>    // isfinite, abs
 #include <cstdio>   // snprintf
 #include <utility>  // std::move
@@ -156,7 +157,19 @@ Status Interpreter::check(const Vec4& from, const Vec4& to, const gcode::Command
   const bool xyz = from[0] != to[0] || from[1] != to[1] || from[2] != to[2];
   if (!xyz) return {};
   if (Status s = check_homed(from, to, c); !s) return s;
-  Status s = kin_.check_segment({from[0], from[1], from[2]}, {to[0], to[1], to[2]});
+  // The start is where the machine is. After a homing through an endstop that may be a few steps
+  // past the travel's end (the MCU stops the motor sample_count samples after the trigger; Klipper
+  // also sets that halt position): on a Cartesian machine the start, and an axis the move leaves
+  // where it is, are taken on the box's face for the check (Klipper's cartesian.py checks the end
+  // of the axes that move only).
+  Vec3 a{from[0], from[1], from[2]}, b{to[0], to[1], to[2]};
+  if (cfg_.kinematics != KinematicsKind::delta)
+    for (size_t i = 0; i < 3; ++i) {
+      const bool still = b[i] == a[i];
+      a[i] = std::clamp(a[i], cfg_.min_position_mm[i], cfg_.max_position_mm[i]);
+      if (still) b[i] = a[i];
+    }
+  Status s = kin_.check_segment(a, b);
   if (!s) return fail(c, "move rejected, nothing executed: " + s.error().message);
   return {};
 }
@@ -239,6 +252,26 @@ Status Interpreter::home(const gcode::Command& c) {
   if (homed[kZ]) st_.hop_mm = 0.0;
   st_.machine_mm = to;
   return {};
+}
+
+void Interpreter::set_homed(const bool axes[3], const Vec4& at_mm) {
+  const bool delta = cfg_.kinematics == KinematicsKind::delta;
+  for (int i = 0; i < 3; ++i) {
+    if (!axes[i] && !delta) continue;
+    st_.homed[i] = true;
+    st_.offset_mm[i] = 0.0;
+    st_.machine_mm[i] = at_mm[static_cast<size_t>(i)];
+    st_.logical_mm[i] = at_mm[static_cast<size_t>(i)];
+  }
+  if (axes[kZ] || delta) st_.hop_mm = 0.0;
+  planner_.set_position(st_.machine_mm);
+}
+
+void Interpreter::set_unhomed(const bool axes[3]) {
+  if (cfg_.allow_moves_before_homing) return;
+  const bool delta = cfg_.kinematics == KinematicsKind::delta;
+  for (int i = 0; i < 3; ++i)
+    if (axes[i] || delta) st_.homed[i] = false;
 }
 
 Status Interpreter::retract(const gcode::Command& c, bool recover) {

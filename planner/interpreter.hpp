@@ -70,6 +70,13 @@ class Interpreter {
   uint64_t moves() const { return moves_; }
   // The homed axes as lower-case letters in xyz order ("" .. "xyz"): out holds 4 chars.
   void homed_axes(char out[4]) const;
+  // G28 through the endstops (the executor homed the axes, engine/motion_executor.cpp): the axes
+  // in `axes` (X Y Z) are homed at machine position at_mm (their G92 offsets, and a Z hop when Z is
+  // homed, cleared; logical = machine), and the planner continues from there. The planner must
+  // hold no moves.
+  void set_homed(const bool axes[3], const Vec4& at_mm);
+  // A failed homing: the axes in `axes` are no longer homed.
+  void set_unhomed(const bool axes[3]);
 
  private:
   Status linear(const gcode::Command& c);

@@ -135,6 +135,11 @@ Result<VirtualPrintResult> record_virtual_print(const config::MachineConfig& cfg
       next_poll_ns = now + poll_ns;
     }
   };
+  // A command that waits for the machine (G28 through the endstops) runs the cycles itself.
+  ex.set_inline_driver([&] {
+    cycle();
+    if (clock.now_ns() >= end_ns) machine.emergency_stop("virtual print: timeout");
+  });
   auto run_until_idle = [&] {
     machine.idle_tick_inline();
     while (ex.motion_pending() && clock.now_ns() < end_ns) cycle();

@@ -127,8 +127,14 @@ void AxisLoop::apply_staged(int64_t clock) {
   have_staged_ = false;
   const bool was_running = state_ == LoopState::kRunning;
   if (!p.enabled) {
+    // Disabled (the host homes the axis with its own steps, docs/homing.md): the targets queued
+    // before are in a frame the homing re-bases, so they are dropped; the next activation starts
+    // from an empty queue and holds where the carriage is.
     p_ = p;
     state_ = LoopState::kIdle;
+    target_.reset();
+    have_hold_r_ = false;
+    last_target_slope_nm_s_ = 0.0f;
     event(LoopEventKind::kActivated, clock, staged_clock_, 0);
     return;
   }

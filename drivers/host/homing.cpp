@@ -16,29 +16,28 @@ bool positive(double v) {
 }  // namespace
 
 Status check_homing_params(const HomingParams& p) {
-  const std::string a = "homing of " + p.axis_name + ": ";
-  if (!positive(p.mm_per_step)) return Error{a + "mm_per_step must be > 0", {}};
-  if (!std::isfinite(p.position_endstop_mm))
-    return Error{a + "position_endstop must be finite", {}};
-  if (p.direction != 1 && p.direction != -1)
-    return Error{a + "direction must be -1 (min) or +1 (max)", {}};
-  if (!positive(p.max_travel_mm)) return Error{a + "max travel must be > 0", {}};
-  if (!positive(p.homing_speed_mm_s)) return Error{a + "homing_speed must be > 0", {}};
-  if (!positive(p.second_homing_speed_mm_s))
-    return Error{a + "second_homing_speed must be > 0", {}};
-  if (!positive(p.accel_mm_s2)) return Error{a + "acceleration must be > 0", {}};
+  // The message is built only when a check fails: a valid set allocates nothing (the servo thread
+  // starts a homing with it, engine/mcu_bridge.cpp).
+  auto bad = [&](const char* what) { return Error{"homing of " + p.axis_name + ": " + what, {}}; };
+  if (!positive(p.mm_per_step)) return bad("mm_per_step must be > 0");
+  if (!std::isfinite(p.position_endstop_mm)) return bad("position_endstop must be finite");
+  if (p.direction != 1 && p.direction != -1) return bad("direction must be -1 (min) or +1 (max)");
+  if (!positive(p.max_travel_mm)) return bad("max travel must be > 0");
+  if (!positive(p.homing_speed_mm_s)) return bad("homing_speed must be > 0");
+  if (!positive(p.second_homing_speed_mm_s)) return bad("second_homing_speed must be > 0");
+  if (!positive(p.accel_mm_s2)) return bad("acceleration must be > 0");
   if (p.second_touch && !positive(p.retract_dist_mm))
-    return Error{a + "retract_dist must be > 0 for a second touch", {}};
+    return bad("retract_dist must be > 0 for a second touch");
   if (!positive(p.sample_period_s) || p.sample_period_s > 0.01)
-    return Error{a + "endstop sample period must be in (0, 10 ms]", {}};
+    return bad("endstop sample period must be in (0, 10 ms]");
   if (p.sample_count < 1 || p.sample_count > 255)
-    return Error{a + "endstop sample_count must be in 1..255", {}};
+    return bad("endstop sample_count must be in 1..255");
   // The MCU needs the sample_count samples to confirm: the carriage overshoots the trigger by
   // speed * count * period before the steps stop; more than the retract would be a crash.
   const double overshoot_mm = p.homing_speed_mm_s * p.sample_period_s * p.sample_count;
   if (p.second_touch && overshoot_mm >= p.retract_dist_mm)
-    return Error{a + "homing_speed * sample time overshoots the retract distance", {}};
-  if (!positive(p.queue_ahead_s)) return Error{a + "queue_ahead must be > 0", {}};
+    return bad("homing_speed * sample time overshoots the retract distance");
+  if (!positive(p.queue_ahead_s)) return bad("queue_ahead must be > 0");
   return {};
 }
 
@@ -70,6 +69,13 @@ HomingSequence::HomingSequence(const HomingParams& params, McuSession& session)
 
 double HomingSequence::mcu_s(double host_s) const {
   return session_.tick_map().ticks(host_s);
+}
+
+void HomingSequence::abort(const char* why) {
+  if (phase_ == HomingPhase::kDone || phase_ == HomingPhase::kFailed ||
+      phase_ == HomingPhase::kIdle)
+    return;
+  fail(std::string("homing of ") + p_.axis_name + " aborted: " + why);
 }
 
 void HomingSequence::fail(std::string message) {
@@ -161,6 +167,7 @@ void HomingSequence::stream(double now_s) {
     session_.queue_message(msg, 2 + enc.size());
     last_step_clock_ = prev;
     have_last_clock_ = true;
+    queued_any_ = true;
     pos_steps_ += static_cast<int64_t>(count) * move_.dir;
   }
 }
@@ -223,6 +230,10 @@ HomingPhase HomingSequence::poll(double now_s) {
       break;
     case HomingPhase::kRetract:
       if (move_done(now_s, 0.02)) {
+        // Answers to earlier queries (the owner's M119 polling) are not this one's.
+        protocol::EndstopStateMsg stale[8];
+        while (session_.take_endstop_states(stale, 8) > 0) {
+        }
         protocol::EndstopQueryMsg q;
         q.axis = p_.motor;
         uint8_t buf[8];

@@ -59,10 +59,21 @@ class HomingSequence {
   // Advances the sequence; returns the phase after this call.
   HomingPhase poll(double now_s);
   HomingPhase phase() const { return phase_; }
+  bool running() const {
+    return phase_ != HomingPhase::kIdle && phase_ != HomingPhase::kDone &&
+           phase_ != HomingPhase::kFailed;
+  }
+  // Stops a running sequence (another axis failed, the MCU faulted): no more steps are streamed
+  // and the endstop is disarmed; the phase becomes kFailed with `why` in the error.
+  void abort(const char* why);
+  const HomingParams& params() const { return p_; }
   const std::optional<Error>& error() const { return error_; }
   const HomingResult& result() const { return result_; }
   // The host's idea of the motor's step position (follows the steps it queued and the stops).
   int64_t position_steps() const { return pos_steps_; }
+  // The MCU clock of the last step this sequence queued (the MCU refuses a later batch that starts
+  // before it: the owner's step stream restarts from here). INT64_MIN before any.
+  int64_t last_queued_clock() const { return queued_any_ ? last_step_clock_ : INT64_MIN; }
 
  private:
   struct Move {
@@ -89,7 +100,7 @@ class HomingSequence {
   Move move_;
   int64_t move_start_steps_ = 0, move_steps_total_ = 0, move_steps_sent_ = 0;
   int64_t last_step_clock_ = 0;
-  bool have_last_clock_ = false, streaming_ = false;
+  bool have_last_clock_ = false, streaming_ = false, queued_any_ = false;
   int64_t first_trigger_steps_ = 0;
   double query_sent_s_ = 0.0;
 };

@@ -359,5 +359,82 @@ TEST(ConfigErrors, ImplausibleRatesAreErrors) {
   expect_error(a, "axes.z.max_accel_mm_s2", pos_of(a, "1e9"));
 }
 
+// axes.<name>.homing (docs/homing.md): Klipper's defaults, and each implausible value reported at
+// its key.
+namespace homing {
+const std::string kX = "    max_accel_mm_s2: 3000\n  y:";
+
+TEST(ConfigHoming, DefaultsAreKlippers) {
+  const std::string y = edit(kMinimal, kX, "    max_accel_mm_s2: 3000\n    homing: {}\n  y:");
+  auto cfg = load_config_text(y, "printer.yaml");
+  ASSERT_TRUE(cfg.ok()) << cfg.error().to_string();
+  const AxisConfig* x = cfg->axis("x");
+  ASSERT_TRUE(x && x->homing);
+  EXPECT_EQ(x->homing->direction, EndstopSide::min);
+  EXPECT_EQ(x->homing->position_endstop_mm, 0.0);       // min_mm
+  EXPECT_EQ(x->homing->homing_speed_mm_s, 5.0);         // Klipper: homing_speed 5
+  EXPECT_EQ(x->homing->second_homing_speed_mm_s, 2.5);  // homing_speed / 2
+  EXPECT_EQ(x->homing->retract_dist_mm, 5.0);           // homing_retract_dist 5
+  EXPECT_EQ(x->homing->max_travel_mm, 300.0);           // 1.5 x (200 - 0)
+  EXPECT_FALSE(cfg->axis("y")->homing.has_value());     // no section: no endstop
+}
+
+TEST(ConfigHoming, EndstopAtMaxInfersTheDirection) {
+  const std::string y =
+      edit(kMinimal, kX, "    max_accel_mm_s2: 3000\n    homing: {position_endstop_mm: 200}\n  y:");
+  auto cfg = load_config_text(y, "printer.yaml");
+  ASSERT_TRUE(cfg.ok()) << cfg.error().to_string();
+  EXPECT_EQ(cfg->axis("x")->homing->direction, EndstopSide::max);
+  // And the default position follows an explicit direction.
+  const std::string y2 =
+      edit(kMinimal, kX, "    max_accel_mm_s2: 3000\n    homing: {direction: max}\n  y:");
+  auto cfg2 = load_config_text(y2, "printer.yaml");
+  ASSERT_TRUE(cfg2.ok());
+  EXPECT_EQ(cfg2->axis("x")->homing->position_endstop_mm, 200.0);
+}
+
+TEST(ConfigHoming, EndstopOutsideTheTravel) {
+  const std::string y =
+      edit(kMinimal, kX, "    max_accel_mm_s2: 3000\n    homing: {position_endstop_mm: 250}\n  y:");
+  expect_error(y, "axes.x.homing.position_endstop_mm 250 mm must lie within the travel 0 .. 200 mm",
+               pos_of(y, "position_endstop_mm: 250"));
+}
+
+TEST(ConfigHoming, SecondTouchFasterThanTheFirst) {
+  const std::string y = edit(kMinimal, kX,
+                             "    max_accel_mm_s2: 3000\n    homing:\n      homing_speed_mm_s: 20\n"
+                             "      second_homing_speed_mm_s: 40\n  y:");
+  expect_error(y, "axes.x.homing.second_homing_speed_mm_s 40 mm/s is above homing_speed_mm_s 20",
+               pos_of(y, "second_homing_speed_mm_s"));
+}
+
+TEST(ConfigHoming, OvershootBeyondTheRetract) {
+  const std::string y =
+      edit(kMinimal, kX,
+           "    max_accel_mm_s2: 3000\n    homing:\n      homing_speed_mm_s: 300\n"
+           "      retract_dist_mm: 0.05\n  y:");
+  expect_error(y,
+               "overshoots the trip point by 0.06 mm before the MCU confirms it, more than "
+               "retract_dist_mm 0.05",
+               pos_of(y, "homing_speed_mm_s: 300"));
+}
+
+TEST(ConfigHoming, BadDirectionAndSpeedAboveTheAxisLimit) {
+  const std::string y =
+      edit(kMinimal, kX,
+           "    max_accel_mm_s2: 3000\n    homing: {direction: up, homing_speed_mm_s: 400}\n  y:");
+  expect_error(y,
+               "axes.x.homing.homing_speed_mm_s 400 mm/s is above the axis's max_velocity_mm_s 300",
+               pos_of(y, "homing_speed_mm_s: 400"));
+  expect_error(y, "direction", pos_of(y, "up,"));
+}
+
+TEST(ConfigHoming, NotOnTheExtruder) {
+  const std::string y =
+      edit(kMinimal, "    steps_per_mm: 96\n", "    steps_per_mm: 96\n    homing: {}\n");
+  expect_error(y, "axes.e: the extruder has no endstop", pos_of(y, "homing: {}"));
+}
+}  // namespace homing
+
 }  // namespace
 }  // namespace feedloop::config

@@ -170,5 +170,62 @@ TEST_F(ShippedDefault, MoveBeforeHomingIsRefusedUntilG28) {
   EXPECT_NE(e2->find("Must home axis first (X not homed"), std::string::npos) << *e2;
 }
 
+// M119 as Marlin answers it (gcode/host/M119.cpp, endstops.cpp report_states): "Reporting endstop
+// status", one "x_min: open" / "TRIGGERED" line per switch, then ok. The simulated carriages start
+// 2 mm from their switches (open); after G28 each stopped on its switch (TRIGGERED); a move away
+// opens it again. The JSON status shows each axis's homed position from its switch.
+TEST_F(ShippedDefault, M119ReportsTheSwitchesAndTheStatusTheHomedPositions) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  auto m119 = [&]() {
+    std::string all;
+    if (!c.send_line("M119")) return all;
+    for (int i = 0; i < 6; ++i) {
+      auto line = c.read_line();
+      if (!line) break;
+      all += *line + "\n";
+      if (*line == "ok") break;
+    }
+    return all;
+  };
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // MCUs ready, switches queried
+  EXPECT_EQ(m119(), "Reporting endstop status\nx_min: open\ny_min: open\nz_min: open\nok\n");
+  ASSERT_TRUE(c.send_line("G28"));
+  ASSERT_EQ(c.read_until("ok", 20000), "ok");
+  EXPECT_EQ(m119(),
+            "Reporting endstop status\nx_min: TRIGGERED\ny_min: TRIGGERED\nz_min: TRIGGERED\nok\n");
+  for (const char* line : {"G1 X10 F3000", "M400", "G4 P300"}) {
+    ASSERT_TRUE(c.send_line(line));
+    ASSERT_EQ(c.read_until("ok", 20000), "ok") << line;
+  }
+  EXPECT_EQ(m119(),
+            "Reporting endstop status\nx_min: open\ny_min: TRIGGERED\nz_min: TRIGGERED\nok\n");
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  nlohmann::json homing;
+  for (int k = 0; k < 40 && !(homing.is_object() && homing.value("homings", 0) == 1); ++k) {
+    api.send_line(R"({"jsonrpc":"2.0","id":1,"method":"status"})");
+    for (int i = 0; i < 50; ++i) {
+      auto line = api.read_line(5000);
+      if (!line) break;
+      auto j = nlohmann::json::parse(*line, nullptr, false);
+      if (j.is_object() && j.contains("id")) {
+        homing = j["result"]["homing"];
+        break;
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_TRUE(homing.is_object());
+  EXPECT_EQ(homing.value("homings", 0), 1);
+  for (const char* axis : {"x", "y", "z"}) {
+    ASSERT_TRUE(homing["homed_position_mm"][axis].is_number()) << homing.dump();
+    const double mm = homing["homed_position_mm"][axis].get<double>();
+    EXPECT_LE(mm, 0.0) << axis;  // position_endstop 0, a few steps past it at most
+    EXPECT_GT(mm, -0.02) << axis;
+  }
+  EXPECT_EQ(homing["endstops"].value("x_min", ""), "open");
+}
+
 }  // namespace
 }  // namespace feedloop::testing

@@ -42,6 +42,7 @@ struct SimRig {
     mo.input_pause_flush_s = 0.0;  // idle_tick() releases the lookahead at once
     ex = std::make_unique<MotionExecutor>(planner_config(cfg), sp, bridge, mo);
     ex->set_backend(bridge.get());
+    ex->set_inline_driver([this] { cycle(); });  // G28, M400: this thread runs the servo cycles
   }
   double now_s() const { return static_cast<double>(now_ns) * 1e-9; }
   void cycle() {

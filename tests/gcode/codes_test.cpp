@@ -71,6 +71,7 @@ const std::vector<Valid>& valid_cases() {
       {"M114 D", 'M', 114, {}, "D"},
       {"M115", 'M', 115, {}},
       {"M117 Hello", 'M', 117, {}},
+      {"M119", 'M', 119, {}},
       {"M140 S60", 'M', 140, {{'S', 60}}},
       {"M190 S60", 'M', 190, {{'S', 60}}},
       {"M155 S2", 'M', 155, {{'S', 2}}},
@@ -130,9 +131,11 @@ TEST(Codes, TheTableCoversExactlyTheIssueList) {
       "M115", "M117", "M140", "M190", "M201", "M203", "M204", "M205", "M220", "M221", "M400",
       "M155", "M303",
       // issue 16 (print jobs): M18 and Marlin's SD-card commands
-      "M18", "M20", "M21", "M23", "M24", "M25", "M26", "M27", "M32", "M524",
+      "M18",  "M20",  "M21",  "M23",  "M24",  "M25",  "M26",  "M27",  "M32",  "M524",
       // issue 16 (pressure advance): Marlin's linear advance factor
-      "M900"};
+      "M900",
+      // issue 16 (homing): Marlin's endstop report
+      "M119"};
   std::set<std::string> table, tested;
   for (const CodeRule& r : all_code_rules()) table.insert(r.letter + std::to_string(r.code));
   for (const Valid& v : valid_cases()) tested.insert(v.letter + std::to_string(v.code));
