@@ -40,7 +40,8 @@ cmake --build build-san -j"$JOBS" --target sanitizer_tests
 stage "tests under sanitizers"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
 # -E _NOT_BUILT: the placeholders ctest keeps for the test programs this stage did not build.
-ctest --test-dir build-san -j"$JOBS" --output-on-failure --timeout 900 -LE "slow|realtime|long|browser" -E _NOT_BUILT
+# fuzz_replay: the corpus replay tests, not built here: the fuzz stage below runs every corpus file.
+ctest --test-dir build-san -j"$JOBS" --output-on-failure --timeout 900 -LE "slow|realtime|long|browser|fuzz_replay" -E _NOT_BUILT
 
 stage "fuzz (short run of every target)"
 bash fuzz/run.sh build-san 5  # fuzz/README.md; 5 s each (the long runs are separate)
