@@ -3,7 +3,8 @@
 #   1. GCC, RelWithDebInfo: every test, the slow ones included (timing and allocation tests run
 #      here, where no sanitizer changes the allocator or the speed);
 #   2. clang, ASan + UBSan with libFuzzer's coverage: the tests again under the sanitizers (the
-#      slow ones excluded), then a short run of every fuzz target from the same build.
+#      slow ones excluded), then a short run of every fuzz target from the same build. Its units
+#      compile with precompiled headers (FEEDLOOP_PCH, on by default with clang).
 # Usage: scripts/test.sh [--fast]  (--fast: build 1 only)
 set -euo pipefail
 cd "$(dirname "$0")/.."
