@@ -209,9 +209,12 @@ json printer_objects(const ObjectInputs& in) {
   o["heaters"] = {{"available_heaters", {"extruder", "heater_bed"}},
                   {"available_sensors", {"extruder", "heater_bed"}},
                   {"available_monitors", json::array()}};
-  o["extruder"] = {
-      {"temperature", s.hotend_c},          {"target", s.hotend_target_c}, {"power", 0.0},
-      {"can_extrude", s.hotend_c >= 170.0}, {"pressure_advance", 0.0},     {"smooth_time", 0.04}};
+  o["extruder"] = {{"temperature", s.hotend_c},
+                   {"target", s.hotend_target_c},
+                   {"power", 0.0},
+                   {"can_extrude", s.hotend_c >= 170.0},
+                   {"pressure_advance", s.pressure_advance_s},
+                   {"smooth_time", s.pressure_advance_smooth_time_s}};
   o["heater_bed"] = {{"temperature", s.bed_c}, {"target", s.bed_target_c}, {"power", 0.0}};
   o["fan"] = {{"speed", 0.0}, {"rpm", nullptr}};
   o["motion_report"] = {
