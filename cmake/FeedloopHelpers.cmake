@@ -2,10 +2,9 @@
 # One GoogleTest executable; each TEST becomes a ctest case. Tests run from the build directory
 # and find repository files through FEEDLOOP_SOURCE_DIR and the corpus through
 # FEEDLOOP_SHARED_DIR (absent in a user's clone: such tests GTEST_SKIP with a message).
-function(feedloop_add_test name)
-  cmake_parse_arguments(T "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
-  add_executable(${name} ${T_SOURCES})
-  target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main GTest::gmock)
+# The compile options and definitions every test target has (and the owner of the tests'
+# precompiled header has, feedloop_add_test_pch below).
+function(_feedloop_test_flags name)
   # Allocation-counting tests replace operator new/delete with malloc/free; GCC then reports
   # -Wmismatched-new-delete inside gtest's own allocations (a false positive).
   target_compile_options(${name} PRIVATE $<$<CXX_COMPILER_ID:GNU>:-Wno-mismatched-new-delete>)
@@ -13,6 +12,41 @@ function(feedloop_add_test name)
     FEEDLOOP_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
     FEEDLOOP_SHARED_DIR="${CMAKE_SOURCE_DIR}/../shared"
     FEEDLOOP_BINARY_DIR="${CMAKE_BINARY_DIR}")
+endfunction()
+
+# feedloop_add_test_pch(): the precompiled header every test target reuses (option FEEDLOOP_PCH,
+# docs/decisions.md "CI time"): gtest, gmock, nlohmann/json, Eigen and the standard headers most
+# tests include. Only third-party and standard headers, whose content depends on no macro that
+# differs between test targets: GCC rejects a PCH when a macro it used is defined differently
+# (-Winvalid-pch, an error here) and clang errors on a contradicting command-line macro. So the
+# owner, feedloop_test_pch, carries only what every test has (_feedloop_test_flags); a test's own
+# definitions (FEEDLOOPD_PATH, FUZZ_CORPUS, ...) are macros these headers never read.
+function(feedloop_add_test_pch)
+  if(NOT FEEDLOOP_PCH OR TARGET feedloop_test_pch)
+    return()
+  endif()
+  set(anchor ${CMAKE_BINARY_DIR}/feedloop_test_pch.cpp)
+  file(CONFIGURE OUTPUT ${anchor} CONTENT "// The object that builds the tests' precompiled header.\n")
+  add_library(feedloop_test_pch OBJECT ${anchor})
+  target_link_libraries(feedloop_test_pch PRIVATE GTest::gtest GTest::gmock nlohmann_json::nlohmann_json
+                        Eigen3::Eigen)
+  _feedloop_test_flags(feedloop_test_pch)
+  target_precompile_headers(feedloop_test_pch PRIVATE
+    <gtest/gtest.h> <gmock/gmock.h> <nlohmann/json.hpp> <Eigen/Dense>
+    <algorithm> <array> <atomic> <chrono> <cmath> <cstdint> <cstdio> <cstdlib> <cstring>
+    <deque> <filesystem> <fstream> <functional> <limits> <map> <memory> <mutex> <optional>
+    <random> <set> <sstream> <string> <thread> <vector>)
+endfunction()
+
+function(feedloop_add_test name)
+  cmake_parse_arguments(T "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${name} ${T_SOURCES})
+  target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main GTest::gmock)
+  _feedloop_test_flags(${name})
+  if(FEEDLOOP_PCH)
+    feedloop_add_test_pch()
+    target_precompile_headers(${name} REUSE_FROM feedloop_test_pch)
+  endif()
   if(NOT T_TIMEOUT)
     set(T_TIMEOUT 300)
   endif()
@@ -21,6 +55,12 @@ function(feedloop_add_test name)
   # The sanitizer stage of scripts/test.sh runs only the tests without these labels, and builds
   # only what it runs (target `sanitizer_tests`, top-level CMakeLists.txt).
   set(_skipped_under_sanitizers slow realtime long browser)
+  # Label fuzz_replay (tests/fuzz: a fuzz target's corpus replayed through its entry point): a
+  # build with the fuzz targets leaves them out too, because its fuzz stage (fuzz/run.sh) runs
+  # every file of the same corpus, reproducers included, through the same code first.
+  if(FEEDLOOP_FUZZ AND CMAKE_CXX_COMPILER_ID MATCHES "Clang")
+    list(APPEND _skipped_under_sanitizers fuzz_replay)
+  endif()
   set(_runs_under_sanitizers TRUE)
   foreach(label IN LISTS T_LABELS)
     if(label IN_LIST _skipped_under_sanitizers)
@@ -30,4 +70,45 @@ function(feedloop_add_test name)
   if(_runs_under_sanitizers)
     set_property(GLOBAL APPEND PROPERTY FEEDLOOP_SANITIZER_TESTS ${name})
   endif()
+endfunction()
+
+# feedloop_add_library_pch(DIRS d1 d2 ...): one precompiled header (the standard headers most
+# modules include, and Eigen) reused by every library and program defined under those source
+# directories (option FEEDLOOP_PCH, docs/decisions.md "CI time"). Called once from the top-level
+# CMakeLists.txt after the modules, so no module's CMakeLists.txt names it. Left out:
+# - the test programs (their own PCH, feedloop_add_test_pch above);
+# - feedloop_axis_loop, built with -fno-exceptions -fno-rtti (a PCH must be built with the same);
+# - the fuzz targets, compiled with -fsanitize=fuzzer (also a flag the PCH must share).
+function(feedloop_add_library_pch)
+  cmake_parse_arguments(P "" "" "DIRS" ${ARGN})
+  if(NOT FEEDLOOP_PCH)
+    return()
+  endif()
+  set(anchor ${CMAKE_BINARY_DIR}/feedloop_lib_pch.cpp)
+  file(CONFIGURE OUTPUT ${anchor} CONTENT "// The object that builds the libraries' precompiled header.\n")
+  add_library(feedloop_lib_pch OBJECT ${anchor})
+  target_link_libraries(feedloop_lib_pch PRIVATE Eigen3::Eigen)
+  target_precompile_headers(feedloop_lib_pch PRIVATE
+    <Eigen/Dense>
+    <algorithm> <array> <atomic> <chrono> <cmath> <complex> <cstddef> <cstdint> <cstdio>
+    <cstdlib> <cstring> <deque> <filesystem> <fstream> <functional> <limits> <map> <memory>
+    <mutex> <numbers> <optional> <sstream> <string> <string_view> <thread> <utility> <vector>)
+  set(dirs ${P_DIRS})
+  set(targets)
+  while(dirs)
+    list(POP_FRONT dirs dir)
+    get_property(subdirs DIRECTORY ${dir} PROPERTY SUBDIRECTORIES)
+    list(APPEND dirs ${subdirs})
+    get_property(dir_targets DIRECTORY ${dir} PROPERTY BUILDSYSTEM_TARGETS)
+    list(APPEND targets ${dir_targets})
+  endwhile()
+  get_property(fuzzers GLOBAL PROPERTY FEEDLOOP_FUZZERS)
+  foreach(t IN LISTS targets)
+    get_target_property(type ${t} TYPE)
+    if(NOT type MATCHES "^(STATIC_LIBRARY|EXECUTABLE)$" OR t STREQUAL "feedloop_axis_loop"
+       OR t IN_LIST fuzzers)
+      continue()
+    endif()
+    target_precompile_headers(${t} REUSE_FROM feedloop_lib_pch)
+  endforeach()
 endfunction()

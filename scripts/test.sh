@@ -3,7 +3,8 @@
 #   1. GCC, RelWithDebInfo: every test, the slow ones included (timing and allocation tests run
 #      here, where no sanitizer changes the allocator or the speed);
 #   2. clang, ASan + UBSan with libFuzzer's coverage: the tests again under the sanitizers (the
-#      slow ones excluded), then a short run of every fuzz target from the same build.
+#      slow ones excluded), then a short run of every fuzz target from the same build. Its units
+#      compile with precompiled headers (FEEDLOOP_PCH, on by default with clang).
 # Usage: scripts/test.sh [--fast]  (--fast: build 1 only)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -40,7 +41,8 @@ cmake --build build-san -j"$JOBS" --target sanitizer_tests
 stage "tests under sanitizers"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
 # -E _NOT_BUILT: the placeholders ctest keeps for the test programs this stage did not build.
-ctest --test-dir build-san -j"$JOBS" --output-on-failure --timeout 900 -LE "slow|realtime|long|browser" -E _NOT_BUILT
+# fuzz_replay: the corpus replay tests, not built here: the fuzz stage below runs every corpus file.
+ctest --test-dir build-san -j"$JOBS" --output-on-failure --timeout 900 -LE "slow|realtime|long|browser|fuzz_replay" -E _NOT_BUILT
 
 stage "fuzz (short run of every target)"
 bash fuzz/run.sh build-san 5  # fuzz/README.md; 5 s each (the long runs are separate)
