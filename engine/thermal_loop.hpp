@@ -76,6 +76,7 @@ struct HeaterStatus {
 struct FanStatus {
   char name[16] = {};
   double speed = 0.0;
+  bool part = true;  // a part fan (M106/M107); false: a heater fan
 };
 
 class ThermalLoop {

@@ -1,5 +1,7 @@
 #include "web/moonraker_api.hpp"
 
+#include "web/calibration_report.hpp"
+
 #include <spdlog/spdlog.h>
 #include <sys/sysinfo.h>
 #include <sys/utsname.h>
@@ -167,6 +169,9 @@ void MoonrakerApi::gcode_response(const std::string& text) {
 
 void MoonrakerApi::on_message(uint64_t conn, std::string_view text) {
   ++requests_;
+  // A job's end seen by a client is in the history before anything the client does next (a
+  // start right after "complete" is a new job, not the same one going on).
+  track_jobs(now_s_);
   json msg = json::parse(text, nullptr, /*allow_exceptions=*/false);
   auto error_reply = [&](int code, const std::string& message) {
     send(conn, std::make_shared<const std::string>(
@@ -258,7 +263,7 @@ json MoonrakerApi::all_objects() const {
   const engine::MachineStatus s = printer_.machine_status();
   const engine::ServoStatus v = printer_.servo_status();
   const JobStatus job = printer_.job_status();
-  const std::string gcodes = files_.dir() + "/gcodes";
+  const std::string gcodes = files_.root_dir("gcodes");
   return printer_objects(ObjectInputs{info, s, v, job, telemetry_, gcodes});
 }
 
@@ -294,6 +299,8 @@ void MoonrakerApi::run_script(std::vector<std::string> lines, size_t next, Done 
       err = printer_.resume_job();
     else if (word == "CANCEL_PRINT")
       err = printer_.cancel_job();
+    else if (word == "SDCARD_RESET_FILE")
+      err = printer_.reset_job();
     else if (word == "RESTART" || word == "FIRMWARE_RESTART")
       printer_.restart();
     else if (word == "SDCARD_PRINT_FILE") {
@@ -326,7 +333,8 @@ void MoonrakerApi::run_script(std::vector<std::string> lines, size_t next, Done 
     while (end < lines.size()) {
       const std::string w = first_word_upper(lines[end]);
       if (w == "PAUSE" || w == "M25" || w == "RESUME" || w == "M24" || w == "CANCEL_PRINT" ||
-          w == "RESTART" || w == "FIRMWARE_RESTART" || w == "SDCARD_PRINT_FILE")
+          w == "SDCARD_RESET_FILE" || w == "RESTART" || w == "FIRMWARE_RESTART" ||
+          w == "SDCARD_PRINT_FILE")
         break;
       script += lines[end++];
       script += '\n';
@@ -364,6 +372,7 @@ bool MoonrakerApi::is_api_path(std::string_view path) {
 
 void MoonrakerApi::on_http(const HttpRequest& req, std::function<void(HttpReply)> done) {
   ++requests_;
+  track_jobs(now_s_);  // as in on_message
   auto reply_json = [done](int status, const json& body) {
     HttpReply r;
     r.status = status;
@@ -516,9 +525,13 @@ json MoonrakerApi::proc_stats(double now_s) {
 void MoonrakerApi::track_jobs(double now_s) {
   (void)now_s;
   const JobStatus job = printer_.job_status();
+  // A print streamed by a client (no file) is not a history job: Moonraker records the prints
+  // of virtual_sdcard only.
   const bool was_active =
-      last_job_state_ == JobState::printing || last_job_state_ == JobState::paused;
-  const bool active = job.state == JobState::printing || job.state == JobState::paused;
+      (last_job_state_ == JobState::printing || last_job_state_ == JobState::paused) &&
+      !last_job_file_.empty();
+  const bool active =
+      (job.state == JobState::printing || job.state == JobState::paused) && !job.filename.empty();
   if (active && (!was_active || job.filename != last_job_file_)) {
     job_ = json{{"user", "_TRUSTED_USER_"},
                 {"filename", job.filename},
@@ -573,19 +586,20 @@ void MoonrakerApi::tick(double now_s) {
   }
   if (now_s - last_temp_s_ >= 1.0) {
     last_temp_s_ = now_s;
-    auto add = [this](const char* name, double t, double target) {
+    auto add = [this](const char* name, double t, double target, double power) {
       TempSeries& ts = temps_[name];
       ts.temps.push_back(std::round(t * 100) / 100);
       ts.targets.push_back(target);
-      ts.powers.push_back(0.0);
+      ts.powers.push_back(std::round(power * 1000) / 1000);
       while (ts.temps.size() > options_.temperature_store_size) {
         ts.temps.pop_front();
         ts.targets.pop_front();
         ts.powers.pop_front();
       }
     };
-    add("extruder", s.hotend_c, s.hotend_target_c);
-    add("heater_bed", s.bed_c, s.bed_target_c);
+    const HeaterPowers p = heater_powers(s);
+    add("extruder", s.hotend_c, s.hotend_target_c, p.hotend);
+    add("heater_bed", s.bed_c, s.bed_target_c, p.bed);
   }
   if (now_s - last_proc_s_ >= 1.0) {
     last_proc_s_ = now_s;
@@ -763,7 +777,7 @@ void MoonrakerApi::register_methods() {
   m["server.files.roots"] = [this, ok](uint64_t, const json&, Done d) {
     json r = json::array();
     for (const std::string& root : FileStore::roots())
-      r.push_back({{"name", root}, {"path", files_.dir() + "/" + root}, {"permissions", "rw"}});
+      r.push_back({{"name", root}, {"path", files_.root_dir(root)}, {"permissions", "rw"}});
     ok(d, r);
   };
   m["server.files.list"] = [this, ok, fail](uint64_t, const json& p, Done d) {
@@ -957,6 +971,12 @@ void MoonrakerApi::register_methods() {
   };
   m["server.announcements.list"] = [ok](uint64_t, const json&, Done d) {
     ok(d, {{"entries", json::array()}, {"feeds", json::array()}});
+  };
+  // feedloop's own: the last calibration report (web/calibration_report.hpp) for our page.
+  m["server.feedloop.calibration_report"] = [this, ok](uint64_t, const json&, Done d) {
+    if (options_.calibration_dir.empty())
+      return ok(d, {{"found", false}, {"dir", ""}, {"message", "web.calibration_dir is not set"}});
+    ok(d, latest_calibration_report(options_.calibration_dir));
   };
   // feedloop's own: the tracking-error points for our page (from: the first point wanted).
   m["server.feedloop.tracking_points"] = [this, ok, fail](uint64_t, const json& p, Done d) {
