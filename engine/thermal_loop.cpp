@@ -386,6 +386,7 @@ void ThermalLoop::snapshot(HeaterStatus* heaters, int& nh, FanStatus* fans, int&
     std::snprintf(fans[i].name, sizeof fans[i].name, "%s", opt_.fans[i].name.c_str());
     fans[i].speed = f_[i].speed;
     fans[i].part = opt_.fans[i].kind == FanSpec::Kind::kPart;
+    fans[i].requested = fans[i].part ? f_[i].requested : f_[i].speed;
   }
 }
 

@@ -240,9 +240,9 @@ json printer_objects(const ObjectInputs& in) {
     const engine::FanStatus& f = s.fans[i];
     if (f.part && !have_part) {
       have_part = true;
-      o["fan"]["speed"] = f.speed;
+      o["fan"]["speed"] = f.requested;  // Klipper's fan.py reports the requested speed
     } else if (!f.part) {
-      o[std::string("heater_fan ") + f.name] = {{"speed", f.speed}, {"rpm", nullptr}};
+      o[std::string("heater_fan ") + f.name] = {{"speed", f.requested}, {"rpm", nullptr}};
     }
   }
   o["motion_report"] = {

@@ -206,9 +206,10 @@ TEST(WebApi, HeaterPowerAndFansComeFromTheMachineStatus) {
   s.num_fans = 2;
   std::snprintf(s.fans[0].name, sizeof s.fans[0].name, "hotend_fan");
   s.fans[0].part = false;
-  s.fans[0].speed = 1.0;
+  s.fans[0].speed = s.fans[0].requested = 1.0;
   std::snprintf(s.fans[1].name, sizeof s.fans[1].name, "part");
-  s.fans[1].speed = 128.0 / 255.0;
+  s.fans[1].speed = 1.0;  // kick-start: full power for a moment
+  s.fans[1].requested = 128.0 / 255.0;
   const json o = f.api->all_objects();
   EXPECT_DOUBLE_EQ(o["extruder"]["power"].get<double>(), 0.75);
   EXPECT_DOUBLE_EQ(o["heater_bed"]["power"].get<double>(), 0.25);
