@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <random>
 
 #include "core/utf8.hpp"
 #include "web/multipart.hpp"
@@ -962,6 +963,34 @@ void MoonrakerApi::register_methods() {
     s["throttled_state"] = {{"bits", 0}, {"flags", json::array()}};
     ok(d, s);
   };
+  // Access (Moonraker's authorization component): a request that reaches the API has passed the
+  // access check (web/access.hpp: a trusted address or the API key), so the user is Moonraker's
+  // trusted user. Fluidd asks at load and, without a user, fetches a oneshot token before each
+  // upload (access.oneshot_token, which feedloop does not have: its uploads then failed).
+  m["access.get_user"] = [this, ok](uint64_t, const json&, Done d) {
+    ok(d, {{"username", "_TRUSTED_USER_"}, {"source", "moonraker"}, {"created_on", wall_s()}});
+  };
+  m["access.info"] = [ok](uint64_t, const json&, Done d) {
+    ok(d, {{"default_source", "moonraker"},
+           {"available_sources", json::array({"moonraker"})},
+           {"login_required", false},
+           {"trusted", true}});
+  };
+  m["access.users.list"] = [ok](uint64_t, const json&, Done d) {
+    ok(d, {{"users", json::array()}});
+  };
+  // Moonraker's oneshot token authorizes one request of a logged-in user (downloads, uploads).
+  // feedloop has no logins: the request that carries it must pass the access check by its address
+  // or the API key anyway, so the token is a random string that authorizes nothing by itself.
+  m["access.oneshot_token"] = [ok](uint64_t, const json&, Done d) {
+    static std::mt19937_64 rng{std::random_device{}()};
+    char buf[33];
+    std::snprintf(buf, sizeof buf, "%016llx%016llx", static_cast<unsigned long long>(rng()),
+                  static_cast<unsigned long long>(rng()));
+    ok(d, std::string(buf));
+  };
+  // The API key is not handed out over the API (Moonraker shows it to logged-in users).
+  m["access.get_api_key"] = [ok](uint64_t, const json&, Done d) { ok(d, ""); };
   // Components feedloop advertises with nothing in them.
   m["server.webcams.list"] = [ok](uint64_t, const json&, Done d) {
     ok(d, {{"webcams", json::array()}});

@@ -309,7 +309,13 @@ async function runUi(ui, port) {
     await waitFor('M106 S128 from the UI\'s console sets fan.speed to 128/255',
       async () => Math.abs((await query('fan=speed')).fan.speed - 128 / 255) < 1e-3, 10000)
     await gotoDashboard(page, ui)
-    await waitFor(`${ui} shows the part fan at 50 %`, async () => /\b50\s*%/.test(await text()), 15000)
+    // Fluidd writes "50%"; Mainsail's fan slider has its number in an input field beside "Fan".
+    await waitFor(`${ui} shows the part fan at 50 %`, async () => /\b50\s*%/.test(await text()) || page.evaluate(() =>
+      [...document.querySelectorAll('input')].some((i) => {
+        if (i.value !== '50') return false
+        for (let e = i, k = 0; e && k < 6; e = e.parentElement, ++k) if (/^\s*Fan\b/m.test(e.innerText || '')) return true
+        return false
+      })), 15000)
     await page.screenshot({ path: path.join(outDir, `${ui}-fan.png`) })
 
     let hist = await api('/server/history/list?limit=5')
