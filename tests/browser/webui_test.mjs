@@ -96,6 +96,17 @@ async function controls(page) {
 
 // The control `pred` picks, once it is there and has stopped moving (dialogs and menus open with
 // a transition: a click in the middle of it lands beside the button).
+// A mouse click on the element; where puppeteer finds no clickable point (a menu item inside
+// Vuetify's transformed menu), the mouse clicks the middle of its client rectangle.
+async function clickIt(page, handle) {
+  try {
+    await handle.click()
+  } catch {
+    const r = await handle.evaluate((e) => { const b = e.getBoundingClientRect(); return { x: b.x + b.width / 2, y: b.y + b.height / 2 } })
+    await page.mouse.click(r.x, r.y)
+  }
+}
+
 async function waitForControl(page, what, pred, timeoutMs = 15000) {
   let seen = []
   const h = await waitFor(what, async () => {
@@ -106,7 +117,8 @@ async function waitForControl(page, what, pred, timeoutMs = 15000) {
     const before = await box(c.id)
     await sleep(300)
     const after = await box(c.id)
-    if (!before || !after || before.x !== after.x || before.y !== after.y || before.width !== after.width) return null
+    // (A menu item inside a transformed menu may have no box for puppeteer: clicked all the same.)
+    if (before && after && (before.x !== after.x || before.y !== after.y || before.width !== after.width)) return null
     return page.$(`[data-fl-ctl="${c.id}"]`)
   }, timeoutMs)
   if (!h) console.log(`     controls seen: ${JSON.stringify(seen.map((c) => [c.text.slice(0, 30), c.label, c.icon.slice(0, 16), c.href]))}`)
@@ -118,7 +130,7 @@ async function gotoFiles(page, ui) {
     await page.evaluate(() => { location.hash = '#/jobs' })
   } else {
     const link = await waitForControl(page, 'Mainsail: the G-Code Files link', (c) => c.href === '/files')
-    if (link) await link.click()
+    if (link) await clickIt(page, link)
   }
   // The file list is there (and the dashboard's controls are gone).
   await waitFor(`${ui}: the file list`, async () => page.evaluate((ui) => {
@@ -133,7 +145,7 @@ async function gotoDashboard(page, ui) {
     await page.evaluate(() => { location.hash = '#/' })
   } else {
     const link = await waitForControl(page, 'Mainsail: the Dashboard link', (c) => c.href === '/' && /dashboard/i.test(c.text))
-    if (link) await link.click()
+    if (link) await clickIt(page, link)
   }
   await waitFor(`${ui}: the dashboard`, async () => page.evaluate((ui) => {
     const t = document.body.innerText
@@ -146,15 +158,21 @@ async function gotoDashboard(page, ui) {
 async function startFromFiles(page, ui) {
   await gotoFiles(page, ui)
   const file = await waitFor(`${ui}: the file's row`, async () => {
-    const rows = await page.$$('tr, .v-list-item')
+    const rows = await page.$$('tbody tr')  // the file table (not the upload progress list)
     for (const r of rows) if (/cube20/.test(await r.evaluate((e) => e.innerText)) && await r.isVisible()) return r
     return null
   })
   if (!file) return
-  await file.click()
-  const print = await waitForControl(page, `${ui}: the dialog's print button`,
-    (c) => /^print$/i.test(c.text) || /^print$/i.test(c.label))
-  if (print) await print.click()
+  // A click on the file's name (Fluidd opens its menu where the mouse is).
+  const name = await file.evaluateHandle((r) => [...r.querySelectorAll('td')].find((td) => /cube20/.test(td.innerText)) || r)
+  await name.asElement().click()
+  const isPrint = (c) => /^print$/i.test(c.text) || /^print$/i.test(c.label)
+  let print = await waitForControl(page, `${ui}: the dialog's or menu's print button`, isPrint, 5000)
+  if (!print && ui === 'fluidd') {  // the menu by a right click, as Fluidd also offers it
+    await name.asElement().click({ button: 'right' })
+    print = await waitForControl(page, `${ui}: the context menu's print item`, isPrint, 5000)
+  }
+  if (print) await clickIt(page, print)
 }
 
 // A confirmation dialog after cancel (Fluidd always asks; Mainsail when configured to).
@@ -164,7 +182,7 @@ async function confirmIfAsked(page, ui) {
     const c = (await controls(page)).find((c) => /^(yes|confirm|cancel print)$/i.test(c.text))
     if (c) {
       console.log(`     ${ui}: confirming with "${c.text}"`)
-      await (await page.$(`[data-fl-ctl="${c.id}"]`))?.click()
+      { const h = await page.$(`[data-fl-ctl="${c.id}"]`); if (h) await clickIt(page, h) }
       return
     }
     await sleep(200)
@@ -223,7 +241,7 @@ async function runUi(ui, port) {
     let uploadButton = null
     if (ui === 'fluidd') {
       const plus = await waitForControl(page, 'Fluidd: the file list\'s add (+) button', (c) => hasIcon(c, ICON.plus))
-      if (plus) await plus.click()
+      if (plus) await clickIt(page, plus)
       uploadButton = await waitForControl(page, 'Fluidd: the "Upload Files" menu item', (c) => /^upload files$/i.test(c.text))
     } else {
       uploadButton = await waitForControl(page, 'Mainsail: the upload button', (c) => hasIcon(c, ICON.upload) || /upload/i.test(c.label))
@@ -244,7 +262,7 @@ async function runUi(ui, port) {
 
     // Pause and resume with the UI's buttons.
     const pauseButton = await waitForControl(page, `${ui} pause button`, (c) => hasIcon(c, ICON.pause) || /^pause$/i.test(c.text))
-    if (pauseButton) await pauseButton.click()
+    if (pauseButton) await clickIt(page, pauseButton)
     await waitFor(`${ui} shows Paused`, async () => /paused/i.test(await text()) && (await query('print_stats=state')).print_stats.state === 'paused')
     const pausedAt = (await query('virtual_sdcard=file_position')).virtual_sdcard.file_position
     await sleep(1500)
@@ -252,7 +270,7 @@ async function runUi(ui, port) {
     check(pausedAt === stillAt && pausedAt > 0, `paused: the file position stays at ${pausedAt} (then ${stillAt})`)
     await page.screenshot({ path: path.join(outDir, `${ui}-paused.png`) })
     const resumeButton = await waitForControl(page, `${ui} resume button`, (c) => hasIcon(c, ICON.play) || /^resume$/i.test(c.text))
-    if (resumeButton) await resumeButton.click()
+    if (resumeButton) await clickIt(page, resumeButton)
     // In virtual time the rest of the print can finish before the next look: the UI must have
     // left "Paused" and the job be printing or complete.
     await waitFor(`${ui} leaves Paused after resume`, async () => !/paused/i.test(await text()) &&
@@ -312,7 +330,7 @@ async function runUi(ui, port) {
     // Fluidd writes "50%"; Mainsail's fan slider has its number in an input field beside "Fan".
     await waitFor(`${ui} shows the part fan at 50 %`, async () => /\b50\s*%/.test(await text()) || page.evaluate(() =>
       [...document.querySelectorAll('input')].some((i) => {
-        if (i.value !== '50') return false
+        if (!(Math.abs(Number(i.value) - 50) <= 0.5)) return false
         for (let e = i, k = 0; e && k < 6; e = e.parentElement, ++k) if (/^\s*Fan\b/m.test(e.innerText || '')) return true
         return false
       })), 15000)
@@ -330,11 +348,11 @@ async function runUi(ui, port) {
     await waitFor(`${ui} shows Printing again`, async () => (await query('print_stats=state')).print_stats.state === 'printing' && /printing/i.test(await text()))
     if (ui === 'mainsail') {
       const pause2 = await waitForControl(page, `${ui} pause button`, (c) => hasIcon(c, ICON.pause))
-      if (pause2) await pause2.click()
+      if (pause2) await clickIt(page, pause2)
       await waitFor(`${ui} shows Paused`, async () => /paused/i.test(await text()))
     }
     const cancelButton = await waitForControl(page, `${ui} cancel button`, (c) => hasIcon(c, ICON.stop) || /^cancel$/i.test(c.text))
-    if (cancelButton) await cancelButton.click()
+    if (cancelButton) await clickIt(page, cancelButton)
     await confirmIfAsked(page, ui)
     await waitFor('the job is cancelled (print_stats.state cancelled)', async () => (await query('print_stats=state')).print_stats.state === 'cancelled', 60000)
     await waitFor(`${ui} shows Cancelled`, async () => /cancel+ed/i.test(await text()))
