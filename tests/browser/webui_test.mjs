@@ -97,13 +97,12 @@ async function controls(page) {
 // The control `pred` picks, once it is there and has stopped moving (dialogs and menus open with
 // a transition: a click in the middle of it lands beside the button).
 // A mouse click on the element; where puppeteer finds no clickable point (a menu item inside
-// Vuetify's transformed menu), the mouse clicks the middle of its client rectangle.
+// Vuetify's transformed menu), the element's own click() (the click event its handler gets).
 async function clickIt(page, handle) {
   try {
     await handle.click()
   } catch {
-    const r = await handle.evaluate((e) => { const b = e.getBoundingClientRect(); return { x: b.x + b.width / 2, y: b.y + b.height / 2 } })
-    await page.mouse.click(r.x, r.y)
+    await handle.evaluate((e) => e.click())
   }
 }
 
