@@ -14,6 +14,7 @@ std::vector<std::string> changed_sections(const MachineConfig& a, const MachineC
   check(a.axes == b.axes, "axes");
   check(a.delta == b.delta, "delta");
   check(a.planner == b.planner, "planner");
+  check(a.extruder == b.extruder, "extruder");
   check(a.servo == b.servo, "servo");
   check(a.control == b.control, "control");
   check(a.feedforward == b.feedforward, "feedforward");

@@ -96,6 +96,11 @@ void write_motion(Writer& w, const MachineConfig& c) {
   w.num("arc_tolerance_mm", p.arc_tolerance_mm);
   w.end();
 
+  w.begin("extruder");
+  w.num("pressure_advance", c.extruder.pressure_advance);
+  w.num("pressure_advance_smooth_time", c.extruder.pressure_advance_smooth_time);
+  w.end();
+
   w.begin("servo");
   w.num("rate_hz", c.servo.rate_hz);
   w.integer("realtime_priority", c.servo.realtime_priority);

@@ -44,6 +44,7 @@ void read_document(const YAML::Node& doc, MachineConfig& cfg, Diagnostics& diag)
     root.get("delta");  // depends on the kinematics: not checked without it
   }
   read_planner(root, cfg, diag);
+  read_extruder(root, cfg, diag);
   read_servo_control(root, cfg, diag);
   read_model(root, cfg, diag);
   read_stepgen_mcus(root, cfg, marks, diag);

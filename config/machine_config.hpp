@@ -92,6 +92,14 @@ struct PlannerConfig {
   bool operator==(const PlannerConfig&) const = default;
 };
 
+// Klipper's [extruder] pressure advance (docs/pressure_advance.md): K in seconds (0: off; Marlin's
+// M900 K, at most 10) and the smoothing window in seconds (Klipper's default 0.040, at most 0.200).
+struct ExtruderConfig {
+  double pressure_advance = 0.0;
+  double pressure_advance_smooth_time = 0.040;
+  bool operator==(const ExtruderConfig&) const = default;
+};
+
 // ---- servo, control, feedforward ----------------------------------------------------------------
 
 struct ServoConfig {
@@ -550,6 +558,7 @@ struct MachineConfig {
   std::vector<AxisConfig> axes;              // in file order
   std::optional<DeltaGeometryConfig> delta;  // present iff kinematics == delta
   PlannerConfig planner;
+  ExtruderConfig extruder;
   ServoConfig servo;
   ControlConfig control;
   FeedforwardConfig feedforward;

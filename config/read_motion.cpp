@@ -36,6 +36,16 @@ void read_planner(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   p.finish();
 }
 
+// extruder: Klipper's [extruder] pressure_advance (>= 0; Marlin's M900 bounds K to 10) and
+// pressure_advance_smooth_time (Klipper: above 0, at most 0.200 s), both in seconds.
+void read_extruder(MapReader& root, MachineConfig& cfg, Diagnostics& /*diag*/) {
+  MapReader e = root.sub("extruder");
+  e.number("pressure_advance", cfg.extruder.pressure_advance, Range::closed(0.0, 10.0));
+  e.number("pressure_advance_smooth_time", cfg.extruder.pressure_advance_smooth_time,
+           Range::open_closed(0.0, 0.2));
+  e.finish();
+}
+
 namespace {
 
 // control.maneuver: Table II gains, the path speed and the speed assignment (Sect. III-C/D).

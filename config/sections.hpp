@@ -32,6 +32,7 @@ void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& d
                bool kinematics_known);
 void read_delta(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag);
 void read_planner(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
+void read_extruder(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 void read_model(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 void read_stepgen_mcus(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag);

@@ -465,8 +465,12 @@ bool is_sd_command(const gcode::Command& cmd) {
 
 bool Daemon::is_query(const gcode::Command& cmd) {
   if (cmd.empty()) return true;
-  return cmd.letter == 'M' && (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 ||
-                               cmd.code == 117 || cmd.code == 73 || cmd.code == 155 || is_sd_command(cmd));
+  // M900 / SET_PRESSURE_ADVANCE without a value reports it (answered in order, after the
+  // commands before it have executed).
+  const bool pa_report = cmd.code == 900 && !cmd.has('K') && !cmd.has('S');
+  return cmd.letter == 'M' &&
+         (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 || cmd.code == 117 ||
+          cmd.code == 73 || cmd.code == 155 || pa_report || is_sd_command(cmd));
 }
 
 bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply, uint64_t client_id) {
@@ -503,6 +507,18 @@ bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply, uint64_
     }
     case 115:
       reply = firmware_info() + "\nok";
+      return true;
+    case 900:
+      // Marlin's M900 report (gcode/feature/advance/M900.cpp, one extruder): "Advance K=<k>";
+      // Klipper's SET_PRESSURE_ADVANCE answers with both values (extruder.py).
+      if (cmd.has('K') || cmd.has('S')) return false;
+      if (cmd.text == "SET_PRESSURE_ADVANCE")
+        std::snprintf(buf, sizeof buf,
+                      "// pressure_advance: %.6f\n// pressure_advance_smooth_time: %.6f\nok",
+                      s.pressure_advance_s, s.pressure_advance_smooth_time_s);
+      else
+        std::snprintf(buf, sizeof buf, "echo:Advance K=%.3f\nok", s.pressure_advance_s);
+      reply = buf;
       return true;
     case 117:
       display_message_ = cmd.text;
@@ -739,7 +755,8 @@ json Daemon::status() const {
   const Client* o = nullptr;
   if (auto it = clients_.find(owner_); it != clients_.end()) o = &it->second;
   return {{"state", engine::to_string(s.state)},
-          {"position_mm", {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
+          {"position_mm",
+           {{"x", s.pos_mm[0]}, {"y", s.pos_mm[1]}, {"z", s.pos_mm[2]}, {"e", s.pos_mm[3]}}},
           {"homed_axes", std::string(s.homed_axes)},
           {"temperatures_c",
            {{"hotend", s.hotend_c},
@@ -761,6 +778,9 @@ json Daemon::status() const {
            {{"moving", s.moving},
             {"print_time_s", s.print_time_s},
             {"planned_until_s", s.planned_until_s},
+            {"pressure_advance",
+             {{"advance_s", s.pressure_advance_s},
+              {"smooth_time_s", s.pressure_advance_smooth_time_s}}},
             {"moves_planned", s.moves_planned},
             {"motion_starts", s.motion_starts},
             {"lost_step_events", s.lost_step_events},
@@ -773,7 +793,9 @@ json Daemon::status() const {
             {"device_loops", device_loops_json(s.device_loops, engine::joint_names(cfg_))}}},
           {"links", links_json(s.links)},
           {"clients", clients_.size()},
-          {"owner", owner_ == kJobOwner ? json(owner_name()) : o ? json(o->session->name()) : json(nullptr)},
+          {"owner", owner_ == kJobOwner ? json(owner_name())
+                    : o                 ? json(o->session->name())
+                                        : json(nullptr)},
           {"job", job_status_json()},
           {"progress_percent", progress_percent_},
           {"message", display_message_},

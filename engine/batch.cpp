@@ -24,6 +24,7 @@
 #include "gcode/parser.hpp"
 #include "planner/interpreter.hpp"
 #include "planner/kinematics.hpp"
+#include "planner/pressure_advance.hpp"
 
 namespace feedloop::engine {
 namespace {
@@ -55,11 +56,20 @@ class SegmentFanout final : public planner::JointSink {
 };
 
 // Planned moves -> joint segments -> one step pipeline (one thread's share of the joints).
+// Pressure advance (planner/pressure_advance.hpp) as in the daemon's exact path: on when the
+// first move has K > 0 (batch mode is one motion from rest); the extruder's segments then come
+// from the advance, h behind the newest move, and its tail at the end.
 class MoveStepper {
  public:
   MoveStepper(const planner::Kinematics& kin, double period_s, StepPipeline& steps,
               planner::JointSink* tap)
-      : kin_(kin), emitter_(kin, period_s), steps_(steps), fanout_(steps, tap) {}
+      : kin_(kin),
+        emitter_(kin, period_s),
+        steps_(steps),
+        fanout_(steps, tap),
+        period_s_(period_s) {
+    no_extruder_.next = &fanout_;
+  }
   void on_move(const planner::PlannedMove& m) {
     if (m.index == 0) {
       // The step streams start where the first move starts (a delta's carriages are hundreds
@@ -67,19 +77,50 @@ class MoveStepper {
       const planner::Joints q = kin_.inverse({m.start_mm[0], m.start_mm[1], m.start_mm[2]});
       for (int j = 0; j < 3; ++j) steps_.set_position_mm(j, q[static_cast<size_t>(j)]);
       steps_.set_position_mm(3, m.start_mm[planner::kE]);
+      pa_on_ = steps_.owns(3) && m.pressure_advance_s > 0.0;
+      if (pa_on_) {
+        pa_ = std::make_unique<planner::PressureAdvance>();
+        pa_->restart(m.start_mm[planner::kE], m.pressure_advance_smooth_time_s);
+        pa_->set_emitted_from(m.start_time_s - pa_->half_window_s());
+      }
     }
-    emitter_.emit(m, fanout_);
+    if (pa_on_) {
+      emitter_.emit(m, no_extruder_);
+      pa_->push(m);
+      emit_extruder(pa_->input_end_s() - pa_->half_window_s());
+    } else {
+      emitter_.emit(m, fanout_);
+    }
     if (++since_flush_ >= 64) {  // close runs that are complete well behind the newest move
       steps_.flush_due(m.start_time_s - 0.5);
       since_flush_ = 0;
     }
   }
+  // End of input: the extruder's advance returns to rest after the last move.
+  void finish() {
+    if (pa_on_) emit_extruder(pa_->input_end_s() + pa_->half_window_s());
+  }
 
  private:
+  void emit_extruder(double until_s) {
+    pa_->emit_until(until_s, period_s_,
+                    [this](const JointSegment& s) { fanout_.on_joint_segment(3, s); });
+    pa_->trim_before(pa_->emitted_until_s());
+  }
+  struct NoExtruder final : planner::JointSink {
+    planner::JointSink* next = nullptr;
+    void on_joint_segment(int joint, const JointSegment& s) override {
+      if (joint != 3) next->on_joint_segment(joint, s);
+    }
+  };
   const planner::Kinematics& kin_;
   planner::JointEmitter emitter_;
   StepPipeline& steps_;
   SegmentFanout fanout_;
+  NoExtruder no_extruder_;
+  double period_s_;
+  bool pa_on_ = false;
+  std::unique_ptr<planner::PressureAdvance> pa_;
   int since_flush_ = 0;
 };
 
@@ -106,6 +147,7 @@ class StepWorker {
   void run() {
     planner::PlannedMove m;
     while (queue_.pop(m)) stepper_.on_move(m);
+    stepper_.finish();
     steps_.flush();
   }
   BlockingSpscQueue<planner::PlannedMove> queue_;
@@ -175,6 +217,7 @@ class BatchExecutor final : public CommandExecutor {
   // End of input: the lookahead's tail, the open runs, the worker.
   void finish() {
     planner_.flush();
+    local_.finish();
     steps_.flush();
     if (worker_) worker_->finish();
   }

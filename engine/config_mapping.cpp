@@ -71,6 +71,8 @@ planner::PlannerConfig planner_config(const config::MachineConfig& cfg) {
   p.lookahead_moves = static_cast<size_t>(std::max(2, cfg.planner.lookahead_moves));
   p.arc_tolerance_mm = cfg.planner.arc_tolerance_mm;
   p.allow_moves_before_homing = cfg.planner.allow_moves_before_homing;
+  p.pressure_advance_s = cfg.extruder.pressure_advance;
+  p.pressure_advance_smooth_time_s = cfg.extruder.pressure_advance_smooth_time;
   p.servo_period_s = 1.0 / cfg.servo.rate_hz;
   return p;
 }

@@ -56,6 +56,8 @@ struct MachineStatus {
   bool moving = false;           // print time is anchored on the machine clock
   double print_time_s = 0.0;     // print time being executed now
   double planned_until_s = 0.0;  // end of the last planned segment
+  double pressure_advance_s = 0.0;              // M900 K / SET_PRESSURE_ADVANCE, as last set
+  double pressure_advance_smooth_time_s = 0.0;  // its smoothing window
   uint64_t moves_planned = 0;
   uint64_t segments_queued = 0;   // joint segments waiting for the servo thread
   uint64_t motion_starts = 0;     // times motion started from rest

@@ -389,15 +389,14 @@ void McuBridge::configure_device_loops(double host_s) {
   }
 }
 
-void McuBridge::queue_target(int joint, double host_time_s, double r_mm) {
+void McuBridge::queue_target(int joint, int64_t mcu_clock, double r_mm) {
   if (phase_ != Phase::kRunning || !loop_link_.enabled(joint)) return;
   if (!loops_configured_) {  // the loops start with the first motion that streams r(t)
     configure_device_loops(last_service_s_ + epoch_s_);
     loops_configured_ = true;
   }
   drivers::McuSession& s = *mcus_[static_cast<size_t>(joint_mcu_[static_cast<size_t>(joint)])]->session;
-  const auto clock = static_cast<int64_t>(std::llround(tick_map(joint).ticks(host_time_s)));
-  loop_link_.push_target(joint, s, clock, r_mm);
+  loop_link_.push_target(joint, s, mcu_clock, r_mm);
 }
 
 size_t McuBridge::take_device_reports(DeviceLoopReport* out, size_t cap) {

@@ -91,7 +91,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   double encoder_time_s(int joint) const override;
   void links(LinkTelemetrySet& out) const override { out = links_.load(); }
   bool device_loop(int joint) const override { return loop_link_.enabled(joint); }
-  void queue_target(int joint, double host_time_s, double r_mm) override;
+  void queue_target(int joint, int64_t mcu_clock, double r_mm) override;
   void flush_targets(bool end_of_motion) override;
   size_t take_device_events(ServoEvent* out, size_t cap) override;
   unsigned long long device_lost_step_events() const override {

@@ -19,6 +19,16 @@ MotionExecutor::MotionExecutor(const planner::PlannerConfig& pcfg, const StepPip
       steps_(sp, batches_.get()) {
   interp_ = std::make_unique<planner::Interpreter>(pcfg_, *kin_, planner_);
   timeline_ = std::make_unique<planner::MoveTimeline>(options_.timeline_capacity);
+  no_extruder_.next = &steps_;
+  pa_advance_s_.store(interp_->state().pressure_advance_s);
+  pa_smooth_time_s_.store(interp_->state().pressure_advance_smooth_time_s);
+}
+
+// A motion starts from rest: the advance is on for it when its first move has K > 0 (and the
+// extruder makes steps); the window is that move's smooth time.
+void MotionExecutor::pa_restart(const planner::PlannedMove& first) {
+  pa_active_ = first.pressure_advance_s > 0.0 && steps_.params().steps_per_mm[3] > 0.0;
+  if (pa_active_) pa_.restart(first.start_mm[3], first.pressure_advance_smooth_time_s);
 }
 
 void MotionExecutor::set_control(std::unique_ptr<ServoControl> control) {
@@ -42,6 +52,9 @@ Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool
   if (motion) wait_for_room(cancel);
   Status st = interp_->execute(cmd);
   planner_queued_.store(planner_.queued());
+  pa_advance_s_.store(interp_->state().pressure_advance_s, std::memory_order_relaxed);
+  pa_smooth_time_s_.store(interp_->state().pressure_advance_smooth_time_s,
+                          std::memory_order_relaxed);
   if (st && wait_until_s_ >= 0.0) wait_print_time(wait_until_s_, cancel);  // M400
   return st;
 }
@@ -57,8 +70,13 @@ void MotionExecutor::idle_tick(const std::atomic<bool>& cancel) {
   // Release the lookahead's tail when the input pauses, or before the machine runs dry (the
   // held moves contain the deceleration the released ones rely on).
   const auto quiet = std::chrono::steady_clock::now() - last_command_;
+  // (The pressure advance takes moves up to a smooth time earlier.)
+  const double pa_s = interp_->state().pressure_advance_s > 0.0
+                          ? interp_->state().pressure_advance_smooth_time_s
+                          : 0.0;
   const bool running_dry =
-      telemetry_.anchored.load() && planned_end_s_.load() - executing_print_time_s() < 2.0 * options_.lead_s;
+      telemetry_.anchored.load() &&
+      planned_end_s_.load() - executing_print_time_s() < 2.0 * options_.lead_s + pa_s;
   if (running_dry || quiet > std::chrono::duration<double>(options_.input_pause_flush_s)) planner_.flush();
   planner_queued_.store(planner_.queued());
 }
@@ -75,6 +93,8 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
   s.moving = telemetry_.anchored.load(std::memory_order_relaxed);
   s.print_time_s = telemetry_.print_time_s.load(std::memory_order_relaxed);
   s.planned_until_s = planned_end_s_.load(std::memory_order_relaxed);
+  s.pressure_advance_s = pa_advance_s_.load(std::memory_order_relaxed);
+  s.pressure_advance_smooth_time_s = pa_smooth_time_s_.load(std::memory_order_relaxed);
   s.moves_planned = moves_emitted_.load(std::memory_order_relaxed);
   s.segments_queued = pushed_.load() - popped_.load();
   s.motion_starts = telemetry_.anchors.load(std::memory_order_relaxed);
@@ -175,6 +195,7 @@ void MotionExecutor::drop_queued_moves() {
   if (telemetry_.anchored.load()) steps_.flush();
   publish_step_counts();
   telemetry_.anchored.store(false);
+  motion_maps_held_ = false;
 }
 
 void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
@@ -242,9 +263,11 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
       return;
     }
     if (!anchored && !backend_->ready()) return;  // motion waits for the MCUs and their clocks
-    std::array<stepgen::TickMap, kJoints> maps;
-    for (int j = 0; j < kJoints; ++j) maps[static_cast<size_t>(j)] = backend_->tick_map(j);
-    steps_.set_clock_maps(maps);
+    if (!motion_maps_held_) {  // else the motion's clock frame (sampled_cycle) stays in force
+      std::array<stepgen::TickMap, kJoints> maps;
+      for (int j = 0; j < kJoints; ++j) maps[static_cast<size_t>(j)] = backend_->tick_map(j);
+      steps_.set_clock_maps(maps);
+    }
   }
   if (cancel || control_fault_.load(std::memory_order_relaxed)) {  // drop everything not yet turned into steps
     drop_queued_moves();
@@ -258,7 +281,10 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
   while (const planner::PlannedMove* front = queue_.front()) {
     if (!anchored) {  // motion starts from rest: its print time runs lead_s from now
       if (resync_) resync_to(*front);
-      offset_s_ = horizon_s - front->start_time_s;
+      pa_restart(*front);
+      // With the advance, the extruder starts moving half a window before the first move.
+      offset_s_ = horizon_s + pa_half_window_s() - front->start_time_s;
+      if (pa_active_) pa_.set_emitted_from(front->start_time_s - pa_half_window_s());
       steps_.set_time_offset_s(offset_s_);
       anchored = true;
       // Published before the first pop: a waiter (M400) must never see the queue empty and
@@ -266,9 +292,14 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
       telemetry_.anchored.store(true);
       telemetry_.anchors.fetch_add(1, std::memory_order_relaxed);
     }
-    if (front->start_time_s + offset_s_ > horizon_s) break;
-    emitter_.emit(*front, steps_);  // joint segments straight into step generation
-    executed_end_s_ = std::max(executed_end_s_, front->end_time_s());
+    if (front->start_time_s + offset_s_ > horizon_s + pa_half_window_s()) break;
+    if (pa_active_) {  // the extruder's segments come from the advance below
+      emitter_.emit(*front, no_extruder_);
+      pa_.push(*front);
+    } else {
+      emitter_.emit(*front, steps_);  // joint segments straight into step generation
+    }
+    executed_end_s_ = std::max(executed_end_s_, front->end_time_s() + pa_half_window_s());
     if (tap_ != nullptr) timeline_->push(*front);
     queue_.try_pop(current_);
     popped_.fetch_add(1, std::memory_order_release);
@@ -276,6 +307,15 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
   }
   if (!anchored) return;
   const double print_now_s = now_s - offset_s_;
+  if (pa_active_) {
+    // e_adv up to the horizon, as far as the moves known allow (half a window before their end);
+    // once nothing more is queued anywhere, the rest after the last move is certain.
+    const bool drained = queue_.empty() && planner_queued_.load() == 0;
+    const double known_s = pa_.input_end_s() + (drained ? 1.0 : -1.0) * pa_.half_window_s();
+    pa_.emit_until(std::min(print_now_s + options_.lead_s, known_s), pcfg_.servo_period_s,
+                   [this](const JointSegment& s) { steps_.on_joint_segment(3, s); });
+    pa_.trim_before(print_now_s);  // the telemetry below samples e_adv now
+  }
   steps_.flush_due(print_now_s + options_.lead_s);
   telemetry_.print_time_s.store(print_now_s, std::memory_order_relaxed);
   if (tap_ != nullptr) {  // F = 1: the command is the plan
@@ -314,6 +354,7 @@ bool MotionExecutor::reference(double t_s, control::FeedforwardInput& out) const
   const bool covered = timeline_->sample(t_s - plan_shift_s_, c);
   if (timeline_->size() == 0) return false;
   out = input_at(c);
+  if (pa_active_) out.r_mm[3] = pa_.position_mm(t_s - pa_base_shift_s_);  // e_adv
   return covered;
 }
 
@@ -357,7 +398,13 @@ void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now
   }
   next_sample_s_ = first.start_time_s + plan_shift_s_;  // servo time (monotonic across stops)
   offset_s_ = now_s + command_lead_s() - next_sample_s_;
+  // Pressure advance: the extruder starts moving half a window before the first move, so the plan
+  // starts that much later; pa time = servo time - pa_base_shift_s_ = plan time from here.
+  pa_restart(first);
+  plan_shift_s_ += pa_half_window_s();
+  pa_base_shift_s_ = plan_shift_s_;
   steps_.set_time_offset_s(offset_s_);
+  if (device_loop_) hold_clock_frame(next_sample_s_);
   control_->reset_feedforward(at);
   has_e_ = {};  // e_t restarts from this motion's encoder reports
   prime_pending_ = true;  // the preview fills once the moves are on the timeline (sampled_cycle)
@@ -441,6 +488,48 @@ bool MotionExecutor::host_feedback(double now_s, uint64_t n_enc, double enc_time
   return true;
 }
 
+// The frame through the clock sync's estimate `live` (host time -> ticks) at servo time t_s: servo
+// time -> ticks, t_s on a whole tick, the rate rounded to whole ticks per second (1 Hz: 0.014 ppm
+// of a 72 MHz clock; the 20 us tolerance only after 20 minutes). Two estimates a fraction of a
+// hertz apart (the clock sync's noise) then give the same frame, and the frame is kept in servo
+// time, whose values are the same in every run: host time's large values would cost each tick
+// its last thousandth, differently in every run, and flip a step's rounding here and there.
+stepgen::TickMap MotionExecutor::frame_through(const stepgen::TickMap& live, double t_s) const {
+  stepgen::TickMap m;
+  m.ticks_per_s = std::round(live.ticks_per_s);
+  m.offset_ticks = std::round(live.ticks(t_s + offset_s_)) - m.ticks_per_s * t_s;
+  return m;
+}
+
+// The motion's clock frame (motion_executor.hpp), from its first sample at servo time t0_s.
+void MotionExecutor::hold_clock_frame(double t0_s) {
+  for (int j = 0; j < kJoints; ++j) {
+    const stepgen::TickMap frame = frame_through(backend_->tick_map(j), t0_s);
+    motion_maps_[static_cast<size_t>(j)] = frame;
+    motion_start_clock_[static_cast<size_t>(j)].store(std::llround(frame.ticks(t0_s)), std::memory_order_relaxed);
+  }
+  steps_.set_print_maps(motion_maps_);
+  motion_maps_held_ = true;
+}
+
+// Replaces a joint's frame when the clock sync's estimate at servo time t_s has moved more than
+// the tolerance away from it (an MCU clock drifting from its estimated rate, a better estimate):
+// a step of at most that size in the joint's timing, then the frame holds again.
+void MotionExecutor::refresh_clock_frame(double t_s) {
+  bool changed = false;
+  for (int j = 0; j < kJoints; ++j) {
+    const stepgen::TickMap live = backend_->tick_map(j);
+    stepgen::TickMap& held = motion_maps_[static_cast<size_t>(j)];
+    if (std::fabs(live.ticks(t_s + offset_s_) - held.ticks(t_s)) <= kClockFrameTolerance_s * live.ticks_per_s)
+      continue;
+    held = frame_through(live, t_s);
+    changed = true;
+  }
+  if (!changed) return;
+  steps_.set_print_maps(motion_maps_);
+  clock_frame_refreshes_.fetch_add(1, std::memory_order_relaxed);
+}
+
 void MotionExecutor::sampled_cycle(double now_s) {
   device_loop_ = false;
   for (int j = 0; backend_ != nullptr && j < kJoints; ++j) device_loop_ = device_loop_ || backend_->device_loop(j);
@@ -458,13 +547,20 @@ void MotionExecutor::sampled_cycle(double now_s) {
   }
   const double print_now_s = now_s - offset_s_;
   // Moves into the timeline as far as this cycle's newest sample and its preview reach.
-  const double need_s = print_now_s + lead_s + (preview + 2) * period_s;
+  // The pressure advance needs the plan half a window (h) further.
+  const double pa_h_s = pa_half_window_s();
+  const double need_s = print_now_s + lead_s + (preview + 2) * period_s + pa_h_s;
   while (const planner::PlannedMove* front = queue_.front()) {
     if (front->start_time_s + plan_shift_s_ > need_s) break;
     const planner::PlannedMove& m = *front;
     // A move planned after the plan had run out while the loop was still holding the position:
     // the plan's clock stood still meanwhile, so the rest of the plan moves later by the gap.
-    if (m.start_time_s + plan_shift_s_ < next_sample_s_ - 1e-9) plan_shift_s_ = next_sample_s_ - m.start_time_s;
+    // With the advance, later still: e_adv up to the newest sample (and its preview) assumed rest
+    // after the plan's end; a move starting at s changes e_adv from s - h on.
+    const double pa_late_s = pa_active_ ? pa_h_s + preview * period_s : 0.0;
+    if (m.start_time_s + plan_shift_s_ < next_sample_s_ + pa_late_s - 1e-9)
+      plan_shift_s_ = next_sample_s_ + pa_late_s - m.start_time_s;
+    if (pa_active_) pa_.push(m, plan_shift_s_ - pa_base_shift_s_);
     timeline_->push(m);  // in plan time
     executed_end_s_ = std::max(executed_end_s_, m.end_time_s());  // plan time
     queue_.try_pop(current_);
@@ -557,7 +653,8 @@ void MotionExecutor::sampled_cycle(double now_s) {
   // decelerating knots would read as r running out while it moves).
   const bool pi_loop = control_->closed_loop() || device_loop_;
   const double hold_s = pi_loop ? options_.control_settle_s : 0.0;
-  const double stop_s = executed_end_s_ + plan_shift_s_ + preview * period_s + hold_s;  // servo time
+  const double stop_s = executed_end_s_ + plan_shift_s_ + preview * period_s + hold_s +
+                        pa_half_window_s();  // servo time (the extruder's advance ends h later)
   // A late cycle (the thread woke more than the lead late, on a machine without real-time
   // scheduling): the samples still to come would be due in the past, and steps in the past stop
   // the MCU (queue underrun). Instead the plan pauses: the motor holds its last command over the
@@ -592,10 +689,12 @@ void MotionExecutor::sampled_cycle(double now_s) {
     }
     next_sample_s_ += gap_s;
     plan_shift_s_ += gap_s;
+    pa_base_shift_s_ += gap_s;  // the extruder's advance pauses with the plan
     late_cycles_.fetch_add(1, std::memory_order_relaxed);
   }
   while (next_sample_s_ + period_s <= print_now_s + lead_s + 1e-9 && !(plan_empty && next_sample_s_ >= stop_s)) {
     const double t_s = next_sample_s_ + period_s;
+    if (device_loop_) refresh_clock_frame(t_s);
     control::FeedforwardInput ahead;
     reference(t_s + preview * period_s, ahead);
     control::JointArray u_ff{}, u{};
@@ -629,13 +728,19 @@ void MotionExecutor::sampled_cycle(double now_s) {
     s.u_mm = u;
     last_command_mm_ = u;
     next_sample_s_ = t_s;
-    if (device_loop_) {  // r(t) to the MCUs' loops, in the encoders' frame, on the host clock
+    if (device_loop_) {  // r(t) to the MCUs' loops, in the encoders' frame, in the clock frame
       for (int j = 0; j < kJoints; ++j) {
         const size_t i = static_cast<size_t>(j);
-        if (backend_->device_loop(j)) backend_->queue_target(j, t_s + offset_s_, s.r_mm[i] - encoder_offset_mm_[i]);
+        if (!backend_->device_loop(j)) continue;
+        const auto clock = static_cast<int64_t>(std::llround(motion_maps_[i].ticks(t_s)));
+        backend_->queue_target(j, clock, s.r_mm[i] - encoder_offset_mm_[i]);
       }
+      // The steps' runs close on the sample grid, not where this cycle happened to wake: the
+      // same plan gives the same step ticks however the host was scheduled.
+      steps_.flush_due(t_s);
     }
   }
+  if (pa_active_) pa_.trim_before(next_sample_s_ - pa_base_shift_s_);
   if (device_loop_) {
     backend_->flush_targets(/*end_of_motion=*/plan_empty && next_sample_s_ >= stop_s);
     ServoEvent events[8];
@@ -645,7 +750,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
       tap_->on_servo_event(events[k]);
     }
   }
-  steps_.flush_due(print_now_s + lead_s);
+  if (!device_loop_) steps_.flush_due(print_now_s + lead_s);
   // Print time as the planner counts it: it stands at the plan's end while the loop holds.
   const double print_plan_s = plan_empty ? std::min(print_now_s - plan_shift_s_, executed_end_s_)
                                          : print_now_s - plan_shift_s_;
@@ -660,6 +765,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
   if (plan_empty && next_sample_s_ >= stop_s && print_now_s >= next_sample_s_) {
     steps_.flush();
     anchored = false;
+    motion_maps_held_ = false;
     publish_step_counts();  // the counts a waiter reads once the motion has ended
   }
   telemetry_.anchored.store(anchored);

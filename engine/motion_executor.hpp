@@ -23,6 +23,12 @@
 // (mcu_time = print_time + offset); steps are generated and batches closed `lead_s` ahead of
 // their execution (Klipper queues >= 100 ms ahead). When the queue runs dry and the last segment
 // has been executed, the anchor is released and the next motion re-anchors.
+//
+// Pressure advance (planner/pressure_advance.hpp): when the first move of a motion from rest has
+// K > 0, the extruder joint follows e_adv(t) instead of e(t) until the motion ends. e_adv(t)
+// needs the plan up to t + smooth_time/2, so moves are taken smooth_time/2 earlier (exact path)
+// or smooth_time earlier (sampled path), the motion starts smooth_time/2 later, and the extruder
+// ends smooth_time/2 after the last move. With K = 0 nothing changes (the same steps).
 #pragma once
 
 #include <array>
@@ -35,14 +41,15 @@
 #include "core/spsc_queue.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/machine.hpp"
-#include "engine/servo_control.hpp"
-#include "engine/telemetry_tap.hpp"
 #include "engine/servo_backend.hpp"
+#include "engine/servo_control.hpp"
 #include "engine/step_pipeline.hpp"
+#include "engine/telemetry_tap.hpp"
 #include "planner/interpreter.hpp"
 #include "planner/joint_output.hpp"
 #include "planner/kinematics.hpp"
 #include "planner/lookahead.hpp"
+#include "planner/pressure_advance.hpp"
 #include "planner/sampler.hpp"
 
 namespace feedloop::engine {
@@ -100,6 +107,14 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   const MotionTelemetry& telemetry() const { return telemetry_; }
   const StepPipeline& steps() const { return steps_; }  // servo thread owns it
   uint64_t moves() const { return interp_->moves(); }
+  // Device loop: the MCU tick on which the latest motion's first command sample of `joint` falls
+  // (its clock frame, motion_executor.hpp); 0 before any. Any thread.
+  int64_t motion_start_clock(int joint) const {
+    return motion_start_clock_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
+  }
+  // Device loop: how often a motion's clock frame was replaced mid-motion (the clock sync's
+  // estimate moved more than kClockFrameTolerance_s). Servo thread's figure, read relaxed.
+  uint64_t clock_frame_refreshes() const { return clock_frame_refreshes_.load(std::memory_order_relaxed); }
 
  private:
   void on_move(const planner::PlannedMove& m) override;
@@ -139,6 +154,21 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   bool resync_ = true;
   void drop_queued_moves();
   planner::PlannedMove current_;  // the move most recently handed to step generation
+  // Pressure advance (servo thread): active for the current motion from rest.
+  planner::PressureAdvance pa_;
+  bool pa_active_ = false;
+  double pa_base_shift_s_ = 0.0;  // sampled path: pa time = servo time - this (holds pause it)
+  double pa_half_window_s() const { return pa_active_ ? pa_.half_window_s() : 0.0; }
+  void pa_restart(const planner::PlannedMove& first);
+  // The joints but the extruder go to step generation; the extruder's come from pa_.
+  struct NoExtruder final : planner::JointSink {
+    planner::JointSink* next = nullptr;
+    void on_joint_segment(int joint, const JointSegment& s) override {
+      if (joint != 3) next->on_joint_segment(joint, s);
+    }
+  } no_extruder_;
+  // The planner thread's pressure advance (M900 / SET_PRESSURE_ADVANCE), for the status.
+  std::atomic<double> pa_advance_s_{0.0}, pa_smooth_time_s_{0.0};
   // Sampled path (servo thread).
   void sampled_cycle(double now_s);
   void start_sampled(const planner::PlannedMove& first, double now_s);
@@ -186,6 +216,19 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   double next_sample_s_ = 0.0;   // servo time of the last command sample (segment end)
   double plan_shift_s_ = 0.0;    // servo time - plan (print) time: grows when a move arrives
                                  // while the loop holds the position after the plan's end
+  // The device loop's clock frame (docs/decisions.md, "One motion, one clock frame"): from a
+  // motion's start the steps and r(t) go through these servo time -> MCU tick maps, taken from
+  // the clock sync at the start (its first sample on a whole tick) and replaced only when the
+  // live estimate has moved more than kClockFrameTolerance_s away from them. So a host stall or a
+  // late clock reply does not move a single step tick; the MCUs' own clocks pace the motion.
+  static constexpr double kClockFrameTolerance_s = 20e-6;
+  std::array<std::atomic<int64_t>, kJoints> motion_start_clock_{};
+  std::array<stepgen::TickMap, kJoints> motion_maps_{};
+  bool motion_maps_held_ = false;
+  std::atomic<uint64_t> clock_frame_refreshes_{0};  // written by the servo thread only
+  stepgen::TickMap frame_through(const stepgen::TickMap& live, double t_s) const;
+  void hold_clock_frame(double t0_s);
+  void refresh_clock_frame(double t_s);
   control::JointArray encoder_offset_mm_{};   // joint position - encoder reading, set at resync
   control::JointArray last_command_mm_{};     // the motor command the steps follow (sampled path)
   std::array<unsigned long long, 4> encoder_reports_seen_{};

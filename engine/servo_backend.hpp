@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 
 #include "drivers/stepgen/step_generator.hpp"
 #include "engine/device_loop_telemetry.hpp"
@@ -43,8 +44,9 @@ class ServoBackend {
   // True when `joint`'s PI runs on its MCU: the motion stage then streams r(t) to it.
   virtual bool device_loop(int /*joint*/) const { return false; }
   // One sample of the desired carriage position r (mm, the encoder's frame: encoder_mm()'s) at
-  // host time host_time_s; samples come in time order, queue_ahead_ms ahead.
-  virtual void queue_target(int /*joint*/, double /*host_time_s*/, double /*r_mm*/) {}
+  // `mcu_clock` (ticks of the joint's MCU, through the motion's clock frame: the caller converts
+  // with the maps it also gives the steps); samples come in time order, queue_ahead_ms ahead.
+  virtual void queue_target(int /*joint*/, int64_t /*mcu_clock*/, double /*r_mm*/) {}
   // Sends the targets pending; `end_of_motion`: the motion ended, r holds at its last sample.
   virtual void flush_targets(bool /*end_of_motion*/) {}
   // Lost-step events the device loops reported (each made up on the device). Any thread.

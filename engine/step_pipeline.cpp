@@ -40,6 +40,7 @@ void StepPipeline::set_position_mm(int joint, double pos_mm) {
 }
 
 stepgen::TickMap StepPipeline::print_map(int joint) const {
+  if (print_maps_direct_) return print_maps_[static_cast<size_t>(joint)];
   const stepgen::TickMap& h = host_maps_[static_cast<size_t>(joint)];
   return {h.offset_ticks + h.ticks_per_s * offset_s_, h.ticks_per_s};
 }
@@ -50,14 +51,27 @@ void StepPipeline::apply_maps() {
 
 void StepPipeline::set_time_offset_s(double offset_s) {
   offset_s_ = offset_s;
+  print_maps_direct_ = false;  // the host maps, anchored anew
   apply_maps();
   if (params_.observer != nullptr) params_.observer->on_time_offset(offset_s);
 }
 
 void StepPipeline::set_clock_maps(const std::array<stepgen::TickMap, kJoints>& host_to_ticks) {
   host_maps_ = host_to_ticks;
+  print_maps_direct_ = false;
   apply_maps();
   if (params_.observer != nullptr) params_.observer->on_clock_maps(host_to_ticks);
+}
+
+void StepPipeline::set_print_maps(const std::array<stepgen::TickMap, kJoints>& print_to_ticks) {
+  print_maps_ = print_to_ticks;
+  print_maps_direct_ = true;
+  // The host maps they amount to, for set_time_offset_s() and the observer.
+  for (size_t j = 0; j < host_maps_.size(); ++j)
+    host_maps_[j] = {print_to_ticks[j].offset_ticks - print_to_ticks[j].ticks_per_s * offset_s_,
+                     print_to_ticks[j].ticks_per_s};
+  apply_maps();
+  if (params_.observer != nullptr) params_.observer->on_clock_maps(host_maps_);
 }
 
 void StepPipeline::flush_due(double deadline_s) {

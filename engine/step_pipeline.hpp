@@ -82,6 +82,10 @@ class StepPipeline final : public planner::JointSink {
   // refreshed between segments while steps are pending (small corrections as the estimate
   // improves); print time -> ticks is then offset_ticks + rate (print + offset_s).
   void set_clock_maps(const std::array<stepgen::TickMap, kJoints>& host_to_ticks);
+  // Print time -> MCU ticks per joint, given directly (the device loop's clock frame,
+  // engine/motion_executor.hpp): no detour through host time, whose large values cost the sum
+  // its last thousandth of a tick, differently in every run. Until the next set_clock_maps().
+  void set_print_maps(const std::array<stepgen::TickMap, kJoints>& print_to_ticks);
   // Closes runs and batches whose first step is due by `deadline_s` (print time).
   void flush_due(double deadline_s);
   // Emits everything pending (end of a stream).
@@ -142,6 +146,8 @@ class StepPipeline final : public planner::JointSink {
   NullRuns null_runs_;
   double offset_s_ = 0.0;
   std::array<stepgen::TickMap, kJoints> host_maps_{};
+  std::array<stepgen::TickMap, kJoints> print_maps_{};
+  bool print_maps_direct_ = false;  // set_print_maps() in force
   std::array<std::unique_ptr<Joint>, kJoints> joints_;
 };
 

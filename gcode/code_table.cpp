@@ -93,6 +93,9 @@ constexpr ParamRule kFilePosition[] = {{'S', K::kNumber, 0.0, 1e15, false, true}
 constexpr ParamRule kFileReport[] = {non_negative('S'), flag('C')};
 constexpr ParamRule kFeedOverride[] = {range('S', 1, 1000), flag('B'), flag('R')};
 constexpr ParamRule kFlowOverride[] = {range('S', 0, 1000), index('T')};
+// M900 linear advance (Marlin gcode/feature/advance/M900.cpp): K factor in s (Marlin: 0..10), T
+// extruder. L/S (EXTRA_LIN_ADVANCE_K slots) are not supported.
+constexpr ParamRule kLinearAdvance[] = {range('K', 0, 10), index('T')};
 // Tool change T<n>: F feedrate for the swap, S1 = no move.
 constexpr ParamRule kToolChange[] = {{'F', K::kFlagOrNumber, 0.0, kInf, true},
                                      {'S', K::kFlagOrNumber, 0.0, 1.0, false, true}};
@@ -146,6 +149,7 @@ constexpr CodeRule kRules[] = {
     {'M', 303, "PID autotune", kAutotune},
     {'M', 400, "wait for moves to finish", {}},
     {'M', 524, "abort file print", {}},
+    {'M', 900, "linear advance factor", kLinearAdvance},
 };
 constexpr CodeRule kToolRule{'T', 0, "select tool", kToolChange};
 

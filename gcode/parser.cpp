@@ -81,6 +81,8 @@ class LineParser {
   Status parse_parameter(size_t word, char letter, bool after_space);
   Status check_checksum_tail(size_t star) const;
   Status reject_extended_command(size_t word) const;
+  // Klipper's SET_PRESSURE_ADVANCE: true when the word is that command (then *st is the outcome).
+  bool parse_pressure_advance(size_t word, Status* st);
   Status validate() const;
   Status check_parameter(const CodeRule& rule, const ParamRule& p, char letter) const;
   void keep_as_text();  // an unknown command whose argument is not G-code words
@@ -92,6 +94,7 @@ class LineParser {
   size_t command_pos_ = 0;              // index of the command letter
   size_t code_end_ = 0;                 // index just past the command code
   std::array<uint32_t, 26> column_{};   // byte index of each parameter's letter
+  bool extended_ = false;               // a Klipper command translated (validated on its own)
 };
 
 Status LineParser::run() {
@@ -107,6 +110,7 @@ Status LineParser::run() {
     return st;
   }
   if (out_.letter == 0) return Status::Ok();  // blank, comment only, or just a line number
+  if (extended_) return Status::Ok();
   Status valid = validate();
   if (!valid) out_.clear();
   return valid;
@@ -151,6 +155,8 @@ Status LineParser::parse_words() {
           return Status::Ok();
         }
       } else {
+        Status pa;
+        if (parse_pressure_advance(word, &pa)) return pa;
         if (Status st = reject_extended_command(word); !st) return st;
         return fail(word, std::string("parameter ") + letter +
                               " before any command (expected G, M or T first)");
@@ -269,6 +275,87 @@ Status LineParser::reject_extended_command(size_t word) const {
   else if (upper == "PAUSE" || upper == "RESUME" || upper == "CANCEL_PRINT")
     message += " (the host pauses or cancels by not sending; M112 stops at once)";
   return fail(word, message);
+}
+
+// Klipper's SET_PRESSURE_ADVANCE [EXTRUDER=extruder] [ADVANCE=<s>] [SMOOTH_TIME=<s>] (Klipper
+// docs G-Codes.md, [extruder]): parsed into M900 with text "SET_PRESSURE_ADVANCE", K = ADVANCE,
+// S = SMOOTH_TIME; the interpreter checks the ranges (planner/interpreter.cpp). Parameter names
+// are case-insensitive as in Klipper; each NAME=value once; numbers only.
+bool LineParser::parse_pressure_advance(size_t word, Status* st) {
+  constexpr std::string_view kName = "SET_PRESSURE_ADVANCE";
+  const size_t n = s_.size();
+  size_t end = word;
+  while (end < n && (is_alpha(s_[end]) || is_digit(s_[end]) || s_[end] == '_')) ++end;
+  if (end - word != kName.size()) return false;
+  for (size_t k = 0; k < kName.size(); ++k) {
+    const char c = s_[word + k];
+    if ((is_alpha(c) ? to_upper(c) : c) != kName[k]) return false;
+  }
+  out_.letter = 'M';
+  out_.code = 900;
+  out_.text.assign(kName);
+  command_pos_ = word;
+  extended_ = true;
+  i_ = end;
+  while (i_ < n) {
+    if (is_space(s_[i_])) {
+      ++i_;
+      continue;
+    }
+    if (s_[i_] == ';') break;
+    if (s_[i_] == '*') {
+      *st = check_checksum_tail(i_);
+      return true;
+    }
+    const size_t key = i_;
+    while (i_ < n && (is_alpha(s_[i_]) || s_[i_] == '_')) ++i_;
+    std::string name;
+    for (size_t k = key; k < i_; ++k) name.push_back(to_upper(s_[k]));
+    if (name.empty() || i_ >= n || s_[i_] != '=') {
+      *st = fail(
+          key, "SET_PRESSURE_ADVANCE takes NAME=value parameters (ADVANCE, SMOOTH_TIME, EXTRUDER)");
+      return true;
+    }
+    ++i_;
+    if (name == "EXTRUDER") {
+      const size_t v = i_;
+      while (i_ < n && !is_space(s_[i_]) && s_[i_] != ';' && s_[i_] != '*') ++i_;
+      std::string value;
+      for (size_t k = v; k < i_; ++k) value.push_back(s_[k]);
+      if (value != "extruder") {
+        *st = fail(v, "SET_PRESSURE_ADVANCE: unknown EXTRUDER '" + value +
+                          "' (the one extruder is 'extruder')");
+        return true;
+      }
+      continue;
+    }
+    char letter = 0;
+    if (name == "ADVANCE")
+      letter = 'K';
+    else if (name == "SMOOTH_TIME")
+      letter = 'S';
+    if (letter == 0) {
+      *st = fail(key, "SET_PRESSURE_ADVANCE: unknown parameter " + name +
+                          " (ADVANCE, SMOOTH_TIME, EXTRUDER)");
+      return true;
+    }
+    if (out_.has(letter)) {
+      *st = fail(key, "SET_PRESSURE_ADVANCE: " + name + " given twice");
+      return true;
+    }
+    const NumberScan num = scan_number(s_, i_, true);
+    const bool ends =
+        num.end >= n || is_space(s_[num.end]) || s_[num.end] == ';' || s_[num.end] == '*';
+    if (num.status != NumberScan::Status::kOk || !ends) {
+      *st = fail(i_, "SET_PRESSURE_ADVANCE: " + name + " needs a number");
+      return true;
+    }
+    column_[static_cast<size_t>(letter - 'A')] = static_cast<uint32_t>(key);
+    out_.set(letter, num.value);
+    i_ = num.end;
+  }
+  *st = Status::Ok();
+  return true;
 }
 
 Status LineParser::check_checksum_tail(size_t star) const {

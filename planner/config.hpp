@@ -97,6 +97,11 @@ struct PlannerConfig {
   double unretract_extra_mm = 0.0;
   double unretract_velocity_mm_s = 8.0;
 
+  // Pressure advance (planner/pressure_advance.hpp): K in seconds (Marlin's M900 K, Klipper's
+  // pressure_advance) and the smoothing window (Klipper's pressure_advance_smooth_time).
+  double pressure_advance_s = 0.0;
+  double pressure_advance_smooth_time_s = 0.040;
+
   double junction_deviation() const;
   Status validate() const;
 };

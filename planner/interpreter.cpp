@@ -6,6 +6,7 @@
 #include <utility>  // std::move
 
 #include "planner/arc.hpp"
+#include "planner/pressure_advance.hpp"
 
 namespace feedloop::planner {
 
@@ -31,6 +32,8 @@ Interpreter::Interpreter(const PlannerConfig& config, const Kinematics& kinemati
   st_.max_axis_velocity_mm_s = config.max_axis_velocity_mm_s;
   st_.max_axis_accel_mm_s2 = config.max_axis_accel_mm_s2;
   st_.junction_deviation_mm = planner.junction_deviation();
+  st_.pressure_advance_s = config.pressure_advance_s;
+  st_.pressure_advance_smooth_time_s = config.pressure_advance_smooth_time_s;
   st_.retract_length_mm = config.retract_length_mm;
   st_.retract_velocity_mm_s = config.retract_velocity_mm_s;
   st_.retract_zlift_mm = config.retract_zlift_mm;
@@ -114,6 +117,8 @@ Status Interpreter::execute(const gcode::Command& c) {
       case 400: planner_.wait_for_moves(c.where.line); return {};
       case 18: case 84: return motors_off(c);
       case 201: case 203: case 204: case 205: case 207: case 208: return limits(c);
+      case 900:
+        return pressure_advance(c);
       default: ++ignored_; return {};
     }
   }
@@ -290,6 +295,36 @@ Status Interpreter::motors_off(const gcode::Command& c) {
   const bool delta = cfg_.kinematics == KinematicsKind::delta;
   for (int i = 0; i < 3; ++i)
     if (!any || delta || c.has(kAxisLetter[i])) st_.homed[i] = false;
+  return {};
+}
+
+// M900 K<k> (Marlin's linear advance, gcode/feature/advance/M900.cpp: K in 0..10, 0 = off) and
+// Klipper's SET_PRESSURE_ADVANCE ADVANCE=<k> SMOOTH_TIME=<s> (the parser hands it over as M900
+// with text "SET_PRESSURE_ADVANCE", K = ADVANCE, S = SMOOTH_TIME; Klipper's extruder.py bounds
+// SMOOTH_TIME to 0.200 s). Checked completely before anything changes.
+Status Interpreter::pressure_advance(const gcode::Command& c) {
+  const bool klipper = c.text == "SET_PRESSURE_ADVANCE";
+  auto bad = [&](const char* marlin, const char* klipper_msg) -> Status {
+    if (!klipper) return fail(c, marlin);
+    return Error{std::string("SET_PRESSURE_ADVANCE: ") + klipper_msg, c.where};
+  };
+  double k = st_.pressure_advance_s, smooth = st_.pressure_advance_smooth_time_s;
+  if (c.has('K')) {
+    k = c.get('K', -1.0);
+    if (!std::isfinite(k) || k < 0.0 || k > PressureAdvanceLimits::kMaxAdvance_s)
+      return bad("K must be in [0, 10] s (0 switches the advance off)",
+                 "ADVANCE must be in [0, 10] s (0 switches the advance off)");
+  }
+  if (klipper && c.has('S')) {
+    smooth = c.get('S', -1.0);
+    if (!std::isfinite(smooth) || !(smooth > 0.0) ||
+        smooth > PressureAdvanceLimits::kMaxSmoothTime_s)
+      return bad("", "SMOOTH_TIME must be in (0, 0.200] s");
+  }
+  if (!klipper && c.has('T') && c.get('T') != 0.0) return fail(c, "there is one extruder (T0)");
+  st_.pressure_advance_s = k;
+  st_.pressure_advance_smooth_time_s = smooth;
+  planner_.set_pressure_advance(k, smooth);
   return {};
 }
 

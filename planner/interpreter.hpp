@@ -3,11 +3,15 @@
 //   G10/G11 firmware retraction (M207/M208 set it), G17 (only the XY plane), G20/G21 units,
 //   G28 home (simulated: a move to config.home_position_mm; marks the axes homed), G90/G91, G92
 //   (incl. G92 E0), M18/M84 (motors off: the axes are no longer homed, as in Marlin),
-//   M82/M83, M220/M221 overrides (M220 B/R back up/restore), M400 (a moves_done event the caller can wait on),
-//   M201/M203 per-axis limits, M204 P/R/T/S as Marlin 2 defines them (P printing moves, R
-//   E-only retract moves, T travel moves, S legacy = P and T), M205 J junction deviation.
+//   M82/M83, M220/M221 overrides (M220 B/R back up/restore), M400 (a moves_done event the caller
+//   can wait on), M201/M203 per-axis limits, M204 P/R/T/S as Marlin 2 defines them (P printing
+//   moves, R E-only retract moves, T travel moves, S legacy = P and T), M205 J junction deviation.
 //   M205 X/Y/Z/E (classic jerk) are recorded but not used for planning: Marlin 2 ignores them
 //   too when CLASSIC_JERK is off (junction deviation is the cornering model then).
+//   M900 K (Marlin's linear advance factor) and Klipper's SET_PRESSURE_ADVANCE ADVANCE=
+//   SMOOTH_TIME= (the parser turns it into M900 with text "SET_PRESSURE_ADVANCE", K and S): the
+//   values travel with every move (planner/pressure_advance.hpp applies them); a new smooth time
+//   acts from the next start from rest.
 // Travel limits act only on homed axes: before G28 a move of an unhomed X/Y/Z axis is refused with
 // a clear error (Klipper's "Must home axis first"; on a delta every tower must be homed), unless
 // config.allow_moves_before_homing (then the machine starts homed, the old behaviour). E needs no
@@ -51,6 +55,8 @@ struct MachineState {
   double retract_length_mm = 0.0, retract_velocity_mm_s = 0.0, retract_zlift_mm = 0.0;
   double unretract_extra_mm = 0.0, unretract_velocity_mm_s = 0.0;
   bool homed[3] = {false, false, false};  // X Y Z since the last G28 (and no M18/M84 since)
+  double pressure_advance_s = 0.0;        // M900 K / SET_PRESSURE_ADVANCE ADVANCE
+  double pressure_advance_smooth_time_s = 0.040;  // SET_PRESSURE_ADVANCE SMOOTH_TIME
   bool e_relative() const { return e_mode == EMode::relative || (e_mode == EMode::follow_xyz && relative_xyz); }
 };
 
@@ -75,6 +81,7 @@ class Interpreter {
   // Error unless every X/Y/Z axis that moves between from and to is homed.
   Status check_homed(const Vec4& from, const Vec4& to, const gcode::Command& c) const;
   Status limits(const gcode::Command& c);
+  Status pressure_advance(const gcode::Command& c);
   // Logical target of a G0-G3 line (unchanged axes stay), and its machine coordinates.
   Vec4 logical_target(const gcode::Command& c) const;
   Vec4 to_machine(const Vec4& logical) const;

@@ -41,6 +41,10 @@ Status PlannerConfig::validate() const {
   if (lookahead_moves < 2 || lookahead_moves > 100000) return bad("lookahead_moves must be in [2, 100000]");
   if (!(arc_tolerance_mm > 0.0)) return bad("arc tolerance must be > 0");
   if (!(servo_period_s > 0.0 && servo_period_s <= 0.1)) return bad("servo period must be in (0, 0.1] s");
+  if (!(pressure_advance_s >= 0.0 && pressure_advance_s <= 10.0))
+    return bad("pressure advance must be in [0, 10] s");
+  if (!(pressure_advance_smooth_time_s > 0.0 && pressure_advance_smooth_time_s <= 0.2))
+    return bad("pressure advance smooth time must be in (0, 0.2] s");
   if (kinematics == KinematicsKind::delta) {
     const DeltaGeometry& d = delta;
     if (!(d.radius_mm > 0.0 && d.arm_length_mm > d.radius_mm && d.print_radius_mm > 0.0))

@@ -85,6 +85,8 @@ void Planner::add_move(const MoveRequest& req) {
   // Every field is assigned here or in emit_front (no struct-wide reset: it is the hot path).
   m.index = next_index_++;
   m.line = req.line;
+  m.pressure_advance_s = cfg_.pressure_advance_s;
+  m.pressure_advance_smooth_time_s = cfg_.pressure_advance_smooth_time_s;
   m.start_mm = start;
   m.end_mm = req.end_mm;
   m.length_mm = length;

@@ -46,6 +46,12 @@ class Planner {
   const Vec4& position() const { return position_; }
   void set_position(const Vec4& p) { position_ = p; }
   void set_junction_deviation(double jd_mm) { jd_mm_ = jd_mm; }
+  // M900 / SET_PRESSURE_ADVANCE: carried by the moves added from now on
+  // (planner/pressure_advance.hpp).
+  void set_pressure_advance(double advance_s, double smooth_time_s) {
+    cfg_.pressure_advance_s = advance_s;
+    cfg_.pressure_advance_smooth_time_s = smooth_time_s;
+  }
   // M203 / M201: per-axis limits for the moves added from now on.
   void set_axis_limits(const Vec4& max_velocity_mm_s, const Vec4& max_accel_mm_s2) {
     cfg_.max_axis_velocity_mm_s = max_velocity_mm_s;

@@ -53,6 +53,10 @@ struct PlannedMove {
   std::array<ProfilePiece, 7> pieces{};
   int piece_count = 0;
   bool jerk_bounded = true;    // S-curve: every piece honours the configured jerk bound
+  // Pressure advance in effect when the move was queued (0: off); the step stage applies it only
+  // to extruding XY moves (planner/pressure_advance.hpp).
+  double pressure_advance_s = 0.0;
+  double pressure_advance_smooth_time_s = 0.0;
 
   double end_time_s() const { return start_time_s + duration_s; }
 };

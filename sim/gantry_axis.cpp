@@ -48,6 +48,7 @@ GantryAxis::GantryAxis(const GantryAxisParams& p)
   }
   const double x0_m = p.initial_pos_mm * 1e-3;
   x_ << x0_m, x0_m, 0.0, x0_m, 0.0, x0_m, 0.0, 0.0;
+  xc_ = x_;
   history_.clear(0.0, x0_m);
 }
 
@@ -111,43 +112,79 @@ GantryAxis::State GantryAxis::derivative(const State& x, double u_m) const {
   return d;
 }
 
-void GantryAxis::integrate_(double h) {
+void GantryAxis::integrate_(State& x, double h) const {
   const double u = static_cast<double>(steps_) * m_per_step_true_ + p_.initial_pos_mm * 1e-3;
-  const State k1 = derivative(x_, u);
-  const State k2 = derivative(x_ + 0.5 * h * k1, u);
-  const State k3 = derivative(x_ + 0.5 * h * k2, u);
-  const State k4 = derivative(x_ + h * k3, u);
-  x_ += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+  const State k1 = derivative(x, u);
+  const State k2 = derivative(x + 0.5 * h * k1, u);
+  const State k3 = derivative(x + 0.5 * h * k2, u);
+  const State k4 = derivative(x + h * k3, u);
+  x += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
 }
 
 void GantryAxis::after_substep_() {
-  history_.push(t_s_, x_[kCarriage]);
-  const auto n = static_cast<int64_t>(std::llround((x_[kField] - x_[kRotor]) / lambda_m_));
+  history_.push(tc_s_, xc_[kCarriage]);
+  const auto n = static_cast<int64_t>(std::llround((xc_[kField] - xc_[kRotor]) / lambda_m_));
   if (n != slip_periods_) {
     slip_events_ += n > slip_periods_ ? n - slip_periods_ : slip_periods_ - n;
     slip_periods_ = n;
   }
 }
 
-void GantryAxis::advance_to(double t_s) {
-  while (t_s - t_s_ > kTimeEps_s) {
-    const double h = std::min(h_s_, t_s - t_s_);
-    integrate_(h);
-    t_s_ = (t_s - t_s_ - h <= kTimeEps_s) ? t_s : t_s_ + h;
+// Whole substeps from the last input event (or the last whole substep after it) up to t_s.
+void GantryAxis::commit_substeps_(double t_s) {
+  while (t_s - tc_s_ >= h_s_ - kTimeEps_s) {
+    integrate_(xc_, h_s_);
+    tc_s_ += h_s_;
     after_substep_();
   }
 }
 
+// A look at time t_s: the whole substeps are committed, the rest is integrated on a copy (the
+// view). So where the integration's substeps fall depends only on the input events (the steps,
+// enable), never on when someone looked: a run's trajectory does not depend on when the host
+// read the plant or the MCU sampled its encoder (issue 13's run-to-run comparison on the wall
+// clock; docs/decisions.md, "One motion, one clock frame").
+void GantryAxis::advance_to(double t_s) {
+  if (t_s - t_s_ <= kTimeEps_s) return;  // the view never goes back
+  commit_substeps_(t_s);
+  x_ = xc_;
+  if (t_s - tc_s_ > kTimeEps_s) integrate_(x_, t_s - tc_s_);
+  t_s_ = t_s;
+}
+
+// An input changes at t_s: the committed state goes exactly there (a partial substep), and the
+// substep grid restarts from it.
+void GantryAxis::commit_to_(double t_s) {
+  if (t_s - tc_s_ <= kTimeEps_s) return;  // late (before the committed time): counted by the caller
+  commit_substeps_(t_s);
+  if (t_s - tc_s_ > kTimeEps_s) {
+    integrate_(xc_, t_s - tc_s_);
+    tc_s_ = t_s;
+    after_substep_();
+  }
+  x_ = xc_;
+  t_s_ = std::max(t_s_, tc_s_);
+}
+
 void GantryAxis::step(double t_s, int direction) {
-  if (t_s < t_s_) ++late_events_;
-  advance_to(t_s);
+  if (t_s < tc_s_) ++late_events_;
+  commit_to_(t_s);
   steps_ += direction >= 0 ? 1 : -1;
+  if (t_s_ > tc_s_) advance_to_view_();
 }
 
 void GantryAxis::set_enabled(double t_s, bool enabled) {
-  if (t_s < t_s_) ++late_events_;
-  advance_to(t_s);
+  if (t_s < tc_s_) ++late_events_;
+  commit_to_(t_s);
   enabled_ = enabled;
+  if (t_s_ > tc_s_) advance_to_view_();
+}
+
+// After an input event that lies before the view's time: the view is recomputed with it.
+void GantryAxis::advance_to_view_() {
+  const double t = t_s_;
+  t_s_ = tc_s_;
+  advance_to(t);
 }
 
 int64_t GantryAxis::read_encoder_counts(double t_s) {

@@ -81,12 +81,19 @@ class GantryAxis final : public device::MotorPort {
 
  private:
   explicit GantryAxis(const GantryAxisParams& p);
-  void integrate_(double h_s);
+  void integrate_(State& x, double h_s) const;
   void after_substep_();
+  void commit_substeps_(double t_s);
+  void commit_to_(double t_s);
+  void advance_to_view_();
 
   GantryAxisParams p_;
   LinearEncoder encoder_;
   History history_;
+  // The committed state (xc_ at tc_s_: input events and whole substeps after them) and the view
+  // (x_ at t_s_: the committed state integrated to the latest time looked at; the accessors').
+  State xc_ = State::Zero();
+  double tc_s_ = 0.0;
   State x_ = State::Zero();
   double t_s_ = 0.0;
   int64_t steps_ = 0;

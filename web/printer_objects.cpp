@@ -230,9 +230,12 @@ json printer_objects(const ObjectInputs& in) {
   // Klipper's `extruder`, the first bed `heater_bed`; the first part fan (M106/M107) is `fan`,
   // each heater fan `heater_fan <name>` (Klipper's [fan] and [heater_fan] objects).
   const HeaterPowers powers = heater_powers(s);
-  o["extruder"] = {{"temperature", s.hotend_c}, {"target", s.hotend_target_c},
-                   {"power", powers.hotend},    {"can_extrude", s.hotend_c >= 170.0},
-                   {"pressure_advance", 0.0},   {"smooth_time", 0.04}};
+  o["extruder"] = {{"temperature", s.hotend_c},
+                   {"target", s.hotend_target_c},
+                   {"power", powers.hotend},
+                   {"can_extrude", s.hotend_c >= 170.0},
+                   {"pressure_advance", s.pressure_advance_s},
+                   {"smooth_time", s.pressure_advance_smooth_time_s}};
   o["heater_bed"] = {{"temperature", s.bed_c}, {"target", s.bed_target_c}, {"power", powers.bed}};
   bool have_part = false;
   o["fan"] = {{"speed", 0.0}, {"rpm", nullptr}};

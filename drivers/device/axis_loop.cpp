@@ -32,6 +32,8 @@ void AxisLoop::init(float clock_hz) {
   plaus_.reset();
   slip_.reset();
   have_tick_ = false;
+  align_pending_ = false;
+  have_report_origin_ = false;
   have_hold_r_ = false;
   r_nm_ = y_nm_ = hold_r_nm_ = 0;
   e_nm_ = v_ref_nm_s_ = a_ref_nm_s2_ = v_motor_nm_s_ = last_target_slope_nm_s_ = 0.0f;
@@ -60,6 +62,11 @@ bool AxisLoop::push_target(const TargetKnot& k) {
   if (!target_.push(k)) {
     event(LoopEventKind::kTargetRejected, k.clock, k.pos_nm, target_.free() == 0 ? 0 : 1);
     return false;
+  }
+  // Nothing was queued ahead of the last tick: r was holding, and this knot starts a motion.
+  if (!had || (have_tick_ && prev.clock <= last_tick_clock_)) {
+    align_pending_ = true;
+    align_clock_ = k.clock;
   }
   last_target_slope_nm_s_ =
       had ? static_cast<float>(k.pos_nm - prev.pos_nm) / static_cast<float>(k.clock - prev.clock) * clock_hz_
@@ -214,12 +221,28 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
   }
   next_grid_clock_ += period;
   if (next_grid_clock_ <= in.clock) next_grid_clock_ += ((in.clock - next_grid_clock_) / period + 1) * period;
+  if (align_pending_) {  // the next tick in (now, now + period], on the motion's first knot's grid
+    align_pending_ = false;
+    if (align_clock_ > in.clock) {
+      next_grid_clock_ = align_clock_ - ((align_clock_ - in.clock - 1) / period) * period;
+      report_origin_clock_ = align_clock_;
+      have_report_origin_ = true;
+    }
+  }
   const bool first_tick = !have_tick_;
   have_tick_ = true;
   last_tick_clock_ = in.clock;
   ++ticks_;
   device_steps_ = in.device_steps;
-  if (p_.report_every_ticks != 0 && ticks_ % p_.report_every_ticks == 0) out.report_due = true;
+  if (p_.report_every_ticks != 0) {
+    if (have_report_origin_) {  // on the motion's grid: every motion reports at the same instants of its time
+      const int64_t n = (in.clock - report_origin_clock_ + period / 2) / period;  // a late tick keeps its index
+      const int64_t every = static_cast<int64_t>(p_.report_every_ticks);
+      if (((n % every) + every) % every == 0) out.report_due = true;
+    } else if (ticks_ % p_.report_every_ticks == 0) {
+      out.report_due = true;
+    }
+  }
 
   const int64_t motor_nm = q16_mul(in.motor_steps, p_.nm_per_step_q16);
   if (!first_tick && dt_s > 0.0f) {

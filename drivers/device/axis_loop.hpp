@@ -103,7 +103,7 @@ class AxisLoop {
   // validation result; nothing is staged unless kOk.
   LoopParamError stage(const LoopParams& p, int64_t activation_clock);
   // r(t) knots from the host (QUEUE_TARGET); false when full or not increasing (an event too).
-  bool push_target(const TargetKnot& k);
+  bool push_target(const TargetKnot& k);  // the first knot of a motion also re-phases the grid
   // Starts a controlled stop at the next tick (host silent, another axis tripped...).
   void request_stop(StopReason why);
   // Clock of the next tick the owner must run (kNever when idle with nothing staged).
@@ -158,6 +158,14 @@ class AxisLoop {
   bool have_tick_ = false;
   int64_t last_tick_clock_ = 0;   // actual clock of the last tick
   int64_t next_grid_clock_ = 0;   // scheduled clock of the next tick
+  // A motion's first knot, pushed while r was holding (nothing queued ahead): the grid is moved
+  // so that a tick falls on it. Every motion is then sampled at the same instants of its own
+  // time, wherever the host's clock frame put its start (docs/decisions.md, "One motion, one
+  // clock frame").
+  bool align_pending_ = false;
+  int64_t align_clock_ = 0;
+  bool have_report_origin_ = false;  // LOOP_REPORTs every report_every_ticks of that grid
+  int64_t report_origin_clock_ = 0;
   // Derived from p_.
   int32_t max_steps_per_tick_ = 1;       // correction steps per tick (the rate limit)
   int32_t max_stop_steps_per_tick_ = 1;  // steps per tick of a controlled stop: one per MCU tick

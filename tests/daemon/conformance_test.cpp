@@ -82,6 +82,35 @@ TEST_F(Conformance, RefusedLinesGetAnErrorAndTheirOk) {
   EXPECT_EQ(c.read_line(), "ok");
 }
 
+// Marlin/src/gcode/feature/advance/M900.cpp: "M900 K<k>" sets the linear advance factor (0..10)
+// and answers ok; "M900" alone reports "Advance K=<k>" (one extruder). Klipper's
+// SET_PRESSURE_ADVANCE (klippy/kinematics/extruder.py) sets both values; a bad value is refused
+// with its location and changes nothing; the JSON status carries the values.
+TEST_F(Conformance, M900AndSetPressureAdvance) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(c.send_line("M900"));
+  EXPECT_EQ(c.read_line(), "echo:Advance K=0.000");
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("M900 K0.045"));
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("M900"));
+  EXPECT_EQ(c.read_line(), "echo:Advance K=0.045");
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("SET_PRESSURE_ADVANCE ADVANCE=0.5 SMOOTH_TIME=0.3"));
+  auto e = c.read_line();
+  ASSERT_TRUE(e);
+  EXPECT_NE(e->find("SMOOTH_TIME must be in (0, 0.200] s"), std::string::npos) << *e;
+  EXPECT_EQ(e->rfind("Error:", 0), 0u) << *e;
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("SET_PRESSURE_ADVANCE ADVANCE=0.06 SMOOTH_TIME=0.03"));
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("SET_PRESSURE_ADVANCE"));
+  EXPECT_EQ(c.read_line(), "// pressure_advance: 0.060000");
+  EXPECT_EQ(c.read_line(), "// pressure_advance_smooth_time: 0.030000");
+  EXPECT_EQ(c.read_line(), "ok");
+}
+
 // The shipped default printer refuses motion before homing, as Klipper ("Must home axis first",
 // klippy/kinematics/cartesian.py) and Marlin with NO_MOTION_BEFORE_HOMING do; M84 (Marlin
 // M18_M84.cpp: the disabled axes are no longer trusted) asks for homing again. The JSON API's

@@ -117,6 +117,29 @@ TEST(BatchStepError, GeneratedCartesianProgramWithinTheBound) {
   }
 }
 
+// Pressure advance in batch mode (extruder.pressure_advance): the extruder's steps follow the
+// advance's segments within the bound, one and two threads agree, X/Y/Z are untouched and the
+// extruder makes more steps (the advance and its return at every speed change).
+TEST(BatchPressureAdvance, ExtruderFollowsTheAdvanceWithinTheBoundOtherJointsUnchanged) {
+  const std::string path = write_temp("spiral_pa.gcode", spiral_gcode(100, 100, 30, 600));
+  const config::MachineConfig plain = config::default_config();
+  config::MachineConfig cfg = plain;
+  cfg.extruder.pressure_advance = 0.05;
+  expect_identical(path, cfg);
+  auto a = run_checked(path, plain);
+  auto b = run_checked(path, cfg);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(b->not_found, 0u);
+  EXPECT_EQ(b->summary.check_failures, 0u);
+  EXPECT_LE(b->max_error_us, cfg.stepgen.max_step_error_us + 1e-5);
+  for (int j = 0; j < 3; ++j)
+    EXPECT_EQ(a->summary.joints[static_cast<size_t>(j)].steps, b->summary.joints[static_cast<size_t>(j)].steps) << j;
+  std::printf("extruder steps: %llu without, %llu with K = 0.05 s\n",
+              static_cast<unsigned long long>(a->summary.joints[3].steps),
+              static_cast<unsigned long long>(b->summary.joints[3].steps));
+  EXPECT_GT(b->summary.joints[3].steps, a->summary.joints[3].steps);
+}
+
 TEST(BatchStepError, ATighterBoundIsHonouredToo) {
   config::MachineConfig cfg = config::default_config();
   cfg.stepgen.max_step_error_us = 1.0;

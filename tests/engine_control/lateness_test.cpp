@@ -3,7 +3,7 @@
 // message that names the stall. Virtual time, so the stalls are exact and the runs comparable:
 // the planner and the motion stage stop (no servo cycle) while the MCUs and the plant go on.
 // The carriage trajectories (the plant's ground truth, every servo period both runs sampled)
-// are compared against the stall-free run's: equal within one microstep (see below).
+// are compared against the stall-free run's: equal within one encoder count (see below).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -75,11 +75,10 @@ TEST(Lateness, StallsShorterThanTheLeadChangeNothing) {
     std::printf("stalls of %4.0f ms x 100 (until %.2f s): %zu samples compared, largest carriage difference %.2f um\n",
                 stall_ms, t, compared, worst_mm * 1e3);
     EXPECT_GT(compared, 3000u);
-    // Not bit-identical: a stall moves where the step pipeline closes its batches (each step time
-    // within the compressor's 5 us) and the clock queries; the device loop then rounds its
-    // correction to whole microsteps at a slightly different tick. So the bound is one microstep
-    // (1 / 94.314 mm) plus one encoder count, not the one encoder count (docs/decisions.md).
-    EXPECT_LE(worst_mm, 1.0 / 94.314 + encoder_count_mm);
+    // Within one encoder count (measured: bit-identical): the steps' runs close on the sample
+    // grid and the clock frame holds for the motion, so a stall moves no step and no knot of r(t)
+    // (docs/decisions.md, "One motion, one clock frame").
+    EXPECT_LE(worst_mm, encoder_count_mm);
   }
 }
 

@@ -147,12 +147,12 @@ TEST(HostProtocol, ParseErrorsReplyErrorAndOkAndExecuteNothing) {
 
 TEST(HostProtocol, UnknownCommandsWarnAndStillReachTheCaller) {
   HostProtocol p;
-  Exchange e = send(p, numbered(1, "M900 K0.05"));
+  Exchange e = send(p, numbered(1, "M572 S0.05"));
   EXPECT_EQ(e.action, Action::kExecute);
   EXPECT_TRUE(e.command.unknown);
-  EXPECT_EQ(e.reply, "echo:Unknown command: \"M900 K0.05\"\nok\n");
+  EXPECT_EQ(e.reply, "echo:Unknown command: \"M572 S0.05\"\nok\n");
   HostProtocol quiet("q", {.defer_ok = false, .warn_unknown = false});
-  EXPECT_EQ(send(quiet, "M900 K0").reply, "ok\n");
+  EXPECT_EQ(send(quiet, "M572 S0").reply, "ok\n");
 }
 
 TEST(HostProtocol, DeferredOkIsSentByTheCaller) {

@@ -136,10 +136,37 @@ TEST(Parser, FreeTextCommandsKeepTheirText) {
   EXPECT_EQ(c.text, "E1 busy: processing");
 }
 
-TEST(Parser, UnknownCommandsParseAndAreFlagged) {
-  Command c = ok("M900 K0.05");
-  EXPECT_TRUE(c.unknown);
+TEST(Parser, KlippersSetPressureAdvanceBecomesM900) {
+  Command c = ok("SET_PRESSURE_ADVANCE ADVANCE=0.05 SMOOTH_TIME=0.03 ; comment");
+  EXPECT_FALSE(c.unknown);
+  EXPECT_TRUE(c.is('M', 900));
+  EXPECT_EQ(c.text, "SET_PRESSURE_ADVANCE");
   EXPECT_DOUBLE_EQ(c.get('K'), 0.05);
+  EXPECT_DOUBLE_EQ(c.get('S'), 0.03);
+  c = ok("set_pressure_advance");  // a query: no values
+  EXPECT_TRUE(c.is('M', 900));
+  EXPECT_FALSE(c.has('K'));
+  c = ok("M900 K0.1");
+  EXPECT_FALSE(c.unknown);
+  EXPECT_TRUE(c.text.empty());
+  auto bad = parse_line("SET_PRESSURE_ADVANCE ADVANCE=0.1 ADVANCE=0.2", SourceLocation{"t", 3, 0});
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.error().where.column, 34);
+  EXPECT_NE(bad.error().message.find("given twice"), std::string::npos);
+  bad = parse_line("SET_PRESSURE_ADVANCE ADVANCE", SourceLocation{"t", 3, 0});
+  ASSERT_FALSE(bad.ok());
+  bad = parse_line("M900 K12", SourceLocation{"t", 3, 0});  // Marlin's range 0..10
+  ASSERT_FALSE(bad.ok());
+  bad = parse_line("M900 L0.2", SourceLocation{"t", 3, 0});  // the second slot: not supported
+  ASSERT_FALSE(bad.ok());
+  bad = parse_line("SET_VELOCITY_LIMIT VELOCITY=300", SourceLocation{"t", 3, 0});  // still refused
+  ASSERT_FALSE(bad.ok());
+}
+
+TEST(Parser, UnknownCommandsParseAndAreFlagged) {
+  Command c = ok("M572 S0.05");  // RepRapFirmware's pressure advance (feedloop: M900)
+  EXPECT_TRUE(c.unknown);
+  EXPECT_DOUBLE_EQ(c.get('S'), 0.05);
   c = ok("G29.1 Z0.2");
   EXPECT_TRUE(c.unknown);
   EXPECT_EQ(c.code, 29);
