@@ -365,6 +365,7 @@ void write_runtime(Writer& w, const MachineConfig& c) {
   w.str("uplot_dir", c.web.uplot_dir);
   w.str("files_dir", c.web.files_dir);
   w.str("database", c.web.database);
+  w.str("calibration_dir", c.web.calibration_dir);
   w.end();
 
   w.begin("recorder");

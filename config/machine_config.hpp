@@ -60,13 +60,13 @@ struct AxisConfig {
 // ---- delta geometry (DESIGN.md canonical contract) -------------------------------------------
 
 struct DeltaGeometryConfig {
-  double radius_mm = 145.0;         // R, effective carriage radius
-  double arm_length_mm = 300.0;     // L, forearm length
-  double nozzle_offset_mm = 20.0;   // H_ez (delta paper Eq. 3-5)
-  double angle_a_deg = 0.0;         // carriage A on +x
+  double radius_mm = 145.0;        // R, effective carriage radius
+  double arm_length_mm = 300.0;    // L, forearm length
+  double nozzle_offset_mm = 20.0;  // H_ez (delta paper Eq. 3-5)
+  double angle_a_deg = 0.0;        // carriage A on +x
   double angle_b_deg = 120.0;
   double angle_c_deg = 240.0;
-  double print_radius_mm = 100.0;   // reachable disc checked at load
+  double print_radius_mm = 100.0;  // reachable disc checked at load
   double z_min_mm = 0.0;
   double z_max_mm = 250.0;
   bool operator==(const DeltaGeometryConfig&) const = default;
@@ -102,7 +102,7 @@ struct PlannerConfig {
   Profile profile = Profile::trapezoid;
   double max_jerk_mm_s3 = 100000.0;  // scurve only
   int lookahead_moves = 128;
-  double arc_tolerance_mm = 0.005;   // chordal deviation when splitting G2/G3
+  double arc_tolerance_mm = 0.005;  // chordal deviation when splitting G2/G3
   // false: moves before G28 are refused ("Must home axis first"); true: the machine starts homed.
   bool allow_moves_before_homing = false;
   bool operator==(const PlannerConfig&) const = default;
@@ -119,10 +119,10 @@ struct ExtruderConfig {
 // ---- servo, control, feedforward ----------------------------------------------------------------
 
 struct ServoConfig {
-  double rate_hz = 1000.0;        // thesis: 1 kHz control update
-  int realtime_priority = 80;     // SCHED_FIFO priority; 0: do not ask for real time
-  int cpu = -1;                   // pin the servo thread to this CPU; -1: no pinning
-  bool lock_memory = true;        // mlockall when permitted
+  double rate_hz = 1000.0;     // thesis: 1 kHz control update
+  int realtime_priority = 80;  // SCHED_FIFO priority; 0: do not ask for real time
+  int cpu = -1;                // pin the servo thread to this CPU; -1: no pinning
+  bool lock_memory = true;     // mlockall when permitted
   bool operator==(const ServoConfig&) const = default;
 };
 
@@ -138,17 +138,17 @@ enum class ManeuverSpeed { constant, every_transition, sharp_corner, sharp_corne
 enum class ManeuverParameterization { unit, arc_length };
 
 struct ManeuverControlConfig {
-  double k_p_per_s = 500.0;     // K_p = -A_1 (Table II)
-  double k_d_per_s = 1667.0;    // K_d = -A_2 (Table II); K_d / servo.rate_hz <= 1.5 (ZOH stability)
-  double q1 = 1.0;              // Q_1 = q1 I
-  double q2 = 1.0;              // Q_2 = q2 I
-  double lambda_per_s = 30.0;   // filter of the gradient update (Eq. 52), rad/s
-  double mu = 1.0e-3;           // gradient gain mu_1 in the controller's SI units (theta in m for
-                                // arc_length: Table II's 1000 x (1 mm segment)^2)
+  double k_p_per_s = 500.0;    // K_p = -A_1 (Table II)
+  double k_d_per_s = 1667.0;   // K_d = -A_2 (Table II); K_d / servo.rate_hz <= 1.5 (ZOH stability)
+  double q1 = 1.0;             // Q_1 = q1 I
+  double q2 = 1.0;             // Q_2 = q2 I
+  double lambda_per_s = 30.0;  // filter of the gradient update (Eq. 52), rad/s
+  double mu = 1.0e-3;          // gradient gain mu_1 in the controller's SI units (theta in m for
+                               // arc_length: Table II's 1000 x (1 mm segment)^2)
   double path_speed_mm_s = 100.0;  // m_s (Fig. 7: 0.1 m/s)
   ManeuverSpeed speed_assignment = ManeuverSpeed::sharp_corner_arc;
   ManeuverParameterization parameterization = ManeuverParameterization::arc_length;
-  double arc_a1_mm = 0.06;      // sharp_corner_arc: the Eq. 68 sigmoid in mm, and its reach
+  double arc_a1_mm = 0.06;  // sharp_corner_arc: the Eq. 68 sigmoid in mm, and its reach
   double arc_a2_mm = 0.005;
   double arc_reach_mm = 2.0;
   bool operator==(const ManeuverControlConfig&) const = default;
@@ -165,19 +165,20 @@ struct AxisGainsConfig {
 
 struct ControlConfig {
   ControlMode mode = ControlMode::open_loop;  // pi needs encoders
-  ControlLoop loop = ControlLoop::device;      // mode pi: where the PI runs
+  ControlLoop loop = ControlLoop::device;     // mode pi: where the PI runs
   double device_rate_hz = 1000.0;             // loop device: the MCU's control rate (thesis: 1 kHz)
   double kp = 0.5;                            // thesis Sect. 5: P = 0.5
   double ki_per_s = 20.0;                     // thesis Sect. 5: I = 20
   double max_correction_mm_s = 50.0;          // clamp of the PI correction (per period: / rate_hz)
   double skipped_step_threshold_mm = 0.3;     // following error that counts as lost steps
   double max_following_error_mm = 2.0;        // beyond this: fault, stop motion
-  double max_encoder_jump_mm = 0.05;          // an encoder sample beyond the travel possible since the
-                                              // last good one (2 x max velocity x dt) plus this is implausible
-  double command_lead_ms = 4.0;               // closed loop / feedforward: motor commands are computed
-                                              // this far ahead of execution (the PI's loop delay)
-  ManeuverControlConfig maneuver;             // mode maneuver (drive: dc_servo)
-  std::vector<AxisGainsConfig> axes;          // per-axis kp / ki_per_s overrides
+  double max_encoder_jump_mm =
+      0.05;                        // an encoder sample beyond the travel possible since the
+                                   // last good one (2 x max velocity x dt) plus this is implausible
+  double command_lead_ms = 4.0;    // closed loop / feedforward: motor commands are computed
+                                   // this far ahead of execution (the PI's loop delay)
+  ManeuverControlConfig maneuver;  // mode maneuver (drive: dc_servo)
+  std::vector<AxisGainsConfig> axes;  // per-axis kp / ki_per_s overrides
 
   // The gains of one axis (joint): its override, else the common kp / ki_per_s.
   AxisGainsConfig gains_for(const std::string& axis_name) const {
@@ -217,7 +218,8 @@ struct ShaperConfig {
 
 struct LpvFeedforwardConfig {
   double preview_ms = 20.0;  // preview of the stable approximate inverse (DESIGN.md: RHP zero)
-  bool freeze_at_centre = false;  // delta: the model of the centre everywhere (the fixed-model baseline)
+  bool freeze_at_centre =
+      false;  // delta: the model of the centre everywhere (the fixed-model baseline)
   // A planned velocity jump (speed-change corners) is spread over the time it needs at this
   // acceleration before the inverse sees it (control/feedforward/velocity_jump_smoother.hpp);
   // 0: off. The window is at most jump_window_ms wide (it adds to the preview).
@@ -237,27 +239,27 @@ struct FeedforwardConfig {
 
 // Nonlinear hybrid stepper + belt of the thesis, Appendix D Eq. 1-7 and Table 2.
 struct StepperConfig {
-  double holding_torque_nm = 0.285;       // T_max at rated current (17HD0013)
+  double holding_torque_nm = 0.285;  // T_max at rated current (17HD0013)
   double rated_current_a = 0.4;
-  double drive_current_a = 0.2;           // drivers run below rated current; T_max scales with it
-  int rotor_teeth = 50;                   // n_r
-  double rotor_inertia_kg_m2 = 3.8e-6;    // J = 38 g cm^2
-  double pulley_radius_mm = 5.40;         // r
-  double belt_unit_stiffness_n = 33000.0; // k-hat of Eq. 6 (K_2 = k-hat / active length)
-  double pulley_distance_mm = 300.0;      // L of Eq. 6
-  double belt_efficiency = 1.0;           // e of Eq. 7
+  double drive_current_a = 0.2;            // drivers run below rated current; T_max scales with it
+  int rotor_teeth = 50;                    // n_r
+  double rotor_inertia_kg_m2 = 3.8e-6;     // J = 38 g cm^2
+  double pulley_radius_mm = 5.40;          // r
+  double belt_unit_stiffness_n = 33000.0;  // k-hat of Eq. 6 (K_2 = k-hat / active length)
+  double pulley_distance_mm = 300.0;       // L of Eq. 6
+  double belt_efficiency = 1.0;            // e of Eq. 7
   bool operator==(const StepperConfig&) const = default;
 };
 
 // Linearised two-mass gantry axis of the thesis, Eq. 13 (Tables 3-4).
 struct GantryModelConfig {
   std::string axis;
-  double m1_kg = 0.130;           // rotor inertia as a mass, J / r^2 (Table 3)
-  double m2_kg = 0.45;            // carriage / load mass (Table 2-3)
-  double k1_n_per_m = 355e3;      // motor magnetic stiffness (Table 4)
-  double k2_n_per_m = 110e3;      // belt stiffness (Table 4)
-  double c1_ns_per_m = 2100.0;    // motor damping (Table 4)
-  double c2_ns_per_m = 112.0;     // bearing damping (Table 4)
+  double m1_kg = 0.130;             // rotor inertia as a mass, J / r^2 (Table 3)
+  double m2_kg = 0.45;              // carriage / load mass (Table 2-3)
+  double k1_n_per_m = 355e3;        // motor magnetic stiffness (Table 4)
+  double k2_n_per_m = 110e3;        // belt stiffness (Table 4)
+  double c1_ns_per_m = 2100.0;      // motor damping (Table 4)
+  double c2_ns_per_m = 112.0;       // bearing damping (Table 4)
   double coulomb_friction_n = 0.0;  // sliding friction on the carriage (not in Eq. 13: what
                                     // `feedloop ident fit` reports as coulomb_friction force_n);
                                     // the LPV feedforward supplies it (docs/feedforward.md)
@@ -270,28 +272,29 @@ enum class ForceTransform { paper, virtual_work };
 // Delta LPV receptance-coupling model: the physical parameters of the delta paper's Table I
 // (DESIGN.md: its omega_n / zeta columns are inconsistent with them and are not used).
 struct DeltaLpvConfig {
-  double m_c_kg = 0.179;          // carriage mass
-  double m_f_kg = 0.032;          // forearm pair mass (m = m_c + m_f / 2)
-  double c_ns_per_m = 5.31;       // carriage damping to the motor (Eq. 37)
-  double b_ns_per_m = 13.4;       // carriage damping to ground (Eq. 37)
-  double k_n_per_m = 1.21e5;      // carriage stiffness
-  double d0_per_s2 = 1.43e5;      // electrical part G_qd,e = (d1 s + d0)/(s^2 + d2 s + d0)
+  double m_c_kg = 0.179;      // carriage mass
+  double m_f_kg = 0.032;      // forearm pair mass (m = m_c + m_f / 2)
+  double c_ns_per_m = 5.31;   // carriage damping to the motor (Eq. 37)
+  double b_ns_per_m = 13.4;   // carriage damping to ground (Eq. 37)
+  double k_n_per_m = 1.21e5;  // carriage stiffness
+  double d0_per_s2 = 1.43e5;  // electrical part G_qd,e = (d1 s + d0)/(s^2 + d2 s + d0)
   double d1_per_s = -212.1;
   double d2_per_s = 36.2;
-  double m1_kg = 0.542;           // end-effector: nozzle holder (Eq. 67)
-  double m2_kg = 0.109;           // end-effector: extruder motor
-  double b_x_ns_per_m = 20.4;     // b_j
+  double m1_kg = 0.542;        // end-effector: nozzle holder (Eq. 67)
+  double m2_kg = 0.109;        // end-effector: extruder motor
+  double b_x_ns_per_m = 20.4;  // b_j
   double b_y_ns_per_m = 40.5;
   double b_z_ns_per_m = 19.6;
-  double k_x_n_per_m = 3.31e3;    // k_j
+  double k_x_n_per_m = 3.31e3;  // k_j
   double k_y_n_per_m = 7.04e3;
   double k_z_n_per_m = 1.29e5;
-  double delta_x_mm = 10.21;      // centre-of-mass offset from the centroid (Eq. 20)
+  double delta_x_mm = 10.21;  // centre-of-mass offset from the centroid (Eq. 20)
   double delta_y_mm = -16.52;
   double delta_z_mm = 19.31;
   double d_e_mm = 39.91;
-  double gravity_m_s2 = 9.81;     // the effector's weight on the carriages (not in Eq. 29): the
-                                  // LPV feedforward supplies its position-dependent belt stretch          // centroid to forearm reaction point (Eq. 20)
+  double gravity_m_s2 = 9.81;  // the effector's weight on the carriages (not in Eq. 29): the
+                               // LPV feedforward supplies its position-dependent belt stretch //
+                               // centroid to forearm reaction point (Eq. 20)
   ForceTransform force_transform = ForceTransform::paper;  // Eq. 25/69 vs tau = Jbar^T W X
   bool operator==(const DeltaLpvConfig&) const = default;
 };
@@ -299,21 +302,21 @@ struct DeltaLpvConfig {
 // The Cartesian DC-motor printer of output-maneuvering-cartesian Sect. III-A (Table I, Eq. 3-20):
 // the plant of drive: dc_servo. Every key defaults to the paper's value.
 struct CartesianDcConfig {
-  double m_n_kg = 0.4;            // extruder system (nozzle)
-  double m_x_kg = 0.2;            // x-axis motor (carried by z)
-  double m_ps_kg = 0.8;           // print surface (y)
-  double j_m_kg_m2 = 5.0e-6;      // motor + shaft + pulley inertia
-  double b_nm_s = 1.1e-4;         // motor friction B, N m s/rad
-  double r_a_ohm = 1.0e-3;        // armature resistance
-  double k_m_nm_per_a = 1.0e-4;   // torque constant
-  double pulley_radius_mm = 10.0; // r
+  double m_n_kg = 0.4;             // extruder system (nozzle)
+  double m_x_kg = 0.2;             // x-axis motor (carried by z)
+  double m_ps_kg = 0.8;            // print surface (y)
+  double j_m_kg_m2 = 5.0e-6;       // motor + shaft + pulley inertia
+  double b_nm_s = 1.1e-4;          // motor friction B, N m s/rad
+  double r_a_ohm = 1.0e-3;         // armature resistance
+  double k_m_nm_per_a = 1.0e-4;    // torque constant
+  double pulley_radius_mm = 10.0;  // r
   bool operator==(const CartesianDcConfig&) const = default;
 };
 
 struct ModelConfig {
   std::vector<GantryModelConfig> gantry;  // per axis, in file order
   std::optional<DeltaLpvConfig> delta_lpv;
-  CartesianDcConfig cartesian_dc;         // drive: dc_servo
+  CartesianDcConfig cartesian_dc;  // drive: dc_servo
 
   const GantryModelConfig* gantry_for(const std::string& axis_name) const {
     for (const GantryModelConfig& g : gantry)
@@ -326,9 +329,9 @@ struct ModelConfig {
 // ---- step generation and MCUs -------------------------------------------------------------------
 
 struct StepgenConfig {
-  double max_step_error_us = 5.0;      // compressed step times within this of the exact ones
+  double max_step_error_us = 5.0;        // compressed step times within this of the exact ones
   std::int64_t mcu_clock_hz = 72000000;  // default MCU clock; an MCU may override it
-  double queue_ahead_ms = 100.0;       // how far ahead of its execution a step batch is sent
+  double queue_ahead_ms = 100.0;         // how far ahead of its execution a step batch is sent
   bool operator==(const StepgenConfig&) const = default;
 };
 
@@ -351,8 +354,8 @@ struct McuConfig {
   std::string name;
   std::vector<std::string> axes;  // every axis is driven by exactly one MCU
   TransportType transport = TransportType::mock;
-  SerialConfig serial;            // transport: serial
-  UsbConfig usb;                  // transport: usb
+  SerialConfig serial;               // transport: serial
+  UsbConfig usb;                     // transport: usb
   std::int64_t clock_hz = 72000000;  // defaults to stepgen.mcu_clock_hz
   bool operator==(const McuConfig&) const = default;
 };
@@ -361,22 +364,44 @@ struct McuConfig {
 
 // Unmodelled effects the plant simulator can add (vocabulary of DESIGN.md's identification report).
 // Each is off unless present; `axes` empty means every motion axis.
-struct CoulombFrictionConfig { double force_n = 2.0; std::vector<std::string> axes;
-  bool operator==(const CoulombFrictionConfig&) const = default; };
-struct BacklashConfig { double width_um = 20.0; std::vector<std::string> axes;
-  bool operator==(const BacklashConfig&) const = default; };
-struct PeriodicPositionConfig { double period_mm = 40.0; double amplitude_um = 10.0;
-  double phase_deg = 0.0; std::vector<std::string> axes;
-  bool operator==(const PeriodicPositionConfig&) const = default; };
-struct DirectionStiffnessConfig { double ratio = 1.3; std::vector<std::string> axes;
-  bool operator==(const DirectionStiffnessConfig&) const = default; };
-struct ExtraResonanceConfig { double freq_hz = 90.0; double damping = 0.05;
+struct CoulombFrictionConfig {
+  double force_n = 2.0;
   std::vector<std::string> axes;
-  bool operator==(const ExtraResonanceConfig&) const = default; };
-struct TimeDelayConfig { double delay_ms = 2.0; std::vector<std::string> axes;
-  bool operator==(const TimeDelayConfig&) const = default; };
-struct ScaleErrorConfig { double scale = 1.003; std::vector<std::string> axes;
-  bool operator==(const ScaleErrorConfig&) const = default; };
+  bool operator==(const CoulombFrictionConfig&) const = default;
+};
+struct BacklashConfig {
+  double width_um = 20.0;
+  std::vector<std::string> axes;
+  bool operator==(const BacklashConfig&) const = default;
+};
+struct PeriodicPositionConfig {
+  double period_mm = 40.0;
+  double amplitude_um = 10.0;
+  double phase_deg = 0.0;
+  std::vector<std::string> axes;
+  bool operator==(const PeriodicPositionConfig&) const = default;
+};
+struct DirectionStiffnessConfig {
+  double ratio = 1.3;
+  std::vector<std::string> axes;
+  bool operator==(const DirectionStiffnessConfig&) const = default;
+};
+struct ExtraResonanceConfig {
+  double freq_hz = 90.0;
+  double damping = 0.05;
+  std::vector<std::string> axes;
+  bool operator==(const ExtraResonanceConfig&) const = default;
+};
+struct TimeDelayConfig {
+  double delay_ms = 2.0;
+  std::vector<std::string> axes;
+  bool operator==(const TimeDelayConfig&) const = default;
+};
+struct ScaleErrorConfig {
+  double scale = 1.003;
+  std::vector<std::string> axes;
+  bool operator==(const ScaleErrorConfig&) const = default;
+};
 
 // Whether an effect (any of the structs above) acts on `axis_name`: an empty list means all axes.
 template <class Effect>
@@ -418,8 +443,8 @@ struct SimEndstopsConfig {
 
 struct SimulatorConfig {
   std::uint64_t seed = 1;
-  double encoder_noise_um = 0.0;   // rms, added before quantisation to the encoder resolution
-  double sample_delay_us = 0.0;    // encoder sample to report latency
+  double encoder_noise_um = 0.0;  // rms, added before quantisation to the encoder resolution
+  double sample_delay_us = 0.0;   // encoder sample to report latency
   SimEffectsConfig effects;
   SimEndstopsConfig endstops;
   std::optional<ExternalPlantConfig> external_plant;
@@ -446,10 +471,13 @@ struct WebConfig {
   std::vector<std::string> trusted_clients;  // CIDR ranges allowed without the API key
   std::string api_key;                       // X-Api-Key for everyone else (empty: none)
   std::string ui_dir;                        // the UI's static files, served at / (empty: none)
-  std::string page_dir;                      // feedloop's own page, served at /server/feedloop/page/
-  std::string uplot_dir;                     // uPlot's dist/, served at /server/feedloop/page/uplot/
-  std::string files_dir = "${STATE_DIR}/files";  // roots gcodes/ and config/ (uploads)
-  std::string database = "${STATE_DIR}/web.sqlite";     // server.database.* (SQLite)
+  std::string page_dir;   // feedloop's own page, served at /server/feedloop/page/
+  std::string uplot_dir;  // uPlot's dist/, served at /server/feedloop/page/uplot/
+  std::string files_dir = "${STATE_DIR}/files";      // roots gcodes/ and config/ (uploads)
+  std::string database = "${STATE_DIR}/web.sqlite";  // server.database.* (SQLite)
+  // feedloop's page shows the newest report.json of `feedloop ident fit --out DIR` found here
+  // (in the folder itself or one level down: --out ${STATE_DIR}/ident/<name>).
+  std::string calibration_dir = "${STATE_DIR}/ident";
   bool operator==(const WebConfig&) const = default;
 };
 
@@ -461,20 +489,21 @@ struct RecorderConfig {
   bool operator==(const RecorderConfig&) const = default;
 };
 
-// Print jobs from files (daemon/print_job.hpp, docs/jobs.md): the folder and the pause/cancel moves.
+// Print jobs from files (daemon/print_job.hpp, docs/jobs.md): the folder and the pause/cancel
+// moves.
 struct JobsConfig {
   std::string directory = "${STATE_DIR}/gcodes";  // the job folder (created when missing)
-  double max_file_size_mb = 512.0;                 // uploads above this are refused
-  double pause_retract_mm = 1.0;                   // filament pulled back on pause/cancel
+  double max_file_size_mb = 512.0;                // uploads above this are refused
+  double pause_retract_mm = 1.0;                  // filament pulled back on pause/cancel
   double retract_speed_mm_s = 30.0;
-  double prime_extra_mm = 0.0;                     // pushed on resume beyond the retract
-  double lift_mm = 5.0;                            // Z raise on pause/cancel (within Z's travel)
+  double prime_extra_mm = 0.0;  // pushed on resume beyond the retract
+  double lift_mm = 5.0;         // Z raise on pause/cancel (within Z's travel)
   double z_speed_mm_s = 10.0;
   // XY park point on pause/cancel. Unset: Marlin's NOZZLE_PARK_POINT default (X min + 10,
   // Y max - 10) on Cartesian and CoreXY machines; on a delta XY stay (only Z is raised).
   std::optional<double> park_x_mm, park_y_mm;
   double travel_speed_mm_s = 100.0;
-  double settle_ms = 500.0;                        // dwell before a pause/resume position is taken
+  double settle_ms = 500.0;  // dwell before a pause/resume position is taken
   bool operator==(const JobsConfig&) const = default;
 };
 
@@ -487,7 +516,8 @@ struct LoggingConfig {
   bool operator==(const LoggingConfig&) const = default;
 };
 
-// ---- heaters and fans (docs/heaters.md) -----------------------------------------------------------
+// ---- heaters and fans (docs/heaters.md)
+// -----------------------------------------------------------
 
 enum class HeaterKind { extruder, bed, chamber };
 
@@ -524,7 +554,8 @@ struct HeaterConfig {
   double pullup_ohm = 4700.0;
   double min_temp_c = 0.0, max_temp_c = 275.0;
   double max_power = 1.0;
-  double residency_s = 10.0;  // M109/M190: time within 1 C before the wait ends (Marlin TEMP_RESIDENCY_TIME)
+  double residency_s =
+      10.0;  // M109/M190: time within 1 C before the wait ends (Marlin TEMP_RESIDENCY_TIME)
   double pid_kp = 22.2, pid_ki = 1.08, pid_kd = 114.0;  // Marlin/Klipper units (per 255 of power)
   HeaterProtectionConfig protection;
   HeaterPlantConfig plant;
@@ -536,8 +567,8 @@ enum class FanKind { part, heater };
 struct FanConfig {
   std::string name;
   FanKind kind = FanKind::part;
-  std::string heater;            // kind heater: the heater it cools
-  double heater_temp_c = 50.0;   // kind heater: on above this
+  std::string heater;           // kind heater: the heater it cools
+  double heater_temp_c = 50.0;  // kind heater: on above this
   double kick_start_s = 0.1;
   double off_below = 0.0;
   double max_power = 1.0;
@@ -550,7 +581,7 @@ struct MachineConfig {
   std::string name = "feedloop printer";
   Kinematics kinematics = Kinematics::cartesian;
   Drive drive = Drive::stepper;
-  std::vector<AxisConfig> axes;  // in file order
+  std::vector<AxisConfig> axes;              // in file order
   std::optional<DeltaGeometryConfig> delta;  // present iff kinematics == delta
   PlannerConfig planner;
   ExtruderConfig extruder;

@@ -186,6 +186,7 @@ void read_io(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
     if (w.string(key, *out) && !out->empty()) read_path(w, key, *out, diag);  // "": none
   read_path(w, "files_dir", cfg.web.files_dir, diag);
   read_path(w, "database", cfg.web.database, diag);
+  read_path(w, "calibration_dir", cfg.web.calibration_dir, diag);
   w.finish();
 
   MapReader r = root.sub("recorder");

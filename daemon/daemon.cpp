@@ -403,6 +403,7 @@ void Daemon::process_marlin_line(Client& c, std::string_view line) {
     return;
   }
   flush();  // e.g. "echo:Unknown command"
+  echo_to_web(c, line, cmd);
   if (is_query(cmd)) {
     if (cmd.is('M', 155)) {  // Marlin's AUTO_REPORT_TEMPERATURES, per client
       c.autoreport_period_ns = ns_from_seconds(cmd.has('S') ? cmd.get('S') : 0.0);
@@ -561,6 +562,7 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
   if (owner_ != 0 && owner_ != cid) return "busy: the print is owned by " + owner_name();
   if (owner_ != cid) {
     owner_ = cid;
+    owner_since_ns_ = clock_.now_ns();
     spdlog::info("{} owns the print", c.session->name());
   }
   owner_last_activity_ns_ = clock_.now_ns();
@@ -649,6 +651,7 @@ void Daemon::run_script_step(std::shared_ptr<Script> s) {
       s->done({{"results", s->results}}, "");
       return;
     }
+    echo_to_web(*c, text, *cmd);
     std::string answer;
     if (answer_query(*cmd, answer, c->id)) {
       s->results.push_back({{"line", text}, {"ok", true}, {"reply", answer}});
@@ -853,7 +856,6 @@ void Daemon::tick() {
   retry_parked();
   flush_internal();
   if (job_) job_->pump();
-  feed_job();
   const int64_t now = clock_.now_ns();
   // Ownership ends after the owner has been idle long enough; a job owns the print while it
   // sends commands (printing and its pause/resume/cancel moves; not while paused).

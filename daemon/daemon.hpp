@@ -121,8 +121,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   void all_heaters_off() override;
 
   // web::PrinterBackend (daemon/web_backend.cpp): the web server's view of the printer. Print
-  // jobs stream a file from the web's gcodes folder through the same submit path as every
-  // client (print ownership applies); heaters are the machine's status.
+  // jobs are the daemon's one print job (job_); heaters and fans are the machine's status.
   web::PrinterInfo printer_info() const override;
   engine::MachineStatus machine_status() const override;
   engine::ServoStatus servo_status() const override;
@@ -132,6 +131,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   std::string pause_job() override;
   std::string resume_job() override;
   std::string cancel_job() override;
+  std::string reset_job() override;
   void restart() override;
   // The web server's port (0: not running); tests use port 0 and read it here.
   uint16_t web_port() const;
@@ -223,8 +223,8 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   std::string firmware_info() const;
   Status open_web();
   void close_web();
-  void feed_job();  // submits the job's next lines while the machine's queue has room
-  void end_job(web::JobState state, const std::string& message);
+  // Shows a line another channel sent in the web console (notify_gcode_response), rate-limited.
+  void echo_to_web(const Client& c, std::string_view line, const gcode::Command& cmd);
 
   config::MachineConfig cfg_;
   DaemonOptions options_;
@@ -276,24 +276,18 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   std::unique_ptr<JobFiles> job_files_;
   std::unique_ptr<PrintJob> job_;
   std::deque<std::pair<gcode::Command, std::string>> internal_backlog_;
-  // The web server (web.enabled) and its print job.
+  // The web server (web.enabled); its print jobs are job_.
   std::unique_ptr<web::Database> web_db_;
   std::unique_ptr<web::FileStore> web_files_;
   std::unique_ptr<web::MoonrakerApi> web_api_;
   std::unique_ptr<web::HttpServer> web_server_;
   uint64_t web_client_id_ = 0;  // the web's internal client: it owns what the web submits
-  struct WebJob {
-    web::JobState state = web::JobState::standby;
-    std::string filename;
-    std::unique_ptr<std::ifstream> in;
-    uint64_t size = 0, position = 0;
-    int64_t line = 0;
-    int in_flight = 0;
-    bool eof = false;
-    int64_t start_ns = 0, end_ns = 0, paused_since_ns = 0, paused_total_ns = 0;
-    std::string message;
-  };
-  std::unique_ptr<WebJob> web_job_;
+  // Console echo (Moonraker shows what other channels send): at most kEchoPerSecond lines a
+  // second; moves are not echoed (a streamed print would flood the console).
+  int64_t echo_window_ns_ = 0;
+  int echo_in_window_ = 0;
+  uint64_t echo_dropped_ = 0;
+  int64_t owner_since_ns_ = 0;  // a streamed print (a client owns the print): since when
 };
 
 }  // namespace feedloop::daemon

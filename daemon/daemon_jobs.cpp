@@ -197,6 +197,10 @@ Status Daemon::job_start(const std::string& name, uint64_t requester) {
   if (!job_) return Error{"print jobs are off (see the daemon's log: jobs.directory)"};
   if (owner_ != 0 && owner_ != requester && owner_ != kJobOwner)
     return Error{"busy: the print is owned by " + owner_name()};
+  // The asking client owns the print (it moved the machine a moment ago): the job takes the
+  // print over; its commands queue behind the client's in the one machine queue. Without this,
+  // the job's first offer() was refused as busy (owned by the client that started it).
+  if (owner_ == requester && requester != 0) owner_ = 0;
   return job_->start(name);
 }
 
@@ -210,6 +214,8 @@ Status Daemon::job_resume(uint64_t requester) {
   if (job_->state() == JobState::kPaused && owner_ != 0 && owner_ != requester &&
       owner_ != kJobOwner)
     return Error{"busy: the print is owned by " + owner_name() + " (moves made while paused)"};
+  if (job_->state() == JobState::kPaused && owner_ == requester && requester != 0)
+    owner_ = 0;  // as in job_start: the job takes the print back from the client that asks
   return job_->resume();
 }
 
@@ -238,6 +244,7 @@ json Daemon::job_status_json() const {
           {"elapsed_s", j.elapsed_s},
           {"paused_s", j.paused_s},
           {"pauses", j.pauses},
+          {"filament_used_mm", j.filament_used_mm},
           {"message", j.message},
           {"pause_position", position_json(j.pause_position)},
           {"resume_position", position_json(j.resume_position)}};

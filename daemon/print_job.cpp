@@ -78,6 +78,21 @@ Result<JobFileInfo> PrintJob::select(std::string_view name) {
   return info;
 }
 
+Status PrintJob::clear() {
+  if (active())
+    return Error{"a print job is active ('" + file_ + "', " + to_string(state_) +
+                 "): cancel it first"};
+  close_file();
+  file_.clear();
+  size_ = 0;
+  start_byte_ = 0;
+  bytes_submitted_ = 0;
+  filament_used_mm_ = 0.0;
+  message_.clear();
+  state_ = JobState::kIdle;
+  return Status::Ok();
+}
+
 Status PrintJob::set_start_byte(uint64_t byte) {
   if (state_ != JobState::kReady)
     return Error{"no file selected, or the job has started (M26 needs M23 first)"};
@@ -152,6 +167,8 @@ Status PrintJob::start(std::string_view name) {
   if (Status s = open_file(start_byte_); !s) return s;
   const engine::MachineStatus ms = sink_.machine_status();
   print_time_start_s_ = ms.planned_until_s;
+  filament_used_mm_ = 0.0;
+  file_e_mm_ = ms.pos_mm[3];
   planned_at_last_submit_s_ = ms.planned_until_s;
   excluded_print_time_s_ = 0.0;
   bytes_submitted_ = start_byte_;
@@ -164,6 +181,7 @@ Status PrintJob::start(std::string_view name) {
   pause_pos_ = JobPosition{};
   resume_pos_ = JobPosition{};
   cancel_after_pause_ = false;
+  resume_after_pause_ = false;
   parked_ = false;
   message_.clear();
   started_ns_ = sink_.now_ns();
@@ -190,6 +208,12 @@ Status PrintJob::pause() {
 
 Status PrintJob::resume() {
   if (state_ == JobState::kResuming || state_ == JobState::kPrinting) return Status::Ok();
+  if (state_ == JobState::kPausing) {
+    // A UI shows "paused" as soon as it asked (Klipper's print_stats does): a resume while the
+    // head still parks returns once parked (the pause position is taken first).
+    resume_after_pause_ = !cancel_after_pause_;
+    return Status::Ok();
+  }
   if (state_ != JobState::kPaused)
     return Error{std::string("no paused print to resume (job ") + to_string(state_) + ")"};
   state_ = JobState::kResuming;
@@ -221,6 +245,7 @@ Status PrintJob::cancel() {
   if (state_ == JobState::kCancelling) return Status::Ok();
   if (state_ == JobState::kPausing) {  // finish parking first, then cancel (no half sequence)
     cancel_after_pause_ = true;
+    resume_after_pause_ = false;
     return Status::Ok();
   }
   if (state_ == JobState::kPaused) paused_total_ns_ += sink_.now_ns() - paused_since_ns_;
@@ -257,6 +282,19 @@ std::function<void(const Status&)> PrintJob::completion(bool from_file, int64_t 
   };
 }
 
+void PrintJob::track_extrusion(const gcode::Command& c) {
+  if (c.letter != 'G' || !c.has('E')) return;
+  const double e_mm = c.get('E') * (modes_.inches ? 25.4 : 1.0);
+  if (c.code == 92) {
+    file_e_mm_ = e_mm;
+    return;
+  }
+  if (c.code > 3) return;
+  const bool relative = modes_.e_mode == 2 || (modes_.e_mode == 0 && modes_.relative_xyz);
+  filament_used_mm_ += relative ? e_mm : e_mm - file_e_mm_;
+  file_e_mm_ = relative ? file_e_mm_ + e_mm : e_mm;
+}
+
 void PrintJob::track_modes(const gcode::Command& c) {
   if (c.letter == 'G') {
     if (c.code == 90 || c.code == 91) {
@@ -274,6 +312,10 @@ void PrintJob::track_modes(const gcode::Command& c) {
 
 void PrintJob::feed() {
   for (int n = 0; n < options_.lines_per_pump && state_ == JobState::kPrinting; ++n) {
+    if (options_.read_ahead_s > 0.0) {
+      const engine::MachineStatus ms = sink_.machine_status();
+      if (ms.moving && ms.planned_until_s - ms.print_time_s > options_.read_ahead_s) return;
+    }
     if (!held_) {
       if (!read_line()) return;
       if (line_.size() > kMaxLineBytes) {
@@ -310,6 +352,7 @@ void PrintJob::feed() {
       return;
     }
     ++in_flight_;
+    track_extrusion(*held_);
     track_modes(*held_);
     bytes_submitted_ = held_end_offset_;
     ++lines_submitted_;
@@ -413,6 +456,11 @@ void PrintJob::on_phase_done() {
     case Phase::kPauseParked:
       phase_ = Phase::kNone;
       state_ = JobState::kPaused;
+      if (resume_after_pause_) {
+        resume_after_pause_ = false;
+        (void)resume();  // paused: it cannot fail
+        return;
+      }
       if (cancel_after_pause_) {
         cancel_after_pause_ = false;
         (void)cancel();  // paused and active: it cannot fail
@@ -490,6 +538,7 @@ JobStatus PrintJob::status() const {
   j.lines_submitted = lines_submitted_;
   j.lines_read = static_cast<uint64_t>(std::max<int64_t>(0, line_number_));
   j.pauses = pauses_;
+  j.filament_used_mm = filament_used_mm_;
   j.message = message_;
   j.pause_position = pause_pos_;
   j.resume_position = resume_pos_;

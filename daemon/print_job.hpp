@@ -83,6 +83,10 @@ struct JobOptions {
   double z_max_mm = 1e9;     // travel limit of Z (logical = machine coordinates)
   int settle_ms = 500;       // dwell before a pause/resume position is taken
   int lines_per_pump = 256;  // bounds one pump's work on the I/O thread
+  // No line is read while the machine holds more planned motion than this ahead of the motion
+  // executing now (Klipper's virtual_sdcard: its lookahead holds about 2 s of moves), so that a
+  // pause or cancel stops the print within about that much. 0: as much as the queue takes.
+  double read_ahead_s = 2.0;
 };
 
 // A position taken at pause (after the queued moves) and at resume (after the return moves).
@@ -108,6 +112,10 @@ struct JobStatus {
   double elapsed_s = 0.0;  // wall time since start
   double paused_s = 0.0;   // wall time spent paused (in total)
   uint64_t pauses = 0;
+  // E the file's lines moved, net (retracts subtract), in mm of filament: Klipper's
+  // print_stats.filament_used. Counted as lines are handed to the machine (as Klipper counts
+  // from gcode_move's position), in the file's E modes (M82/M83, G90/G91, G92 E, G20).
+  double filament_used_mm = 0.0;
   std::string message;  // last error or warning
   JobPosition pause_position, resume_position;
 };
@@ -121,6 +129,9 @@ class PrintJob {
 
   // M23: select a file (not while a job is active).
   Result<JobFileInfo> select(std::string_view name);
+  // Klipper's SDCARD_RESET_FILE (Mainsail's "Clear" after a print): back to idle, no file (not
+  // while a job is active).
+  Status clear();
   // M26 S: the byte the next start reads from (ready state only; the line it falls in is skipped).
   Status set_start_byte(uint64_t byte);
   // Starts `name` (empty: the selected file) from its start byte. Not while a job is active.
@@ -163,6 +174,7 @@ class PrintJob {
   bool read_line();
   void feed();
   void track_modes(const gcode::Command& cmd);
+  void track_extrusion(const gcode::Command& cmd);
   // Queues one of the job's own lines (pause/resume/cancel sequences).
   void add_sequence(std::string line);
   void send_sequence();
@@ -201,10 +213,13 @@ class PrintJob {
   Modes saved_modes_;
   JobPosition pause_pos_, resume_pos_;
   bool cancel_after_pause_ = false;
+  bool resume_after_pause_ = false;
   bool parked_ = false;
   std::string message_;
   int64_t started_ns_ = 0, ended_ns_ = 0, paused_since_ns_ = 0, paused_total_ns_ = 0;
   uint64_t pauses_ = 0;
+  double filament_used_mm_ = 0.0;
+  double file_e_mm_ = 0.0;  // the file's logical E after the last line handed over
   double print_time_start_s_ = 0.0;
   double excluded_print_time_s_ = 0.0;  // print time of pause/resume moves
   double exclude_from_s_ = -1.0;

@@ -1,17 +1,14 @@
 // The daemon's side of the web server (web/printer_backend.hpp): printer facts, G-code from the
-// console, and print jobs from the web's gcodes folder.
-//
-// A print job reads its file line by line and submits each command through the daemon's
-// submit() as the web's internal client, so print ownership, the machine's queue (flow control)
-// and the flight recorder apply as for a host on the socket. At most kJobInFlight lines are
-// waiting for the machine at once, and no line is read while the machine holds more than
-// kJobAheadS of planned motion (or kJobQueueDepth commands). PAUSE stops feeding lines (the moves
-// already queued finish, as Klipper's PAUSE lets the lookahead queue run out); RESUME feeds again;
-// CANCEL_PRINT stops for good. The job is complete once the file is read and the machine is idle.
+// console, and print jobs. There is one print job path: the web's gcodes root is the job folder
+// (jobs.directory) and printer.print.start/pause/resume/cancel (and the PAUSE, RESUME,
+// CANCEL_PRINT and SDCARD_PRINT_FILE macros) act on the daemon's print job (daemon/print_job.hpp),
+// the same object that M23/M24/M25/M32/M524 and the JSON API's job.* drive. print_stats shows
+// that job whoever started it. Console lines run as the web's internal client through the same
+// submit() as a host on the socket (print ownership, flow control, the flight recorder).
 #include <spdlog/spdlog.h>
 
+#include <cctype>
 #include <filesystem>
-#include <fstream>
 
 #include "config/config.hpp"
 #include "daemon/daemon.hpp"
@@ -27,9 +24,6 @@ namespace asio = boost::asio;
 using nlohmann::json;
 
 namespace {
-constexpr int kJobInFlight = 4;
-constexpr uint32_t kJobQueueDepth = 8;  // commands waiting in the machine's queue
-constexpr double kJobAheadS = 2.0;      // planned motion not yet executed
 constexpr const char* kWebVersion = "0.1.0";
 
 // The web's own client: it has no connection; replies go to the web API through callbacks.
@@ -52,7 +46,11 @@ Status Daemon::open_web() {
   auto db_path = config::expand_path(cfg_.web.database, vars);
   if (!files_dir) return Error{"web.files_dir: " + files_dir.error().message};
   if (!db_path) return Error{"web.database: " + db_path.error().message};
-  auto files = web::FileStore::open(*files_dir);
+  auto calibration_dir = config::expand_path(cfg_.web.calibration_dir, vars);
+  if (!calibration_dir) return Error{"web.calibration_dir: " + calibration_dir.error().message};
+  // The gcodes root is the job folder: an uploaded file is the one M23/M32 and job.start print.
+  auto files =
+      web::FileStore::open(*files_dir, job_files_ ? job_files_->directory() : std::string());
   if (!files) return files.error();
   std::error_code ec;
   std::filesystem::create_directories(std::filesystem::path(*db_path).parent_path(), ec);
@@ -66,6 +64,7 @@ Status Daemon::open_web() {
   ao.version = kWebVersion;
   ao.host = cfg_.web.address;
   ao.port = cfg_.web.port;
+  ao.calibration_dir = *calibration_dir;
   web_api_ = std::make_unique<web::MoonrakerApi>(*this, *web_files_, *web_db_, ao);
   web::ServerOptions so;
   so.address = cfg_.web.address;
@@ -83,7 +82,6 @@ Status Daemon::open_web() {
   c.kind = Kind::kJson;
   c.last_progress_ns = clock_.now_ns();
   web_client_id_ = id;
-  web_job_ = std::make_unique<WebJob>();
   spdlog::info(
       "web: http://{}:{}/ (UI: {}), feedloop's page at /server/feedloop/page/, files in {}",
       cfg_.web.address, web_server_->port(), cfg_.web.ui_dir.empty() ? "none" : cfg_.web.ui_dir,
@@ -128,20 +126,56 @@ engine::ServoStatus Daemon::servo_status() const {
   return machine_->servo_status();
 }
 
+// print_stats / virtual_sdcard from the daemon's one print job (daemon/print_job.hpp): the job
+// M23/M24/M32, the JSON API's job.* and the web all start, pause, resume and cancel. Klipper's
+// states (klippy/extras/print_stats.py): its PAUSE shows "paused" at once while the toolhead
+// still parks, so kPausing is paused; resuming and cancelling still move for the job: printing.
+// Without a job, a print that a client streams over the socket, the pty or the JSON API (it owns
+// the print) shows as printing with no file name and the channel in `message`.
 web::JobStatus Daemon::job_status() const {
   web::JobStatus s;
-  if (!web_job_) return s;
-  s.state = web_job_->state;
-  s.filename = web_job_->filename;
-  s.file_position = web_job_->position;
-  s.file_size = web_job_->size;
-  s.message = web_job_->message;
-  if (web_job_->start_ns != 0) {
-    const int64_t end = web_job_->end_ns != 0 ? web_job_->end_ns : clock_.now_ns();
-    const int64_t paused =
-        web_job_->paused_total_ns + (web_job_->paused_since_ns != 0 ? end - web_job_->paused_since_ns : 0);
-    s.total_duration_s = seconds_from_ns(end - web_job_->start_ns);
-    s.print_duration_s = seconds_from_ns(end - web_job_->start_ns - paused);
+  const JobStatus j = print_job_status();
+  switch (j.state) {
+    case JobState::kIdle:
+    case JobState::kReady:
+      s.state = web::JobState::standby;
+      break;
+    case JobState::kPrinting:
+    case JobState::kResuming:
+    case JobState::kCancelling:
+      s.state = web::JobState::printing;
+      break;
+    case JobState::kPausing:
+    case JobState::kPaused:
+      s.state = web::JobState::paused;
+      break;
+    case JobState::kComplete:
+      s.state = web::JobState::complete;
+      break;
+    case JobState::kCancelled:
+      s.state = web::JobState::cancelled;
+      break;
+    case JobState::kError:
+      s.state = web::JobState::error;
+      break;
+  }
+  if (j.state != JobState::kIdle) {
+    s.filename = j.file;
+    s.file_position = j.bytes_submitted;
+    s.file_size = j.size_bytes;
+    s.total_duration_s = j.elapsed_s;
+    s.print_duration_s = std::max(0.0, j.elapsed_s - j.paused_s);
+    s.filament_used_mm = j.filament_used_mm;
+    if (j.state == JobState::kError) s.message = j.message;
+  }
+  const bool job_active = job_ && job_->active();
+  if (!job_active && owner_ != 0 && owner_ != kJobOwner && owner_ != web_client_id_) {
+    // A streamed print: as long as the client owns the print (ownership_idle_s after its last
+    // command once the machine is idle, docs/jobs.md).
+    s = web::JobStatus{};
+    s.state = web::JobState::printing;
+    s.message = "streamed by " + owner_name();
+    s.total_duration_s = s.print_duration_s = seconds_from_ns(clock_.now_ns() - owner_since_ns_);
   }
   return s;
 }
@@ -169,121 +203,86 @@ void Daemon::run_gcode(std::string script,
   });
 }
 
-std::string Daemon::start_job(const std::string& path, const std::string& filename) {
-  if (!web_job_) return "the web server is not running";
-  if (web_job_->state == web::JobState::printing || web_job_->state == web::JobState::paused)
-    return "a print is already running (" + web_job_->filename + ")";
-  if (owner_ != 0 && owner_ != web_client_id_) {
-    const Client* o = find_client(owner_);
-    return "busy: the print is owned by " +
-           (o ? o->session->name() : std::string("another client"));
-  }
-  auto in = std::make_unique<std::ifstream>(path, std::ios::binary);
-  if (!*in) return "cannot open '" + filename + "'";
-  std::error_code ec;
-  const uintmax_t size = std::filesystem::file_size(path, ec);
-  *web_job_ = WebJob{};
-  web_job_->state = web::JobState::printing;
-  web_job_->filename = filename;
-  web_job_->in = std::move(in);
-  web_job_->size = ec ? 0 : size;
-  web_job_->start_ns = clock_.now_ns();
-  spdlog::info("web: printing {} ({} bytes)", filename, web_job_->size);
-  feed_job();
-  return {};
+// The web's gcodes root is the job folder (open_web), so `filename` is a job file's name. The
+// web client is the requester: a print started right after a move typed in the console (the web
+// owns the print for ownership_idle_s) is not refused as busy.
+std::string Daemon::start_job(const std::string& /*path*/, const std::string& filename) {
+  Status st = job_start(filename, web_client_id_);
+  snapshot_.stale = true;
+  return st ? std::string() : st.error().to_string();
 }
 
 std::string Daemon::pause_job() {
-  if (!web_job_ || web_job_->state != web::JobState::printing) return "Print is not in progress";
-  web_job_->state = web::JobState::paused;
-  web_job_->paused_since_ns = clock_.now_ns();
-  spdlog::info("web: print paused at byte {} of {}", web_job_->position, web_job_->size);
-  return {};
+  if (!job_ || !job_->active()) return "Print is not in progress";  // Klipper's PAUSE text
+  Status st = job_pause();
+  snapshot_.stale = true;
+  return st ? std::string() : st.error().to_string();
 }
 
 std::string Daemon::resume_job() {
-  if (!web_job_ || web_job_->state != web::JobState::paused) return "Print is not paused, resume aborted";
-  web_job_->paused_total_ns += clock_.now_ns() - web_job_->paused_since_ns;
-  web_job_->paused_since_ns = 0;
-  web_job_->state = web::JobState::printing;
-  spdlog::info("web: print resumed");
-  feed_job();
-  return {};
+  if (!job_ || (job_->state() != JobState::kPaused && job_->state() != JobState::kPausing))
+    return "Print is not paused, resume aborted";  // Klipper's RESUME text
+  Status st = job_resume(web_client_id_);
+  snapshot_.stale = true;
+  return st ? std::string() : st.error().to_string();
 }
 
 std::string Daemon::cancel_job() {
-  if (!web_job_ || (web_job_->state != web::JobState::printing && web_job_->state != web::JobState::paused))
-    return "No print in progress";
-  end_job(web::JobState::cancelled, "");
-  return {};
+  if (!job_ || !job_->active()) return "No print in progress";
+  Status st = job_cancel();
+  snapshot_.stale = true;
+  return st ? std::string() : st.error().to_string();
+}
+
+std::string Daemon::reset_job() {
+  if (!job_) return {};
+  Status st = job_->clear();
+  snapshot_.stale = true;
+  return st ? std::string() : st.error().to_string();
+}
+
+// Moonraker's console shows every G-code response Klipper sends, whoever caused it; here, a line
+// another channel sends (socket, pty, JSON API) is shown as "<client>: <line>", without its N
+// number and checksum. Moves are left out and at most kEchoPerSecond lines a second are shown
+// (then one line says how many were left out): a host streaming a print must not flood the
+// browsers (each WebSocket's send queue is bounded, docs/web.md).
+void Daemon::echo_to_web(const Client& c, std::string_view line, const gcode::Command& cmd) {
+  constexpr int kEchoPerSecond = 20;
+  if (!web_api_ || c.id == web_client_id_) return;
+  if (cmd.letter == 'G' && cmd.code <= 3) return;
+  const int64_t now = clock_.now_ns();
+  if (now - echo_window_ns_ >= kNsPerS) {
+    if (echo_dropped_ > 0)
+      web_api_->console_echo("// " + std::to_string(echo_dropped_) +
+                             " lines from other channels not shown");
+    echo_window_ns_ = now;
+    echo_in_window_ = 0;
+    echo_dropped_ = 0;
+  }
+  if (++echo_in_window_ > kEchoPerSecond) {
+    ++echo_dropped_;
+    return;
+  }
+  // "N12 M104 S200*87" -> "M104 S200"
+  while (!line.empty() && (line.front() == ' ' || line.front() == '\t')) line.remove_prefix(1);
+  if (!line.empty() && (line.front() == 'N' || line.front() == 'n')) {
+    size_t i = 1;
+    while (i < line.size() && (std::isdigit(static_cast<unsigned char>(line[i])) || line[i] == '-'))
+      ++i;
+    if (i > 1) line.remove_prefix(i);
+    while (!line.empty() && line.front() == ' ') line.remove_prefix(1);
+  }
+  if (const size_t star = line.rfind('*');
+      star != std::string_view::npos && star + 1 < line.size() &&
+      line.find_first_not_of("0123456789", star + 1) == std::string_view::npos)
+    line = line.substr(0, star);  // the checksum
+  while (!line.empty() && (line.back() == ' ' || line.back() == '\r')) line.remove_suffix(1);
+  web_api_->console_echo(c.session->name() + ": " + std::string(line));
 }
 
 void Daemon::restart() {
   reload_requested_ = true;
   spdlog::info("web: restart requested: the machine is rebuilt when idle");
-}
-
-void Daemon::end_job(web::JobState state, const std::string& message) {
-  if (web_job_->paused_since_ns != 0) {
-    web_job_->paused_total_ns += clock_.now_ns() - web_job_->paused_since_ns;
-    web_job_->paused_since_ns = 0;
-  }
-  web_job_->state = state;
-  web_job_->message = message;
-  web_job_->end_ns = clock_.now_ns();
-  web_job_->in.reset();
-  if (state == web::JobState::error)
-    spdlog::error("web: print {} failed: {}", web_job_->filename, message);
-  else
-    spdlog::info("web: print {} {}", web_job_->filename, web::to_string(state));
-}
-
-void Daemon::feed_job() {
-  if (!web_job_ || web_job_->state != web::JobState::printing) return;
-  Client* c = find_client(web_client_id_);
-  if (!c) return;
-  std::string line;
-  while (!web_job_->eof && web_job_->in_flight < kJobInFlight && !c->parked) {
-    // Read ahead of the machine by a bounded amount, as Klipper's virtual_sdcard does (its
-    // lookahead holds about 2 s of moves): a pause then stops the motion within that.
-    const engine::MachineStatus ms = machine_->status();
-    if (ms.queue_depth >= kJobQueueDepth ||
-        (ms.moving && ms.planned_until_s - ms.print_time_s > kJobAheadS))
-      break;
-    if (!std::getline(*web_job_->in, line)) {
-      web_job_->eof = true;
-      web_job_->position = web_job_->size;
-      break;
-    }
-    ++web_job_->line;
-    const std::streamoff at = web_job_->in->tellg();
-    if (at >= 0) web_job_->position = static_cast<uint64_t>(at);
-    if (const size_t semi = line.find(';'); semi != std::string::npos) line.resize(semi);
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.find_first_not_of(" \t") == std::string::npos) continue;
-    auto cmd =
-        gcode::parse_line(line, SourceLocation{web_job_->filename, static_cast<int>(web_job_->line), 0});
-    if (!cmd) return end_job(web::JobState::error, cmd.error().to_string());
-    std::string answer;
-    if (answer_query(*cmd, answer)) continue;
-    ++web_job_->in_flight;
-    WebJob* job = web_job_.get();
-    const int64_t started = web_job_->start_ns;
-    std::string refused =
-        submit(*c, *cmd, line, recorder::GcodeSource::api, [this, job, started](const Status& st) {
-          if (web_job_.get() != job || job->start_ns != started) return;  // a later job
-          --job->in_flight;
-          if (!st && (job->state == web::JobState::printing || job->state == web::JobState::paused))
-            return end_job(web::JobState::error, st.error().to_string());
-          feed_job();
-        });
-    if (!refused.empty()) {
-      --web_job_->in_flight;
-      return end_job(web::JobState::error, refused);
-    }
-  }
-  if (web_job_->eof && web_job_->in_flight == 0 && !c->parked && machine_->idle())
-    end_job(web::JobState::complete, "");
 }
 
 }  // namespace feedloop::daemon

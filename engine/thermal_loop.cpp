@@ -385,6 +385,8 @@ void ThermalLoop::snapshot(HeaterStatus* heaters, int& nh, FanStatus* fans, int&
   for (size_t i = 0; i < f_.size(); ++i) {
     std::snprintf(fans[i].name, sizeof fans[i].name, "%s", opt_.fans[i].name.c_str());
     fans[i].speed = f_[i].speed;
+    fans[i].part = opt_.fans[i].kind == FanSpec::Kind::kPart;
+    fans[i].requested = fans[i].part ? f_[i].requested : f_[i].speed;
   }
 }
 

@@ -75,7 +75,9 @@ struct HeaterStatus {
 };
 struct FanStatus {
   char name[16] = {};
-  double speed = 0.0;
+  double speed = 0.0;      // the output now (full power during a kick-start)
+  double requested = 0.0;  // what M106 asked (Klipper's fan status `speed`); heater fans: speed
+  bool part = true;        // a part fan (M106/M107); false: a heater fan
 };
 
 class ThermalLoop {

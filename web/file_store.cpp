@@ -37,17 +37,25 @@ std::string bad_path_reason(std::string_view rel) {
   return {};
 }
 
-Result<FileStore> FileStore::open(const std::string& dir) {
+Result<FileStore> FileStore::open(const std::string& dir, const std::string& gcodes_dir) {
   FileStore s;
   s.dir_ = dir;
+  s.gcodes_dir_ = gcodes_dir;
   std::error_code ec;
   for (const std::string& r : roots()) {
-    fs::create_directories(fs::path(dir) / r, ec);
+    const std::string d = s.root_dir(r);
+    fs::create_directories(d, ec);
     if (ec)
-      return Error{"web.files_dir: cannot create '" + (fs::path(dir) / r).string() +
-                   "': " + ec.message()};
+      return Error{
+          std::string(r == "gcodes" && !gcodes_dir.empty() ? "jobs.directory" : "web.files_dir") +
+          ": cannot create '" + d + "': " + ec.message()};
   }
   return s;
+}
+
+std::string FileStore::root_dir(std::string_view root) const {
+  if (root == "gcodes" && !gcodes_dir_.empty()) return gcodes_dir_;
+  return (fs::path(dir_) / std::string(root)).string();
 }
 
 Result<std::pair<std::string, std::string>> FileStore::split_root(std::string_view path) {
@@ -66,7 +74,7 @@ Result<std::string> FileStore::resolve(std::string_view root, std::string_view r
     return Error{"Invalid root '" + std::string(root) + "' (known: gcodes, config)"};
   if (std::string why = bad_path_reason(rel); !why.empty())
     return Error{"invalid path '" + std::string(rel) + "': " + why};
-  fs::path p = fs::path(dir_) / std::string(root);
+  fs::path p = root_dir(root);
   if (!rel.empty()) p /= std::string(rel);
   return p.lexically_normal().string();
 }

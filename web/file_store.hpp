@@ -14,8 +14,10 @@ namespace feedloop::web {
 
 class FileStore {
  public:
-  // Creates <dir>/gcodes and <dir>/config when missing.
-  static Result<FileStore> open(const std::string& dir);
+  // Creates <dir>/gcodes and <dir>/config when missing. A non-empty `gcodes_dir` is the gcodes
+  // root instead of <dir>/gcodes: the daemon passes its job folder (jobs.directory), so a file
+  // the UI uploads is the file M23/M32 and the JSON API's job.start print (one job path).
+  static Result<FileStore> open(const std::string& dir, const std::string& gcodes_dir = {});
 
   static const std::vector<std::string>& roots();
   // "gcodes/a/b.gcode" or root + relative path -> the absolute path (checked).
@@ -41,9 +43,12 @@ class FileStore {
   Result<nlohmann::json> remove_dir(const std::string& path, bool force) const;
 
   const std::string& dir() const { return dir_; }
+  // The folder a root lives in (absolute or as configured).
+  std::string root_dir(std::string_view root) const;
 
  private:
   std::string dir_;
+  std::string gcodes_dir_;
 };
 
 // Checks one outside relative path (see above); returns the message when it is not allowed.

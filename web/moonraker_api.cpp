@@ -1,5 +1,7 @@
 #include "web/moonraker_api.hpp"
 
+#include "web/calibration_report.hpp"
+
 #include <spdlog/spdlog.h>
 #include <sys/sysinfo.h>
 #include <sys/utsname.h>
@@ -9,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <random>
 
 #include "core/utf8.hpp"
 #include "web/multipart.hpp"
@@ -167,6 +170,9 @@ void MoonrakerApi::gcode_response(const std::string& text) {
 
 void MoonrakerApi::on_message(uint64_t conn, std::string_view text) {
   ++requests_;
+  // A job's end seen by a client is in the history before anything the client does next (a
+  // start right after "complete" is a new job, not the same one going on).
+  track_jobs(now_s_);
   json msg = json::parse(text, nullptr, /*allow_exceptions=*/false);
   auto error_reply = [&](int code, const std::string& message) {
     send(conn, std::make_shared<const std::string>(
@@ -258,7 +264,7 @@ json MoonrakerApi::all_objects() const {
   const engine::MachineStatus s = printer_.machine_status();
   const engine::ServoStatus v = printer_.servo_status();
   const JobStatus job = printer_.job_status();
-  const std::string gcodes = files_.dir() + "/gcodes";
+  const std::string gcodes = files_.root_dir("gcodes");
   return printer_objects(ObjectInputs{info, s, v, job, telemetry_, gcodes});
 }
 
@@ -294,6 +300,8 @@ void MoonrakerApi::run_script(std::vector<std::string> lines, size_t next, Done 
       err = printer_.resume_job();
     else if (word == "CANCEL_PRINT")
       err = printer_.cancel_job();
+    else if (word == "SDCARD_RESET_FILE")
+      err = printer_.reset_job();
     else if (word == "RESTART" || word == "FIRMWARE_RESTART")
       printer_.restart();
     else if (word == "SDCARD_PRINT_FILE") {
@@ -326,7 +334,8 @@ void MoonrakerApi::run_script(std::vector<std::string> lines, size_t next, Done 
     while (end < lines.size()) {
       const std::string w = first_word_upper(lines[end]);
       if (w == "PAUSE" || w == "M25" || w == "RESUME" || w == "M24" || w == "CANCEL_PRINT" ||
-          w == "RESTART" || w == "FIRMWARE_RESTART" || w == "SDCARD_PRINT_FILE")
+          w == "SDCARD_RESET_FILE" || w == "RESTART" || w == "FIRMWARE_RESTART" ||
+          w == "SDCARD_PRINT_FILE")
         break;
       script += lines[end++];
       script += '\n';
@@ -364,6 +373,7 @@ bool MoonrakerApi::is_api_path(std::string_view path) {
 
 void MoonrakerApi::on_http(const HttpRequest& req, std::function<void(HttpReply)> done) {
   ++requests_;
+  track_jobs(now_s_);  // as in on_message
   auto reply_json = [done](int status, const json& body) {
     HttpReply r;
     r.status = status;
@@ -516,9 +526,13 @@ json MoonrakerApi::proc_stats(double now_s) {
 void MoonrakerApi::track_jobs(double now_s) {
   (void)now_s;
   const JobStatus job = printer_.job_status();
+  // A print streamed by a client (no file) is not a history job: Moonraker records the prints
+  // of virtual_sdcard only.
   const bool was_active =
-      last_job_state_ == JobState::printing || last_job_state_ == JobState::paused;
-  const bool active = job.state == JobState::printing || job.state == JobState::paused;
+      (last_job_state_ == JobState::printing || last_job_state_ == JobState::paused) &&
+      !last_job_file_.empty();
+  const bool active =
+      (job.state == JobState::printing || job.state == JobState::paused) && !job.filename.empty();
   if (active && (!was_active || job.filename != last_job_file_)) {
     job_ = json{{"user", "_TRUSTED_USER_"},
                 {"filename", job.filename},
@@ -573,19 +587,20 @@ void MoonrakerApi::tick(double now_s) {
   }
   if (now_s - last_temp_s_ >= 1.0) {
     last_temp_s_ = now_s;
-    auto add = [this](const char* name, double t, double target) {
+    auto add = [this](const char* name, double t, double target, double power) {
       TempSeries& ts = temps_[name];
       ts.temps.push_back(std::round(t * 100) / 100);
       ts.targets.push_back(target);
-      ts.powers.push_back(0.0);
+      ts.powers.push_back(std::round(power * 1000) / 1000);
       while (ts.temps.size() > options_.temperature_store_size) {
         ts.temps.pop_front();
         ts.targets.pop_front();
         ts.powers.pop_front();
       }
     };
-    add("extruder", s.hotend_c, s.hotend_target_c);
-    add("heater_bed", s.bed_c, s.bed_target_c);
+    const HeaterPowers p = heater_powers(s);
+    add("extruder", s.hotend_c, s.hotend_target_c, p.hotend);
+    add("heater_bed", s.bed_c, s.bed_target_c, p.bed);
   }
   if (now_s - last_proc_s_ >= 1.0) {
     last_proc_s_ = now_s;
@@ -763,7 +778,7 @@ void MoonrakerApi::register_methods() {
   m["server.files.roots"] = [this, ok](uint64_t, const json&, Done d) {
     json r = json::array();
     for (const std::string& root : FileStore::roots())
-      r.push_back({{"name", root}, {"path", files_.dir() + "/" + root}, {"permissions", "rw"}});
+      r.push_back({{"name", root}, {"path", files_.root_dir(root)}, {"permissions", "rw"}});
     ok(d, r);
   };
   m["server.files.list"] = [this, ok, fail](uint64_t, const json& p, Done d) {
@@ -948,6 +963,34 @@ void MoonrakerApi::register_methods() {
     s["throttled_state"] = {{"bits", 0}, {"flags", json::array()}};
     ok(d, s);
   };
+  // Access (Moonraker's authorization component): a request that reaches the API has passed the
+  // access check (web/access.hpp: a trusted address or the API key), so the user is Moonraker's
+  // trusted user. Fluidd asks at load and, without a user, fetches a oneshot token before each
+  // upload (access.oneshot_token, which feedloop does not have: its uploads then failed).
+  m["access.get_user"] = [this, ok](uint64_t, const json&, Done d) {
+    ok(d, {{"username", "_TRUSTED_USER_"}, {"source", "moonraker"}, {"created_on", wall_s()}});
+  };
+  m["access.info"] = [ok](uint64_t, const json&, Done d) {
+    ok(d, {{"default_source", "moonraker"},
+           {"available_sources", json::array({"moonraker"})},
+           {"login_required", false},
+           {"trusted", true}});
+  };
+  m["access.users.list"] = [ok](uint64_t, const json&, Done d) {
+    ok(d, {{"users", json::array()}});
+  };
+  // Moonraker's oneshot token authorizes one request of a logged-in user (downloads, uploads).
+  // feedloop has no logins: the request that carries it must pass the access check by its address
+  // or the API key anyway, so the token is a random string that authorizes nothing by itself.
+  m["access.oneshot_token"] = [ok](uint64_t, const json&, Done d) {
+    static std::mt19937_64 rng{std::random_device{}()};
+    char buf[33];
+    std::snprintf(buf, sizeof buf, "%016llx%016llx", static_cast<unsigned long long>(rng()),
+                  static_cast<unsigned long long>(rng()));
+    ok(d, std::string(buf));
+  };
+  // The API key is not handed out over the API (Moonraker shows it to logged-in users).
+  m["access.get_api_key"] = [ok](uint64_t, const json&, Done d) { ok(d, ""); };
   // Components feedloop advertises with nothing in them.
   m["server.webcams.list"] = [ok](uint64_t, const json&, Done d) {
     ok(d, {{"webcams", json::array()}});
@@ -957,6 +1000,12 @@ void MoonrakerApi::register_methods() {
   };
   m["server.announcements.list"] = [ok](uint64_t, const json&, Done d) {
     ok(d, {{"entries", json::array()}, {"feeds", json::array()}});
+  };
+  // feedloop's own: the last calibration report (web/calibration_report.hpp) for our page.
+  m["server.feedloop.calibration_report"] = [this, ok](uint64_t, const json&, Done d) {
+    if (options_.calibration_dir.empty())
+      return ok(d, {{"found", false}, {"dir", ""}, {"message", "web.calibration_dir is not set"}});
+    ok(d, latest_calibration_report(options_.calibration_dir));
   };
   // feedloop's own: the tracking-error points for our page (from: the first point wanted).
   m["server.feedloop.tracking_points"] = [this, ok, fail](uint64_t, const json& p, Done d) {

@@ -52,6 +52,9 @@ class MoonrakerApi {
     double status_period_s = 0.25;         // notify_status_update at most this often
     size_t temperature_store_size = 1200;  // one sample per second (Moonraker's default)
     size_t gcode_store_size = 1000;
+    // server.feedloop.calibration_report: the newest `feedloop ident fit` report here (empty:
+    // none configured).
+    std::string calibration_dir;
   };
   // Sends one text frame; returns false when the connection was dropped (a slow reader).
   using Send = std::function<bool(std::shared_ptr<const std::string>)>;
@@ -72,6 +75,10 @@ class MoonrakerApi {
   // Periodic (the server calls it every 50-100 ms): status notifications, proc stats, the
   // temperature store, history and telemetry sampling.
   void tick(double now_s);
+
+  // A console line from elsewhere (another channel's command): notify_gcode_response and the
+  // G-code store, as Moonraker relays every response Klipper sends.
+  void console_echo(const std::string& text) { gcode_response(text); }
 
   // Every printer object with all its fields, as printer.objects.query returns them.
   nlohmann::json all_objects() const;

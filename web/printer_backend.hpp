@@ -55,6 +55,8 @@ class PrinterBackend {
   virtual std::string pause_job() = 0;
   virtual std::string resume_job() = 0;
   virtual std::string cancel_job() = 0;
+  // Klipper's SDCARD_RESET_FILE: forget the finished job (print_stats back to standby).
+  virtual std::string reset_job() { return {}; }
   virtual void emergency_stop(const std::string& reason) = 0;
   // Klipper's RESTART: rebuilds the machine (clears an emergency stop) once it is idle.
   virtual void restart() = 0;

@@ -65,10 +65,27 @@ const json& gcode_commands() {
       {"RESUME", {{"help", "Resume the print"}}},
       {"CANCEL_PRINT", {{"help", "Cancel the print"}}},
       {"SDCARD_PRINT_FILE", {{"help", "Print a file from the gcodes folder (FILENAME=)"}}},
+      {"SDCARD_RESET_FILE", {{"help", "Clear the finished print (print_stats back to standby)"}}},
       {"RESTART", {{"help", "Rebuild the machine (clears an emergency stop)"}}},
       {"FIRMWARE_RESTART", {{"help", "Same as RESTART"}}},
   };
   return c;
+}
+
+HeaterPowers heater_powers(const engine::MachineStatus& s) {
+  HeaterPowers p;
+  bool have_t = false, have_b = false;
+  for (int i = 0; i < s.num_heaters && i < engine::ThermalLoop::kMaxHeaters; ++i) {
+    const engine::HeaterStatus& h = s.heaters[i];
+    if (h.marlin == 'T' && !have_t) {
+      have_t = true;
+      p.hotend = h.power;
+    } else if (h.marlin == 'B' && !have_b) {
+      have_b = true;
+      p.bed = h.power;
+    }
+  }
+  return p;
 }
 
 namespace {
@@ -168,7 +185,7 @@ json printer_objects(const ObjectInputs& in) {
                      {"save_config_pending", false},
                      {"save_config_pending_items", json::object()},
                      {"warnings", json::array()}};
-  o["toolhead"] = {{"homed_axes", "xyz"},
+  o["toolhead"] = {{"homed_axes", std::string(s.homed_axes)},
                    {"position", vec4(s.pos_mm)},
                    {"axis_minimum", vec4(amin)},
                    {"axis_maximum", vec4(amax)},
@@ -209,14 +226,28 @@ json printer_objects(const ObjectInputs& in) {
   o["heaters"] = {{"available_heaters", {"extruder", "heater_bed"}},
                   {"available_sensors", {"extruder", "heater_bed"}},
                   {"available_monitors", json::array()}};
+  // Heater power and fans from the thermal loop (engine/thermal_loop.hpp): the first hotend is
+  // Klipper's `extruder`, the first bed `heater_bed`; the first part fan (M106/M107) is `fan`,
+  // each heater fan `heater_fan <name>` (Klipper's [fan] and [heater_fan] objects).
+  const HeaterPowers powers = heater_powers(s);
   o["extruder"] = {{"temperature", s.hotend_c},
                    {"target", s.hotend_target_c},
-                   {"power", 0.0},
+                   {"power", powers.hotend},
                    {"can_extrude", s.hotend_c >= 170.0},
                    {"pressure_advance", s.pressure_advance_s},
                    {"smooth_time", s.pressure_advance_smooth_time_s}};
-  o["heater_bed"] = {{"temperature", s.bed_c}, {"target", s.bed_target_c}, {"power", 0.0}};
+  o["heater_bed"] = {{"temperature", s.bed_c}, {"target", s.bed_target_c}, {"power", powers.bed}};
+  bool have_part = false;
   o["fan"] = {{"speed", 0.0}, {"rpm", nullptr}};
+  for (int i = 0; i < s.num_fans && i < engine::ThermalLoop::kMaxFans; ++i) {
+    const engine::FanStatus& f = s.fans[i];
+    if (f.part && !have_part) {
+      have_part = true;
+      o["fan"]["speed"] = f.requested;  // Klipper's fan.py reports the requested speed
+    } else if (!f.part) {
+      o[std::string("heater_fan ") + f.name] = {{"speed", f.requested}, {"rpm", nullptr}};
+    }
+  }
   o["motion_report"] = {
       {"live_position", vec4(s.pos_mm)},
       {"live_velocity", 0.0},

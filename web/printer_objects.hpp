@@ -21,6 +21,11 @@ struct ObjectInputs {
 };
 
 nlohmann::json printer_objects(const ObjectInputs& in);
+// The power (0..1) of the first hotend (Klipper's `extruder`) and the first bed (`heater_bed`).
+struct HeaterPowers {
+  double hotend = 0.0, bed = 0.0;
+};
+HeaterPowers heater_powers(const engine::MachineStatus& s);
 // Klipper's webhooks.state: ready, or shutdown after an emergency stop or a machine fault.
 std::string webhooks_state(const engine::MachineStatus& s);
 // The G-code commands the console offers (Klipper's gcode.commands, for autocomplete).

@@ -1,19 +1,23 @@
 // The browser test (docs/web.md): Mainsail and Fluidd, unmodified, in headless Chromium against
 // feedloopd on the simulated printer (virtual time: the 13-minute cube prints in seconds).
-// For each UI: the dashboard loads and shows the printer ready; a file is uploaded (the UI's own
-// multipart POST /server/files/upload from the page), started, paused, resumed and completes,
-// each state shown by the UI; temperatures and the position shown by the UI change; a console
-// command typed into the UI's console is answered there. The browser console must show no error
-// but the 404s of Mainsail's optional theme files, which Moonraker answers the same way. Then
-// feedloop's page must show the tracking-error plot and map of that print (screenshot saved).
+// For each UI, driven as a user drives it, with the mouse on the UI's own controls: the dashboard
+// shows the printer ready; the G-code file is uploaded with the UI's upload button (the file
+// chooser); a click on the file and on the dialog's or menu's Print starts it; the UI's pause and
+// resume buttons pause and resume it, each state shown by the UI (the file position stays put
+// while paused); temperatures, position and the part fan (M106 typed into the UI's console, which
+// answers M115 there) are shown; the print completes; a second print is cancelled with the UI's
+// cancel button (and its confirmation). The browser console must show no error but the 404s of
+// Mainsail's optional theme files, which Moonraker answers the same way. Then feedloop's page must
+// show the tracking-error plot and map of that print and the last calibration report (made
+// first with `feedloop ident excite` + `feedloop ident fit`); screenshots are saved.
 //
-// usage: node webui_test.mjs FEEDLOOPD SOURCE_DIR OUT_DIR     exit 77: skipped (no chromium)
+// usage: node webui_test.mjs FEEDLOOPD SOURCE_DIR OUT_DIR FEEDLOOP     exit 77: skipped (no chromium)
 import { spawn, execFileSync } from 'node:child_process'
 import fs from 'node:fs'
 import os from 'node:os'
 import path from 'node:path'
 
-const [feedloopd, src, outDir] = process.argv.slice(2)
+const [feedloopd, src, outDir, feedloopCli] = process.argv.slice(2)
 const CHROMIUM = ['/usr/bin/chromium', '/usr/bin/chromium-browser'].find((p) => fs.existsSync(p))
 if (!CHROMIUM) { console.log('SKIP: no chromium'); process.exit(77) }
 let puppeteer
@@ -22,6 +26,27 @@ const uplotDir = path.join(src, 'tests/browser/node_modules/uplot/dist')
 const webui = path.join(src, '../shared/webui')
 if (!fs.existsSync(path.join(webui, 'mainsail.tar.xz'))) { console.log('SKIP: no ../shared/webui'); process.exit(77) }
 fs.mkdirSync(outDir, { recursive: true })
+
+// The last calibration report for feedloop's page: `feedloop ident excite` records an X axis with
+// a periodic position error, `feedloop ident fit` writes report.json; each daemon finds it in
+// web.calibration_dir (${STATE_DIR}/ident) and the page must show it.
+const reportDir = fs.mkdtempSync(path.join(os.tmpdir(), 'feedloop-ident-'))
+let report = null
+{
+  const t0 = Date.now()
+  try {
+    execFileSync(feedloopCli, ['ident', 'excite', '--axis', 'x', '--out', path.join(reportDir, 'x.csv'), '--duration', '20',
+      '--effect', 'periodic_position:period_mm=20,amplitude_um=15'], { stdio: 'inherit' })
+    execFileSync(feedloopCli, ['ident', 'fit', '--trace', path.join(reportDir, 'x.csv'), '--out', path.join(reportDir, 'x-fit'), '--no-plots'],
+      { stdio: 'inherit' })
+    report = JSON.parse(fs.readFileSync(path.join(reportDir, 'x-fit', 'report.json'), 'utf8'))
+    console.log(`calibration report made in ${((Date.now() - t0) / 1000).toFixed(1)} s: ${report.effects.map((e) => e.name).join(', ') || 'no effect'}`)
+  } catch (e) {
+    console.log(`feedloop ident failed: ${e.message}`)  // the page check below fails then
+  }
+}
+
+const cube = path.join(src, '../shared/gcode/cube20_cartesian.gcode')
 
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms))
 const failures = []
@@ -38,6 +63,131 @@ async function waitFor(what, fn, timeoutMs = 30000) {
   return null
 }
 
+// Material Design icons as both UIs draw them (an <svg> path; Mainsail's panel buttons have no
+// text, only the icon and a tooltip).
+// The start of each path is enough (MDI releases differ in how they close the path).
+const ICON = {
+  pause: 'M14,19H18V5H14M6',
+  play: 'M8,5.14V19.14L19,12.14L8,5.14Z',
+  stop: 'M18,18H6V6H18V18Z',
+  upload: 'M9,16V10H5L12,3L19,10H15V16H9M5,20V18H19V20H5Z',
+  plus: 'M19,13H13V19H11V13H5V11H11V5H13V11H19V13Z',
+}
+const hasIcon = (c, icon) => c.icon.startsWith(icon)
+
+// The visible clickable controls of the page: text, label (title, aria-label) and icon path.
+// Each gets a data attribute so that the one chosen is clicked with the mouse, as a user would.
+async function controls(page) {
+  return page.evaluate(() => {
+    const out = []
+    let i = 0
+    for (const e of document.querySelectorAll('button, a, [role="button"], [role="menuitem"], .v-list-item--link')) {
+      const r = e.getBoundingClientRect()
+      const style = getComputedStyle(e)
+      if (r.width === 0 || r.height === 0 || style.visibility === 'hidden' || style.display === 'none') continue
+      if (e.disabled || e.classList.contains('v-btn--disabled')) continue
+      e.dataset.flCtl = String(++i)
+      out.push({ id: i, text: (e.innerText || '').trim(), label: (e.getAttribute('title') || e.getAttribute('aria-label') || '').trim(),
+        icon: e.querySelector('svg path')?.getAttribute('d') || '', href: e.getAttribute('href') || '' })
+    }
+    return out
+  })
+}
+
+// The control `pred` picks, once it is there and has stopped moving (dialogs and menus open with
+// a transition: a click in the middle of it lands beside the button).
+// A mouse click on the element; where puppeteer finds no clickable point (a menu item inside
+// Vuetify's transformed menu), the element's own click() (the click event its handler gets).
+async function clickIt(page, handle) {
+  try {
+    await handle.click()
+  } catch {
+    await handle.evaluate((e) => e.click())
+  }
+}
+
+async function waitForControl(page, what, pred, timeoutMs = 15000) {
+  let seen = []
+  const h = await waitFor(what, async () => {
+    seen = await controls(page)
+    let c = seen.find(pred)
+    if (!c) return null
+    const box = async (id) => (await page.$(`[data-fl-ctl="${id}"]`))?.boundingBox()
+    const before = await box(c.id)
+    await sleep(300)
+    const after = await box(c.id)
+    // (A menu item inside a transformed menu may have no box for puppeteer: clicked all the same.)
+    if (before && after && (before.x !== after.x || before.y !== after.y || before.width !== after.width)) return null
+    return page.$(`[data-fl-ctl="${c.id}"]`)
+  }, timeoutMs)
+  if (!h) console.log(`     controls seen: ${JSON.stringify(seen.map((c) => [c.text.slice(0, 30), c.label, c.icon.slice(0, 16), c.href]))}`)
+  return h
+}
+
+async function gotoFiles(page, ui) {
+  if (ui === 'fluidd') {
+    await page.evaluate(() => { location.hash = '#/jobs' })
+  } else {
+    const link = await waitForControl(page, 'Mainsail: the G-Code Files link', (c) => c.href === '/files')
+    if (link) await clickIt(page, link)
+  }
+  // The file list is there (and the dashboard's controls are gone).
+  await waitFor(`${ui}: the file list`, async () => page.evaluate((ui) => {
+    const t = document.body.innerText
+    return ui === 'fluidd' ? location.hash === '#/jobs' && /\bJobs\b/.test(t) && /Name/.test(t) && !/Thermals/.test(t)
+      : location.pathname === '/files' && /Current path/.test(t)
+  }, ui))
+}
+
+async function gotoDashboard(page, ui) {
+  if (ui === 'fluidd') {
+    await page.evaluate(() => { location.hash = '#/' })
+  } else {
+    const link = await waitForControl(page, 'Mainsail: the Dashboard link', (c) => c.href === '/' && /dashboard/i.test(c.text))
+    if (link) await clickIt(page, link)
+  }
+  await waitFor(`${ui}: the dashboard`, async () => page.evaluate((ui) => {
+    const t = document.body.innerText
+    return ui === 'fluidd' ? location.hash === '#/' && /Thermals/.test(t) : location.pathname === '/' && /Temperatures/.test(t)
+  }, ui))
+}
+
+// Starts cube20.gcode from the UI's file list: a click on the file, then the dialog's
+// print button.
+async function startFromFiles(page, ui) {
+  await gotoFiles(page, ui)
+  const file = await waitFor(`${ui}: the file's row`, async () => {
+    const rows = await page.$$('tbody tr')  // the file table (not the upload progress list)
+    for (const r of rows) if (/cube20/.test(await r.evaluate((e) => e.innerText)) && await r.isVisible()) return r
+    return null
+  })
+  if (!file) return
+  // A click on the file's name (Fluidd opens its menu where the mouse is).
+  const name = await file.evaluateHandle((r) => [...r.querySelectorAll('td')].find((td) => /cube20/.test(td.innerText)) || r)
+  await name.asElement().click()
+  const isPrint = (c) => /^print$/i.test(c.text) || /^print$/i.test(c.label)
+  let print = await waitForControl(page, `${ui}: the dialog's or menu's print button`, isPrint, 5000)
+  if (!print && ui === 'fluidd') {  // the menu by a right click, as Fluidd also offers it
+    await name.asElement().click({ button: 'right' })
+    print = await waitForControl(page, `${ui}: the context menu's print item`, isPrint, 5000)
+  }
+  if (print) await clickIt(page, print)
+}
+
+// A confirmation dialog after cancel (Fluidd always asks; Mainsail when configured to).
+async function confirmIfAsked(page, ui) {
+  const t0 = Date.now()
+  while (Date.now() - t0 < 3000) {
+    const c = (await controls(page)).find((c) => /^(yes|confirm|cancel print)$/i.test(c.text))
+    if (c) {
+      console.log(`     ${ui}: confirming with "${c.text}"`)
+      { const h = await page.$(`[data-fl-ctl="${c.id}"]`); if (h) await clickIt(page, h) }
+      return
+    }
+    await sleep(200)
+  }
+}
+
 async function runUi(ui, port) {
   console.log(`== ${ui}`)
   const tmp = fs.mkdtempSync(path.join(os.tmpdir(), `feedloop-${ui}-`))
@@ -50,6 +200,7 @@ async function runUi(ui, port) {
     .replace(/page_dir: .*/, `page_dir: "${path.join(src, 'web/page')}"`)
     .replace(/uplot_dir: .*/, `uplot_dir: "${uplotDir}"`)
   fs.writeFileSync(path.join(tmp, 'printer.yaml'), cfg)
+  if (report) fs.cpSync(path.join(reportDir, 'x-fit'), path.join(tmp, 'ident', 'x-fit'), { recursive: true })
   const log = fs.openSync(path.join(outDir, `${ui}-feedloopd.log`), 'w')
   const daemon = spawn(feedloopd, ['--virtual-time', '--config', path.join(tmp, 'printer.yaml')],
     { env: { ...process.env, RUNTIME_DIRECTORY: tmp, STATE_DIRECTORY: tmp }, stdio: ['ignore', log, log] })
@@ -77,46 +228,48 @@ async function runUi(ui, port) {
     const startTemps = tempsOf(await text())
     check(startTemps.length >= 2 && startTemps.every((v) => v < 30), `${ui} shows room temperatures at start: ${startTemps.join(', ')}`)
 
-    // Upload, as the UIs do it (multipart, fields root and file), from the page.
-    const gcode = fs.readFileSync(path.join(src, 'examples/gcode/cube20_3layers.gcode'), 'utf8')
-    const up = await page.evaluate(async (body) => {
-      const fd = new FormData()
-      fd.append('root', 'gcodes')
-      fd.append('file', new Blob([body]), 'cube20_3layers.gcode')
-      const r = await fetch('/server/files/upload', { method: 'POST', body: fd })
-      return { status: r.status, json: await r.json() }
-    }, gcode)
-    check(up.status === 201 && up.json.result.item.size === Buffer.byteLength(gcode), `upload: HTTP ${up.status}, size ${up.json.result?.item?.size}`)
+    // Upload with the UI's own upload button: the file chooser gets the G-code file, the UI
+    // posts it (its multipart POST /server/files/upload) and lists it.
+    // The whole 20 mm cube of ../shared/gcode (a 13-minute print: about 30 s in virtual time, time
+    // enough to click pause, resume and cancel; the 3-layer example is over in a few seconds).
+    const gcodePath = path.join(tmp, 'cube20.gcode')
+    fs.copyFileSync(fs.existsSync(cube) ? cube : path.join(src, 'examples/gcode/cube20_3layers.gcode'), gcodePath)
+    const gcodeSize = fs.statSync(gcodePath).size
+    await gotoFiles(page, ui)
+    // Mainsail: the files panel's upload button; Fluidd: its add (+) menu, "Upload Files".
+    let uploadButton = null
     if (ui === 'fluidd') {
-      await page.evaluate(() => { location.hash = '#/jobs' })
+      const plus = await waitForControl(page, 'Fluidd: the file list\'s add (+) button', (c) => hasIcon(c, ICON.plus))
+      if (plus) await clickIt(page, plus)
+      uploadButton = await waitForControl(page, 'Fluidd: the "Upload Files" menu item', (c) => /^upload files$/i.test(c.text))
+    } else {
+      uploadButton = await waitForControl(page, 'Mainsail: the upload button', (c) => hasIcon(c, ICON.upload) || /upload/i.test(c.label))
     }
-    await waitFor(`${ui} lists the uploaded file`, async () => /cube20_3layers/.test(await text()))
-    if (ui === 'fluidd') await page.evaluate(() => { location.hash = '#/' })
+    if (uploadButton) {
+      const [chooser] = await Promise.all([page.waitForFileChooser({ timeout: 10000 }), uploadButton.click()])
+      await chooser.accept([gcodePath])
+    }
+    const listed = await waitFor(`upload through the UI: the daemon has the file's ${gcodeSize} bytes`, async () =>
+      (await api('/server/files/list?root=gcodes')).find((f) => f.path === 'cube20.gcode' && f.size === gcodeSize))
+    if (listed) await waitFor(`${ui} lists the uploaded file`, async () => /cube20\.gcode/.test(await text()))
 
-    // Start, pause, resume over the UI's own WebSocket API (JSON-RPC), as its buttons do:
-    // Mainsail's run the PAUSE/RESUME macros, Fluidd's call printer.print.pause/resume.
-    const rpc = (method, params) => page.evaluate(async (m, p) => {
-      const ws = new WebSocket(`ws://${location.host}/websocket`)
-      await new Promise((r, j) => { ws.onopen = r; ws.onerror = j })
-      const reply = new Promise((r) => { ws.onmessage = (e) => { const d = JSON.parse(e.data); if (d.id === 7) r(d) } })
-      ws.send(JSON.stringify({ jsonrpc: '2.0', method: m, params: p, id: 7 }))
-      const d = await reply
-      ws.close()
-      return d
-    }, method, params)
-    const start = await rpc('printer.print.start', { filename: 'cube20_3layers.gcode' })
-    check(start.result === 'ok', `printer.print.start: ${JSON.stringify(start)}`)
-    await waitFor(`${ui} shows Printing`, async () => /printing/i.test(await text()))
-    const pause = ui === 'mainsail' ? await rpc('printer.gcode.script', { script: 'PAUSE' }) : await rpc('printer.print.pause', {})
-    check(pause.result === 'ok', `pause: ${JSON.stringify(pause)}`)
-    await waitFor(`${ui} shows Paused`, async () => /paused/i.test(await text()))
+    // Start: click the file, then the dialog's print button.
+    await startFromFiles(page, ui)
+    await gotoDashboard(page, ui)
+    await waitFor(`${ui} shows Printing`, async () => /printing/i.test(await text()) && (await query('print_stats=state')).print_stats.state === 'printing')
+    await page.screenshot({ path: path.join(outDir, `${ui}-printing.png`) })
+
+    // Pause and resume with the UI's buttons.
+    const pauseButton = await waitForControl(page, `${ui} pause button`, (c) => hasIcon(c, ICON.pause) || /^pause$/i.test(c.text))
+    if (pauseButton) await clickIt(page, pauseButton)
+    await waitFor(`${ui} shows Paused`, async () => /paused/i.test(await text()) && (await query('print_stats=state')).print_stats.state === 'paused')
     const pausedAt = (await query('virtual_sdcard=file_position')).virtual_sdcard.file_position
     await sleep(1500)
     const stillAt = (await query('virtual_sdcard=file_position')).virtual_sdcard.file_position
     check(pausedAt === stillAt && pausedAt > 0, `paused: the file position stays at ${pausedAt} (then ${stillAt})`)
     await page.screenshot({ path: path.join(outDir, `${ui}-paused.png`) })
-    const resume = ui === 'mainsail' ? await rpc('printer.gcode.script', { script: 'RESUME' }) : await rpc('printer.print.resume', {})
-    check(resume.result === 'ok', `resume: ${JSON.stringify(resume)}`)
+    const resumeButton = await waitForControl(page, `${ui} resume button`, (c) => hasIcon(c, ICON.play) || /^resume$/i.test(c.text))
+    if (resumeButton) await clickIt(page, resumeButton)
     // In virtual time the rest of the print can finish before the next look: the UI must have
     // left "Paused" and the job be printing or complete.
     await waitFor(`${ui} leaves Paused after resume`, async () => !/paused/i.test(await text()) &&
@@ -125,28 +278,36 @@ async function runUi(ui, port) {
     // Temperatures and position as the UI shows them.
     await waitFor(`${ui} shows a hotend temperature above 100 °C`, async () => tempsOf(await text()).some((v) => v > 100 && v < 300), 60000)
     await waitFor(`${ui} shows a non-zero position`, async () =>
-      [...(await text()).matchAll(/\[\s*(-?\d+\.\d+)\s*\]/g)].some((m) => Math.abs(Number(m[1])) > 0.5), 60000)
-    await page.screenshot({ path: path.join(outDir, `${ui}-printing.png`) })
+      [...(await text()).matchAll(/\[\s*(-?\d+\.\d+)\s*\]/g)].some((m) => Math.abs(Number(m[1])) > 0.5) ||
+      (await query('toolhead=position')).toolhead.position.slice(0, 2).some((v) => Math.abs(v) > 0.5), 60000)
 
-    // A console command typed into the UI.
-    if (ui === 'fluidd') await page.evaluate(() => { location.hash = '#/console' })
-    const input = await waitFor(`${ui} console input`, async () => {
-      const all = await page.$$('textarea, input')
-      for (const h of all) {
-        const ph = await h.evaluate((e) => (e.placeholder || '') + ' ' + (e.labels?.[0]?.innerText || '') + ' ' + (e.getAttribute('aria-label') || ''))
-        // Mainsail: "Send code..."; Fluidd's console page has one textarea, without a placeholder.
-        const tag = await h.evaluate((e) => e.tagName)
-        if ((/send code/i.test(ph) || (ui === 'fluidd' && tag === 'TEXTAREA')) && await h.isVisible()) return h
-      }
-      return null
-    })
-    if (input) {
+    // Console commands typed into the UI: M115 (a query: answered during the print) is answered
+    // there; M106 S128, once the print is over (the job owns the print while it runs: a machine
+    // command from another channel gets "busy", docs/jobs.md), sets the part fan, which the UI
+    // then shows at 50 %.
+    let consoleInput = null
+    const typed = async (line) => {
+      if (consoleInput && !(await consoleInput.evaluate((e) => e.isConnected))) consoleInput = null
+      const input = consoleInput ?? await waitFor(`${ui} console input`, async () => {
+        const all = await page.$$('textarea, input')
+        for (const h of all) {
+          const ph = await h.evaluate((e) => (e.placeholder || '') + ' ' + (e.labels?.[0]?.innerText || '') + ' ' + (e.getAttribute('aria-label') || ''))
+          // Mainsail: "Send code..."; Fluidd's console page has one textarea, without a placeholder.
+          const tag = await h.evaluate((e) => e.tagName)
+          if ((/send code/i.test(ph) || (ui === 'fluidd' && tag === 'TEXTAREA')) && await h.isVisible()) return h
+        }
+        return null
+      })
+      if (!input) return
+      consoleInput = input
       await input.click()
-      await input.type('M115')
+      await input.type(line)
       await page.keyboard.press('Enter')
-      await waitFor(`${ui} console shows the answer to M115`, async () => /FIRMWARE_NAME:feedloop/.test(await text()))
     }
-    if (ui === 'fluidd') await page.evaluate(() => { location.hash = '#/' })
+    if (ui === 'fluidd') await page.evaluate(() => { location.hash = '#/console' })
+    await typed('M115')
+    await waitFor(`${ui} console shows the answer to M115`, async () => /FIRMWARE_NAME:feedloop/.test(await text()))
+    await gotoDashboard(page, ui)
 
     const done = await waitFor('the print completes (print_stats.state complete)', async () =>
       (await query('print_stats=state')).print_stats.state === 'complete', 180000)
@@ -156,13 +317,47 @@ async function runUi(ui, port) {
       // Mainsail's status panel says "Done"/"complete"; Fluidd's offers RE-PRINT at 100 %.
       await waitFor(`${ui} shows the print complete`, async () => {
         const t = await text()
-        return ui === 'mainsail' ? /complete|done|finished/i.test(t) : /RE-PRINT/.test(t) && /100\s*%/.test(t)
+        return ui === 'mainsail' ? /complete|done|finished/i.test(t) : /RE-PRINT/i.test(t) && /100\s*%/.test(t)
       })
       await page.screenshot({ path: path.join(outDir, `${ui}-complete.png`) })
     }
-    const hist = await api('/server/history/list?limit=5')
-    check(hist.jobs[0]?.status === 'completed' && hist.jobs[0]?.filename === 'cube20_3layers.gcode',
-      `history: the job is recorded as ${hist.jobs[0]?.status}`)
+    if (ui === 'fluidd') await page.evaluate(() => { location.hash = '#/console' })
+    await typed('M106 S128')
+    await waitFor('M106 S128 from the UI\'s console sets fan.speed to 128/255',
+      async () => Math.abs((await query('fan=speed')).fan.speed - 128 / 255) < 1e-3, 10000)
+    await gotoDashboard(page, ui)
+    // Fluidd writes "50%"; Mainsail's fan slider has its number in an input field beside "Fan".
+    await waitFor(`${ui} shows the part fan at 50 %`, async () => /\b50\s*%/.test(await text()) || page.evaluate(() =>
+      [...document.querySelectorAll('input')].some((i) => {
+        if (!(Math.abs(Number(i.value) - 50) <= 0.5)) return false
+        for (let e = i, k = 0; e && k < 6; e = e.parentElement, ++k) if (/^\s*Fan\b/m.test(e.innerText || '')) return true
+        return false
+      })), 15000)
+    await page.screenshot({ path: path.join(outDir, `${ui}-fan.png`) })
+
+    let hist = await api('/server/history/list?limit=5')
+    check(hist.jobs[0]?.status === 'completed' && hist.jobs[0]?.filename === 'cube20.gcode' && hist.jobs[0]?.filament_used > 50,
+      `history: the job is recorded as ${hist.jobs[0]?.status}, filament used ${hist.jobs[0]?.filament_used?.toFixed(1)} mm`)
+
+    // A second print, cancelled with the UI's cancel button (and its confirmation, if it asks).
+    // Mainsail offers cancel on a paused print (unless its "display cancel print" setting is on):
+    // pause first, as its user does.
+    await startFromFiles(page, ui)
+    await gotoDashboard(page, ui)
+    await waitFor(`${ui} shows Printing again`, async () => (await query('print_stats=state')).print_stats.state === 'printing' && /printing/i.test(await text()))
+    if (ui === 'mainsail') {
+      const pause2 = await waitForControl(page, `${ui} pause button`, (c) => hasIcon(c, ICON.pause))
+      if (pause2) await clickIt(page, pause2)
+      await waitFor(`${ui} shows Paused`, async () => /paused/i.test(await text()))
+    }
+    const cancelButton = await waitForControl(page, `${ui} cancel button`, (c) => hasIcon(c, ICON.stop) || /^cancel$/i.test(c.text))
+    if (cancelButton) await clickIt(page, cancelButton)
+    await confirmIfAsked(page, ui)
+    await waitFor('the job is cancelled (print_stats.state cancelled)', async () => (await query('print_stats=state')).print_stats.state === 'cancelled', 60000)
+    await waitFor(`${ui} shows Cancelled`, async () => /cancel+ed/i.test(await text()))
+    await page.screenshot({ path: path.join(outDir, `${ui}-cancelled.png`) })
+    hist = await api('/server/history/list?limit=5')
+    check(hist.jobs[0]?.status === 'cancelled', `history: the second job is recorded as ${hist.jobs[0]?.status}`)
 
     // feedloop's page: the tracking-error plot and the map of this print.
     const own = await browser.newPage()
@@ -181,6 +376,14 @@ async function runUi(ui, port) {
     }))
     check(shape.canvases >= 2 && shape.layers >= 3 && shape.rows === shape.layers,
       `feedloop page: ${shape.canvases} plots, ${shape.layers} layers in the map's list (${points} points)`)
+    // Beside the plots: the last calibration report, its effects and RMS figures as report.json says.
+    const cal = await waitFor('feedloop page shows the last calibration report', async () =>
+      own.evaluate(() => document.body.dataset.calibration === 'shown' ? document.getElementById('calibration').innerText : null))
+    const rms = (v) => (typeof v === 'number' ? v.toFixed(2) : '?')
+    check(report !== null && cal !== null && report.effects.every((e) => cal.includes(e.name)) &&
+      cal.includes(`RMS ${rms(report.baseline.rms_um)} µm`) && cal.includes(`RMS ${rms(report.augmented.rms_um)} µm`),
+      `feedloop page: calibration report shown (effects: ${report?.effects.map((e) => e.name).join(', ') || 'none'}; ` +
+      `RMS ${rms(report?.baseline.rms_um)} -> ${rms(report?.augmented.rms_um)} µm)`)
     const tracking = (await query('feedloop_tracking')).feedloop_tracking
     check(tracking.error_max_mm > 0 && tracking.layers.length >= 3, `feedloop_tracking: max e_t ${(tracking.error_max_mm * 1000).toFixed(1)} um over ${tracking.layers.length} layers`)
     await own.screenshot({ path: path.join(outDir, `feedloop-page-${ui}.png`), fullPage: true })
@@ -204,7 +407,10 @@ async function runUi(ui, port) {
 }
 
 const basePort = 17125 + (process.pid % 500) * 2
-await runUi('mainsail', basePort)
-await runUi('fluidd', basePort + 1)
+// FEEDLOOP_WEBUI=fluidd runs one UI only (while working on it).
+const uis = (process.env.FEEDLOOP_WEBUI || 'mainsail,fluidd').split(',')
+if (uis.includes('mainsail')) await runUi('mainsail', basePort)
+if (uis.includes('fluidd')) await runUi('fluidd', basePort + 1)
+fs.rmSync(reportDir, { recursive: true, force: true })
 console.log(failures.length ? `${failures.length} FAILED:\n  ${failures.join('\n  ')}` : 'all checks passed')
 process.exit(failures.length ? 1 : 0)

@@ -39,6 +39,8 @@ struct FakeMachine final : JobSink {
   double print_time_s = 0.0;
   int64_t clock_ns = 0;
   bool refuse = false;
+  bool moving = false;   // motion runs (print time anchored on the machine clock)
+  double ahead_s = 0.0;  // planned motion beyond the motion executing now
 
   Offer offer(const gcode::Command& cmd, std::string_view text,
               std::function<void(const Status&)> done, std::string* why) override {
@@ -82,7 +84,8 @@ struct FakeMachine final : JobSink {
       s.encoder_mm[i] = rig.interp.state().machine_mm[static_cast<size_t>(i)];
     }
     s.print_time_s = print_time_s;
-    s.planned_until_s = print_time_s;
+    s.planned_until_s = print_time_s + ahead_s;
+    s.moving = moving;
     return s;
   }
   int64_t now_ns() const override { return clock_ns; }
@@ -380,6 +383,111 @@ TEST_F(PrintJobTest, SelectStartByteAndRefusals) {
   m.run();
   EXPECT_EQ(job.state(), JobState::kComplete);
   EXPECT_EQ(m.executed, (std::vector<std::string>{"G1 X20", "G1 X30"}));
+}
+
+// print_stats.filament_used (Klipper: the E the print moved, net): counted from the file's lines
+// in their modes, it equals what the interpreter's machine E (which G92 does not move) went
+// through: absolute E with G92 E0 resets and retracts, M83, G91/G90 (which set E's mode too) and
+// G20. With a pause in the middle, the job's own retract and prime are not counted (only the
+// prime beyond the retract, prime_extra_mm, moves the machine's E without being filament used).
+TEST_F(PrintJobTest, FilamentUsedFollowsTheFilesEModes) {
+  const std::string text =
+      "G28\nG90\nM82\nG92 E0\nG1 X10 Y10 E2.5 F3000\nG1 X20 E4.0\nG1 E3.2 F1800\n"  // retract
+      "G92 E0\nG1 X30 E1.25\nG1 X40 E3.0\nM83\nG1 X50 E0.75\nG1 E-0.4\nG1 X60 E0.4\n"
+      "G91\nG1 X5 E0.6\nG1 Y5 E0.5\nG90\nG92 E10\nG1 X70 E10.5\nG92 E0\nG20\nG1 X3 E0.02\n"
+      "G21\nG1 X80 Y20 E1\n";
+  ASSERT_TRUE(files_->write("e.gcode", text).ok());
+  // By hand, segment by segment (G20: E0.02 in = 0.508 mm).
+  const double by_hand = (2.5 + 1.5 - 0.8) + (1.25 + 1.75) + (0.75 - 0.4 + 0.4) + (0.6 + 0.5) +
+                         0.5 + 0.508 + (1.0 - 0.508);
+  FakeMachine m;
+  m.capacity = 4;
+  const double e0 = m.rig.interp.state().machine_mm[kE];
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("e.gcode").ok());
+  m.run();
+  job.pump();
+  ASSERT_EQ(job.state(), JobState::kComplete);
+  const double machine_e = m.rig.interp.state().machine_mm[kE] - e0;
+  EXPECT_NEAR(job.status().filament_used_mm, machine_e, 1e-9);
+  EXPECT_NEAR(job.status().filament_used_mm, by_hand, 1e-9);
+
+  // Again with a pause after a few lines: the same filament, the machine's E moved by the prime
+  // beyond the retract as well.
+  FakeMachine p;
+  p.capacity = 2;
+  const double p0 = p.rig.interp.state().machine_mm[kE];
+  PrintJob paused(*files_, options_, p);
+  ASSERT_TRUE(paused.start("e.gcode").ok());
+  for (int i = 0; i < 8; ++i) p.step();
+  ASSERT_TRUE(paused.pause().ok());
+  p.run();
+  ASSERT_EQ(paused.state(), JobState::kPaused);
+  const double at_pause = paused.status().filament_used_mm;
+  EXPECT_GT(at_pause, 0.0);
+  EXPECT_LT(at_pause, by_hand);
+  ASSERT_TRUE(paused.resume().ok());
+  p.run();
+  paused.pump();
+  ASSERT_EQ(paused.state(), JobState::kComplete);
+  EXPECT_NEAR(paused.status().filament_used_mm, by_hand, 1e-9);
+  EXPECT_NEAR(p.rig.interp.state().machine_mm[kE] - p0, by_hand + options_.prime_extra_mm, 1e-9);
+}
+
+// Klipper's virtual_sdcard reads ahead of the motion by about 2 s; so does the job: no line is
+// handed over while the moving machine holds more planned motion than read_ahead_s, and a pause
+// then stops the print within about that much.
+TEST_F(PrintJobTest, ReadsAheadOfTheMotionByAtMostReadAheadS) {
+  ASSERT_TRUE(files_->write("part.gcode", part(20)).ok());
+  FakeMachine m;
+  m.capacity = 50;
+  m.moving = true;
+  m.ahead_s = 2.5;  // above the default 2 s
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  EXPECT_EQ(m.queue.size(), 0u);
+  EXPECT_EQ(job.status().bytes_submitted, 0u);
+  m.ahead_s = 1.9;
+  job.pump();
+  EXPECT_EQ(m.queue.size(), 28u);  // every command of the part: the fake's plan does not grow
+  m.run();
+  job.pump();
+  EXPECT_EQ(job.state(), JobState::kComplete);
+  EXPECT_EQ(m.executed.size(), 28u);
+}
+
+// A UI shows "paused" as soon as it asked; a resume that comes while the head still parks is
+// kept and runs once parked (the pause position taken first), and the file ends as without it.
+TEST_F(PrintJobTest, AResumeWhilePausingRunsOnceParked) {
+  const std::string text = part(40);
+  ASSERT_TRUE(files_->write("part.gcode", text).ok());
+  FakeMachine m;
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  for (int i = 0; i < 20; ++i) m.step();
+  ASSERT_TRUE(job.pause().ok());
+  ASSERT_TRUE(job.resume().ok());
+  EXPECT_EQ(job.state(), JobState::kPausing);
+  m.run();
+  job.pump();
+  EXPECT_EQ(job.state(), JobState::kComplete);
+  const JobStatus s = job.status();
+  EXPECT_TRUE(s.pause_position.valid);
+  EXPECT_TRUE(s.resume_position.valid);
+  EXPECT_EQ(s.pauses, 1u);
+  for (int i = 0; i < 3; ++i)  // back where it paused
+    EXPECT_NEAR(s.resume_position.pos_mm[i], s.pause_position.pos_mm[i], 1e-9);
+  const std::vector<std::string> lines = command_lines(text);
+  EXPECT_EQ(m.executed.back(), lines.back());
+  // A cancel while pausing wins over an earlier resume.
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  for (int i = 0; i < 20; ++i) m.step();
+  ASSERT_TRUE(job.pause().ok());
+  ASSERT_TRUE(job.resume().ok());
+  ASSERT_TRUE(job.cancel().ok());
+  m.run();
+  job.pump();
+  EXPECT_EQ(job.state(), JobState::kCancelled);
 }
 
 TEST_F(PrintJobTest, ARefusedOfferEndsTheJob) {

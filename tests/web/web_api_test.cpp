@@ -3,6 +3,8 @@
 // PAUSE/RESUME macros, files, the SQLite database with dotted keys, multipart uploads, access.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <filesystem>
 
 #include "tests/web/fake_printer.hpp"
@@ -187,6 +189,54 @@ TEST(WebApi, HistoryRecordsAJobFromStartToEnd) {
   EXPECT_EQ(h["jobs"][0]["metadata"]["slicer"], "PrusaSlicer");
   EXPECT_EQ(f.result("server.history.totals")["job_totals"]["total_print_time"], 12.5);
   EXPECT_EQ(f.notifications("notify_history_changed").size(), 2u);
+}
+
+// Heater power and fans from the thermal loop's status: the first hotend is `extruder`, the first
+// bed `heater_bed`, the first part fan `fan`, a heater fan `heater_fan <name>`.
+TEST(WebApi, HeaterPowerAndFansComeFromTheMachineStatus) {
+  Fixture f;
+  engine::MachineStatus& s = f.printer.status;
+  s.num_heaters = 2;
+  std::snprintf(s.heaters[0].name, sizeof s.heaters[0].name, "bed");
+  s.heaters[0].marlin = 'B';
+  s.heaters[0].power = 0.25;
+  std::snprintf(s.heaters[1].name, sizeof s.heaters[1].name, "extruder");
+  s.heaters[1].marlin = 'T';
+  s.heaters[1].power = 0.75;
+  s.num_fans = 2;
+  std::snprintf(s.fans[0].name, sizeof s.fans[0].name, "hotend_fan");
+  s.fans[0].part = false;
+  s.fans[0].speed = s.fans[0].requested = 1.0;
+  std::snprintf(s.fans[1].name, sizeof s.fans[1].name, "part");
+  s.fans[1].speed = 1.0;  // kick-start: full power for a moment
+  s.fans[1].requested = 128.0 / 255.0;
+  const json o = f.api->all_objects();
+  EXPECT_DOUBLE_EQ(o["extruder"]["power"].get<double>(), 0.75);
+  EXPECT_DOUBLE_EQ(o["heater_bed"]["power"].get<double>(), 0.25);
+  EXPECT_DOUBLE_EQ(o["fan"]["speed"].get<double>(), 128.0 / 255.0);
+  EXPECT_DOUBLE_EQ(o["heater_fan hotend_fan"]["speed"].get<double>(), 1.0);
+  const json list = f.result("printer.objects.list")["objects"];
+  EXPECT_NE(std::find(list.begin(), list.end(), "heater_fan hotend_fan"), list.end())
+      << list.dump();
+}
+
+// A print a client streams (printing, no file) is not a history job, as Moonraker records only
+// virtual_sdcard prints; the gcodes root may be another folder (the daemon's job folder).
+TEST(WebApi, AStreamedPrintIsNoHistoryJobAndTheGcodesRootMayBeElsewhere) {
+  Fixture f;
+  f.printer.job.state = JobState::printing;  // streamed: no filename
+  f.api->tick(1.0);
+  f.printer.job.state = JobState::standby;
+  f.api->tick(2.0);
+  EXPECT_EQ(f.result("server.history.list")["count"], 0);
+  const auto jobs = f.dir / "jobs";
+  auto store = FileStore::open((f.dir / "files").string(), jobs.string());
+  ASSERT_TRUE(store.ok());
+  ASSERT_TRUE(store->write("gcodes", "a.gcode", "G28\n"));
+  EXPECT_TRUE(std::filesystem::exists(jobs / "a.gcode"));
+  EXPECT_EQ(*store->resolve("gcodes", "a.gcode"), (jobs / "a.gcode").string());
+  EXPECT_EQ(*store->resolve("config", "x.cfg"), (f.dir / "files" / "config" / "x.cfg").string());
+  EXPECT_EQ(store->list("gcodes")->size(), 1u);
 }
 
 TEST(WebDatabase, DottedKeysNestAndPersist) {

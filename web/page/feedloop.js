@@ -77,6 +77,44 @@ function updateTables(status) {
   }
 }
 
+// The last calibration report (`feedloop ident fit --out DIR`, report.json: the DESIGN.md contract):
+// the axis, the baseline and augmented models with their RMS, the effects found with their
+// parameters, and report.md. Asked for again every 10 s (a new fit shows without a reload).
+const esc = (s) => String(s).replace(/[&<>"]/g, (c) => ({ '&': '&amp;', '<': '&lt;', '>': '&gt;', '"': '&quot;' }[c]))
+const num = (v, d = 2) => (typeof v === 'number' ? v.toFixed(d) : esc(v ?? '–'));
+let lastCalibration = '';
+async function loadCalibration() {
+  const body = document.getElementById('calibration-body');
+  try {
+    const c = await rpc('server.feedloop.calibration_report');
+    const key = c.found ? `${c.path}@${c.modified}` : `none:${c.message}`;
+    if (key === lastCalibration) return;
+    lastCalibration = key;
+    if (!c.found) {
+      body.innerHTML = `<p class="muted">${esc(c.message)}</p>`;
+      document.body.dataset.calibration = 'none';
+      return;
+    }
+    const r = c.report, b = r.baseline || {}, a = r.augmented || {}, effects = Array.isArray(r.effects) ? r.effects : [];
+    const when = new Date(c.modified * 1000).toISOString().replace('T', ' ').slice(0, 19) + ' UTC';
+    const fx = effects.length
+      ? effects.map((e) => `<tr><th>${esc(e.name)}</th><td>${Object.entries(e.params || {}).map(([k, v]) => `${esc(k)} = ${num(v, 4)}`).join(', ')}</td></tr>`).join('')
+      : '<tr><td colspan="2" class="muted">none: the baseline model explains the data</td></tr>';
+    body.innerHTML = `<p class="muted">${esc(c.path)}, ${when}</p>` +
+      `<table><tr><th>axis</th><td>${esc(r.axis ?? '–')}</td></tr>` +
+      `<tr><th>baseline</th><td>${esc(b.model ?? '–')}: RMS ${num(b.rms_um)} µm</td></tr>` +
+      `<tr><th>augmented</th><td>${esc(a.model ?? '–')}: RMS ${num(a.rms_um)} µm</td></tr></table>` +
+      `<h3>Effects found</h3><table id="calibration-effects">${fx}</table>` +
+      (c.markdown ? `<details><summary>report.md</summary><pre>${esc(c.markdown)}</pre></details>` : '');
+    document.body.dataset.calibration = 'shown';
+    document.body.dataset.calibrationEffects = String(effects.length);
+  } catch (err) {
+    body.textContent = 'error: ' + err.message;
+  }
+}
+loadCalibration();
+setInterval(loadCalibration, 10000);
+
 layerSelect.addEventListener('change', () => { chosenLayer = Number(layerSelect.value); drawMap(chosenLayer); });
 
 async function poll() {

@@ -1,0 +1,339 @@
+// The web server inside feedloopd (docs/web.md) and the daemon's one print job (docs/jobs.md):
+// a file uploaded from the web is the job folder's file; a print started over the Marlin socket
+// (M32) shows in the web's print_stats, is paused from the web and resumed with M24; a print
+// started from the web shows in the JSON API's job.status and is cancelled there. Then what the
+// web shows of the machine besides: the part fan from M106, the heaters' power, the console echo
+// of another channel's lines, a print streamed over the socket in print_stats, and the last
+// calibration report for feedloop's page.
+#include <gtest/gtest.h>
+
+#include <boost/asio.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "../planner/planner_test_util.hpp"
+#include "daemon_fixture.hpp"
+#include "line_client.hpp"
+
+namespace feedloop::testing {
+namespace {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+using nlohmann::json;
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+struct Reply {
+  int status = 0;
+  json body;
+};
+
+// One HTTP request to the daemon's web server.
+Reply request(uint16_t port, http::verb verb, const std::string& target,
+              const std::string& body = {}, const std::string& content_type = "application/json") {
+  asio::io_context io;
+  asio::ip::tcp::socket s(io);
+  s.connect({asio::ip::make_address("127.0.0.1"), port});
+  http::request<http::string_body> req{verb, target, 11};
+  req.set(http::field::host, "127.0.0.1");
+  if (!body.empty()) {
+    req.set(http::field::content_type, content_type);
+    req.body() = body;
+  }
+  req.prepare_payload();
+  http::write(s, req);
+  beast::flat_buffer buf;
+  http::response<http::string_body> res;
+  http::read(s, buf, res);
+  return {static_cast<int>(res.result_int()), json::parse(res.body(), nullptr, false)};
+}
+
+json call(LineClient& c, const std::string& method, const json& params = json::object()) {
+  static int next_id = 1;
+  const int id = next_id++;
+  EXPECT_TRUE(c.send_line(
+      json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump()));
+  for (int i = 0; i < 1000; ++i) {
+    auto line = c.read_line(10000);
+    if (!line) return json();
+    json r = json::parse(*line);
+    if (r.contains("id") && r["id"] == id) return r;
+  }
+  return json();
+}
+
+class WebJobs : public DaemonFixture {
+ protected:
+  void customize(config::MachineConfig& cfg) override {
+    cfg.jobs.directory = dir_ + "/gcodes";
+    cfg.recorder.enabled = false;
+    cfg.web.enabled = true;
+    cfg.web.port = 0;
+    cfg.web.files_dir = dir_ + "/files";
+    cfg.web.database = dir_ + "/web.sqlite";
+    cfg.web.calibration_dir = dir_ + "/ident";
+  }
+  uint16_t port() const { return daemon_->web_port(); }
+  json objects(const std::string& query) {
+    Reply r = request(port(), http::verb::get, "/printer/objects/query?" + query);
+    EXPECT_EQ(r.status, 200) << r.body.dump();
+    return r.body["result"]["status"];
+  }
+  template <class Pred>
+  json wait_objects(const std::string& query, Pred pred, int timeout_s) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(timeout_s);
+    json s;
+    while (std::chrono::steady_clock::now() < deadline) {
+      s = objects(query);
+      if (pred(s)) return s;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return s;
+  }
+  std::string multipart(const std::string& name, const std::string& content) {
+    return "--XyZ\r\nContent-Disposition: form-data; name=\"root\"\r\n\r\ngcodes\r\n"
+           "--XyZ\r\nContent-Disposition: form-data; name=\"file\"; filename=\"" +
+           name + "\"\r\nContent-Type: application/octet-stream\r\n\r\n" + content +
+           "\r\n--XyZ--\r\n";
+  }
+};
+
+class WebJobsVirtual : public WebJobs {
+ protected:
+  bool virtual_time() const override { return true; }
+};
+
+// The filament the cube moves, from the planner's own interpreter (its machine E, which G92 does
+// not move): what print_stats.filament_used must say.
+double filament_of(const std::string& text) {
+  planner::test::Rig rig{planner::test::cartesian_config()};
+  const double e0 = rig.interp.state().machine_mm[planner::kE];
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) (void)rig.run(l);
+  return rig.interp.state().machine_mm[planner::kE] - e0;
+}
+
+TEST_F(WebJobsVirtual, OnePrintJobWhicheverChannelStartsPausesOrCancelsIt) {
+  const std::string text =
+      read_file(std::string(FEEDLOOP_SOURCE_DIR) + "/examples/gcode/cube20_3layers.gcode");
+  ASSERT_GT(text.size(), 1000u);
+  // Uploaded from the web (Mainsail's multipart POST): it is the job folder's file.
+  Reply up = request(port(), http::verb::post, "/server/files/upload",
+                     multipart("cube.gcode", text), "multipart/form-data; boundary=XyZ");
+  ASSERT_EQ(up.status, 201) << up.body.dump();
+  EXPECT_EQ(read_file(dir_ + "/gcodes/cube.gcode"), text);
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  json files = call(api, "files.list");
+  ASSERT_EQ(files["result"]["files"].size(), 1u) << files.dump();
+  EXPECT_EQ(files["result"]["files"][0]["filename"], "cube.gcode");
+
+  // Started over the Marlin socket (M32), shown by the web.
+  LineClient marlin;
+  ASSERT_TRUE(marlin.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(marlin.send_line("M32 !cube.gcode#"));
+  ASSERT_TRUE(marlin.read_until("ok", 5000));
+  json s = wait_objects(
+      "print_stats&virtual_sdcard",
+      [](const json& o) { return o["virtual_sdcard"]["file_position"].get<uint64_t>() > 0; }, 30);
+  EXPECT_EQ(s["print_stats"]["state"], "printing") << s.dump();
+  EXPECT_EQ(s["print_stats"]["filename"], "cube.gcode");
+  EXPECT_EQ(s["virtual_sdcard"]["file_path"], dir_ + "/gcodes/cube.gcode");
+  EXPECT_EQ(s["virtual_sdcard"]["file_size"], text.size());
+
+  // Paused from the web: the JSON API and M27 see the same job paused.
+  Reply pause = request(port(), http::verb::post, "/printer/print/pause");
+  ASSERT_EQ(pause.status, 200) << pause.body.dump();
+  s = wait_objects(
+      "print_stats&pause_resume",
+      [](const json& o) { return o["print_stats"]["state"] == "paused"; }, 10);
+  EXPECT_TRUE(s["pause_resume"]["is_paused"].get<bool>());
+  json j;
+  for (int i = 0; i < 200; ++i) {
+    j = call(api, "job.status")["result"];
+    if (j["state"] == "paused") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_EQ(j["state"], "paused") << j.dump();
+  EXPECT_EQ(j["filename"], "cube.gcode");
+  EXPECT_EQ(j["pauses"], 1);
+  const uint64_t paused_at = j["position_bytes"].get<uint64_t>();
+  EXPECT_GT(paused_at, 0u);
+  EXPECT_LT(paused_at, text.size());
+  EXPECT_EQ(objects("virtual_sdcard")["virtual_sdcard"]["file_position"], paused_at);
+  // Resumed from the socket (M24): the web shows it printing again.
+  ASSERT_TRUE(marlin.send_line("M24"));
+  ASSERT_TRUE(marlin.read_until("ok", 5000));
+  s = wait_objects(
+      "print_stats", [](const json& o) { return o["print_stats"]["state"] != "paused"; }, 10);
+  EXPECT_TRUE(s["print_stats"]["state"] == "printing" || s["print_stats"]["state"] == "complete")
+      << s.dump();
+  s = wait_objects(
+      "print_stats&virtual_sdcard",
+      [](const json& o) { return o["print_stats"]["state"] != "printing"; }, 300);
+  ASSERT_EQ(s["print_stats"]["state"], "complete") << s.dump();
+  EXPECT_EQ(s["virtual_sdcard"]["file_position"], text.size());
+  // filament_used: the planner's E over the file (the pause's retract and prime not counted).
+  const double filament = filament_of(text);
+  EXPECT_GT(filament, 50.0);  // three layers of a 20 mm cube
+  EXPECT_NEAR(s["print_stats"]["filament_used"].get<double>(), filament, 1e-6);
+  EXPECT_GT(s["print_stats"]["print_duration"].get<double>(), 0.0);
+  EXPECT_LE(s["print_stats"]["print_duration"].get<double>(),
+            s["print_stats"]["total_duration"].get<double>());
+  j = call(api, "job.status")["result"];
+  EXPECT_EQ(j["state"], "complete");
+  EXPECT_NEAR(j["filament_used_mm"].get<double>(), filament, 1e-6);
+  std::printf("cube: filament used %.3f mm (planner: %.3f mm), paused at byte %llu of %zu\n",
+              s["print_stats"]["filament_used"].get<double>(), filament,
+              static_cast<unsigned long long>(paused_at), text.size());
+
+  // Started from the web, cancelled over the JSON API.
+  Reply start = request(port(), http::verb::post, "/printer/print/start?filename=cube.gcode");
+  ASSERT_EQ(start.status, 200) << start.body.dump();
+  j = call(api, "job.status")["result"];
+  EXPECT_EQ(j["state"], "printing") << j.dump();
+  EXPECT_EQ(j["filename"], "cube.gcode");
+  // Another start while it runs: refused, from either side.
+  Reply again = request(port(), http::verb::post, "/printer/print/start?filename=cube.gcode");
+  EXPECT_EQ(again.status, 400) << again.body.dump();
+  EXPECT_NE(again.body.dump().find("cancel it first"), std::string::npos) << again.body.dump();
+  json cancel = call(api, "job.cancel");
+  ASSERT_TRUE(cancel.contains("result")) << cancel.dump();
+  s = wait_objects(
+      "print_stats", [](const json& o) { return o["print_stats"]["state"] != "printing"; }, 60);
+  EXPECT_EQ(s["print_stats"]["state"], "cancelled") << s.dump();
+  // The web's history has both, as Moonraker records virtual_sdcard prints.
+  Reply hist = request(port(), http::verb::get, "/server/history/list?limit=5");
+  ASSERT_EQ(hist.status, 200);
+  const json& jobs = hist.body["result"]["jobs"];
+  ASSERT_EQ(jobs.size(), 2u) << hist.body.dump();
+  EXPECT_EQ(jobs[0]["status"], "cancelled");
+  EXPECT_EQ(jobs[1]["status"], "completed");
+  EXPECT_NEAR(jobs[1]["filament_used"].get<double>(), filament, 1e-6);
+}
+
+// Wall clock: the heaters and the fan's kick-start run on the machine's time.
+TEST_F(WebJobs, FanPowerConsoleEchoAndAStreamedPrint) {
+  LineClient marlin;
+  ASSERT_TRUE(marlin.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(marlin.send_line("M106 S128"));
+  ASSERT_TRUE(marlin.read_until("ok", 5000));
+  json s = wait_objects(
+      "fan",
+      [](const json& o) {
+        return std::abs(o["fan"]["speed"].get<double>() - 128.0 / 255.0) < 1e-3;
+      },
+      5);
+  EXPECT_NEAR(s["fan"]["speed"].get<double>(), 128.0 / 255.0, 1e-3) << s.dump();
+  ASSERT_TRUE(marlin.send_line("M104 S200"));
+  ASSERT_TRUE(marlin.read_until("ok", 5000));
+  s = wait_objects(
+      "extruder&heater_bed",
+      [](const json& o) { return o["extruder"]["power"].get<double>() > 0.5; }, 5);
+  EXPECT_GT(s["extruder"]["power"].get<double>(), 0.5) << s.dump();  // full power far below 200
+  EXPECT_LE(s["extruder"]["power"].get<double>(), 1.0);
+  EXPECT_DOUBLE_EQ(s["heater_bed"]["power"].get<double>(), 0.0);
+  ASSERT_TRUE(marlin.send_line(numbered(1, "M104 S0")));  // with a line number and checksum
+  ASSERT_TRUE(marlin.read_until("ok", 5000));
+  ASSERT_TRUE(marlin.send_line("M107"));
+  ASSERT_TRUE(marlin.read_until("ok", 5000));
+  s = wait_objects(
+      "fan&extruder", [](const json& o) { return o["fan"]["speed"].get<double>() == 0.0; }, 5);
+  EXPECT_DOUBLE_EQ(s["fan"]["speed"].get<double>(), 0.0);
+
+  // The console shows another channel's lines (N and checksum taken off), not its moves.
+  ASSERT_TRUE(marlin.send_line("G1 X5 F3000"));
+  ASSERT_TRUE(marlin.read_until("ok", 5000));
+  Reply store = request(port(), http::verb::get, "/server/gcode_store?count=50");
+  ASSERT_EQ(store.status, 200);
+  std::vector<std::string> lines;
+  for (const json& e : store.body["result"]["gcode_store"]) lines.push_back(e["message"]);
+  auto has = [&](const std::string& suffix) {
+    for (const std::string& l : lines)
+      if (l.size() >= suffix.size() &&
+          l.compare(l.size() - suffix.size(), suffix.size(), suffix) == 0 &&
+          l.rfind("socket", 0) == 0)
+        return true;
+    return false;
+  };
+  EXPECT_TRUE(has(": M106 S128")) << store.body.dump();
+  EXPECT_TRUE(has(": M104 S0")) << store.body.dump();
+  EXPECT_TRUE(has(": M107")) << store.body.dump();
+  EXPECT_FALSE(has(": G1 X5 F3000")) << store.body.dump();
+
+  // A print streamed over the socket: print_stats says printing (no file) while the client owns
+  // the print, and standby once it has gone.
+  s = objects("print_stats");
+  EXPECT_EQ(s["print_stats"]["state"], "printing") << s.dump();
+  EXPECT_EQ(s["print_stats"]["filename"], "");
+  EXPECT_NE(s["print_stats"]["message"].get<std::string>().find("streamed by socket"),
+            std::string::npos)
+      << s.dump();
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(marlin.send_line("G1 X" + std::to_string(10 + i) + " Y10 F6000"));
+    ASSERT_TRUE(marlin.read_until("ok", 5000));
+  }
+  s = objects("print_stats");
+  EXPECT_EQ(s["print_stats"]["state"], "printing");
+  EXPECT_GT(s["print_stats"]["print_duration"].get<double>(), 0.0);
+  marlin.close();
+  s = wait_objects(
+      "print_stats", [](const json& o) { return o["print_stats"]["state"] != "printing"; }, 5);
+  EXPECT_EQ(s["print_stats"]["state"], "standby") << s.dump();
+  // No history entry for a stream (Moonraker records virtual_sdcard prints only).
+  Reply hist = request(port(), http::verb::get, "/server/history/list");
+  EXPECT_EQ(hist.body["result"]["jobs"].size(), 0u) << hist.body.dump();
+}
+
+TEST_F(WebJobs, FeedloopsPageGetsTheNewestCalibrationReport) {
+  Reply none = request(port(), http::verb::get, "/server/feedloop/calibration_report");
+  ASSERT_EQ(none.status, 200);
+  EXPECT_FALSE(none.body["result"]["found"].get<bool>());
+  EXPECT_NE(none.body["result"]["message"].get<std::string>().find("no calibration report yet"),
+            std::string::npos);
+  namespace fs = std::filesystem;
+  fs::create_directories(dir_ + "/ident/old");
+  fs::create_directories(dir_ + "/ident/new");
+  std::ofstream(dir_ + "/ident/old/report.json")
+      << R"({"axis":"y","baseline":{"model":"m","rms_um":9},"effects":[],"augmented":{"model":"m","rms_um":9}})";
+  fs::last_write_time(dir_ + "/ident/old/report.json",
+                      fs::file_time_type::clock::now() - std::chrono::hours(1));
+  std::ofstream(dir_ + "/ident/new/report.json")
+      << R"({"axis":"x","baseline":{"model":"thesis Eq. 13","rms_um":12.3},)"
+      << R"("effects":[{"name":"periodic_position","params":{"period_mm":33.9,"amplitude_um":25.0}}],)"
+      << R"("augmented":{"model":"thesis Eq. 13 + periodic_position","rms_um":3.1}})";
+  std::ofstream(dir_ + "/ident/new/report.md") << "# Identification report\n";
+  Reply r = request(port(), http::verb::get, "/server/feedloop/calibration_report");
+  ASSERT_EQ(r.status, 200);
+  const json& c = r.body["result"];
+  ASSERT_TRUE(c["found"].get<bool>()) << c.dump();
+  EXPECT_EQ(c["path"], dir_ + "/ident/new/report.json");
+  EXPECT_EQ(c["report"]["axis"], "x");
+  EXPECT_EQ(c["report"]["effects"][0]["name"], "periodic_position");
+  EXPECT_DOUBLE_EQ(c["report"]["augmented"]["rms_um"].get<double>(), 3.1);
+  EXPECT_EQ(c["markdown"], "# Identification report\n");
+  // A newer file that is not JSON: named, with the parser's message.
+  fs::create_directories(dir_ + "/ident/broken");
+  std::ofstream(dir_ + "/ident/broken/report.json") << "{\"axis\": ";
+  r = request(port(), http::verb::get, "/server/feedloop/calibration_report");
+  EXPECT_FALSE(r.body["result"]["found"].get<bool>());
+  const std::string msg = r.body["result"]["message"];
+  EXPECT_NE(msg.find(dir_ + "/ident/broken/report.json: not JSON"), std::string::npos) << msg;
+}
+
+}  // namespace
+}  // namespace feedloop::testing
