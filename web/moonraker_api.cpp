@@ -967,7 +967,7 @@ void MoonrakerApi::register_methods() {
   // access check (web/access.hpp: a trusted address or the API key), so the user is Moonraker's
   // trusted user. Fluidd asks at load and, without a user, fetches a oneshot token before each
   // upload (access.oneshot_token, which feedloop does not have: its uploads then failed).
-  m["access.get_user"] = [this, ok](uint64_t, const json&, Done d) {
+  m["access.get_user"] = [ok](uint64_t, const json&, Done d) {
     ok(d, {{"username", "_TRUSTED_USER_"}, {"source", "moonraker"}, {"created_on", wall_s()}});
   };
   m["access.info"] = [ok](uint64_t, const json&, Done d) {
