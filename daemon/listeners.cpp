@@ -31,7 +31,7 @@ Status ensure_parent_dir(const std::string& path) {
 }  // namespace
 
 UnixListener::UnixListener(asio::io_context& io, std::string name_prefix)
-    : io_(io), prefix_(std::move(name_prefix)), acceptor_(io) {}
+    : prefix_(std::move(name_prefix)), acceptor_(io) {}
 
 Status UnixListener::listen(const std::string& path, unsigned mode, SessionFactory on_session) {
   if (path.empty()) return Error{"socket path is empty"};

@@ -27,7 +27,6 @@ class UnixListener {
  private:
   void accept_next();
 
-  boost::asio::io_context& io_;
   std::string prefix_;
   std::string path_;
   boost::asio::local::stream_protocol::acceptor acceptor_;
