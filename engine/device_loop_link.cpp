@@ -97,16 +97,24 @@ bool DeviceLoopLink::any_enabled() const {
   return false;
 }
 
-void DeviceLoopLink::configure(int joint, drivers::McuSession& session, int64_t activation_clock) {
-  Joint& j = j_[static_cast<size_t>(joint)];
-  if (!j.params.enabled) return;
+namespace {
+// CONFIGURE_LOOP for `motor` with `params`, active at activation_clock.
+void send_configure_loop(drivers::McuSession& session, uint8_t motor, const device::LoopParams& params,
+                         int64_t activation_clock) {
   protocol::ConfigureLoopMsg m;
-  m.axis = j.motor;
+  m.axis = motor;
   m.activation_clock = activation_clock;
-  m.params = j.params;
+  m.params = params;
   uint8_t buf[protocol::kMaxPayload];
   const size_t n = protocol::encode_configure_loop(m, buf, sizeof buf);
   if (n > 0) session.queue_message(buf, n);
+}
+}  // namespace
+
+void DeviceLoopLink::configure(int joint, drivers::McuSession& session, int64_t activation_clock) {
+  Joint& j = j_[static_cast<size_t>(joint)];
+  if (!j.params.enabled) return;
+  send_configure_loop(session, j.motor, j.params, activation_clock);
   const double ticks_per_ms = static_cast<double>(session.mcu_clock_hz()) * 1e-3;
   j.compressor.configure(500.0, static_cast<int64_t>(10.0 * ticks_per_ms));
   j.pending_count = 0;
@@ -118,14 +126,9 @@ void DeviceLoopLink::configure(int joint, drivers::McuSession& session, int64_t 
 void DeviceLoopLink::disable(int joint, drivers::McuSession& session, int64_t activation_clock) {
   Joint& j = j_[static_cast<size_t>(joint)];
   if (!j.params.enabled) return;
-  protocol::ConfigureLoopMsg m;
-  m.axis = j.motor;
-  m.activation_clock = activation_clock;
-  m.params = j.params;
-  m.params.enabled = false;
-  uint8_t buf[protocol::kMaxPayload];
-  const size_t n = protocol::encode_configure_loop(m, buf, sizeof buf);
-  if (n > 0) session.queue_message(buf, n);
+  device::LoopParams off = j.params;
+  off.enabled = false;
+  send_configure_loop(session, j.motor, off, activation_clock);
   j.pending_count = 0;
   j.last_clock = INT64_MIN;
 }

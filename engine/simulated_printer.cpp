@@ -180,6 +180,21 @@ class SimulatedHeaterLink final : public HeaterLink {
   std::unique_ptr<device::HeaterBoard> board_;
 };
 
+// The simulated endstop switch of joint js (its own seed), as the config's homing places it.
+Result<std::unique_ptr<sim::EndstopSwitch>> simulated_switch(const config::MachineConfig& cfg,
+                                                             const config::HomingConfig& h, size_t js,
+                                                             const std::string& name) {
+  sim::EndstopSwitchParams sp;
+  sp.position_mm = h.position_endstop_mm;
+  sp.at_min = h.direction == config::EndstopSide::min;
+  sp.sigma_mm = cfg.simulator.endstops.sigma_um * 1e-3;
+  sp.hysteresis_mm = cfg.simulator.endstops.hysteresis_um * 1e-3;
+  sp.seed = cfg.simulator.seed + 5000 + 1000 * js;
+  auto sw = sim::EndstopSwitch::create(sp);
+  if (!sw.ok()) return Error{"simulated endstop of " + name + ": " + sw.error().message};
+  return std::make_unique<sim::EndstopSwitch>(std::move(sw.value()));
+}
+
 }  // namespace
 
 std::unique_ptr<HeaterLink> make_simulated_heater_link(const config::MachineConfig& cfg, double mcu_clock_hz) {
@@ -260,15 +275,9 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
     for (int j = 0; switches && j < 3; ++j) {
       const size_t js = static_cast<size_t>(j);
       const config::HomingConfig& h = *cfg.axis(names[js])->homing;
-      sim::EndstopSwitchParams sp;
-      sp.position_mm = h.position_endstop_mm;
-      sp.at_min = h.direction == config::EndstopSide::min;
-      sp.sigma_mm = cfg.simulator.endstops.sigma_um * 1e-3;
-      sp.hysteresis_mm = cfg.simulator.endstops.hysteresis_um * 1e-3;
-      sp.seed = cfg.simulator.seed + 5000 + 1000 * js;
-      auto sw = sim::EndstopSwitch::create(sp);
-      if (!sw.ok()) return Error{"simulated endstop of " + names[js] + ": " + sw.error().message};
-      out->switches_[js] = std::make_unique<sim::EndstopSwitch>(std::move(sw.value()));
+      auto sw = simulated_switch(cfg, h, js, names[js]);
+      if (!sw.ok()) return sw.error();
+      out->switches_[js] = std::move(sw.value());
       out->delta_endstop_ports_[js] =
           std::make_unique<DeltaEndstopPort>(*out->delta_, j, *out->switches_[js]);
     }
@@ -293,15 +302,9 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
       out->gantries_[js] = std::make_unique<sim::GantryAxis>(std::move(g.value()));
       out->encoder_mm_per_count_[js] = out->gantries_[js]->encoder_mm_per_count();
       if (has_switch) {
-        sim::EndstopSwitchParams sp;
-        sp.position_mm = ac->homing->position_endstop_mm;
-        sp.at_min = ac->homing->direction == config::EndstopSide::min;
-        sp.sigma_mm = cfg.simulator.endstops.sigma_um * 1e-3;
-        sp.hysteresis_mm = cfg.simulator.endstops.hysteresis_um * 1e-3;
-        sp.seed = cfg.simulator.seed + 5000 + 1000 * js;
-        auto sw = sim::EndstopSwitch::create(sp);
-        if (!sw.ok()) return Error{"simulated endstop of " + names[js] + ": " + sw.error().message};
-        out->switches_[js] = std::make_unique<sim::EndstopSwitch>(std::move(sw.value()));
+        auto sw = simulated_switch(cfg, *ac->homing, js, names[js]);
+        if (!sw.ok()) return sw.error();
+        out->switches_[js] = std::move(sw.value());
         out->endstop_ports_[js] =
             std::make_unique<sim::EndstopAxis>(*out->gantries_[js], *out->switches_[js]);
       }
