@@ -19,6 +19,9 @@
 //                      fields F changed to the 32 bits V (floats as their bits: NaN, inf...)
 //   9 A D D K (C C P P)*K  protocol v2 QUEUE_TARGET for motor A: K knots, the first at now + D
 //                      ticks, then clock steps C and position steps P * 1000 nm (int16)
+//  10 A L T T C        protocol v3 ENDSTOP_HOME for motor A: trigger level L, sample period T
+//                      ticks (0 disarms), C samples (each motor's switch closes at 50 steps)
+//  11 A                protocol v3 ENDSTOP_QUERY for motor A
 // Invariants (trap): every frame the device sends is whole with a valid CRC and carries a
 // device-to-host message type (v1 or v2); each motor's steps and enable changes never go back in
 // time (MotorPort's contract) and have direction +-1; no queue holds more runs than kMaxRuns.
@@ -29,6 +32,7 @@
 #include <memory>
 
 #include "drivers/device/virtual_mcu.hpp"
+#include "drivers/protocol/endstop_messages.hpp"
 #include "drivers/protocol/loop_messages.hpp"
 #include "drivers/protocol/messages.hpp"
 #include "drivers/protocol/reliable_link.hpp"
@@ -57,7 +61,12 @@ class Motor final : public device::MotorPort {
     advance(t_s);
     return position * 3;
   }
+  bool read_endstop(double t_s) override {  // a switch that closes past endstop_steps
+    advance(t_s);
+    return position >= endstop_steps;
+  }
   int64_t position = 0;
+  int64_t endstop_steps = 50;
 
  private:
   void advance(double t_s) {
@@ -113,9 +122,7 @@ class FakeHost final : private protocol::FrameOutput, private protocol::PayloadH
   void on_payload(const uint8_t* p, size_t n) override {
     check(n >= 1);
     const auto t = static_cast<MsgType>(p[0]);
-    check(t == MsgType::kIdentifyResponse || t == MsgType::kClockResponse ||
-          t == MsgType::kStatus || t == MsgType::kEncoderReport || t == MsgType::kErrorReport ||
-          t == MsgType::kLoopReport || t == MsgType::kLoopEvent);
+    check(protocol::is_device_to_host(t));
   }
 
   device::VirtualMcu& mcu_;
@@ -224,7 +231,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   uint8_t buf[protocol::kMaxPayload];
   while (!in.empty()) {
     size_t n = 0;
-    const uint8_t op = in.u8() % 10;
+    const uint8_t op = in.u8() % 12;
     if (op == 0) {
       const uint8_t* p = in.take(in.u8(), n);
       host.send(p, n);
@@ -281,6 +288,17 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       m.params = loop_params(in);
       if (const size_t len = protocol::encode_configure_loop(m, buf, sizeof buf))
         host.send(buf, len);
+    } else if (op == 10) {
+      protocol::EndstopHomeMsg m;
+      m.axis = in.u8();
+      m.trigger_level = in.u8();
+      m.sample_ticks = in.u16();
+      m.sample_count = in.u8();
+      if (const size_t len = protocol::encode_endstop_home(m, buf, sizeof buf)) host.send(buf, len);
+    } else if (op == 11) {
+      protocol::EndstopQueryMsg m;
+      m.axis = in.u8();
+      if (const size_t len = protocol::encode_endstop_query(m, buf, sizeof buf)) host.send(buf, len);
     } else {
       const uint8_t axis = in.u8();
       device::TargetKnot knots[16];

@@ -50,6 +50,26 @@ enum class MsgType : uint8_t {
   kEndstopState = 0x91,      // v3: u8 axis, u8 pin, u8 armed, u8 triggered
 };
 
+// True for the types a device sends (a host refuses any other type from a device).
+constexpr bool is_device_to_host(MsgType t) {
+  switch (t) {
+    case MsgType::kIdentifyResponse:
+    case MsgType::kClockResponse:
+    case MsgType::kStatus:
+    case MsgType::kEncoderReport:
+    case MsgType::kErrorReport:
+    case MsgType::kLoopReport:
+    case MsgType::kLoopEvent:
+    case MsgType::kHeaterReport:
+    case MsgType::kHeaterFault:
+    case MsgType::kEndstopTrigger:
+    case MsgType::kEndstopState:
+      return true;
+    default:
+      return false;
+  }
+}
+
 enum class McuError : uint8_t {
   kNone = 0,
   kVersionMismatch = 1,  // detail: the device's version
