@@ -121,6 +121,8 @@ Result<SimRunResult> run_simulated(const config::MachineConfig& cfg,
                  (why[0] ? ": " : "") + why};
   }
   ready_ns = now_ns;
+  const int64_t idle_end = now_ns + static_cast<int64_t>(std::llround(options.idle_before_s * 1e9));
+  while (now_ns < idle_end) cycle();
 
   int line_no = 0;
   for (const std::string& line : gcode_lines) {

@@ -54,6 +54,7 @@ struct SimRunOptions {
   std::vector<LostStepInjection> lose_steps;
   std::vector<EncoderGlitchInjection> encoder_glitches;
   std::vector<HostStall> stalls;  // in time order
+  double idle_before_s = 0.0;     // the machine runs idle this long after the MCUs are ready
 };
 
 // One servo period of the run: what the pipeline commanded and what the simulated machine did.

@@ -32,7 +32,7 @@ void AxisLoop::init(float clock_hz) {
   plaus_.reset();
   slip_.reset();
   have_tick_ = false;
-  align_pending_ = false;
+  align_pending_ = settle_pending_ = false;
   have_report_origin_ = false;
   have_hold_r_ = false;
   r_nm_ = y_nm_ = hold_r_nm_ = 0;
@@ -233,8 +233,12 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
       next_grid_clock_ = align_clock_ - ((align_clock_ - in.clock - 1) / period) * period;
       report_origin_clock_ = align_clock_;
       have_report_origin_ = true;
+      settle_pending_ = true;
+      settle_clock_ = align_clock_;
     }
   }
+  const bool settle_pi = settle_pending_ && in.clock >= settle_clock_ - period / 2;  // the first knot's tick
+  if (settle_pi) settle_pending_ = false;
   const bool first_tick = !have_tick_;
   have_tick_ = true;
   last_tick_clock_ = in.clock;
@@ -326,6 +330,7 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
     }
     // 3. PI on the elapsed MCU time.
     pi_.update(e_nm_, dt_s);
+    if (settle_pi) pi_.set_output(static_cast<float>(in.device_steps) * step_nm_);
     // 4. Skipped steps: motor - carriage against the deflection model, or behind a model inverse
     //    against the lead its steps have over r (the host's steps: all but the loop's own).
     const float deflection =

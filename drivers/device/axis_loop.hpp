@@ -164,6 +164,13 @@ class AxisLoop {
   // clock frame").
   bool align_pending_ = false;
   int64_t align_clock_ = 0;
+  // The tick on a motion's first knot sets the PI's output to the correction already stepped
+  // (device_steps): what the integral gathered at rest below one step, over however long the
+  // carriage waited (and the knot arrived ahead), does not carry into the motion, so a motion
+  // starts from the same loop state whenever it starts (issue 13's wall-clock comparison;
+  // docs/decisions.md, "One motion, one clock frame").
+  bool settle_pending_ = false;
+  int64_t settle_clock_ = 0;
   bool have_report_origin_ = false;  // LOOP_REPORTs every report_every_ticks of that grid
   int64_t report_origin_clock_ = 0;
   // Derived from p_.

@@ -23,6 +23,12 @@ class LoopPi {
   void shift(float shift_nm);
   // Restores the integral (the recovery after a slip drops what it gained from the slip's error).
   void set_integral(float integral_nm) { integral_nm_ = integral_nm; }
+  // Sets the integral so that the output for the last error is u_nm (a motion's start: the output
+  // the steps already made, without the fraction of a step the integral held at rest).
+  void set_output(float u_nm) {
+    integral_nm_ = u_nm - offset_nm_ - kp_ * last_error_nm_;
+    u_nm_ = u_nm;
+  }
 
   float output_nm() const { return u_nm_; }
   float integral_nm() const { return integral_nm_; }

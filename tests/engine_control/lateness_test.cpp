@@ -82,6 +82,48 @@ TEST(Lateness, StallsShorterThanTheLeadChangeNothing) {
   }
 }
 
+// The wall-clock runs start their print at another MCU clock each time: in virtual time, the same
+// print after idle times of different lengths must give the same encoder trace, shifted.
+TEST(Lateness, TheStartTimeChangesNothing) {
+  const config::MachineConfig cfg = device_loop_config();
+  std::vector<std::map<int64_t, std::array<double, 2>>> runs;
+  const std::vector<int> idle_ms = {0, 4321, 6789};
+  for (int idle : idle_ms) {
+    SimRunOptions o;
+    o.idle_before_s = idle * 1e-3;
+    auto run = run_simulated(cfg, program(), o);
+    ASSERT_TRUE(run.ok()) << run.error().message;
+    ASSERT_EQ(run.value().error, "");
+    // Aligned on the first servo sample where x has left its rest position.
+    const auto traj = trajectory(run.value());
+    int64_t start_us = -1;
+    for (const auto& [t_us, xy] : traj)
+      if (std::fabs(xy[0] - traj.begin()->second[0]) > 1e-4) {
+        start_us = t_us;
+        break;
+      }
+    ASSERT_GE(start_us, 0);
+    std::printf("idle %d ms: x leaves its rest at %.3f s\n", idle, start_us * 1e-6);
+    std::map<int64_t, std::array<double, 2>> shifted;
+    for (const auto& [t_us, xy] : traj) shifted[t_us - start_us] = xy;
+    runs.push_back(std::move(shifted));
+  }
+  for (size_t k = 1; k < runs.size(); ++k) {
+    size_t compared = 0;
+    double worst_mm = 0.0;
+    for (const auto& [t_us, xy] : runs[k]) {
+      auto it = runs[0].find(t_us);
+      if (it == runs[0].end() || t_us < 0) continue;
+      ++compared;
+      for (size_t j = 0; j < 2; ++j) worst_mm = std::max(worst_mm, std::fabs(xy[j] - it->second[j]));
+    }
+    std::printf("idle %d ms before the print: %zu samples compared, largest carriage difference %.3f um\n",
+                idle_ms[k], compared, worst_mm * 1e3);
+    EXPECT_GT(compared, 3000u);
+    EXPECT_LE(worst_mm, 0.49e-3);
+  }
+}
+
 TEST(Lateness, AStallLongerThanTheLeadEndsInAControlledStopThatNamesIt) {
   const config::MachineConfig cfg = device_loop_config();
   SimRunOptions o;

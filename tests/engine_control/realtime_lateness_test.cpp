@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdlib>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -61,12 +62,14 @@ class CarriageTap final : public TelemetryTap {
   // motion's tick grid: the same instants of the motion in every run) with its tick.
   void on_device_loop_report(const DeviceLoopReport& r) override {
     if ((r.joint == 0 || r.joint == 1) && reports.size() < reports.capacity())
-      reports.push_back({r.joint, r.clock, r.y_mm});
+      reports.push_back({r.joint, r.clock, r.y_mm, r.e_mm + r.y_mm, r.correction_mm});
   }
   struct Report {
     int joint;
     int64_t clock;
     double y_mm;
+    double r_mm;           // the reference r(t) the MCU followed at the tick (e + y)
+    double correction_mm;  // the PI's output
   };
   std::vector<Report> reports;
   void on_servo_sample(const ServoSample& s) override {
@@ -202,8 +205,12 @@ double largest_encoder_difference_counts(const RunResult& run, const RunResult& 
   std::map<std::pair<int, int64_t>, double> at;
   for (const auto& r : ref.reports)
     at[{r.joint, r.clock - (r.joint == 0 ? ref.start_clock_x : ref.start_clock_y)}] = r.y_mm;
+  std::map<std::pair<int, int64_t>, const CarriageTap::Report*> ref_at;
+  for (const auto& r : ref.reports)
+    ref_at[{r.joint, r.clock - (r.joint == 0 ? ref.start_clock_x : ref.start_clock_y)}] = &r;
   compared = 0;
-  double worst = 0.0;
+  double worst = 0.0, worst_r_mm = 0.0;
+  int64_t first_y = -1, first_r = -1, first_u = -1;
   for (const auto& r : run.reports) {
     const int64_t rel = r.clock - (r.joint == 0 ? run.start_clock_x : run.start_clock_y);
     if (rel < 0) continue;
@@ -211,7 +218,19 @@ double largest_encoder_difference_counts(const RunResult& run, const RunResult& 
     if (it == at.end()) continue;
     ++compared;
     worst = std::max(worst, std::fabs(r.y_mm - it->second) / kCountMm);
+    const CarriageTap::Report& q = *ref_at[{r.joint, rel}];
+    worst_r_mm = std::max(worst_r_mm, std::fabs(r.r_mm - q.r_mm));
+    if (first_y < 0 && std::fabs(r.y_mm - q.y_mm) > 0.5 * kCountMm) first_y = rel;
+    if (first_r < 0 && std::fabs(r.r_mm - q.r_mm) > 1e-6) first_r = rel;
+    if (first_u < 0 && std::fabs(r.correction_mm - q.correction_mm) > 1e-6) first_u = rel;
   }
+  // Where two runs part, if they do (-1: never): r(t) from the host, y read by the MCU, and the
+  // PI's output (which may differ before the motion's first knot: the integral the carriage
+  // gathered at rest, set aside on that knot).
+  std::printf("  (r(t) differs by %.4f um at most, first at tick %lld; y first differs at tick "
+              "%lld; the correction at tick %lld)\n",
+              worst_r_mm * 1e3, static_cast<long long>(first_r), static_cast<long long>(first_y),
+              static_cast<long long>(first_u));
   return worst;
 }
 
@@ -237,11 +256,13 @@ TEST(RealtimeLateness, StallsShorterThanTheLeadChangeNothing) {
       static_cast<unsigned long long>(base.clock_frame_refreshes),
       static_cast<unsigned long long>(again.clock_frame_refreshes));
   const double microstep_mm = 1.0 / 94.314;
-  // The bound on the carriages: one and a half microsteps, with or without stalls. At equal host
-  // print time the runs also differ by how well the host knew the MCUs' clocks when the motion
-  // started, and a microstep of the loop's correction that falls differently (docs/decisions.md,
-  // "One motion, one clock frame").
+  // The encoder traces as the MCUs read them, tick for tick of the motion: within one encoder
+  // count, with or without stalls (issue 13). The carriages at equal host print time differ by
+  // more: by how well the host knew the MCUs' clocks when the motion started (the host's time
+  // axis, not the motion): one and a half microsteps (docs/decisions.md, "One motion, one clock
+  // frame").
   const double bound_mm = 1.5 * microstep_mm;
+  EXPECT_LE(floor_counts, 1.0);
   EXPECT_LE(floor_mm, bound_mm);
   EXPECT_GT(reports, 2000u);
   int identical = 0;
@@ -270,7 +291,7 @@ TEST(RealtimeLateness, StallsShorterThanTheLeadChangeNothing) {
     EXPECT_GT(compared, 3000u);
     EXPECT_GT(std::min(r1, r2), 1000u);
     EXPECT_LE(worst_mm, bound_mm) << stall_ms << " ms";
-    EXPECT_LE(counts * 0.49e-3, bound_mm) << stall_ms << " ms";
+    EXPECT_LE(counts, 1.0) << stall_ms << " ms: the encoder trace, in counts";
   }
   std::printf("stalled runs whose encoder trace equals a stall-free run's within one count: %d of 4\n",
               identical);
