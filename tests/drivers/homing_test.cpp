@@ -292,6 +292,21 @@ TEST(EndstopMessages, RoundTripAndRejectTruncation) {
   EXPECT_EQ(hd.sample_ticks, 1000u);
   EXPECT_EQ(buf[0], 0x10);
   EXPECT_FALSE(protocol::decode_endstop_home(buf, m - 1, hd));
+  // The first v3 form (no source byte) is the switch input; kNow adds one byte; an unknown source
+  // or a second trailing byte is refused.
+  EXPECT_EQ(hd.source, protocol::EndstopSource::kPin);
+  EXPECT_EQ(m, 1u + 1u + 1u + 2u + 1u);  // type, motor, level, var 1000, count
+  h.source = protocol::EndstopSource::kNow;
+  const size_t m2 = protocol::encode_endstop_home(h, buf, sizeof buf);
+  ASSERT_EQ(m2, m + 1);
+  ASSERT_TRUE(protocol::decode_endstop_home(buf, m2, hd));
+  EXPECT_EQ(hd.source, protocol::EndstopSource::kNow);
+  EXPECT_EQ(hd.sample_count, 4);
+  buf[m2 - 1] = protocol::kEndstopSourceCount;
+  EXPECT_FALSE(protocol::decode_endstop_home(buf, m2, hd));
+  buf[m2 - 1] = 1;
+  buf[m2] = 0;
+  EXPECT_FALSE(protocol::decode_endstop_home(buf, m2 + 1, hd));
 }
 
 TEST(EndstopSwitch, HysteresisAndScatter) {
