@@ -103,7 +103,7 @@ class SimulatedPrinter final : public SimulatedPlant {
     if (delta_) return joint < 3 ? &delta_->carriage_port(joint) : nullptr;
     if (endstop_ports_[static_cast<size_t>(joint)])
       return endstop_ports_[static_cast<size_t>(joint)].get();
-    if (corexy_ports_[static_cast<size_t>(joint)])
+    if (joint < 2 && corexy_ports_[static_cast<size_t>(joint)])
       return corexy_ports_[static_cast<size_t>(joint)].get();
     return gantries_[static_cast<size_t>(joint)].get();
   }
