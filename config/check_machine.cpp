@@ -82,6 +82,26 @@ void check_machine(const MachineConfig& cfg, const Marks& marks, Diagnostics& di
   }
   if (cfg.kinematics == Kinematics::delta && cfg.delta) check_delta_reach(cfg, marks, diag);
 
+  // CoreXY homing moves both motors step for step (x = (A + B) / 2, y = (A - B) / 2: one step of
+  // the carriage is one step of each), so both belts need the same steps/mm; and the carriage
+  // homes X and Y through both motors, so a homing section needs the other axis's too.
+  if (cfg.kinematics == Kinematics::corexy) {
+    const AxisConfig* x = cfg.axis("x");
+    const AxisConfig* y = cfg.axis("y");
+    if (x && y && (x->homing || y->homing)) {
+      const AxisConfig& h = x->homing ? *x : *y;
+      const auto it = marks.axis.find(h.name);
+      const YAML::Mark where = it != marks.axis.end() ? it->second : marks.axes;
+      if (x->steps_per_mm != y->steps_per_mm)
+        diag.add(where, "axes." + h.name + ".homing: corexy homing moves motors A and B step for step: "
+                        "x and y need the same steps_per_mm (" + format_number(x->steps_per_mm) +
+                            " and " + format_number(y->steps_per_mm) + ")");
+      if (!x->homing || !y->homing)
+        diag.add(where, "axes." + h.name + ".homing: a corexy carriage homes through both motors: give "
+                        "x and y a homing section each (or neither)");
+    }
+  }
+
   // Step batches must be sent at least two servo periods ahead of their execution, or every
   // period would arrive late at the MCU.
   const double period_ms = 1000.0 / cfg.servo.rate_hz;

@@ -166,11 +166,6 @@ void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& d
       if (is_e)
         diag.add(a.key_mark("homing"),
                  a.path() + ": the extruder has no endstop (homing is for the motion axes)");
-      else if (kinematics_known && cfg.kinematics == Kinematics::corexy)
-        diag.add(a.key_mark("homing"),
-                 a.path() +
-                     ".homing: homing through endstops is implemented for kinematics "
-                     "cartesian and delta, not corexy (docs/homing.md)");
       else
         read_homing(a, axis, diag);
     } else {

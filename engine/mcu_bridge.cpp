@@ -1,7 +1,7 @@
 // The machine's MCUs behind the step pipeline: see mcu_bridge.hpp.
 #include "engine/mcu_bridge.hpp"
 
-#include <algorithm>  // std::min
+#include <algorithm>  // std::min, std::max
 #include <cmath>      // std::fabs, NAN
 #include <cstdio>     // snprintf
 
@@ -216,32 +216,53 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
   publish_loop_telemetry();  // which joints have a device loop, before any report
   // Homing sequences for the joints with an endstop (axes.<name>.homing), built now so that a G28
   // allocates nothing on the servo thread. Cartesian axes and delta carriages (each on its own
-  // switch); a corexy carriage's switch is not on one motor's own axis (docs/homing.md "Not done").
-  if (cfg.kinematics != config::Kinematics::corexy) {
-    for (int j = 0; j < 3; ++j) {
-      const size_t js = static_cast<size_t>(j);
-      const config::AxisConfig* a = cfg.axis(names[js]);
-      if (a == nullptr || !a->homing || joint_mcu_[js] < 0 || !(spm[js] > 0.0)) continue;
-      const config::HomingConfig& h = *a->homing;
-      drivers::HomingParams hp;
-      hp.axis_name = names[js];
-      hp.motor = static_cast<uint8_t>(joint_motor_[js]);
-      hp.mm_per_step = 1.0 / spm[js];
-      hp.position_endstop_mm = h.position_endstop_mm;
-      hp.direction = h.direction == config::EndstopSide::min ? -1 : 1;
-      hp.max_travel_mm = h.max_travel_mm;
-      hp.homing_speed_mm_s = h.homing_speed_mm_s;
-      hp.second_homing_speed_mm_s = h.second_homing_speed_mm_s;
-      hp.retract_dist_mm = h.retract_dist_mm;
-      hp.second_touch = h.retract_dist_mm > 0.0;
-      hp.accel_mm_s2 = a->max_accel_mm_s2;
-      hp.queue_ahead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
-      if (Status st = drivers::check_homing_params(hp); !st)
-        return Error{"axes." + names[js] + ".homing: " + st.error().message};
-      homing_[js] = std::make_unique<drivers::HomingSequence>(
-          hp, *mcus_[static_cast<size_t>(joint_mcu_[js])]->session);
-      endstop_max_[js] = hp.direction > 0;
+  // switch); on a CoreXY machine the Cartesian carriage's X and Y (each moves both motors: A =
+  // x + y, B = x - y, planner/linear_kinematics.hpp). The X switch is read on motor A's endstop
+  // input, the Y switch on B's; the other motor follows, its stop relayed by the host
+  // (drivers/host/homing.hpp, docs/decisions.md "CoreXY homing").
+  corexy_ = cfg.kinematics == config::Kinematics::corexy;
+  for (auto& hj : homing_joints_) hj = {-1, -1};
+  for (int j = 0; j < 3; ++j) {
+    const size_t js = static_cast<size_t>(j);
+    const config::AxisConfig* a = cfg.axis(names[js]);
+    if (a == nullptr || !a->homing || joint_mcu_[js] < 0 || !(spm[js] > 0.0)) continue;
+    const config::HomingConfig& h = *a->homing;
+    drivers::HomingParams hp;
+    hp.axis_name = names[js];
+    hp.motor = static_cast<uint8_t>(joint_motor_[js]);
+    hp.mm_per_step = 1.0 / spm[js];
+    hp.position_endstop_mm = h.position_endstop_mm;
+    hp.direction = h.direction == config::EndstopSide::min ? -1 : 1;
+    hp.max_travel_mm = h.max_travel_mm;
+    hp.homing_speed_mm_s = h.homing_speed_mm_s;
+    hp.second_homing_speed_mm_s = h.second_homing_speed_mm_s;
+    hp.retract_dist_mm = h.retract_dist_mm;
+    hp.second_touch = h.retract_dist_mm > 0.0;
+    hp.accel_mm_s2 = a->max_accel_mm_s2;
+    hp.queue_ahead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
+    drivers::McuSession* follower_session = nullptr;
+    homing_joints_[js] = {j, -1};
+    if (corexy_ && j < 2) {
+      // X: A (+1 step per x step) with B following (+1); Y: B (-1 per y step) with A (+1).
+      const int other = 1 - j;
+      const size_t os = static_cast<size_t>(other);
+      if (joint_mcu_[os] < 0)
+        return Error{"axes." + names[js] + ".homing: the corexy carriage needs both motors on an MCU"};
+      if (spm[0] != spm[1])
+        return Error{"axes." + names[js] + ".homing: corexy homing needs the same steps_per_mm on x and y (" +
+                     std::to_string(spm[0]) + " and " + std::to_string(spm[1]) + ")"};
+      hp.motor_sign = j == 0 ? 1 : -1;
+      hp.has_follower = true;
+      hp.follower_motor = static_cast<uint8_t>(joint_motor_[os]);
+      hp.follower_sign = 1;
+      follower_session = mcus_[static_cast<size_t>(joint_mcu_[os])]->session.get();
+      homing_joints_[js] = {j, other};
     }
+    if (Status st = drivers::check_homing_params(hp); !st)
+      return Error{"axes." + names[js] + ".homing: " + st.error().message};
+    homing_[js] = std::make_unique<drivers::HomingSequence>(
+        hp, *mcus_[static_cast<size_t>(joint_mcu_[js])]->session, follower_session);
+    endstop_max_[js] = hp.direction > 0;
   }
   return Status::Ok();
 }
@@ -253,19 +274,29 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
 // steps not matched with the pipeline's batches.
 bool McuBridge::begin_joint_homing(int j, double now_s) {
   const size_t js = static_cast<size_t>(j);
-  drivers::McuSession& session = *mcus_[static_cast<size_t>(joint_mcu_[js])]->session;
-  if (loop_link_.enabled(j)) {
-    loop_link_.disable(j, session,
-                       static_cast<int64_t>(std::llround(session.tick_map().ticks(now_s + 0.01))));
-    loops_configured_ = false;
+  for (const int m : homing_joints_[js]) {  // the motors this sequence moves
+    if (m < 0) continue;
+    drivers::McuSession& session = *mcus_[static_cast<size_t>(joint_mcu_[static_cast<size_t>(m)])]->session;
+    if (loop_link_.enabled(m)) {
+      loop_link_.disable(m, session,
+                         static_cast<int64_t>(std::llround(session.tick_map().ticks(now_s + 0.01))));
+      loops_configured_ = false;
+    }
+    if (ports_[static_cast<size_t>(m)]) ports_[static_cast<size_t>(m)]->homing = true;
   }
-  if (ports_[js]) ports_[js]->homing = true;
   homing_started_ |= 1u << j;
   if (Status st = homing_[js]->start(0, now_s); !st) {
     std::snprintf(homing_error_, sizeof homing_error_, "%s", st.error().message.c_str());  // rare
     return false;
   }
   return true;
+}
+
+// Does sequence `seq` move a motor on MCU `mcu`?
+bool McuBridge::homing_uses_mcu(int seq, int mcu) const {
+  for (const int m : homing_joints_[static_cast<size_t>(seq)])
+    if (m >= 0 && joint_mcu_[static_cast<size_t>(m)] == mcu) return true;
+  return false;
 }
 
 // Joints on different MCUs home together; joints sharing an MCU one after the other (the MCU's
@@ -275,11 +306,11 @@ bool McuBridge::start_pending_homings(double now_s) {
     const unsigned bit = 1u << j;
     if ((homing_mask_ & bit) == 0 || (homing_started_ & bit) != 0) continue;
     bool mcu_busy = false;
-    for (int k = 0; k < kJoints; ++k)
-      if ((homing_started_ >> k & 1u) != 0 &&
-          joint_mcu_[static_cast<size_t>(k)] == joint_mcu_[static_cast<size_t>(j)] &&
-          homing_[static_cast<size_t>(k)]->running())
-        mcu_busy = true;
+    for (int k = 0; k < kJoints; ++k) {
+      if ((homing_started_ >> k & 1u) == 0 || !homing_[static_cast<size_t>(k)]->running()) continue;
+      for (const int m : homing_joints_[static_cast<size_t>(j)])
+        if (m >= 0 && homing_uses_mcu(k, joint_mcu_[static_cast<size_t>(m)])) mcu_busy = true;
+    }
     if (mcu_busy) continue;
     if (!begin_joint_homing(j, now_s)) return false;
   }
@@ -301,6 +332,9 @@ bool McuBridge::start_homing(unsigned joint_mask, double host_s, char* why, size
   const double now_s = host_s - epoch_s_;
   homing_mask_ = joint_mask;
   homing_started_ = 0;
+  homing_finished_ = 0;
+  homing_shift_mm_ = {};
+  homing_result_mm_ = {};
   homing_state_ = HomingState::kRunning;
   homing_settle_until_s_ = -1.0;
   homing_error_[0] = '\0';
@@ -322,9 +356,11 @@ void McuBridge::abort_homing(const char* why) {
 }
 
 void McuBridge::end_homing(HomingState state) {
-  for (int j = 0; j < kJoints; ++j)
-    if ((homing_mask_ >> j & 1u) != 0 && ports_[static_cast<size_t>(j)])
-      ports_[static_cast<size_t>(j)]->homing = false;
+  for (int j = 0; j < kJoints; ++j) {
+    if ((homing_mask_ >> j & 1u) == 0) continue;
+    for (const int m : homing_joints_[static_cast<size_t>(j)])
+      if (m >= 0 && ports_[static_cast<size_t>(m)]) ports_[static_cast<size_t>(m)]->homing = false;
+  }
   homing_state_ = state;
 }
 
@@ -352,7 +388,12 @@ void McuBridge::poll_homing(double now_s) {
       end_homing(HomingState::kFailed);
       return;
     }
-    if (ph != drivers::HomingPhase::kDone) all_done = false;
+    if (ph != drivers::HomingPhase::kDone) {
+      all_done = false;
+    } else if (corexy_ && j < 2 && (homing_finished_ >> j & 1u) == 0) {
+      homing_finished_ |= 1u << j;  // in the order they ran (X and Y share the motors)
+      corexy_homed(j);
+    }
   }
   if (homing_started_ != homing_mask_) {
     if (!start_pending_homings(now_s)) {
@@ -370,11 +411,19 @@ void McuBridge::poll_homing(double now_s) {
     const size_t js = static_cast<size_t>(j);
     if ((homing_mask_ >> j & 1u) == 0) continue;
     const drivers::HomingResult& r = homing_[js]->result();
-    homed_mm_[js].store(r.position_mm, std::memory_order_relaxed);
+    const bool cartesian_carriage = corexy_ && j < 2;
+    homed_mm_[js].store(cartesian_carriage ? homing_result_mm_[js] : r.position_mm,
+                        std::memory_order_relaxed);
     first_touch_mm_[js].store(r.first_trigger_mm, std::memory_order_relaxed);
-    homed_truth_mm_[js].store(
-        plant_ && mcus_[static_cast<size_t>(joint_mcu_[js])]->vmcu ? plant_->carriage_mm(j) : NAN,
-        std::memory_order_relaxed);
+    relay_lag_steps_[js].store(r.relay_lag_steps, std::memory_order_relaxed);
+    double truth = NAN;
+    if (plant_ && mcus_[static_cast<size_t>(joint_mcu_[js])]->vmcu) {
+      // CoreXY: the carriage from the belts' ends, x = (A + B) / 2, y = (A - B) / 2.
+      truth = !cartesian_carriage ? plant_->carriage_mm(j)
+              : j == 0            ? 0.5 * (plant_->carriage_mm(0) + plant_->carriage_mm(1))
+                                  : 0.5 * (plant_->carriage_mm(0) - plant_->carriage_mm(1));
+    }
+    homed_truth_mm_[js].store(truth, std::memory_order_relaxed);
     homing_count_[js].fetch_add(1, std::memory_order_relaxed);
     endstop_state_[js].store(1, std::memory_order_relaxed);  // it stopped on its switch
   }
@@ -411,6 +460,34 @@ void McuBridge::poll_endstops(double now_s) {
   }
 }
 
+// A CoreXY sequence done: the homed axis at the endstop plus the mean of both motors' steps after
+// the trigger (HomingResult::position_mm), and the other axis moved by the motors' difference over
+// the whole sequence (the follower's relayed overshoot). Axes homed earlier in this G28 move with
+// it (Y after X: the homed x shifts by what the Y homing did to x).
+void McuBridge::corexy_homed(int axis) {
+  const drivers::HomingSequence& h = *homing_[static_cast<size_t>(axis)];
+  const drivers::HomingResult& r = h.result();
+  const drivers::HomingParams& p = h.params();
+  // Each motor's travel over the sequence (steps), as A and B.
+  const double primary = static_cast<double>(r.stop_steps - r.start_steps);
+  const double follower = static_cast<double>(r.follower_stop_steps - r.follower_start_steps);
+  const double d_a = axis == 0 ? primary : follower;
+  const double d_b = axis == 0 ? follower : primary;
+  const std::array<double, 2> moved_mm = {0.5 * (d_a + d_b) * p.mm_per_step,
+                                          0.5 * (d_a - d_b) * p.mm_per_step};
+  const int other = 1 - axis;
+  const size_t os = static_cast<size_t>(other);
+  homing_shift_mm_[os] += moved_mm[os];
+  if ((homing_finished_ >> other & 1u) != 0) homing_result_mm_[os] += moved_mm[os];
+  homing_result_mm_[static_cast<size_t>(axis)] = r.position_mm;
+  homing_shift_mm_[static_cast<size_t>(axis)] = 0.0;
+}
+
+double McuBridge::homing_shift_mm(int axis) const {
+  if (axis < 0 || axis > 2 || !corexy_) return 0.0;
+  return homing_shift_mm_[static_cast<size_t>(axis)];
+}
+
 double McuBridge::homed_position_mm(int joint) const {
   if (joint < 0 || joint >= kJoints) return NAN;
   return homed_mm_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
@@ -418,8 +495,17 @@ double McuBridge::homed_position_mm(int joint) const {
 
 int64_t McuBridge::homing_last_step_clock(int joint) const {
   // Only the joints of the last homing (an earlier one's clock is long past the joint's stream).
-  if (!can_home(joint) || (homing_started_ >> joint & 1u) == 0) return INT64_MIN;
-  return homing_[static_cast<size_t>(joint)]->last_queued_clock();
+  // A CoreXY motor is streamed by both carriage sequences: the later clock (one MCU's clock).
+  if (joint < 0 || joint >= kJoints) return INT64_MIN;
+  int64_t last = INT64_MIN;
+  for (int k = 0; k < kJoints; ++k) {
+    if (!homing_[static_cast<size_t>(k)] || (homing_started_ >> k & 1u) == 0) continue;
+    const auto& hj = homing_joints_[static_cast<size_t>(k)];
+    if (hj[0] == joint) last = std::max(last, homing_[static_cast<size_t>(k)]->last_queued_clock());
+    if (hj[1] == joint)
+      last = std::max(last, homing_[static_cast<size_t>(k)]->follower_last_queued_clock());
+  }
+  return last;
 }
 
 void McuBridge::homing_error(char* out, size_t cap) const {
@@ -443,6 +529,7 @@ HomingReport McuBridge::homing_report(int joint) const {
   r.true_carriage_mm = homed_truth_mm_[js].load();
   r.first_touch_mm = first_touch_mm_[js].load();
   r.count = homing_count_[js].load();
+  r.relay_lag_steps = relay_lag_steps_[js].load();
   return r;
 }
 

@@ -72,9 +72,11 @@ struct JointTiming {
 // One joint's last homing through its endstop (simulation adds the plant's ground truth).
 struct HomingReport {
   double homed_mm = NAN;          // the host's homed motor position (HomingResult::position_mm)
-  double true_carriage_mm = NAN;  // the simulated carriage's true position then (NaN: real MCU)
+  double true_carriage_mm = NAN;  // the simulated carriage's true position then (NaN: real MCU;
+                                  // CoreXY: the Cartesian carriage's, from both belts' ends)
   double first_touch_mm = NAN;    // the fast approach's trigger, in the final frame
   uint64_t count = 0;             // homings of this joint so far
+  int64_t relay_lag_steps = 0;    // CoreXY: the second motor's steps after the first stopped
 };
 
 class McuBridge final : public stepgen::BatchSink, public ServoBackend {
@@ -122,6 +124,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   void abort_homing(const char* why) override;
   HomingState homing_state() const override { return homing_state_; }
   double homed_position_mm(int joint) const override;
+  double homing_shift_mm(int axis) const override;
   int64_t homing_last_step_clock(int joint) const override;
   void homing_error(char* out, size_t cap) const override;
   int endstop_state(int joint) const override;
@@ -222,6 +225,15 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   bool start_pending_homings(double now_s);
   unsigned homing_started_ = 0;
   std::array<std::unique_ptr<drivers::HomingSequence>, kJoints> homing_;
+  // The joints each sequence moves: its primary motor's and, CoreXY, the follower's (-1: none).
+  std::array<std::array<int, 2>, kJoints> homing_joints_{};
+  bool corexy_ = false;
+  bool homing_uses_mcu(int seq, int mcu) const;
+  void corexy_homed(int axis);  // a CoreXY sequence done: its axis's position, the other's shift
+  std::array<double, 3> homing_shift_mm_{};   // servo thread: this homing's shifts (CoreXY)
+  std::array<double, 3> homing_result_mm_{};  // servo thread: this homing's positions (CoreXY)
+  unsigned homing_finished_ = 0;              // CoreXY: sequences whose result is taken
+  std::array<std::atomic<int64_t>, kJoints> relay_lag_steps_{};
   std::array<bool, kJoints> endstop_max_{};
   unsigned homing_mask_ = 0;
   HomingState homing_state_ = HomingState::kIdle;

@@ -103,7 +103,7 @@ void MotionExecutor::pause_for_machine() {
 // Every X/Y/Z joint has an endstop on its MCU (axes.<name>.homing): G28 homes through them.
 // Otherwise G28 stays the interpreter's move to the home position (batch mode, ideal plants).
 bool MotionExecutor::homes_through_endstops() const {
-  if (backend_ == nullptr || pcfg_.kinematics == planner::KinematicsKind::corexy) return false;
+  if (backend_ == nullptr) return false;
   for (int j = 0; j < 3; ++j)
     if (!backend_->can_home(j)) return false;
   return true;
@@ -180,8 +180,11 @@ Status MotionExecutor::home(const gcode::Command& cmd, const std::atomic<bool>& 
     }
     for (int i = 0; i < 3; ++i) at[static_cast<size_t>(i)] = nozzle.value()[static_cast<size_t>(i)];
   } else {
+    // Cartesian: the joints are the axes. CoreXY: the bridge homes the Cartesian carriage (X and Y
+    // each with both motors) and says how far that moved an axis it did not home.
     for (int i = 0; i < 3; ++i)
-      if (axes[i]) at[static_cast<size_t>(i)] = homed_joint_mm_[static_cast<size_t>(i)];
+      at[static_cast<size_t>(i)] = axes[i] ? homed_joint_mm_[static_cast<size_t>(i)]
+                                           : at[static_cast<size_t>(i)] + homing_shift_mm_[static_cast<size_t>(i)];
   }
   for (int i = 0; i < 3; ++i)
     if (axes[i]) homed_axis_mm_[static_cast<size_t>(i)].store(at[static_cast<size_t>(i)]);
@@ -224,6 +227,7 @@ void MotionExecutor::homing_cycle(double now_s, bool cancel) {
     case ServoBackend::HomingState::kDone:
       for (int j = 0; j < kJoints; ++j)
         homed_joint_mm_[static_cast<size_t>(j)] = backend_->homed_position_mm(j);
+      for (int i = 0; i < 3; ++i) homing_shift_mm_[static_cast<size_t>(i)] = backend_->homing_shift_mm(i);
       after_homing();
       homing_req_.store(kHomingDone, std::memory_order_release);
       return;

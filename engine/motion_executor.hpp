@@ -153,6 +153,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   std::atomic<int> homing_req_{kNoHoming};
   std::atomic<unsigned> homing_mask_{0};
   std::array<double, kJoints> homed_joint_mm_{};        // servo thread writes before kHomingDone
+  std::array<double, 3> homing_shift_mm_{};            // (CoreXY) likewise: unhomed axes moved
   char homing_error_[192] = {};                         // servo thread writes before kHomingFailed
   std::array<std::atomic<double>, 3> homed_axis_mm_{};  // status: each axis's last homed position
   std::atomic<uint64_t> homings_{0};

@@ -62,7 +62,8 @@ class ServoBackend {
 
   // Homing through the endstops (docs/homing.md; drivers/host/homing.hpp on each joint's MCU).
   enum class HomingState { kIdle, kRunning, kDone, kFailed };
-  // `joint` has an endstop and a homing sequence. Any thread (fixed at construction).
+  // `joint` has an endstop and a homing sequence. Any thread (fixed at construction). On a CoreXY
+  // machine the homing's "joints" are the Cartesian axes X, Y, Z (X and Y each move both motors).
   virtual bool can_home(int /*joint*/) const { return false; }
   // Servo thread, with no motion running: starts homing every joint in joint_mask (bit j) at host
   // time now_s, the joints together. false (and the reason in why) when it cannot start.
@@ -76,6 +77,9 @@ class ServoBackend {
   virtual HomingState homing_state() const { return HomingState::kIdle; }
   // After kDone: each homed joint's motor position (mm) where it stopped. Servo thread.
   virtual double homed_position_mm(int /*joint*/) const { return NAN; }
+  // After kDone: how far the homing moved an axis it did not home (mm; CoreXY: homing X moves Y
+  // by half the second motor's relayed overshoot). 0 where the axes are the joints.
+  virtual double homing_shift_mm(int /*axis*/) const { return 0.0; }
   // After kDone or kFailed: the MCU clock of the last step the homing queued on `joint`'s MCU
   // (INT64_MIN: none); the step stream continues after it. Servo thread.
   virtual int64_t homing_last_step_clock(int /*joint*/) const { return INT64_MIN; }

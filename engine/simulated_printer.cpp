@@ -67,6 +67,31 @@ class DeltaEndstopPort final : public device::MotorPort {
   sim::EndstopSwitch* sw_;
 };
 
+// A CoreXY motor's port with the switch of the Cartesian carriage it homes (motor A: the X
+// switch, B: the Y switch, as the bridge reads them): the switch sees the carriage where both
+// belts put it, x = (A + B) / 2, y = (A - B) / 2 (planner/linear_kinematics.hpp).
+class CoreXyEndstopPort final : public device::MotorPort {
+ public:
+  CoreXyEndstopPort(sim::GantryAxis& own, sim::GantryAxis& a, sim::GantryAxis& b, int b_sign,
+                    sim::EndstopSwitch& sw)
+      : own_(&own), a_(&a), b_(&b), b_sign_(b_sign), sw_(&sw) {}
+  void step(double t_s, int direction) override { own_->step(t_s, direction); }
+  void set_enabled(double t_s, bool enabled) override { own_->set_enabled(t_s, enabled); }
+  int64_t read_encoder_counts(double t_s) override { return own_->read_encoder_counts(t_s); }
+  bool read_endstop(double t_s) override {
+    a_->advance_to(t_s);
+    b_->advance_to(t_s);
+    return sw_->sample(0.5 * (a_->carriage_mm() + b_sign_ * b_->carriage_mm()));
+  }
+
+ private:
+  sim::GantryAxis* own_;
+  sim::GantryAxis* a_;
+  sim::GantryAxis* b_;
+  int b_sign_;
+  sim::EndstopSwitch* sw_;
+};
+
 // The plants of one machine: a GantryAxis per Cartesian joint, or one DeltaPlant.
 class SimulatedPrinter final : public SimulatedPlant {
  public:
@@ -78,6 +103,8 @@ class SimulatedPrinter final : public SimulatedPlant {
     if (delta_) return joint < 3 ? &delta_->carriage_port(joint) : nullptr;
     if (endstop_ports_[static_cast<size_t>(joint)])
       return endstop_ports_[static_cast<size_t>(joint)].get();
+    if (joint < 2 && corexy_ports_[static_cast<size_t>(joint)])
+      return corexy_ports_[static_cast<size_t>(joint)].get();
     return gantries_[static_cast<size_t>(joint)].get();
   }
   double encoder_mm_per_count(int joint) const override {
@@ -126,6 +153,7 @@ class SimulatedPrinter final : public SimulatedPlant {
   std::array<std::unique_ptr<sim::EndstopSwitch>, kJoints> switches_;
   std::array<std::unique_ptr<sim::EndstopAxis>, kJoints> endstop_ports_;
   std::array<std::unique_ptr<DeltaEndstopPort>, kJoints> delta_endstop_ports_;
+  std::array<std::unique_ptr<CoreXyEndstopPort>, 2> corexy_ports_;  // motors A, B (CoreXY)
   std::unique_ptr<sim::DeltaPlant> delta_;
   std::unique_ptr<sim::ExternalPlant> external_;                       // simulator.external_plant
   std::array<sim::ExternalAxisPort*, kJoints> external_port_{};       // by joint (nullptr: built-in)
@@ -282,13 +310,28 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
           std::make_unique<DeltaEndstopPort>(*out->delta_, j, *out->switches_[js]);
     }
   } else {
+    // CoreXY with switches on X and Y: on the Cartesian carriage, which starts start_distance_mm
+    // from both (the motors where A = x + y, B = x - y put it) when the machine must home.
+    const bool corexy = cfg.kinematics == config::Kinematics::corexy;
+    const config::AxisConfig* cx = cfg.axis(names[0]);
+    const config::AxisConfig* cy = cfg.axis(names[1]);
+    const bool corexy_switches = corexy && cx && cx->homing && cy && cy->homing;
+    std::array<double, 2> corexy_start_mm{};  // x, y
+    for (size_t i = 0; corexy_switches && i < 2; ++i) {
+      const config::HomingConfig& h = *(i == 0 ? cx : cy)->homing;
+      const double d = cfg.simulator.endstops.start_distance_mm;
+      corexy_start_mm[i] = h.position_endstop_mm + (h.direction == config::EndstopSide::min ? d : -d);
+    }
     for (int j = 0; j < 3; ++j) {
       const size_t js = static_cast<size_t>(j);
       auto p = simulated_gantry_params(cfg, j);
       if (!p) return p.error();
       const config::AxisConfig* ac = cfg.axis(names[js]);
-      const bool has_switch =
-          ac != nullptr && ac->homing && cfg.kinematics == config::Kinematics::cartesian;
+      const bool has_switch = ac != nullptr && ac->homing &&
+                              (cfg.kinematics == config::Kinematics::cartesian || (corexy && j == 2));
+      if (corexy_switches && j < 2 && !cfg.planner.allow_moves_before_homing)
+        p.value().initial_pos_mm =
+            corexy_start_mm[0] + (j == 0 ? 1.0 : -1.0) * corexy_start_mm[1];
       if (has_switch && !cfg.planner.allow_moves_before_homing) {
         // The machine must home: the carriage starts near its switch (a short G28), on the travel
         // side of it. With moves allowed before homing it starts at 0, where the planner does.
@@ -308,6 +351,15 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
         out->endstop_ports_[js] =
             std::make_unique<sim::EndstopAxis>(*out->gantries_[js], *out->switches_[js]);
       }
+    }
+    for (int j = 0; corexy_switches && j < 2; ++j) {
+      const size_t js = static_cast<size_t>(j);
+      auto sw = simulated_switch(cfg, *cfg.axis(names[js])->homing, js, names[js]);
+      if (!sw.ok()) return sw.error();
+      out->switches_[js] = std::move(sw.value());
+      out->corexy_ports_[js] = std::make_unique<CoreXyEndstopPort>(
+          *out->gantries_[js], *out->gantries_[0], *out->gantries_[1], j == 0 ? 1 : -1,
+          *out->switches_[js]);
     }
   }
   if (const auto& ext = cfg.simulator.external_plant) {

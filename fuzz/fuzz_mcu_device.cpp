@@ -294,6 +294,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       m.trigger_level = in.u8();
       m.sample_ticks = in.u16();
       m.sample_count = in.u8();
+      // The trigger source from the level byte's high bit (no extra input byte: the corpus keeps
+      // its meaning): kNow, the host's relayed trigger.
+      if (m.trigger_level & 0x80) m.source = protocol::EndstopSource::kNow;
       if (const size_t len = protocol::encode_endstop_home(m, buf, sizeof buf)) host.send(buf, len);
     } else if (op == 11) {
       protocol::EndstopQueryMsg m;

@@ -257,7 +257,14 @@ Status Interpreter::home(const gcode::Command& c) {
 void Interpreter::set_homed(const bool axes[3], const Vec4& at_mm) {
   const bool delta = cfg_.kinematics == KinematicsKind::delta;
   for (int i = 0; i < 3; ++i) {
-    if (!axes[i] && !delta) continue;
+    if (!axes[i] && !delta) {
+      // An axis the homing moved without homing it (CoreXY: the relayed overshoot of the second
+      // motor) keeps its frame and moves by as much.
+      const size_t is = static_cast<size_t>(i);
+      st_.logical_mm[is] += at_mm[is] - st_.machine_mm[is];
+      st_.machine_mm[is] = at_mm[is];
+      continue;
+    }
     st_.homed[i] = true;
     st_.offset_mm[i] = 0.0;
     st_.machine_mm[i] = at_mm[static_cast<size_t>(i)];

@@ -72,8 +72,9 @@ class Interpreter {
   void homed_axes(char out[4]) const;
   // G28 through the endstops (the executor homed the axes, engine/motion_executor.cpp): the axes
   // in `axes` (X Y Z) are homed at machine position at_mm (their G92 offsets, and a Z hop when Z is
-  // homed, cleared; logical = machine), and the planner continues from there. The planner must
-  // hold no moves.
+  // homed, cleared; logical = machine), and the planner continues from there; an axis not in
+  // `axes` moves to at_mm in its own frame (CoreXY: the homing moved it). The planner must hold
+  // no moves.
   void set_homed(const bool axes[3], const Vec4& at_mm);
   // A failed homing: the axes in `axes` are no longer homed.
   void set_unhomed(const bool axes[3]);

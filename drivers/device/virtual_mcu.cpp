@@ -479,6 +479,13 @@ void VirtualMcu::handle_endstop_home(const uint8_t* p, size_t n) {
   a.es_count = m.sample_count;
   a.es_ticks = m.sample_ticks;
   a.es_next_clock = now_clock_ + a.es_ticks;
+  if (a.es_armed && m.source == protocol::EndstopSource::kNow) {
+    // Triggered by the host (another MCU's switch relayed, or a position query at rest): the
+    // motor stops where it is now, and the trigger and the stop are both this step position.
+    a.es_first_clock = now_clock_;
+    a.es_first_steps = a.st.position_steps;
+    endstop_trigger(m.axis, now_clock_);
+  }
 }
 
 void VirtualMcu::handle_endstop_query(const uint8_t* p, size_t n) {
@@ -512,7 +519,13 @@ void VirtualMcu::endstop_sample(int axis) {
     a.es_first_steps = a.st.position_steps;
   }
   if (a.es_seen < a.es_count) return;
-  // Confirmed: stop this motor's steps now (its queue is flushed) and report.
+  endstop_trigger(axis, at);
+}
+
+// Confirmed (or triggered by the host): stop this motor's steps now (its queue is flushed) and
+// report the first triggered sample and the stop.
+void VirtualMcu::endstop_trigger(int axis, int64_t at) {
+  Axis& a = axes_[axis];
   a.run_head = a.run_count = 0;
   a.have_queued_end = false;
   a.es_triggered = true;

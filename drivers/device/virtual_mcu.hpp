@@ -152,6 +152,7 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
   void handle_endstop_home(const uint8_t* p, size_t n);
   void handle_endstop_query(const uint8_t* p, size_t n);
   void endstop_sample(int axis);
+  void endstop_trigger(int axis, int64_t at);
   void loop_tick(int axis);
   void do_extra_step(Axis& a);
   void send_loop_events(int axis);

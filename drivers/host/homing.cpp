@@ -1,6 +1,7 @@
 // Homing sequence: see homing.hpp.
 #include "drivers/host/homing.hpp"
 
+#include <algorithm>  // max
 #include <cmath>   // sqrt, isfinite, llround
 #include <cstdio>  // snprintf
 
@@ -38,6 +39,9 @@ Status check_homing_params(const HomingParams& p) {
   if (p.second_touch && overshoot_mm >= p.retract_dist_mm)
     return bad("homing_speed * sample time overshoots the retract distance");
   if (!positive(p.queue_ahead_s)) return bad("queue_ahead must be > 0");
+  if (p.motor_sign != 1 && p.motor_sign != -1) return bad("motor_sign must be -1 or +1");
+  if (p.has_follower && p.follower_sign != 1 && p.follower_sign != -1)
+    return bad("follower_sign must be -1 or +1");
   return {};
 }
 
@@ -64,8 +68,9 @@ double HomingSequence::Move::time_at(double x) const {
   return duration() - std::sqrt(2.0 * rest / a);
 }
 
-HomingSequence::HomingSequence(const HomingParams& params, McuSession& session)
-    : p_(params), session_(session) {}
+HomingSequence::HomingSequence(const HomingParams& params, McuSession& session,
+                               McuSession* follower_session)
+    : p_(params), session_(session), fsession_(follower_session ? *follower_session : session) {}
 
 double HomingSequence::mcu_s(double host_s) const {
   return session_.tick_map().ticks(host_s);
@@ -83,19 +88,26 @@ void HomingSequence::fail(std::string message) {
   phase_ = HomingPhase::kFailed;
   streaming_ = false;
   arm(false);
+  if (p_.has_follower) arm_motor(fsession_, p_.follower_motor, false, protocol::EndstopSource::kPin);
 }
 
 void HomingSequence::arm(bool on) {
+  arm_motor(session_, p_.motor, on, protocol::EndstopSource::kPin);
+}
+
+void HomingSequence::arm_motor(McuSession& s, uint8_t motor, bool on,
+                               protocol::EndstopSource source) {
   protocol::EndstopHomeMsg m;
-  m.axis = p_.motor;
+  m.axis = motor;
   m.trigger_level = 1;
   m.sample_ticks =
-      on ? static_cast<uint32_t>(std::llround(p_.sample_period_s * session_.mcu_clock_hz())) : 0;
+      on ? static_cast<uint32_t>(std::llround(p_.sample_period_s * s.mcu_clock_hz())) : 0;
   if (on && m.sample_ticks == 0) m.sample_ticks = 1;
   m.sample_count = static_cast<uint8_t>(p_.sample_count);
+  m.source = on ? source : protocol::EndstopSource::kPin;
   uint8_t buf[16];
   const size_t n = protocol::encode_endstop_home(m, buf, sizeof buf);
-  if (n > 0) session_.queue_message(buf, n);
+  if (n > 0) s.queue_message(buf, n);
 }
 
 Status HomingSequence::start(int64_t position_steps, double now_s) {
@@ -106,8 +118,20 @@ Status HomingSequence::start(int64_t position_steps, double now_s) {
                      std::to_string(session_.negotiated_version()) + ", endstops need 3",
                  {}};
   // Stale triggers and states of an earlier sequence are not this one's.
+  if (p_.has_follower) {
+    if (!fsession_.ready())
+      return Error{"homing of " + p_.axis_name + ": the second motor's MCU is not ready", {}};
+    if (fsession_.negotiated_version() < 3)
+      return Error{"homing of " + p_.axis_name + ": the second motor's MCU speaks protocol " +
+                       std::to_string(fsession_.negotiated_version()) + ", endstops need 3",
+                   {}};
+    if (&fsession_ == &session_ && p_.follower_motor == p_.motor)
+      return Error{"homing of " + p_.axis_name + ": the second motor is the first", {}};
+  }
   protocol::EndstopTriggerMsg t[16];
   while (session_.take_endstop_triggers(t, 16) > 0) {
+  }
+  while (fsession_.take_endstop_triggers(t, 16) > 0) {
   }
   protocol::EndstopStateMsg st[16];
   while (session_.take_endstop_states(st, 16) > 0) {
@@ -115,6 +139,18 @@ Status HomingSequence::start(int64_t position_steps, double now_s) {
   pos_steps_ = position_steps;
   error_.reset();
   result_ = {};
+  queued_any_ = f_queued_any_ = false;
+  if (p_.has_follower) {
+    // Where both motors are, in their MCUs' frames (the lockstep needs both): a kNow trigger at
+    // rest stops nothing and reports the position.
+    located_p_ = located_f_ = false;
+    f_pos_steps_ = 0;
+    phase_ = HomingPhase::kLocate;
+    wait_since_s_ = now_s;
+    arm_motor(session_, p_.motor, true, protocol::EndstopSource::kNow);
+    arm_motor(fsession_, p_.follower_motor, true, protocol::EndstopSource::kNow);
+    return {};
+  }
   phase_ = HomingPhase::kApproach;
   arm(true);
   begin_move(p_.direction * p_.max_travel_mm, p_.homing_speed_mm_s, now_s);
@@ -128,9 +164,11 @@ void HomingSequence::begin_move(double distance_mm, double speed_mm_s, double no
   move_.a = p_.accel_mm_s2;
   move_.t0 = now_s + p_.queue_ahead_s;
   move_start_steps_ = pos_steps_;
+  f_move_start_steps_ = f_pos_steps_;
   move_steps_total_ = static_cast<int64_t>(std::floor(move_.d_mm / p_.mm_per_step));
   move_steps_sent_ = 0;
   have_last_clock_ = false;
+  f_have_last_clock_ = false;
   streaming_ = true;
   stream(now_s);
 }
@@ -138,16 +176,29 @@ void HomingSequence::begin_move(double distance_mm, double speed_mm_s, double no
 void HomingSequence::stream(double now_s) {
   if (!streaming_) return;
   const double horizon_s = now_s + p_.queue_ahead_s;
+  const int dir = move_.dir * p_.motor_sign;
+  const int fdir = move_.dir * p_.follower_sign;
+  // A run takes at most this many bytes (RunEncoder::append's scratch): a batch stops before
+  // either message could refuse one, so both motors always get the same steps.
+  constexpr size_t kRunMax = 32;
   while (move_steps_sent_ < move_steps_total_) {
-    uint8_t msg[protocol::kMaxPayload];
-    msg[0] = static_cast<uint8_t>(protocol::MsgType::kQueueSteps);
+    uint8_t msg[protocol::kMaxPayload], fmsg[protocol::kMaxPayload];
+    msg[0] = fmsg[0] = static_cast<uint8_t>(protocol::MsgType::kQueueSteps);
     msg[1] = p_.motor;
+    fmsg[1] = p_.follower_motor;
     const int64_t first = have_last_clock_ ? last_step_clock_ : std::llround(mcu_s(move_.t0));
-    stepgen::RunEncoder enc;
+    const int64_t ffirst = f_have_last_clock_
+                               ? f_last_step_clock_
+                               : std::llround(fsession_.tick_map().ticks(move_.t0));
+    stepgen::RunEncoder enc, fenc;
     enc.begin(msg + 2, protocol::kMaxPayload - 2, static_cast<uint64_t>(first));
-    int64_t prev = first;
+    if (p_.has_follower) fenc.begin(fmsg + 2, protocol::kMaxPayload - 2, static_cast<uint64_t>(ffirst));
+    int64_t prev = first, fprev = ffirst;
     int count = 0;
     while (move_steps_sent_ < move_steps_total_ && count < 64) {
+      if (p_.has_follower && (enc.size() + kRunMax > protocol::kMaxPayload - 2 ||
+                              fenc.size() + kRunMax > protocol::kMaxPayload - 2))
+        break;
       // Step k is taken when the ideal position passes (k - 1/2) steps (round to nearest).
       const double x_mm = (static_cast<double>(move_steps_sent_) + 0.5) * p_.mm_per_step;
       const double ts = move_.t0 + move_.time_at(x_mm);
@@ -157,8 +208,19 @@ void HomingSequence::stream(double now_s) {
       stepgen::StepRun run;
       run.interval_ticks = c - prev;
       run.count = 1;
-      run.direction = static_cast<int8_t>(move_.dir);
+      run.direction = static_cast<int8_t>(dir);
       if (!enc.append(run)) break;
+      if (p_.has_follower) {
+        // The same host time on the follower's clock: the two motors step in lockstep.
+        int64_t fc = std::llround(fsession_.tick_map().ticks(ts));
+        if (fc <= fprev) fc = fprev + 1;
+        stepgen::StepRun frun;
+        frun.interval_ticks = fc - fprev;
+        frun.count = 1;
+        frun.direction = static_cast<int8_t>(fdir);
+        fenc.append(frun);  // fits: checked above
+        fprev = fc;
+      }
       prev = c;
       ++move_steps_sent_;
       ++count;
@@ -168,13 +230,116 @@ void HomingSequence::stream(double now_s) {
     last_step_clock_ = prev;
     have_last_clock_ = true;
     queued_any_ = true;
-    pos_steps_ += static_cast<int64_t>(count) * move_.dir;
+    pos_steps_ += static_cast<int64_t>(count) * dir;
+    if (p_.has_follower) {
+      fsession_.queue_message(fmsg, 2 + fenc.size());
+      f_last_step_clock_ = fprev;
+      f_have_last_clock_ = true;
+      f_queued_any_ = true;
+      f_pos_steps_ += static_cast<int64_t>(count) * fdir;
+    }
   }
 }
 
 bool HomingSequence::move_done(double now_s, double margin_s) const {
   // Every step sent and the last one executed, with a margin for the link's latency.
   return move_steps_sent_ >= move_steps_total_ && now_s > move_.t0 + move_.duration() + margin_s;
+}
+
+void HomingSequence::take_triggers(double now_s) {
+  protocol::EndstopTriggerMsg trig[4];
+  const bool shared = &fsession_ == &session_;
+  for (size_t nt = 4; nt == 4;) {
+    nt = session_.take_endstop_triggers(trig, 4);
+    for (size_t i = 0; i < nt; ++i) {
+      if (phase_ == HomingPhase::kFailed || phase_ == HomingPhase::kDone) return;
+      if (trig[i].axis == p_.motor)
+        on_primary_trigger(trig[i], now_s);
+      else if (p_.has_follower && shared && trig[i].axis == p_.follower_motor)
+        on_follower_trigger(trig[i], now_s);
+    }
+  }
+  if (!p_.has_follower || shared) return;
+  for (size_t nt = 4; nt == 4;) {
+    nt = fsession_.take_endstop_triggers(trig, 4);
+    for (size_t i = 0; i < nt; ++i) {
+      if (phase_ == HomingPhase::kFailed || phase_ == HomingPhase::kDone) return;
+      if (trig[i].axis == p_.follower_motor) on_follower_trigger(trig[i], now_s);
+    }
+  }
+}
+
+void HomingSequence::on_primary_trigger(const protocol::EndstopTriggerMsg& t, double now_s) {
+  if (phase_ == HomingPhase::kLocate) {
+    if (!located_p_) pos_steps_ = result_.start_steps = t.stop_steps;
+    located_p_ = true;
+    return;
+  }
+  if (phase_ != HomingPhase::kApproach && phase_ != HomingPhase::kSecondTouch) return;  // stale
+  streaming_ = false;
+  pos_steps_ = t.stop_steps;  // the MCU's word: what it executed before it stopped
+  arm(false);
+  stopped_in_ = phase_;
+  if (p_.has_follower) {
+    // Relay the stop to the follower at once; it goes on until the message arrives.
+    primary_trigger_ = t;
+    phase_ = HomingPhase::kFollowerStop;
+    wait_since_s_ = now_s;
+    arm_motor(fsession_, p_.follower_motor, true, protocol::EndstopSource::kNow);
+    return;
+  }
+  after_stop(t, now_s);
+}
+
+void HomingSequence::on_follower_trigger(const protocol::EndstopTriggerMsg& t, double now_s) {
+  if (phase_ == HomingPhase::kLocate) {
+    if (!located_f_) f_pos_steps_ = result_.follower_start_steps = t.stop_steps;
+    located_f_ = true;
+    return;
+  }
+  if (phase_ != HomingPhase::kFollowerStop) return;  // stale
+  f_pos_steps_ = t.stop_steps;
+  arm_motor(fsession_, p_.follower_motor, false, protocol::EndstopSource::kPin);
+  // Lockstep: the follower took follower_sign * motor_sign steps for each of the primary's.
+  const int64_t f_at_primary_stop =
+      f_move_start_steps_ + p_.follower_sign * p_.motor_sign *
+                                (primary_trigger_.stop_steps - move_start_steps_);
+  const int64_t lag = f_pos_steps_ - f_at_primary_stop;
+  result_.relay_lag_steps = std::max(result_.relay_lag_steps, lag < 0 ? -lag : lag);
+  after_stop(primary_trigger_, now_s);
+}
+
+// Every motor of the touch stopped (the primary at its trigger t): retract for the second touch,
+// or the result.
+void HomingSequence::after_stop(const protocol::EndstopTriggerMsg& t, double now_s) {
+  if (stopped_in_ == HomingPhase::kApproach) {
+    first_trigger_steps_ = t.trigger_steps;
+    if (p_.second_touch) {
+      phase_ = HomingPhase::kRetract;
+      begin_move(-p_.direction * p_.retract_dist_mm, p_.homing_speed_mm_s, now_s);
+      return;
+    }
+  }
+  result_.trigger_steps = t.trigger_steps;
+  result_.stop_steps = t.stop_steps;
+  double moved_steps = static_cast<double>(p_.motor_sign * (t.stop_steps - t.trigger_steps));
+  if (p_.has_follower) {
+    // Where the follower was when the primary's switch tripped (the lockstep), and the axis's
+    // travel since: the mean of both motors' (CoreXY: x = (A + B) / 2, y = (A - B) / 2).
+    result_.follower_trigger_steps =
+        f_move_start_steps_ +
+        p_.follower_sign * p_.motor_sign * (t.trigger_steps - move_start_steps_);
+    result_.follower_stop_steps = f_pos_steps_;
+    moved_steps = 0.5 * (moved_steps + static_cast<double>(p_.follower_sign *
+                                                           (result_.follower_stop_steps -
+                                                            result_.follower_trigger_steps)));
+  }
+  result_.position_mm = p_.position_endstop_mm + moved_steps * p_.mm_per_step;
+  result_.first_trigger_mm =
+      p_.position_endstop_mm +
+      static_cast<double>(p_.motor_sign * (first_trigger_steps_ - result_.trigger_steps)) *
+          p_.mm_per_step;
+  phase_ = HomingPhase::kDone;
 }
 
 HomingPhase HomingSequence::poll(double now_s) {
@@ -186,38 +351,29 @@ HomingPhase HomingSequence::poll(double now_s) {
          " stopped: " + (session_.error() ? session_.error()->message : "MCU failed"));
     return phase_;
   }
-  protocol::EndstopTriggerMsg trig[4];
-  const size_t nt = session_.take_endstop_triggers(trig, 4);
-  for (size_t i = 0; i < nt && phase_ != HomingPhase::kFailed && phase_ != HomingPhase::kDone;
-       ++i) {
-    if (trig[i].axis != p_.motor) continue;
-    if (phase_ != HomingPhase::kApproach && phase_ != HomingPhase::kSecondTouch) continue;  // stale
-    streaming_ = false;
-    pos_steps_ = trig[i].stop_steps;  // the MCU's word: what it executed before it stopped
-    arm(false);
-    if (phase_ == HomingPhase::kApproach) {
-      first_trigger_steps_ = trig[i].trigger_steps;
-      if (!p_.second_touch) {
-        result_.trigger_steps = trig[i].trigger_steps;
-      } else {
-        phase_ = HomingPhase::kRetract;
-        begin_move(-p_.direction * p_.retract_dist_mm, p_.homing_speed_mm_s, now_s);
-        continue;
-      }
-    } else {
-      result_.trigger_steps = trig[i].trigger_steps;
-    }
-    result_.stop_steps = trig[i].stop_steps;
-    result_.position_mm =
-        p_.position_endstop_mm +
-        static_cast<double>(result_.stop_steps - result_.trigger_steps) * p_.mm_per_step;
-    result_.first_trigger_mm =
-        p_.position_endstop_mm +
-        static_cast<double>(first_trigger_steps_ - result_.trigger_steps) * p_.mm_per_step;
-    phase_ = HomingPhase::kDone;
+  if (p_.has_follower && fsession_.state() == McuState::kFailed) {
+    fail("homing of " + p_.axis_name +
+         " stopped: " + (fsession_.error() ? fsession_.error()->message : "MCU failed"));
     return phase_;
   }
+  take_triggers(now_s);
   if (phase_ == HomingPhase::kFailed || phase_ == HomingPhase::kDone) return phase_;
+  if (phase_ == HomingPhase::kLocate) {
+    if (located_p_ && located_f_) {
+      arm_motor(fsession_, p_.follower_motor, false, protocol::EndstopSource::kPin);
+      phase_ = HomingPhase::kApproach;
+      arm(true);  // disarms the kNow trigger and arms the switch
+      begin_move(p_.direction * p_.max_travel_mm, p_.homing_speed_mm_s, now_s);
+    } else if (now_s - wait_since_s_ > 1.0) {
+      fail("homing of " + p_.axis_name + ": the MCUs did not report the motors' positions");
+    }
+    return phase_;
+  }
+  if (phase_ == HomingPhase::kFollowerStop) {
+    if (now_s - wait_since_s_ > 1.0)
+      fail("homing of " + p_.axis_name + ": the second motor did not report its stop");
+    return phase_;
+  }
   stream(now_s);
   switch (phase_) {
     case HomingPhase::kApproach:

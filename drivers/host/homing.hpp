@@ -8,6 +8,13 @@
 //
 // The sequencer streams its own steps (single-step runs, queue_ahead_s ahead of the MCU clock),
 // from rest, trapezoidal (accel_mm_s2). Driven by poll(now_s) after session.poll(now_s).
+// A second motor can move with the first (a CoreXY carriage: X = (A + B) / 2 moves A and B
+// together, Klipper's corexy.py): the sequence streams it the same step times, and when the
+// primary motor's switch trips, the host relays the stop to it at once (ENDSTOP_HOME with source
+// kNow, on its own MCU or the same one: Klipper's trsync relayed by the host) and takes the step
+// position it stopped at. Where the follower was at the trigger follows from the lockstep of the
+// two streams; the homed position is the endstop plus the mean of both motors' steps after the
+// trigger (docs/decisions.md "CoreXY homing").
 // Owner: the thread that owns the session. Not real-time (it allocates nothing per step, but builds
 // error strings).
 #pragma once
@@ -18,6 +25,7 @@
 
 #include "core/result.hpp"
 #include "drivers/host/mcu_session.hpp"
+#include "drivers/protocol/endstop_messages.hpp"
 
 namespace feedloop::drivers {
 
@@ -37,11 +45,31 @@ struct HomingParams {
   int sample_count = 4;  // consecutive samples to confirm (Klipper: ENDSTOP_SAMPLE_COUNT 4)
   double queue_ahead_s = 0.1;
   bool second_touch = true;  // false: only the fast approach (Klipper: retract_dist 0)
+  // The motor's steps per step of the homed axis: +1, or -1 when the motor turns the other way
+  // (CoreXY Y through motor B: B = x - y).
+  int motor_sign = 1;
+  // A second motor that moves with the first (see above): follower_sign steps per axis step, on
+  // the MCU of the follower session given to the constructor (the same session: another motor).
+  bool has_follower = false;
+  uint8_t follower_motor = 0;
+  int follower_sign = 1;
 };
 
 Status check_homing_params(const HomingParams& p);
 
-enum class HomingPhase { kIdle, kApproach, kRetract, kCheckRelease, kSecondTouch, kDone, kFailed };
+// kLocate: a sequence with a follower first asks both motors where they are (kNow triggers at
+// rest); kFollowerStop: the primary triggered, the follower's relayed stop is awaited.
+enum class HomingPhase {
+  kIdle,
+  kLocate,
+  kApproach,
+  kRetract,
+  kCheckRelease,
+  kSecondTouch,
+  kFollowerStop,
+  kDone,
+  kFailed
+};
 
 struct HomingResult {
   int64_t trigger_steps = 0;  // the step position at the (final) trigger
@@ -49,11 +77,21 @@ struct HomingResult {
   // The motor's position at stop_steps: position_endstop + (stop - trigger) * mm_per_step.
   double position_mm = 0.0;
   double first_trigger_mm = 0.0;  // the fast approach's trigger, in the final frame (diagnostics)
+  // With a follower (each motor's step counts in its MCU's frame): where both started, where the
+  // follower was at the final trigger (from the lockstep) and where it stopped; position_mm is
+  // position_endstop + mm_per_step * (motor_sign (stop - trigger) + follower_sign (follower stop -
+  // follower trigger)) / 2. relay_lag_steps: the most steps the follower ran after the primary
+  // stopped (the relay's latency at the touch's speed), over the touches.
+  int64_t start_steps = 0, follower_start_steps = 0;
+  int64_t follower_trigger_steps = 0, follower_stop_steps = 0;
+  int64_t relay_lag_steps = 0;
 };
 
 class HomingSequence {
  public:
-  HomingSequence(const HomingParams& params, McuSession& session);
+  // follower_session: the follower's MCU (nullptr: the primary's); unused without a follower.
+  HomingSequence(const HomingParams& params, McuSession& session,
+                 McuSession* follower_session = nullptr);
   // Starts from the motor's current step position (as the host knows it) at host time now_s.
   Status start(int64_t position_steps, double now_s);
   // Advances the sequence; returns the phase after this call.
@@ -74,6 +112,10 @@ class HomingSequence {
   // The MCU clock of the last step this sequence queued (the MCU refuses a later batch that starts
   // before it: the owner's step stream restarts from here). INT64_MIN before any.
   int64_t last_queued_clock() const { return queued_any_ ? last_step_clock_ : INT64_MIN; }
+  // The same for the follower, on its MCU's clock.
+  int64_t follower_last_queued_clock() const {
+    return f_queued_any_ ? f_last_step_clock_ : INT64_MIN;
+  }
 
  private:
   struct Move {
@@ -87,11 +129,17 @@ class HomingSequence {
   void stream(double now_s);
   bool move_done(double now_s, double margin_s) const;
   void arm(bool on);
+  void arm_motor(McuSession& s, uint8_t motor, bool on, protocol::EndstopSource source);
+  void on_primary_trigger(const protocol::EndstopTriggerMsg& t, double now_s);
+  void on_follower_trigger(const protocol::EndstopTriggerMsg& t, double now_s);
+  void after_stop(const protocol::EndstopTriggerMsg& t, double now_s);
+  void take_triggers(double now_s);
   void fail(std::string message);
   double mcu_s(double host_s) const;
 
   HomingParams p_;
   McuSession& session_;
+  McuSession& fsession_;  // the follower's (session_ when it shares the MCU)
   HomingPhase phase_ = HomingPhase::kIdle;
   std::optional<Error> error_;
   HomingResult result_;
@@ -103,6 +151,13 @@ class HomingSequence {
   bool have_last_clock_ = false, streaming_ = false, queued_any_ = false;
   int64_t first_trigger_steps_ = 0;
   double query_sent_s_ = 0.0;
+  // The follower (has_follower): its host-side position, its stream, the located start.
+  int64_t f_pos_steps_ = 0, f_move_start_steps_ = 0, f_last_step_clock_ = 0;
+  bool f_have_last_clock_ = false, f_queued_any_ = false;
+  bool located_p_ = false, located_f_ = false;
+  double wait_since_s_ = 0.0;  // kLocate / kFollowerStop started
+  HomingPhase stopped_in_ = HomingPhase::kIdle;  // the touch the primary triggered in
+  protocol::EndstopTriggerMsg primary_trigger_{};  // its trigger, while the follower stops
 };
 
 }  // namespace feedloop::drivers

@@ -5,7 +5,9 @@
 // steps (its queue is flushed, and further QUEUE_STEPS for it are dropped until the host disarms)
 // and reports the clock and step position of the first triggered sample. The host computes the
 // position from those (drivers/host/homing.hpp).
-//   host -> device  ENDSTOP_HOME     arm (sample_ticks > 0) or disarm (sample_ticks == 0) one motor
+//   host -> device  ENDSTOP_HOME     arm (sample_ticks > 0) or disarm (sample_ticks == 0) one motor;
+//                                    an optional trailing source byte says what triggers it (the
+//                                    switch input when absent: the first v3 form decodes unchanged)
 //                   ENDSTOP_QUERY    the pin's state now (M119)
 //   device -> host  ENDSTOP_TRIGGER  the trigger (once per arming)
 //                   ENDSTOP_STATE    the answer to ENDSTOP_QUERY
@@ -20,11 +22,23 @@
 
 namespace feedloop::protocol {
 
+// What triggers an armed motor (ENDSTOP_HOME's optional last byte).
+enum class EndstopSource : uint8_t {
+  kPin = 0,  // the motor's endstop input at trigger_level (the only source of the first v3 form)
+  // Trigger at once, when the message arrives: the motor's steps stop there and ENDSTOP_TRIGGER
+  // reports its step position (trigger = stop). The host relays another motor's trigger with it
+  // (a CoreXY carriage's switch stops the second motor: Klipper's trsync_trigger from the host),
+  // and a motor at rest reports its step position with it.
+  kNow = 1,
+};
+constexpr uint8_t kEndstopSourceCount = 2;
+
 struct EndstopHomeMsg {
   uint8_t axis = 0;
   uint8_t trigger_level = 1;  // pin value that means "triggered"
   uint32_t sample_ticks = 0;  // sampling period; 0 disarms (and ends a triggered state)
   uint8_t sample_count = 1;   // consecutive triggered samples needed (debounce), >= 1
+  EndstopSource source = EndstopSource::kPin;  // encoded only when not kPin
 };
 
 struct EndstopQueryMsg {
@@ -53,6 +67,7 @@ inline size_t encode_endstop_home(const EndstopHomeMsg& m, uint8_t* buf, size_t 
       .u8(m.trigger_level)
       .var(m.sample_ticks)
       .u8(m.sample_count);
+  if (m.source != EndstopSource::kPin) w.u8(static_cast<uint8_t>(m.source));
   return w.ok() ? w.size() : 0;
 }
 inline bool decode_endstop_home(const uint8_t* p, size_t n, EndstopHomeMsg& out) {
@@ -64,6 +79,12 @@ inline bool decode_endstop_home(const uint8_t* p, size_t n, EndstopHomeMsg& out)
   out.sample_count = r.u8();
   if (ticks > UINT32_MAX) return false;
   out.sample_ticks = static_cast<uint32_t>(ticks);
+  out.source = EndstopSource::kPin;
+  if (r.ok() && !r.at_end()) {
+    const uint8_t src = r.u8();
+    if (src >= kEndstopSourceCount) return false;  // a source this device does not know
+    out.source = static_cast<EndstopSource>(src);
+  }
   return r.ok() && r.at_end();
 }
 

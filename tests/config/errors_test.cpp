@@ -434,6 +434,25 @@ TEST(ConfigHoming, NotOnTheExtruder) {
       edit(kMinimal, "    steps_per_mm: 96\n", "    steps_per_mm: 96\n    homing: {}\n");
   expect_error(y, "axes.e: the extruder has no endstop", pos_of(y, "homing: {}"));
 }
+// CoreXY (docs/homing.md "CoreXY"): the carriage's switches on x and y, both or neither, and both
+// motors with the same steps/mm (they step together).
+TEST(ConfigHoming, CoreXyNeedsBothSwitchesAndEqualSteps) {
+  const std::string corexy = edit(kMinimal, "kinematics: cartesian", "kinematics: corexy");
+  const std::string both =
+      edit(edit(corexy, kX, "    max_accel_mm_s2: 3000\n    homing: {}\n  y:"),
+           "    max_accel_mm_s2: 3000\n  z:", "    max_accel_mm_s2: 3000\n    homing: {}\n  z:");
+  auto cfg = load_config_text(both, "printer.yaml");
+  ASSERT_TRUE(cfg.ok()) << (cfg.ok() ? "" : cfg.error().message);
+  EXPECT_TRUE(cfg->axis("x")->homing && cfg->axis("y")->homing);
+  const std::string only_x = edit(corexy, kX, "    max_accel_mm_s2: 3000\n    homing: {}\n  y:");
+  expect_error(only_x,
+               "axes.x.homing: a corexy carriage homes through both motors: give x and y a homing "
+               "section each (or neither)",
+               pos_of(only_x, "x:"));
+  const std::string uneven = edit(both, "    steps_per_mm: 80\n    min_mm", "    steps_per_mm: 81\n    min_mm");
+  expect_error(uneven,
+               "x and y need the same steps_per_mm (80 and 81)", pos_of(uneven, "x:"));
+}
 }  // namespace homing
 
 }  // namespace

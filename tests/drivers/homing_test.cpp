@@ -268,6 +268,137 @@ TEST(Homing, BadParametersAreRefused) {
   EXPECT_TRUE(drivers::check_homing_params(x_params(0.01)).ok());
 }
 
+// CoreXY (docs/homing.md "CoreXY"): two ideal motors (every step lands, no lag) under a carriage
+// at x = x0 + q (a + b) / 2, y = y0 + q (a - b) / 2, the X switch read on A's input, the Y switch
+// on B's; A and B on one MCU or on two with different clocks. The sequence streams both, the
+// switch stops A (X) or B (Y) and the host relays the stop to the other.
+struct IdealCoreXy {
+  struct Motor final : device::MotorPort {
+    int64_t steps = 0;
+    IdealCoreXy* rig = nullptr;
+    int which = 0;  // 0: A (X switch), 1: B (Y switch)
+    void step(double, int d) override { steps += d; }
+    void set_enabled(double, bool) override {}
+    int64_t read_encoder_counts(double) override { return steps; }
+    bool read_endstop(double) override {
+      return which == 0 ? rig->sw_x->sample(rig->x()) : rig->sw_y->sample(rig->y());
+    }
+  };
+  static constexpr double kQ = 1.0 / 94.314;  // mm per step (the default printer's)
+  double x0 = 30.0, y0 = 20.0;
+  Motor a, b;
+  std::unique_ptr<sim::EndstopSwitch> sw_x, sw_y;
+  std::vector<std::unique_ptr<device::VirtualMcu>> mcus;
+  std::vector<std::unique_ptr<MockTransport>> transports;
+  std::vector<std::unique_ptr<McuSession>> sessions;
+  double now = 0.0;
+
+  double x() const { return x0 + kQ * 0.5 * static_cast<double>(a.steps + b.steps); }
+  double y() const { return y0 + kQ * 0.5 * static_cast<double>(a.steps - b.steps); }
+
+  explicit IdealCoreXy(bool two_mcus) {
+    a.rig = b.rig = this;
+    b.which = 1;
+    sim::EndstopSwitchParams sp;
+    sp.sigma_mm = 0.0;  // ideal: the trip point is the endstop
+    sw_x = std::make_unique<sim::EndstopSwitch>(std::move(sim::EndstopSwitch::create(sp).value()));
+    sw_y = std::make_unique<sim::EndstopSwitch>(std::move(sim::EndstopSwitch::create(sp).value()));
+    device::VirtualMcuParams vp;
+    if (two_mcus) {
+      vp.drift_ppm = 50.0;
+      vp.offset_s = 3.7;
+      mcus.push_back(std::make_unique<device::VirtualMcu>(vp, &a));
+      vp.drift_ppm = -50.0;
+      vp.offset_s = 7.4;
+      mcus.push_back(std::make_unique<device::VirtualMcu>(vp, &b));
+    } else {
+      device::MotorPort* ports[2] = {&a, &b};
+      mcus.push_back(std::make_unique<device::VirtualMcu>(vp, ports, 2));
+    }
+    for (auto& m : mcus) {
+      transports.push_back(std::make_unique<MockTransport>(*m, drivers::MockFaults{}, "m"));
+      McuSessionParams p;
+      p.name = "m";
+      p.watchdog_s = 0.5;
+      sessions.push_back(std::make_unique<McuSession>(p, *transports.back()));
+    }
+  }
+  McuSession& session_of(int motor) { return *sessions[sessions.size() > 1 ? motor : 0]; }
+  uint8_t motor_index(int motor) const { return static_cast<uint8_t>(mcus.size() > 1 ? 0 : motor); }
+  bool start() {
+    for (auto& s : sessions)
+      if (!s->start(now).ok()) return false;
+    auto ready = [&] {
+      for (auto& s : sessions)
+        if (!s->ready()) return false;
+      return true;
+    };
+    while (now < 1.5 && !ready()) step();
+    if (!ready()) return false;
+    for (auto& s : sessions) s->set_enabled(true);
+    for (int i = 0; i < 3000; ++i) step();  // the clock sync settles
+    return true;
+  }
+  void step() {
+    now += 1e-4;
+    for (auto& s : sessions) s->poll(now);
+  }
+  // Homes X (axis 0: A with B following) or Y (axis 1: B, -1 step per y step, with A) at 0.
+  HomingSequence make(int axis) {
+    HomingParams hp = x_params(kQ);
+    hp.axis_name = axis == 0 ? "x" : "y";
+    hp.homing_speed_mm_s = 50.0;
+    hp.second_homing_speed_mm_s = 10.0;
+    hp.retract_dist_mm = 2.0;
+    hp.motor = motor_index(axis);
+    hp.motor_sign = axis == 0 ? 1 : -1;
+    hp.has_follower = true;
+    hp.follower_motor = motor_index(1 - axis);
+    hp.follower_sign = 1;
+    return HomingSequence(hp, session_of(axis), &session_of(1 - axis));
+  }
+};
+
+TEST(Homing, CoreXyFollowerStopsOnTheRelayAndTheHomedPositionIsTheCarriages) {
+  for (bool two_mcus : {false, true}) {
+    SCOPED_TRACE(two_mcus ? "two MCUs" : "one MCU");
+    IdealCoreXy rig(two_mcus);
+    ASSERT_TRUE(rig.start());
+    for (int axis : {0, 1, 0, 1}) {
+      const double other_before = axis == 0 ? rig.y() : rig.x();
+      HomingSequence h = rig.make(axis);
+      ASSERT_TRUE(h.start(0, rig.now).ok());
+      while (rig.now < 60.0 && h.running()) {
+        rig.step();
+        h.poll(rig.now);
+      }
+      ASSERT_EQ(h.phase(), HomingPhase::kDone) << (h.error() ? h.error()->message : "");
+      for (int k = 0; k < 500; ++k) rig.step();  // nothing moves after the stop
+      const drivers::HomingResult& r = h.result();
+      const double truth = axis == 0 ? rig.x() : rig.y();
+      const double other = axis == 0 ? rig.y() : rig.x();
+      // The motors' travel as the MCUs report it is the plant's (ideal motors, their own frames).
+      const int64_t da = axis == 0 ? r.stop_steps - r.start_steps : r.follower_stop_steps - r.follower_start_steps;
+      const int64_t db = axis == 0 ? r.follower_stop_steps - r.follower_start_steps : r.stop_steps - r.start_steps;
+      const double shift = IdealCoreXy::kQ * 0.5 * static_cast<double>(axis == 0 ? da - db : da + db);
+      std::printf("corexy ideal (%s): %c homed at %.4f mm, carriage at %.4f mm; other axis moved %.4f mm "
+                  "(from the step counts %.4f mm); relay lag %lld steps\n",
+                  two_mcus ? "two MCUs" : "one MCU", "xy"[axis], r.position_mm, truth,
+                  other - other_before, shift, static_cast<long long>(r.relay_lag_steps));
+      // With an ideal switch the first triggered sample is the first step at or past the trip
+      // point: the carriage is at most one step (of both motors) past it. On two MCUs the lockstep
+      // estimate of the follower at the trigger can be a step off (a step time within the two
+      // clocks' sync error of the trigger sample): half a step of the carriage either way
+      // (measured: +3.0 um once).
+      EXPECT_LE(truth - r.position_mm, (two_mcus ? 0.5 * IdealCoreXy::kQ : 0.0) + 1e-9);
+      EXPECT_GE(truth - r.position_mm, -IdealCoreXy::kQ * (two_mcus ? 1.5 : 1.0) - 1e-9);
+      EXPECT_NEAR(other - other_before, shift, 1e-9);  // the host's shift is exact
+      EXPECT_GE(r.relay_lag_steps, 0);
+      EXPECT_LE(r.relay_lag_steps, 12);  // < 2.5 ms at 50 mm/s
+    }
+  }
+}
+
 TEST(EndstopMessages, RoundTripAndRejectTruncation) {
   uint8_t buf[64];
   protocol::EndstopTriggerMsg t;
@@ -292,6 +423,21 @@ TEST(EndstopMessages, RoundTripAndRejectTruncation) {
   EXPECT_EQ(hd.sample_ticks, 1000u);
   EXPECT_EQ(buf[0], 0x10);
   EXPECT_FALSE(protocol::decode_endstop_home(buf, m - 1, hd));
+  // The first v3 form (no source byte) is the switch input; kNow adds one byte; an unknown source
+  // or a second trailing byte is refused.
+  EXPECT_EQ(hd.source, protocol::EndstopSource::kPin);
+  EXPECT_EQ(m, 1u + 1u + 1u + 2u + 1u);  // type, motor, level, var 1000, count
+  h.source = protocol::EndstopSource::kNow;
+  const size_t m2 = protocol::encode_endstop_home(h, buf, sizeof buf);
+  ASSERT_EQ(m2, m + 1);
+  ASSERT_TRUE(protocol::decode_endstop_home(buf, m2, hd));
+  EXPECT_EQ(hd.source, protocol::EndstopSource::kNow);
+  EXPECT_EQ(hd.sample_count, 4);
+  buf[m2 - 1] = protocol::kEndstopSourceCount;
+  EXPECT_FALSE(protocol::decode_endstop_home(buf, m2, hd));
+  buf[m2 - 1] = 1;
+  buf[m2] = 0;
+  EXPECT_FALSE(protocol::decode_endstop_home(buf, m2 + 1, hd));
 }
 
 TEST(EndstopSwitch, HysteresisAndScatter) {
