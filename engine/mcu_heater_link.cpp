@@ -81,7 +81,15 @@ void McuHeaterLink::poll(Mcu& m, double t_s) {
   t_s = std::max(t_s, devices_ran_to_s_);
   m.last_poll_s = std::max(m.last_poll_s, devices_ran_to_s_ - io_slice_s_);
   if (m.cfg.mock != nullptr && io_slice_s_ > 0) {
-    for (double t = m.last_poll_s + io_slice_s_; t < t_s; t += io_slice_s_) m.session->poll(t);
+    // Every io_slice_s while frames are on their way; with nothing in flight either way, straight
+    // to the device's next event (its next ADC sample).
+    for (double t = m.last_poll_s;;) {
+      double next = t + io_slice_s_;
+      if (m.session->idle()) next = std::max(next, m.cfg.mock->mcu().next_event_time());
+      if (next >= t_s) break;
+      m.session->poll(next);
+      t = next;
+    }
   }
   m.session->poll(t_s);
   m.last_poll_s = std::max(m.last_poll_s, t_s);

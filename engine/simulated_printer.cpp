@@ -235,6 +235,9 @@ std::unique_ptr<McuHeaterLink> make_simulated_heater_link(const config::MachineC
   m.session.name = m.name;
   m.session.encoder_period_s = 0.0;  // no motors
   m.session.watchdog_s = 0.0;        // the heaters have their own 3 s rule
+  // Report times need milliseconds, not the steps' microseconds: a clock query a second (as
+  // Klipper's clocksync) instead of ten (the fit is most of the simulated link's cost).
+  m.session.clock_query_period_s = 1.0;
   std::vector<HeaterMcu> mcus;
   mcus.push_back(std::move(m));
   return std::make_unique<McuHeaterLink>(std::move(mcus), std::move(hr), std::move(fr), host_clock_hz);
