@@ -109,6 +109,8 @@ void McuHeaterLink::poll(Mcu& m, double t_s) {
     }
     m.session->poll(t_s);
   }
+  // The session's events (MCU errors, reconnects): the latest is kept for the fault message.
+  for (std::string& e : m.session->take_events()) last_event_ = std::move(e);
   if (m.session->state() == drivers::McuState::kFailed && !fault_)
     fault_ = "heater MCU: " + (m.session->error() ? m.session->error()->message : std::string("failed"));
 }

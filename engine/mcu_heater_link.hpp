@@ -92,6 +92,8 @@ class McuHeaterLink final : public HeaterLink {
   // then run at that time at least (a stalled host wakes up to the wire's time).
   void run_devices_only(double t_s);
   uint64_t set_heater_dropped() const { return set_heater_dropped_; }
+  // The latest event of any heater MCU's session (an MCU error report, a reconnect); "" when none.
+  const std::string& last_event() const { return last_event_; }
 
  private:
   struct Mcu {
@@ -111,6 +113,7 @@ class McuHeaterLink final : public HeaterLink {
   double io_slice_s_;
   std::deque<std::vector<uint8_t>> inbox_;
   std::optional<std::string> fault_;
+  std::string last_event_;
   bool drop_set_heater_ = false;
   double devices_ran_to_s_ = -1e300;  // run_devices_only()
   uint64_t set_heater_dropped_ = 0;

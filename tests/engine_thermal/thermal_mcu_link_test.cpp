@@ -130,6 +130,24 @@ TEST(ThermalMcuLink, McusOwnMaxTempTripsWithTheHostSilent) {
               t_cross - t_silent, t_trip - t_cross, f->c_str());
 }
 
+// A stopped heater MCU (here: an emergency stop sent to it) turns its heaters off at once (Klipper's
+// MCU shutdown; it refuses SET_HEATER until identified again, fuzz_mcu_device checks the duty), and
+// its session's failure is a thermal fault naming the MCU.
+TEST(ThermalMcuLink, AStoppedHeaterMcuIsAThermalFaultWithItsHeatersOff) {
+  ThermalRig rig;
+  ASSERT_TRUE(rig.loop->set_target(0, 210.0).ok());
+  ASSERT_FALSE(rig.run_until(10.0));
+  ASSERT_GT(rig.plant(0).duty(), 0.5);
+  mcu_link(rig).session(0).emergency_stop();
+  const auto f = rig.run_until(rig.t + 1.0);
+  ASSERT_TRUE(f);
+  EXPECT_NE(f->find("heater MCU: MCU 'heaters' (mock heaters) reports emergency stop"), std::string::npos) << *f;
+  EXPECT_LE(rig.t_fault - 10.0, 2 * kStride);
+  EXPECT_EQ(rig.plant(0).duty(), 0.0);
+  EXPECT_EQ(mcu_link(rig).sim(0)->board().heater(0).duty, 0);
+  EXPECT_FALSE(rig.loop->set_target(0, 200.0).ok());
+}
+
 // A heater MCU that speaks protocol v2 knows no heater messages: refused with a message naming it.
 TEST(ThermalMcuLink, AV2McuIsRefusedWithAMessage) {
   class Dev final : public SimulatedHeaterDevice {
