@@ -3,11 +3,14 @@
 #include "engine/simulated_printer.hpp"
 
 #include <cmath>    // NAN
+#include <cstdio>   // snprintf
 #include <numbers>  // pi
 #include <string>
 #include <vector>
 
 #include "drivers/device/heater_board.hpp"
+#include "drivers/device/virtual_mcu.hpp"
+#include "drivers/transport/mock_transport.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/thermal_config.hpp"
 #include "planner/kinematics.hpp"
@@ -160,12 +163,15 @@ class SimulatedPrinter final : public SimulatedPlant {
   std::array<double, kJoints> encoder_mm_per_count_{};
 };
 
-// The heater MCU of the simulated printer, in process: the device code on the machine clock.
-class SimulatedHeaterLink final : public HeaterLink {
+// The simulated printer's heater MCU: the device code (a VirtualMcu without motors hosting a
+// HeaterBoard) driving a thermal plant per heater and the part fans, behind a mock transport. The
+// thermal loop reaches it only through its McuSession and frames (McuHeaterLink).
+class SimulatedHeaterMcu final : public SimulatedHeaterDevice {
  public:
-  SimulatedHeaterLink(const config::MachineConfig& cfg, double clock_hz) : clock_hz_(clock_hz) {
-    for (size_t i = 0; i < cfg.heaters.size() && i < 4; ++i) {
-      const config::HeaterConfig& h = cfg.heaters[i];
+  SimulatedHeaterMcu(const config::MachineConfig& cfg, const std::vector<int>& heaters,
+                     const std::vector<int>& fans, double clock_hz) {
+    for (size_t i = 0; i < heaters.size() && i < 4; ++i) {
+      const config::HeaterConfig& h = cfg.heaters[static_cast<size_t>(heaters[i])];
       sim::ThermalPlantParams p;
       p.power_w = h.plant.power_w;
       p.heat_capacity_j_k = h.plant.heat_capacity_j_k;
@@ -174,38 +180,43 @@ class SimulatedHeaterLink final : public HeaterLink {
       p.delay_s = h.plant.delay_s;
       p.sensor_tau_s = h.plant.sensor_tau_s;
       p.ambient_c = h.plant.ambient_c;
-      p.seed = cfg.simulator.seed + 9000 + 31 * i;
+      p.seed = cfg.simulator.seed + 9000 + 31 * static_cast<uint64_t>(heaters[i]);
       p.sensor = heater_sensor(h);
       plants_.push_back(std::make_unique<sim::ThermalPlant>(p));
       heater_ports_[i] = plants_.back().get();
     }
-    for (size_t i = 0; i < cfg.fans.size() && i < 4; ++i) {
+    for (size_t i = 0; i < fans.size() && i < 4; ++i) {
       fans_.push_back(std::make_unique<sim::PartFan>());
-      if (cfg.fans[i].kind == config::FanKind::part)  // part fans blow on the extruders' blocks
-        for (size_t k = 0; k < cfg.heaters.size() && k < 4; ++k)
-          if (cfg.heaters[k].kind == config::HeaterKind::extruder) fans_.back()->attach(plants_[k].get());
+      if (cfg.fans[static_cast<size_t>(fans[i])].kind == config::FanKind::part)  // part fans blow on the extruders' blocks
+        for (size_t k = 0; k < heaters.size() && k < 4; ++k)
+          if (cfg.heaters[static_cast<size_t>(heaters[k])].kind == config::HeaterKind::extruder)
+            fans_.back()->attach(plants_[k].get());
       fan_ports_[i] = fans_.back().get();
     }
     board_ = std::make_unique<device::HeaterBoard>(heater_ports_, static_cast<int>(plants_.size()), fan_ports_,
-                                                   static_cast<int>(fans_.size()), clock_hz_);
+                                                   static_cast<int>(fans_.size()), clock_hz);
+    device::VirtualMcuParams vp;
+    vp.clock_hz = clock_hz;  // no drift, no offset: the board's ports take clock / clock_hz as time
+    std::snprintf(vp.name, sizeof vp.name, "heaters");
+    device::MotorPort* none = nullptr;
+    vmcu_ = std::make_unique<device::VirtualMcu>(vp, &none, 1, board_.get());
   }
-  void send(double now_s, const uint8_t* msg, size_t n) override { board_->on_message(msg, n, clock(now_s)); }
-  void advance_to(double t_s) override {
-    board_->run(clock(t_s));
-    for (auto& p : plants_) p->advance(t_s);
+  sim::ThermalPlant* plant(int i) override {
+    return i >= 0 && i < static_cast<int>(plants_.size()) ? plants_[static_cast<size_t>(i)].get() : nullptr;
   }
-  bool receive(uint8_t* out, size_t& n) override { return board_->pop_message(out, n); }
-  sim::ThermalPlant* plant(int i) { return i >= 0 && i < static_cast<int>(plants_.size()) ? plants_[static_cast<size_t>(i)].get() : nullptr; }
-  sim::PartFan* fan(int i) { return i >= 0 && i < static_cast<int>(fans_.size()) ? fans_[static_cast<size_t>(i)].get() : nullptr; }
+  sim::PartFan* fan(int i) override {
+    return i >= 0 && i < static_cast<int>(fans_.size()) ? fans_[static_cast<size_t>(i)].get() : nullptr;
+  }
+  device::VirtualMcu& vmcu() override { return *vmcu_; }
+  const device::HeaterBoard& board() const override { return *board_; }
 
  private:
-  int64_t clock(double t_s) const { return static_cast<int64_t>(t_s * clock_hz_); }
-  double clock_hz_;
   std::vector<std::unique_ptr<sim::ThermalPlant>> plants_;
   std::vector<std::unique_ptr<sim::PartFan>> fans_;
   device::HeaterPort* heater_ports_[4] = {};
   device::FanPort* fan_ports_[4] = {};
   std::unique_ptr<device::HeaterBoard> board_;
+  std::unique_ptr<device::VirtualMcu> vmcu_;
 };
 
 // The simulated endstop switch of joint js (its own seed), as the config's homing places it.
@@ -225,16 +236,51 @@ Result<std::unique_ptr<sim::EndstopSwitch>> simulated_switch(const config::Machi
 
 }  // namespace
 
-std::unique_ptr<HeaterLink> make_simulated_heater_link(const config::MachineConfig& cfg, double mcu_clock_hz) {
-  return std::make_unique<SimulatedHeaterLink>(cfg, mcu_clock_hz);
+std::unique_ptr<McuHeaterLink> make_simulated_heater_link(const config::MachineConfig& cfg,
+                                                          double host_clock_hz) {
+  // One heater MCU for every heater and fan (at most 4 of each, the board's limit), at the
+  // configured MCU clock rate.
+  std::vector<int> heaters, fans;
+  std::vector<HeaterRoute> hr, fr;
+  for (size_t i = 0; i < cfg.heaters.size() && i < 4; ++i) {
+    heaters.push_back(static_cast<int>(i));
+    hr.push_back({0, static_cast<uint8_t>(i)});
+  }
+  for (size_t i = 0; i < cfg.fans.size() && i < 4; ++i) {
+    fans.push_back(static_cast<int>(i));
+    fr.push_back({0, static_cast<uint8_t>(i)});
+  }
+  HeaterMcu m;
+  m.name = "heaters";
+  auto dev = std::make_unique<SimulatedHeaterMcu>(cfg, heaters, fans,
+                                                  static_cast<double>(cfg.stepgen.mcu_clock_hz));
+  drivers::MockFaults f;
+  f.seed = cfg.simulator.seed + 9500;
+  auto t = std::make_unique<drivers::MockTransport>(dev->vmcu(), f, m.name);
+  m.mock = t.get();
+  m.transport = std::move(t);
+  m.sim = std::move(dev);
+  m.session.name = m.name;
+  m.session.encoder_period_s = 0.0;  // no motors
+  m.session.watchdog_s = 0.0;        // the heaters have their own 3 s rule
+  // Report times need milliseconds, not the steps' microseconds: a clock query a second (as
+  // Klipper's clocksync) instead of ten (the fit is most of the simulated link's cost).
+  m.session.clock_query_period_s = 1.0;
+  std::vector<HeaterMcu> mcus;
+  mcus.push_back(std::move(m));
+  return std::make_unique<McuHeaterLink>(std::move(mcus), std::move(hr), std::move(fr), host_clock_hz);
 }
 sim::ThermalPlant* simulated_thermal_plant(HeaterLink& link, int heater) {
-  auto* l = dynamic_cast<SimulatedHeaterLink*>(&link);
-  return l ? l->plant(heater) : nullptr;
+  auto* l = dynamic_cast<McuHeaterLink*>(&link);
+  if (l == nullptr || heater < 0 || heater >= l->num_heaters()) return nullptr;
+  const HeaterRoute& r = l->heater_route(heater);
+  return l->sim(r.mcu) ? l->sim(r.mcu)->plant(r.local) : nullptr;
 }
 sim::PartFan* simulated_part_fan(HeaterLink& link, int fan) {
-  auto* l = dynamic_cast<SimulatedHeaterLink*>(&link);
-  return l ? l->fan(fan) : nullptr;
+  auto* l = dynamic_cast<McuHeaterLink*>(&link);
+  if (l == nullptr || fan < 0 || fan >= l->num_fans()) return nullptr;
+  const HeaterRoute& r = l->fan_route(fan);
+  return l->sim(r.mcu) ? l->sim(r.mcu)->fan(r.local) : nullptr;
 }
 
 Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfig& cfg, int joint) {

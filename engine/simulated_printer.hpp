@@ -10,6 +10,7 @@
 #include "config/machine_config.hpp"
 #include "core/result.hpp"
 #include "engine/simulated_plant.hpp"
+#include "engine/mcu_heater_link.hpp"
 #include "engine/thermal_loop.hpp"
 
 namespace feedloop::sim {
@@ -37,10 +38,13 @@ Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfi
 sim::GantryAxis* simulated_gantry(SimulatedPlant& plant, int joint);
 sim::DeltaPlant* simulated_delta(SimulatedPlant& plant);
 
-// The simulated printer's heaters and fans: the device side (drivers/device/heater_board.hpp,
-// fed the protocol v3 messages) driving a thermal plant per configured heater (sim/thermal_plant.hpp,
-// with the heater's plant: parameters) and the part fans cooling the extruders' plants.
-std::unique_ptr<HeaterLink> make_simulated_heater_link(const config::MachineConfig& cfg, double mcu_clock_hz);
+// The simulated printer's heaters and fans: a heater MCU (drivers/device/virtual_mcu.hpp hosting a
+// heater_board.hpp, at stepgen.mcu_clock_hz) behind a mock transport, reached through its
+// McuSession (protocol v3 in frames); its board drives a thermal plant per configured heater
+// (sim/thermal_plant.hpp, with the heater's plant: parameters) and the part fans cooling the
+// extruders' plants. host_clock_hz: the thermal loop's ticks per second.
+std::unique_ptr<McuHeaterLink> make_simulated_heater_link(const config::MachineConfig& cfg,
+                                                          double host_clock_hz);
 // Its plants and part fans, for tests and benchmarks (include sim/thermal_plant.hpp); nullptr: none.
 sim::ThermalPlant* simulated_thermal_plant(HeaterLink& link, int heater);
 sim::PartFan* simulated_part_fan(HeaterLink& link, int fan);

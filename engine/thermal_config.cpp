@@ -64,8 +64,9 @@ Result<std::unique_ptr<ThermalLoop>> make_thermal_loop(const config::MachineConf
   if (cfg.heaters.empty() && cfg.fans.empty()) return std::unique_ptr<ThermalLoop>();
   for (const config::McuConfig& m : cfg.mcus)
     if (m.transport != config::TransportType::mock)
-      return Error{"heaters and fans are wired only on the simulated printer so far (mcu '" +
-                   m.name + "' is not mock); remove the heaters: and fans: sections"};
+      return Error{"heaters and fans run only on the simulated printer's heater MCU so far (mcu '" +
+                   m.name + "' is not mock, and heaters on a motion MCU's link are not wired: "
+                   "docs/heaters.md); remove the heaters: and fans: sections"};
   const ThermalOptions o = thermal_options(cfg);
   return std::make_unique<ThermalLoop>(o, make_simulated_heater_link(cfg, o.mcu_clock_hz));
 }

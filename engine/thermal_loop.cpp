@@ -292,6 +292,20 @@ std::optional<std::string> ThermalLoop::step_to(double t_s) {
     size_t n = 0;
     while (link_->receive(buf, n)) handle(buf, n, t);
     update_heater_fans(t);
+    if (!fault_) {
+      if (std::optional<std::string> lost = link_->fault()) {
+        // The heaters' MCU is lost or unusable: nothing is confirmed any more (its own 3 s rule
+        // turns them off there); here every target is dropped and the machine stops.
+        fault_ = *lost;
+        for (size_t k = 0; k < h_.size(); ++k) {
+          h_[k].target_c = 0.0;
+          h_[k].autotune.reset();
+          send_heater(static_cast<int>(k), 0.0, t);
+        }
+        if (autotune_heater_ >= 0 && !autotune_result_)
+          autotune_result_ = Error{"autotune stopped: " + *fault_};
+      }
+    }
   }
   if (fault_ && !fault_reported_) {
     fault_reported_ = true;

@@ -32,6 +32,8 @@ class HeaterLink {
   virtual void advance_to(double t_s) = 0;
   // Next message from the device; false when none. out holds at least 32 bytes.
   virtual bool receive(uint8_t* out, size_t& n) = 0;
+  // Set when the link to the heaters is lost or unusable (which MCU, why): a thermal fault.
+  virtual std::optional<std::string> fault() const { return std::nullopt; }
 };
 
 struct HeaterSpec {

@@ -22,16 +22,26 @@
 //  10 A L T T C        protocol v3 ENDSTOP_HOME for motor A: trigger level L, sample period T
 //                      ticks (0 disarms), C samples (each motor's switch closes at 50 steps)
 //  11 A                protocol v3 ENDSTOP_QUERY for motor A
+// (op bytes 240..255 select 12..14; every other byte b selects b % 12, as before they existed)
+//  12 H P P P R L L U U W W W M M  protocol v3 CONFIGURE_HEATER for heater H: sample period P
+//                      ticks (u24), R samples per report, ADC range [L, U], confirm timeout W
+//                      ticks (u24), max duty M (the board has 2 heaters, 2 fans)
+//  13 H D D            protocol v3 SET_HEATER heater H, duty D
+//  14 F D D            protocol v3 SET_FAN fan F, duty D
 // Invariants (trap): every frame the device sends is whole with a valid CRC and carries a
-// device-to-host message type (v1 or v2); each motor's steps and enable changes never go back in
-// time (MotorPort's contract) and have direction +-1; no queue holds more runs than kMaxRuns.
+// device-to-host message type (v1, v2 or v3); each motor's steps and enable changes never go back
+// in time (MotorPort's contract) and have direction +-1; no queue holds more runs than kMaxRuns;
+// heater and fan duties stay in [0, 1] with their times never going back; a heater is off (duty 0)
+// while the MCU is stopped and while its board latched a fault.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <memory>
 
+#include "drivers/device/heater_board.hpp"
 #include "drivers/device/virtual_mcu.hpp"
+#include "drivers/protocol/heater_messages.hpp"
 #include "drivers/protocol/endstop_messages.hpp"
 #include "drivers/protocol/loop_messages.hpp"
 #include "drivers/protocol/messages.hpp"
@@ -72,6 +82,30 @@ class Motor final : public device::MotorPort {
   void advance(double t_s) {
     check(std::isfinite(t_s));
     check(t_s >= last_s_);  // never back in time
+    last_s_ = t_s;
+  }
+  double last_s_ = -1e300;
+};
+
+// A heater PWM and its ADC: duty within [0, 1], times never back; the ADC sweeps the full scale
+// (so the MCU's range limit trips on some configurations and not on others).
+class Heater final : public device::HeaterPort, public device::FanPort {
+ public:
+  void set_duty(double t_s, double d) override {
+    advance(t_s);
+    check(d >= 0.0 && d <= 1.0);
+    duty = d;
+  }
+  uint16_t read_adc(double t_s) override {
+    advance(t_s);
+    return static_cast<uint16_t>(static_cast<int64_t>(t_s * 2e5) & 0xFFFF);
+  }
+  double duty = 0.0;
+
+ private:
+  void advance(double t_s) {
+    check(std::isfinite(t_s));
+    check(t_s >= last_s_);
     last_s_ = t_s;
   }
   double last_s_ = -1e300;
@@ -226,12 +260,17 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   device::VirtualMcuParams params;
   params.clock_hz = kClockHz;
   std::strcpy(params.name, "fuzz-mcu");
-  auto mcu = std::make_unique<device::VirtualMcu>(params, port_ptrs, motors);  // 0.5 MB of queues
+  Heater heaters[2], fans[2];
+  device::HeaterPort* heater_ptrs[2] = {&heaters[0], &heaters[1]};
+  device::FanPort* fan_ptrs[2] = {&fans[0], &fans[1]};
+  device::HeaterBoard board(heater_ptrs, 2, fan_ptrs, 2, kClockHz);
+  auto mcu = std::make_unique<device::VirtualMcu>(params, port_ptrs, motors, &board);  // 0.5 MB of queues
   FakeHost host(*mcu);
   uint8_t buf[protocol::kMaxPayload];
   while (!in.empty()) {
     size_t n = 0;
-    const uint8_t op = in.u8() % 12;
+    const uint8_t op_byte = in.u8();
+    const uint8_t op = op_byte >= 240 ? static_cast<uint8_t>(12 + (op_byte - 240) % 3) : op_byte % 12;
     if (op == 0) {
       const uint8_t* p = in.take(in.u8(), n);
       host.send(p, n);
@@ -302,6 +341,26 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       protocol::EndstopQueryMsg m;
       m.axis = in.u8();
       if (const size_t len = protocol::encode_endstop_query(m, buf, sizeof buf)) host.send(buf, len);
+    } else if (op == 12) {
+      protocol::ConfigureHeaterMsg m;
+      m.heater = in.u8();
+      m.sample_period_ticks = in.u16() | (static_cast<uint32_t>(in.u8()) << 16);
+      m.samples_per_report = in.u8();
+      m.adc_min = in.u16();
+      m.adc_max = in.u16();
+      m.confirm_timeout_ticks = in.u16() | (static_cast<uint32_t>(in.u8()) << 16);
+      m.max_duty = in.u16();
+      if (const size_t len = protocol::encode_configure_heater(m, buf, sizeof buf)) host.send(buf, len);
+    } else if (op == 13) {
+      protocol::SetHeaterMsg m;
+      m.heater = in.u8();
+      m.duty = in.u16();
+      if (const size_t len = protocol::encode_set_heater(m, buf, sizeof buf)) host.send(buf, len);
+    } else if (op == 14) {
+      protocol::SetFanMsg m;
+      m.fan = in.u8();
+      m.duty = in.u16();
+      if (const size_t len = protocol::encode_set_fan(m, buf, sizeof buf)) host.send(buf, len);
     } else {
       const uint8_t axis = in.u8();
       device::TargetKnot knots[16];
@@ -318,6 +377,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const device::VirtualMcuStatus& st = mcu->status();
     check(st.num_axes == motors);
     for (int i = 0; i < motors; ++i) check(st.axes[i].queued_runs <= device::VirtualMcu::kMaxRuns);
+    for (int i = 0; i < 2; ++i) {
+      if (st.stopped || board.heater(i).faulted) check(heaters[i].duty == 0.0);
+      check(heaters[i].duty <= board.heater(i).duty / 65535.0 + 1e-12);
+    }
   }
   return 0;
 }

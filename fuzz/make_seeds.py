@@ -141,6 +141,17 @@ def device_seeds():
     s['loop_v2_bad_params'] = (bytes([0]) + ident2 + bytes([8, 0, 0, 0, 3, 1, 0, 0, 0, 0, 4, 0, 0, 0xC0, 0x7F,
                                                           20, 1, 0, 0, 0]) + op_time(20) + bytes([7]))
     s['loop_v1_host'] = bytes([0]) + ident + bytes([8, 0, 0, 0, 0]) + targets + op_time(10)
+    # Protocol v3 heaters (ops 12-14 are the op bytes 240-242): heater 0 full ADC range with a 0.1 s
+    # confirmation timeout (set once, then left to trip); heater 1 a narrow range that the sweeping
+    # ADC leaves (the MCU's own limit); a fan; SET_HEATER to a faulted heater; a bad configuration.
+    ident3 = bytes([5, 3, 0, 0x10, 0x27, 10, 0x88, 0x13])
+    cfg0 = bytes([240, 0, 0x88, 0x13, 0, 8, 0, 0, 0xFF, 0xFF, 0xA0, 0x86, 0x01, 0xFF, 0xFF])
+    cfg1 = bytes([240, 1, 0x88, 0x13, 0, 4, 0x00, 0x10, 0x00, 0x20, 0, 0, 0, 0x00, 0x80])
+    bad = bytes([240, 1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0])
+    s['heaters_v3'] = (bytes([0]) + ident3 + cfg0 + cfg1 + bytes([241, 0, 0xFF, 0x7F, 241, 1, 0xFF, 0xFF]) +
+                       bytes([242, 0, 0x00, 0x80]) + op_time(255) * 2 + bytes([241, 0, 0xFF, 0xFF]) +
+                       op_time(255) * 3 + bytes([7, 241, 0, 0xFF, 0xFF]) + bad + op_time(50) + bytes([7]))
+    s['heaters_v2_refused'] = bytes([0]) + ident2 + cfg0 + bytes([241, 0, 0xFF, 0xFF, 242, 1, 1, 1]) + op_time(20)
     s['noise'] = (bytes([2]) + op_raw(bytes(range(0x70, 0x90))) + op_frame(0x13, 0, 0, bytes([1, 1, 0])) +
                   op_frame(0x11, 5, 0, bytes([8])) + op_frame(0x04, 0, 3, b'') + op_time(10) + bytes([7]))
     return s

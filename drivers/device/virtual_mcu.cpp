@@ -5,6 +5,7 @@
 #include <cmath>    // floor
 #include <cstring>  // memcpy
 
+#include "drivers/device/heater_board.hpp"
 #include "drivers/protocol/endstop_messages.hpp"
 #include "drivers/protocol/loop_messages.hpp"
 #include "drivers/stepgen/run_codec.hpp"
@@ -22,8 +23,9 @@ constexpr int64_t kNever = INT64_MAX;
 
 VirtualMcu::VirtualMcu(const VirtualMcuParams& params, MotorPort* port) : VirtualMcu(params, &port, 1) {}
 
-VirtualMcu::VirtualMcu(const VirtualMcuParams& params, MotorPort* const* ports, int num_axes)
-    : params_(params), rate_hz_(params.clock_hz * (1.0 + params.drift_ppm * 1e-6)) {
+VirtualMcu::VirtualMcu(const VirtualMcuParams& params, MotorPort* const* ports, int num_axes,
+                       HeaterBoard* heaters)
+    : params_(params), rate_hz_(params.clock_hz * (1.0 + params.drift_ppm * 1e-6)), heaters_(heaters) {
   link_.configure(params_.link, this, this);
   num_axes_ = num_axes < 1 ? 1 : (num_axes > kMaxAxes ? kMaxAxes : num_axes);
   for (int i = 0; i < num_axes_; ++i) {
@@ -151,6 +153,9 @@ void VirtualMcu::stop(McuError code, int64_t detail) {
     if (status_.enabled && a.port != nullptr) a.port->set_enabled(true_time_at(now_clock_), false);
   }
   loop_stopping_ = false;
+  // A stopped MCU drives nothing: its heaters go off too (Klipper's MCU shutdown), and SET_HEATER
+  // is refused until the host identifies it again.
+  if (heaters_ != nullptr) heaters_->all_off(now_clock_);
   status_.enabled = false;
   status_.stopped = true;
   sync_status();
@@ -194,6 +199,7 @@ double VirtualMcu::next_event_time() const {
     if (a.es_armed && !a.es_triggered && a.es_next_clock < e) e = a.es_next_clock;
   }
   if (encoder_period_ticks_ > 0 && next_sample_clock_ < e) e = next_sample_clock_;
+  if (heaters_ != nullptr && heaters_->next_event_clock() < e) e = heaters_->next_event_clock();
   if (status_.enabled && watchdog_ticks_ > 0 && !loop_stopping_ && last_host_clock_ + watchdog_ticks_ < e)
     e = last_host_clock_ + watchdog_ticks_;
   if (link_.in_flight() > 0) {
@@ -240,6 +246,10 @@ void VirtualMcu::run_until(double t_s) {
       e = last_host_clock_ + watchdog_ticks_;
       what = 3;
     }
+    if (heaters_ != nullptr && heaters_->next_event_clock() < e) {
+      e = heaters_->next_event_clock();
+      what = 7;
+    }
     if (e > target) break;
     if (e > now_clock_) now_clock_ = e;
     if (what == 1) {
@@ -250,6 +260,9 @@ void VirtualMcu::run_until(double t_s) {
       loop_tick(axis);
     } else if (what == 6) {
       endstop_sample(axis);
+    } else if (what == 7) {
+      heaters_->run(now_clock_);  // samples, the MCU's own limits, the 3 s re-confirm rule
+      send_heater_messages();
     } else if (what == 2) {
       for (int i = 0; i < num_axes_; ++i) {
         Axis& a = axes_[i];
@@ -541,6 +554,31 @@ void VirtualMcu::endstop_trigger(int axis, int64_t at) {
   sync_status();
 }
 
+void VirtualMcu::handle_heater_message(uint8_t type, const uint8_t* p, size_t n) {
+  // A v1/v2 session does not know them; an MCU without heaters has none to drive.
+  if (negotiated_version_ < 3 || heaters_ == nullptr) {
+    send_error(McuError::kBadMessage, type);
+    return;
+  }
+  // A stopped MCU keeps its heaters off (SET_HEATER / SET_FAN refused until identified again).
+  if (status_.stopped && type != static_cast<uint8_t>(MsgType::kConfigureHeater)) {
+    send_error(McuError::kNotIdentified, type);
+    return;
+  }
+  if (!heaters_->on_message(p, n, now_clock_)) send_error(McuError::kBadMessage, type);
+  send_heater_messages();  // a refused configuration's HEATER_FAULT
+}
+
+void VirtualMcu::send_heater_messages() {
+  uint8_t buf[HeaterBoard::kMsgCap];
+  size_t n = 0;
+  while (heaters_->pop_message(buf, n)) {
+    // Reports give way when the queue is half full (the next comes 0.3 s later); faults never.
+    const bool report = n > 0 && buf[0] == static_cast<uint8_t>(MsgType::kHeaterReport);
+    send_msg(buf, n, report);
+  }
+}
+
 void VirtualMcu::on_payload(const uint8_t* p, size_t n) {
   MsgReader r(p, n);
   const auto type = static_cast<MsgType>(r.u8());
@@ -650,6 +688,11 @@ void VirtualMcu::on_payload(const uint8_t* p, size_t n) {
       }
       if (type == MsgType::kEndstopHome) handle_endstop_home(p, n);
       else handle_endstop_query(p, n);
+      return;
+    case MsgType::kConfigureHeater:
+    case MsgType::kSetHeater:
+    case MsgType::kSetFan:
+      handle_heater_message(static_cast<uint8_t>(type), p, n);
       return;
     default:
       send_error(McuError::kBadMessage, static_cast<int64_t>(type));

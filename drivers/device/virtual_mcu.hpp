@@ -7,6 +7,8 @@
 //    calling device::MotorPort::step with the true time of each step,
 //  - samples its encoder every encoder_period_ticks and reports batches of samples,
 //  - (v3) samples an armed endstop and stops that motor's steps at its trigger (homing),
+//  - (v3, optional) hosts a HeaterBoard (heater_board.hpp): CONFIGURE_HEATER / SET_HEATER / SET_FAN
+//    go to it, its HEATER_REPORT / HEATER_FAULT go out in frames; a stop turns its heaters off,
 //  - answers identify / clock queries / status queries, enables and disables the driver,
 //  - stops (queue flushed, driver disabled, error reported) on a queue underrun (a batch whose
 //    first step is already in the past), a watchdog timeout (no message from the host for
@@ -26,6 +28,8 @@
 #include "drivers/stepgen/step_run.hpp"
 
 namespace feedloop::device {
+
+class HeaterBoard;
 
 struct VirtualMcuParams {
   double clock_hz = 20e6;     // nominal tick rate (reported to the host)
@@ -96,8 +100,12 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
   // One motor.
   VirtualMcu(const VirtualMcuParams& params, MotorPort* port);
   // Several motors (a board): ports[0..num_axes), num_axes <= kMaxAxes; QUEUE_STEPS' axis byte
-  // selects the motor.
-  VirtualMcu(const VirtualMcuParams& params, MotorPort* const* ports, int num_axes);
+  // selects the motor. heaters (optional, not owned, outlives the MCU): the heaters and fans this
+  // MCU drives (protocol v3); its clock_hz must be params.clock_hz and its ports get
+  // clock / clock_hz as their time (so give such an MCU offset_s 0 and drift_ppm 0 in simulation).
+  // A port may be nullptr (a heater-only MCU: one motor slot, no motor).
+  VirtualMcu(const VirtualMcuParams& params, MotorPort* const* ports, int num_axes,
+             HeaterBoard* heaters = nullptr);
 
   // Bytes from the host that arrive at true time t_s (everything due before is processed first).
   void receive(const uint8_t* data, size_t n, double t_s);
@@ -151,6 +159,8 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
   void handle_queue_target(const uint8_t* p, size_t n);
   void handle_endstop_home(const uint8_t* p, size_t n);
   void handle_endstop_query(const uint8_t* p, size_t n);
+  void handle_heater_message(uint8_t type, const uint8_t* p, size_t n);
+  void send_heater_messages();
   void endstop_sample(int axis);
   void endstop_trigger(int axis, int64_t at);
   void loop_tick(int axis);
@@ -186,6 +196,8 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
   int samples_per_report_ = 10;
   int64_t next_sample_clock_ = 0;
   int nsamples_ = 0;
+
+  HeaterBoard* heaters_ = nullptr;  // optional (protocol v3 heaters and fans)
 
   // Watchdog.
   int64_t watchdog_ticks_ = 0;

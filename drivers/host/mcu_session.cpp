@@ -180,6 +180,10 @@ void put_ring(std::array<T, N>& ring, size_t& head, size_t& count, const T& m) {
 }
 }  // namespace
 
+size_t McuSession::take_heater_messages(HeaterPayload* out, size_t cap) {
+  return take_ring(heater_msgs_, heater_head_, heater_count_, out, cap);
+}
+
 size_t McuSession::take_endstop_triggers(protocol::EndstopTriggerMsg* out, size_t cap) {
   return take_ring(es_triggers_, es_trigger_head_, es_trigger_count_, out, cap);
 }
@@ -469,6 +473,22 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
         return;
       }
       put_ring(es_states_, es_state_head_, es_state_count_, m);
+      return;
+    }
+    case MsgType::kHeaterReport:
+    case MsgType::kHeaterFault: {
+      protocol::HeaterReportMsg rep;
+      protocol::HeaterFaultMsg flt;
+      const bool ok = type == MsgType::kHeaterReport ? protocol::decode_heater_report(p, n, rep)
+                                                     : protocol::decode_heater_fault(p, n, flt);
+      if (!ok || n > sizeof(HeaterPayload::bytes)) {
+        events_.push_back("MCU '" + p_.name + "': malformed heater message ignored");
+        return;
+      }
+      HeaterPayload h;
+      h.n = static_cast<uint8_t>(n);
+      std::memcpy(h.bytes, p, n);
+      put_ring(heater_msgs_, heater_head_, heater_count_, h);
       return;
     }
     case MsgType::kEncoderReport: {

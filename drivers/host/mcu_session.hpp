@@ -22,6 +22,7 @@
 
 #include "drivers/clock_sync_channel.hpp"
 #include "drivers/protocol/endstop_messages.hpp"
+#include "drivers/protocol/heater_messages.hpp"
 #include "drivers/protocol/loop_messages.hpp"
 #include "drivers/protocol/messages.hpp"
 #include "drivers/protocol/reliable_link.hpp"
@@ -50,6 +51,13 @@ struct EncoderSample {
   int axis = 0;  // motor index on the MCU
   int64_t clock = 0;
   int64_t counts = 0;
+};
+
+// A heater message from the device (protocol v3: HEATER_REPORT or HEATER_FAULT), as it arrived
+// (checked by its decoder): the payload bytes.
+struct HeaterPayload {
+  uint8_t n = 0;
+  uint8_t bytes[24] = {};
 };
 
 struct AxisDeviceStatus {
@@ -142,6 +150,10 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   // first (fixed rings of kEndstopMessages; the oldest are dropped when nobody takes them).
   size_t take_endstop_triggers(protocol::EndstopTriggerMsg* out, size_t cap);
   size_t take_endstop_states(protocol::EndstopStateMsg* out, size_t cap);
+  // Heaters (protocol v3; heater_messages.hpp): encode CONFIGURE_HEATER / SET_HEATER / SET_FAN and
+  // send them with queue_message; the device's HEATER_REPORT and HEATER_FAULT since the last call,
+  // oldest first (a fixed ring of kHeaterMessages; the oldest are dropped when nobody takes them).
+  size_t take_heater_messages(HeaterPayload* out, size_t cap);
 
  private:
   void write_frame(const uint8_t* frame, size_t n) override;
@@ -200,6 +212,9 @@ class McuSession final : private protocol::FrameOutput, private protocol::Payloa
   size_t es_trigger_head_ = 0, es_trigger_count_ = 0;
   std::array<protocol::EndstopStateMsg, kEndstopMessages> es_states_{};
   size_t es_state_head_ = 0, es_state_count_ = 0;
+  static constexpr size_t kHeaterMessages = 64;
+  std::array<HeaterPayload, kHeaterMessages> heater_msgs_{};
+  size_t heater_head_ = 0, heater_count_ = 0;
   std::vector<EncoderSample> samples_;
   uint64_t samples_dropped_ = 0;
   std::vector<std::string> events_;

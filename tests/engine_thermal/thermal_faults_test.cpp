@@ -108,7 +108,9 @@ TEST_P(Fault, IsCaughtWithinItsRulesTimeAndTurnsEveryHeaterOff) {
     case ThermalFaultKind::kNone:
       break;
   }
-  // Every heater off: targets 0 and the applied duty 0 on both plants (except a stuck MOSFET).
+  // Every heater off: targets 0 and the applied duty 0 on both plants (except a stuck MOSFET),
+  // once the SET_HEATER 0s crossed the link (the host's next poll: within one stride).
+  rig.loop->step_to(rig.t + kStride);
   HeaterStatus hs[4];
   FanStatus fs[4];
   int nh = 0, nf = 0;

@@ -1,0 +1,122 @@
+// The thermal loop's heaters and fans over real MCU links (protocol v3 in frames,
+// drivers/protocol/heater_messages.hpp): per MCU a host McuSession on its Transport; the heaters'
+// and fans' indices of the thermal loop mapped to each MCU's own; CONFIGURE_HEATER's tick counts
+// rescaled to the MCU's clock; the MCU's HEATER_REPORT / HEATER_FAULT clocks mapped to host time by
+// the session's clock sync (before the first sync: the arrival time) and handed to the thermal loop
+// in its own clock (ThermalOptions::mcu_clock_hz ticks per host second).
+//   ThermalLoop --SET_HEATER--> McuHeaterLink --> McuSession --frames--> Transport --> MCU
+//   (simulation: MockTransport --> VirtualMcu --> HeaterBoard --> ThermalPlant)
+// Messages wait until their MCU is identified; an MCU that speaks protocol v1/v2 (no heaters) or
+// whose session fails is the link's fault() (the thermal loop turns it into a thermal fault).
+// Owner: the thermal loop (its mutex); not real-time (the thermal thread).
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "drivers/host/mcu_session.hpp"
+#include "drivers/transport.hpp"
+#include "engine/thermal_loop.hpp"
+
+namespace feedloop::drivers {
+class MockTransport;
+}
+namespace feedloop::device {
+class HeaterBoard;
+class VirtualMcu;
+}  // namespace feedloop::device
+namespace feedloop::sim {
+class ThermalPlant;
+class PartFan;
+}  // namespace feedloop::sim
+
+namespace feedloop::engine {
+
+// What a simulated heater MCU owns besides its transport (the virtual MCU, its heater board and
+// plants); engine/simulated_printer.cpp implements it.
+class SimulatedHeaterDevice {
+ public:
+  virtual ~SimulatedHeaterDevice() = default;
+  virtual sim::ThermalPlant* plant(int local_heater) = 0;  // nullptr: none
+  virtual sim::PartFan* fan(int local_fan) = 0;
+  virtual const device::HeaterBoard& board() const = 0;  // the device's own view (tests)
+  virtual device::VirtualMcu& vmcu() = 0;
+};
+
+struct HeaterMcu {
+  std::string name;
+  std::unique_ptr<SimulatedHeaterDevice> sim;  // simulation only (declared first: outlives the transport)
+  std::unique_ptr<drivers::Transport> transport;
+  drivers::MockTransport* mock = nullptr;      // simulation only
+  drivers::McuSessionParams session;           // name, link; encoder and watchdog off
+};
+
+struct HeaterRoute {
+  int mcu = 0;        // index into the link's MCUs
+  uint8_t local = 0;  // the heater's (fan's) index on that MCU
+};
+
+class McuHeaterLink final : public HeaterLink {
+ public:
+  // heaters[i] / fans[i]: where the thermal loop's heater / fan i lives. host_clock_hz: the
+  // thermal loop's ticks per second (ThermalOptions::mcu_clock_hz). io_slice_s: in-process (mock)
+  // links are polled at this granularity within advance_to() (the link's 25 ms retransmit timeout
+  // needs acknowledgements well within it); real transports have their own I/O threads.
+  McuHeaterLink(std::vector<HeaterMcu> mcus, std::vector<HeaterRoute> heaters,
+                std::vector<HeaterRoute> fans, double host_clock_hz, double io_slice_s = 2e-3);
+  ~McuHeaterLink() override;
+
+  void send(double now_s, const uint8_t* msg, size_t n) override;
+  void advance_to(double t_s) override;
+  bool receive(uint8_t* out, size_t& n) override;
+  std::optional<std::string> fault() const override { return fault_; }
+
+  int num_heaters() const { return static_cast<int>(heaters_.size()); }
+  int num_fans() const { return static_cast<int>(fans_.size()); }
+  int mcu_count() const { return static_cast<int>(mcus_.size()); }
+  drivers::McuSession& session(int i) { return *mcus_[static_cast<size_t>(i)].session; }
+  drivers::MockTransport* mock(int i) { return mcus_[static_cast<size_t>(i)].cfg.mock; }
+  SimulatedHeaterDevice* sim(int i) { return mcus_[static_cast<size_t>(i)].cfg.sim.get(); }
+  const HeaterRoute& heater_route(int heater) const { return heaters_[static_cast<size_t>(heater)]; }
+  const HeaterRoute& fan_route(int fan) const { return fans_[static_cast<size_t>(fan)]; }
+
+  // Fault injection (tests): SET_HEATER from the host is dropped before its session (the host's
+  // re-confirmations lost while the link itself stays up).
+  void drop_heater_commands(bool on) { drop_set_heater_ = on; }
+  // Simulation (tests): the MCUs (and their plants) run to t_s while the host side does nothing
+  // (a stalled host: no session poll, no heartbeat, nothing read); the host side's next polls
+  // then run at that time at least (a stalled host wakes up to the wire's time).
+  void run_devices_only(double t_s);
+  uint64_t set_heater_dropped() const { return set_heater_dropped_; }
+  // The latest event of any heater MCU's session (an MCU error report, a reconnect); "" when none.
+  const std::string& last_event() const { return last_event_; }
+
+ private:
+  struct Mcu {
+    HeaterMcu cfg;
+    std::unique_ptr<drivers::McuSession> session;
+    std::deque<std::vector<uint8_t>> held;  // host messages waiting for the MCU to be ready
+    bool started = false;
+    double last_poll_s = 0.0;
+  };
+  void poll(Mcu& m, double t_s);
+  void forward(Mcu& m, std::vector<uint8_t> msg);
+  void collect(int mcu_index, double t_s);
+
+  std::vector<Mcu> mcus_;
+  std::vector<HeaterRoute> heaters_, fans_;
+  double host_hz_;
+  double io_slice_s_;
+  std::deque<std::vector<uint8_t>> inbox_;
+  std::optional<std::string> fault_;
+  std::string last_event_;
+  bool drop_set_heater_ = false;
+  double devices_ran_to_s_ = -1e300;  // run_devices_only()
+  uint64_t set_heater_dropped_ = 0;
+};
+
+}  // namespace feedloop::engine
