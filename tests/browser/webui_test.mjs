@@ -335,7 +335,7 @@ async function runUi(ui, port) {
     await gotoDashboard(page, ui)
 
     const done = await waitFor('the print completes (print_stats.state complete)', async () =>
-      (await query('print_stats=state')).print_stats.state === 'complete', 180000)
+      (await query('print_stats=state')).print_stats.state === 'complete', 300000)
     if (done) {
       await sleep(1500)
       fs.writeFileSync(path.join(outDir, `${ui}-complete.txt`), await text())

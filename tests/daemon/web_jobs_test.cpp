@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "../planner/planner_test_util.hpp"
+#include "daemon/job_files.hpp"
 #include "daemon_fixture.hpp"
 #include "line_client.hpp"
 
@@ -251,6 +252,11 @@ TEST_F(WebJobsVirtual, AFileInASubfolderPrintsAndEscapesAreRefused) {
                 r.body["error"]["message"].get<std::string>().c_str());
   }
   EXPECT_EQ(objects("print_stats")["print_stats"]["state"], "standby");
+  // The job folder's own check (M23, M32, job.start take the same path): '..' is refused there too.
+  for (const char* bad : {"../outside.gcode", "parts/../../outside.gcode", "/abs.gcode",
+                          "parts\\cube.gcode", "parts/cube.txt"})
+    EXPECT_FALSE(daemon::JobFiles::validate_path(bad).ok()) << bad;
+  EXPECT_TRUE(daemon::JobFiles::validate_path("parts/small/cube.gcode").ok());
 
   Reply start =
       request(port(), http::verb::post, "/printer/print/start?filename=parts/small/cube.gcode");
