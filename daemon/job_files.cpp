@@ -74,7 +74,8 @@ Status check_component(std::string_view path, size_t begin, size_t end, bool fil
   const std::string_view name = path.substr(begin, end - begin);
   const std::string what = file ? "file name" : "folder name";
   if (name.empty()) {
-    if (file) return Error{begin == 0 ? "file name is empty" : "file name is empty (the path ends in '/')"};
+    if (file)
+      return Error{begin == 0 ? "file name is empty" : "file name is empty (the path ends in '/')"};
     return Error{begin == 0 ? std::string("the path starts with '/' (it is relative to the folder)")
                             : "empty folder name at byte " + std::to_string(begin + 1)};
   }

@@ -250,7 +250,8 @@ void MoonrakerApi::call(uint64_t conn, const std::string& method, const json& pa
   auto it = methods_.find(method);
   // Each call and its outcome at debug level (`feedloopd --log-level debug`): what a UI sends.
   if (spdlog::should_log(spdlog::level::debug)) {
-    spdlog::debug("web: call {} {}", method, params.dump().substr(0, 200));
+    spdlog::debug("web: call {} {}", method,
+                  params.dump(-1, ' ', false, json::error_handler_t::replace).substr(0, 200));
     done = [method, inner = std::move(done)](json result, int code, std::string error) {
       if (!error.empty() || code != 0) spdlog::debug("web: {} failed: {} {}", method, code, error);
       inner(std::move(result), code, std::move(error));

@@ -246,7 +246,8 @@ TEST_F(WebJobsVirtual, AFileInASubfolderPrintsAndEscapesAreRefused) {
   std::ofstream(dir_ + "/gcodes/.hidden/h.gcode") << "G28\n";
   for (const char* bad : {"../outside.gcode", "parts/../../outside.gcode", ".hidden/h.gcode",
                           "parts//small/cube.gcode", "parts/small/", "parts/small/nope.gcode"}) {
-    Reply r = request(port(), http::verb::post, std::string("/printer/print/start?filename=") + bad);
+    Reply r =
+        request(port(), http::verb::post, std::string("/printer/print/start?filename=") + bad);
     EXPECT_EQ(r.status, 400) << bad << ": " << r.body.dump();
     std::printf("start %-28s -> %d %s\n", bad, r.status,
                 r.body["error"]["message"].get<std::string>().c_str());
