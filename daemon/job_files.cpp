@@ -15,7 +15,8 @@
 namespace feedloop::daemon {
 
 namespace {
-constexpr size_t kMaxNameBytes = 255;  // NAME_MAX on Linux file systems
+constexpr size_t kMaxNameBytes = 255;   // NAME_MAX on Linux file systems
+constexpr size_t kMaxPathBytes = 4095;  // PATH_MAX - 1
 
 bool has_gcode_extension(std::string_view name) {
   // The extensions Marlin's SD listing and Moonraker's file manager accept for G-code.
@@ -65,27 +66,55 @@ Status JobFiles::open() {
   return Status::Ok();
 }
 
-Status JobFiles::validate_name(std::string_view name) {
-  if (name.empty()) return Error{"file name is empty"};
+namespace {
+// One path component of `path` at [begin, end): the checks of validate_name; `file` adds the
+// G-code extension (a folder needs none). Byte positions in the messages count from the path's
+// start.
+Status check_component(std::string_view path, size_t begin, size_t end, bool file) {
+  const std::string_view name = path.substr(begin, end - begin);
+  const std::string what = file ? "file name" : "folder name";
+  if (name.empty()) {
+    if (file)
+      return Error{begin == 0 ? "file name is empty" : "file name is empty (the path ends in '/')"};
+    return Error{begin == 0 ? std::string("the path starts with '/' (it is relative to the folder)")
+                            : "empty folder name at byte " + std::to_string(begin + 1)};
+  }
   if (name.size() > kMaxNameBytes)
-    return Error{"file name is " + std::to_string(name.size()) + " bytes long (at most " +
+    return Error{what + " is " + std::to_string(name.size()) + " bytes long (at most " +
                  std::to_string(kMaxNameBytes) + ")"};
   size_t bad = 0;
-  for (size_t i = 0; i < name.size();) {
-    const auto b = static_cast<unsigned char>(name[i]);
+  for (size_t i = begin; i < end;) {
+    const auto b = static_cast<unsigned char>(path[i]);
     const std::string at = " at byte " + std::to_string(i + 1);
-    if (b == 0) return Error{"file name has a NUL byte" + at};
-    if (b < 0x20 || b == 0x7f) return Error{"file name has a control character" + at};
+    if (b == 0) return Error{what + " has a NUL byte" + at};
+    if (b < 0x20 || b == 0x7f) return Error{what + " has a control character" + at};
     if (b == '/' || b == '\\')
-      return Error{"file name has a path separator" + at + " (one name, no folders)"};
-    const size_t n = utf8_sequence_length(name, i, &bad);
-    if (n == 0) return Error{"file name is not valid UTF-8" + at};
+      return Error{what + " has a path separator" + at + " (one name, no folders)"};
+    const size_t n = utf8_sequence_length(path, i, &bad);
+    if (n == 0) return Error{what + " is not valid UTF-8" + at};
     i += n;
   }
   if (name.front() == '.')
-    return Error{"file name starts with '.' (hidden names and '..' are refused)"};
-  if (!has_gcode_extension(name)) return Error{"file name must end in .gcode, .gco, .gc or .g"};
+    return Error{what + " starts with '.' (hidden names and '..' are refused)" +
+                 (begin > 0 ? " at byte " + std::to_string(begin + 1) : std::string())};
+  if (file && !has_gcode_extension(name))
+    return Error{"file name must end in .gcode, .gco, .gc or .g"};
   return Status::Ok();
+}
+}  // namespace
+
+Status JobFiles::validate_name(std::string_view name) {
+  return check_component(name, 0, name.size(), true);
+}
+
+Status JobFiles::validate_path(std::string_view path) {
+  if (path.size() > kMaxPathBytes)
+    return Error{"file path is " + std::to_string(path.size()) + " bytes long (at most " +
+                 std::to_string(kMaxPathBytes) + ")"};
+  size_t begin = 0;
+  for (size_t slash; (slash = path.find('/', begin)) != std::string_view::npos; begin = slash + 1)
+    if (Status s = check_component(path, begin, slash, false); !s) return s;
+  return check_component(path, begin, path.size(), true);
 }
 
 std::string JobFiles::path_of(std::string_view name) const {
@@ -109,7 +138,7 @@ Result<std::vector<JobFileInfo>> JobFiles::list() const {
 }
 
 Result<JobFileInfo> JobFiles::stat(std::string_view name) const {
-  if (Status s = validate_name(name); !s) return s.error();
+  if (Status s = validate_path(name); !s) return s.error();
   return info_of(path_of(name), name);
 }
 

@@ -248,6 +248,15 @@ void MoonrakerApi::handle(uint64_t conn, const json& req, std::function<void(jso
 
 void MoonrakerApi::call(uint64_t conn, const std::string& method, const json& params, Done done) {
   auto it = methods_.find(method);
+  // Each call and its outcome at debug level (`feedloopd --log-level debug`): what a UI sends.
+  if (spdlog::should_log(spdlog::level::debug)) {
+    spdlog::debug("web: call {} {}", method,
+                  params.dump(-1, ' ', false, json::error_handler_t::replace).substr(0, 200));
+    done = [method, inner = std::move(done)](json result, int code, std::string error) {
+      if (!error.empty() || code != 0) spdlog::debug("web: {} failed: {} {}", method, code, error);
+      inner(std::move(result), code, std::move(error));
+    };
+  }
   if (it == methods_.end()) {
     done(nullptr, kMethodNotFound, "Method not found");
     return;

@@ -81,11 +81,18 @@ async function controls(page) {
   return page.evaluate(() => {
     const out = []
     let i = 0
+    // The numbers of an earlier look are removed first: a control that is hidden now (a closed
+    // menu's item stays in the page) must not keep a number that a visible one gets now (the
+    // click went to the hidden "Upload Files" item of Fluidd's closed "+" menu, not to "Print").
+    for (const e of document.querySelectorAll('[data-fl-ctl]')) delete e.dataset.flCtl
     for (const e of document.querySelectorAll('button, a, [role="button"], [role="menuitem"], .v-list-item--link')) {
       const r = e.getBoundingClientRect()
       const style = getComputedStyle(e)
       if (r.width === 0 || r.height === 0 || style.visibility === 'hidden' || style.display === 'none') continue
-      if (e.disabled || e.classList.contains('v-btn--disabled')) continue
+      // Disabled controls (Vuetify's list items are disabled by class and aria-disabled, and take
+      // no pointer events: a click there lands on what lies beneath) are not offered.
+      if (e.disabled || e.classList.contains('v-btn--disabled') || e.classList.contains('v-list-item--disabled') ||
+          e.getAttribute('aria-disabled') === 'true') continue
       e.dataset.flCtl = String(++i)
       out.push({ id: i, text: (e.innerText || '').trim(), label: (e.getAttribute('title') || e.getAttribute('aria-label') || '').trim(),
         icon: e.querySelector('svg path')?.getAttribute('d') || '', href: e.getAttribute('href') || '' })
@@ -171,6 +178,14 @@ async function startFromFiles(page, ui) {
     await name.asElement().click({ button: 'right' })
     print = await waitForControl(page, `${ui}: the context menu's print item`, isPrint, 5000)
   }
+  if (print && process.env.FEEDLOOP_WEB_DEBUG) {
+    console.log('     print control: ' + await print.evaluate((e) => {
+      const r = e.getBoundingClientRect()
+      const at = document.elementFromPoint(r.x + r.width / 2, r.y + r.height / 2)
+      return `${e.tagName}.${e.className} box ${Math.round(r.x)},${Math.round(r.y)} ${Math.round(r.width)}x${Math.round(r.height)}; ` +
+        `at its middle: ${at?.tagName}.${at?.className} (inside: ${e.contains(at)}) ${e.outerHTML.slice(0, 300)}`
+    }))
+  }
   if (print) await clickIt(page, print)
 }
 
@@ -180,8 +195,15 @@ async function confirmIfAsked(page, ui) {
   while (Date.now() - t0 < 3000) {
     const c = (await controls(page)).find((c) => /^(yes|confirm|cancel print)$/i.test(c.text))
     if (c) {
+      // The dialog opens with a transition: the button is clicked once it stands still (a click
+      // while it grows lands beside it and closes the dialog unanswered).
+      const h = await page.$(`[data-fl-ctl="${c.id}"]`)
+      const before = await h?.boundingBox()
+      await sleep(300)
+      const after = await h?.boundingBox()
+      if (!h || !before || !after || before.x !== after.x || before.y !== after.y || before.width !== after.width) continue
       console.log(`     ${ui}: confirming with "${c.text}"`)
-      { const h = await page.$(`[data-fl-ctl="${c.id}"]`); if (h) await clickIt(page, h) }
+      await clickIt(page, h)
       return
     }
     await sleep(200)
@@ -202,7 +224,10 @@ async function runUi(ui, port) {
   fs.writeFileSync(path.join(tmp, 'printer.yaml'), cfg)
   if (report) fs.cpSync(path.join(reportDir, 'x-fit'), path.join(tmp, 'ident', 'x-fit'), { recursive: true })
   const log = fs.openSync(path.join(outDir, `${ui}-feedloopd.log`), 'w')
-  const daemon = spawn(feedloopd, ['--virtual-time', '--config', path.join(tmp, 'printer.yaml')],
+  // FEEDLOOP_WEB_DEBUG=1: the daemon logs every API call the UI makes and its errors
+  // (build/browser-test/<ui>-feedloopd.log).
+  const debugArgs = process.env.FEEDLOOP_WEB_DEBUG ? ['--log-level', 'debug'] : []
+  const daemon = spawn(feedloopd, ['--virtual-time', '--config', path.join(tmp, 'printer.yaml'), ...debugArgs],
     { env: { ...process.env, RUNTIME_DIRECTORY: tmp, STATE_DIRECTORY: tmp }, stdio: ['ignore', log, log] })
   const base = `http://127.0.0.1:${port}`
   await waitFor('feedloopd answers server.info', async () => (await fetch(`${base}/server/info`)).ok, 15000)
@@ -310,7 +335,7 @@ async function runUi(ui, port) {
     await gotoDashboard(page, ui)
 
     const done = await waitFor('the print completes (print_stats.state complete)', async () =>
-      (await query('print_stats=state')).print_stats.state === 'complete', 180000)
+      (await query('print_stats=state')).print_stats.state === 'complete', 300000)
     if (done) {
       await sleep(1500)
       fs.writeFileSync(path.join(outDir, `${ui}-complete.txt`), await text())
@@ -326,13 +351,26 @@ async function runUi(ui, port) {
     await waitFor('M106 S128 from the UI\'s console sets fan.speed to 128/255',
       async () => Math.abs((await query('fan=speed')).fan.speed - 128 / 255) < 1e-3, 10000)
     await gotoDashboard(page, ui)
-    // Fluidd writes "50%"; Mainsail's fan slider has its number in an input field beside "Fan".
-    await waitFor(`${ui} shows the part fan at 50 %`, async () => /\b50\s*%/.test(await text()) || page.evaluate(() =>
-      [...document.querySelectorAll('input')].some((i) => {
-        if (!(Math.abs(Number(i.value) - 50) <= 0.5)) return false
-        for (let e = i, k = 0; e && k < 6; e = e.parentElement, ++k) if (/^\s*Fan\b/m.test(e.innerText || '')) return true
-        return false
-      })), 15000)
+    // Both UIs show the part fan (Klipper's `fan`, speed 0..1) as a slider with its percentage in
+    // an input field beside its name (Mainsail "Fan", Fluidd "Part Fan"): from the name, up to the
+    // nearest element that holds a number field, whose value must be 50 (0.502 rounded).
+    const fanShown = async () => page.evaluate(() => {
+      const labels = [...document.querySelectorAll('body *')].filter((e) => /^(part )?fan$/i.test((e.innerText || '').trim()) &&
+        ![...e.children].some((c) => /^(part )?fan$/i.test((c.innerText || '').trim())))
+      const values = []
+      for (const l of labels) {
+        for (let e = l.parentElement, k = 0; e && k < 8; e = e.parentElement, ++k) {
+          const input = [...e.querySelectorAll('input')].find((i) => i.type !== 'hidden' && i.value !== '' && !isNaN(Number(i.value)))
+          if (input) { values.push(Number(input.value)); break }
+        }
+      }
+      return values
+    })
+    const fanValues = await waitFor(`${ui} shows the part fan at 50 %`, async () => {
+      const v = await fanShown()
+      return v.some((x) => Math.abs(x - 50) <= 0.5) ? v : null
+    }, 15000)
+    if (!fanValues) console.log(`     fan fields found: ${JSON.stringify(await fanShown())}`)
     await page.screenshot({ path: path.join(outDir, `${ui}-fan.png`) })
 
     let hist = await api('/server/history/list?limit=5')

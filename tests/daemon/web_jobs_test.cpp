@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "../planner/planner_test_util.hpp"
+#include "daemon/job_files.hpp"
 #include "daemon_fixture.hpp"
 #include "line_client.hpp"
 
@@ -227,6 +228,54 @@ TEST_F(WebJobsVirtual, OnePrintJobWhicheverChannelStartsPausesOrCancelsIt) {
 }
 
 // Wall clock: the heaters and the fan's kick-start run on the machine's time.
+// A file in a subfolder of gcodes (uploaded with Moonraker's `path` field, as both UIs do in a
+// folder) is printed by its relative path; a path out of the folder, or through a hidden folder,
+// is refused with the reason and starts nothing.
+TEST_F(WebJobsVirtual, AFileInASubfolderPrintsAndEscapesAreRefused) {
+  const std::string text =
+      read_file(std::string(FEEDLOOP_SOURCE_DIR) + "/examples/gcode/cube20_3layers.gcode");
+  const std::string form =
+      "--XyZ\r\nContent-Disposition: form-data; name=\"path\"\r\n\r\nparts/small\r\n" +
+      multipart("cube.gcode", text);
+  Reply up = request(port(), http::verb::post, "/server/files/upload", form,
+                     "multipart/form-data; boundary=XyZ");
+  ASSERT_EQ(up.status, 201) << up.body.dump();
+  ASSERT_EQ(read_file(dir_ + "/gcodes/parts/small/cube.gcode"), text);
+  std::ofstream(dir_ + "/outside.gcode") << "G28\n";
+  std::filesystem::create_directories(dir_ + "/gcodes/.hidden");
+  std::ofstream(dir_ + "/gcodes/.hidden/h.gcode") << "G28\n";
+  for (const char* bad : {"../outside.gcode", "parts/../../outside.gcode", ".hidden/h.gcode",
+                          "parts//small/cube.gcode", "parts/small/", "parts/small/nope.gcode"}) {
+    Reply r =
+        request(port(), http::verb::post, std::string("/printer/print/start?filename=") + bad);
+    EXPECT_EQ(r.status, 400) << bad << ": " << r.body.dump();
+    std::printf("start %-28s -> %d %s\n", bad, r.status,
+                r.body["error"]["message"].get<std::string>().c_str());
+  }
+  EXPECT_EQ(objects("print_stats")["print_stats"]["state"], "standby");
+  // The job folder's own check (M23, M32, job.start take the same path): '..' is refused there too.
+  for (const char* bad : {"../outside.gcode", "parts/../../outside.gcode", "/abs.gcode",
+                          "parts\\cube.gcode", "parts/cube.txt"})
+    EXPECT_FALSE(daemon::JobFiles::validate_path(bad).ok()) << bad;
+  EXPECT_TRUE(daemon::JobFiles::validate_path("parts/small/cube.gcode").ok());
+
+  Reply start =
+      request(port(), http::verb::post, "/printer/print/start?filename=parts/small/cube.gcode");
+  ASSERT_EQ(start.status, 200) << start.body.dump();
+  json s = wait_objects(
+      "print_stats&virtual_sdcard",
+      [](const json& o) { return o["print_stats"]["state"] != "printing"; }, 300);
+  ASSERT_EQ(s["print_stats"]["state"], "complete") << s.dump();
+  EXPECT_EQ(s["print_stats"]["filename"], "parts/small/cube.gcode");
+  EXPECT_EQ(s["virtual_sdcard"]["file_path"], dir_ + "/gcodes/parts/small/cube.gcode");
+  EXPECT_EQ(s["virtual_sdcard"]["file_position"], text.size());
+  EXPECT_NEAR(s["print_stats"]["filament_used"].get<double>(), filament_of(text), 1e-6);
+  Reply hist = request(port(), http::verb::get, "/server/history/list?limit=1");
+  ASSERT_EQ(hist.status, 200);
+  EXPECT_EQ(hist.body["result"]["jobs"][0]["filename"], "parts/small/cube.gcode");
+  EXPECT_EQ(hist.body["result"]["jobs"][0]["status"], "completed");
+}
+
 TEST_F(WebJobs, FanPowerConsoleEchoAndAStreamedPrint) {
   LineClient marlin;
   ASSERT_TRUE(marlin.connect_unix(daemon_->socket_path()));
