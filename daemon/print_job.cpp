@@ -252,14 +252,16 @@ Status PrintJob::cancel() {
   // At once (Klipper's CANCEL_PRINT, Marlin's M524): heaters off and the queued commands dropped
   // now, not behind up to a queue of moves. While paused the job has nothing queued and another
   // client may be moving the machine: heaters off only.
-  if (state_ == JobState::kPaused)
+  const bool paused = state_ == JobState::kPaused;
+  state_ = JobState::kCancelling;
+  phase_ = Phase::kCancelWait;
+  sequence_.clear();  // a resume in progress is dropped with the queue
+  held_.reset();
+  // (The dropped commands' completions may come back from inside cancel_motion: the state is set.)
+  if (paused)
     sink_.all_heaters_off();
   else
     sink_.cancel_motion();
-  state_ = JobState::kCancelling;
-  phase_ = Phase::kCancelWait;
-  sequence_.clear();  // a resume in progress stops at a move boundary too
-  held_.reset();
   pump();
   return Status::Ok();
 }

@@ -141,8 +141,11 @@ void Machine::run_flush() {
   flush_running_.store(true);
   flush_requested_.store(false);
   const bool heaters_off = flush_heaters_off_.exchange(false);
+  // What is queued now (a command submitted while the drain runs, e.g. a cancel's park move
+  // answering the drops' completions, is not dropped).
+  size_t n = queue_.size();
   Queued q;
-  while (queue_.try_pop(q)) {
+  while (n-- > 0 && queue_.try_pop(q)) {
     flushed_.fetch_add(1, std::memory_order_relaxed);
     if (on_done_)
       on_done_(CommandDone{q.ticket, Error{"dropped: the machine's queue was flushed (cancel)"}});

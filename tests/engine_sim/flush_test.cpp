@@ -8,7 +8,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <cstdlib>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -36,7 +35,6 @@ config::MachineConfig flush_config() {
   config::MachineConfig cfg = config::default_config();
   cfg.servo.realtime_priority = 0;
   cfg.servo.lock_memory = false;
-  if (std::getenv("FLUSH_NO_HOMING") != nullptr) cfg.planner.allow_moves_before_homing = true;
   return cfg;
 }
 
@@ -60,11 +58,9 @@ struct FlushRig {
     ex = stack.value().executor.get();
     machine =
         std::make_unique<Machine>(machine_options(cfg), clock, std::move(stack.value().executor));
-    if (std::getenv("FLUSH_NO_THERMAL") == nullptr) {
-      auto thermal = make_thermal_loop(cfg);
-      EXPECT_TRUE(thermal.ok());
-      if (thermal.ok()) machine->set_thermal(std::move(thermal.value()));
-    }
+    auto thermal = make_thermal_loop(cfg);
+    EXPECT_TRUE(thermal.ok());
+    if (thermal.ok()) machine->set_thermal(std::move(thermal.value()));
     errors.reserve(100000);
     machine->set_done_callback([this](CommandDone d) {
       {
@@ -190,9 +186,7 @@ void check_usable(FlushRig& rig) {
     EXPECT_NEAR(static_cast<double>(s.step_count[j]), 100.0 * rig.spm(j), 0.5 + 1e-6);
   EXPECT_NEAR(rig.bridge->plant()->carriage_mm(0), 100.0, 0.12);
   EXPECT_NEAR(rig.bridge->plant()->carriage_mm(1), 100.0, 0.12);
-  if (std::getenv("FLUSH_NO_HOMING") == nullptr) {
-    ASSERT_EQ(rig.run("G28"), "");
-  }
+  ASSERT_EQ(rig.run("G28"), "");
   s = rig.machine->status();
   EXPECT_STREQ(s.homed_axes, "xyz");
   EXPECT_EQ(s.lost_step_events, 0u);
@@ -201,9 +195,7 @@ void check_usable(FlushRig& rig) {
 TEST(Flush, AtRestWithNothingQueuedChangesNothingButTheHeaters) {
   FlushRig rig(flush_config());
   ASSERT_TRUE(rig.machine);
-  if (std::getenv("FLUSH_NO_HOMING") == nullptr) {
-    ASSERT_EQ(rig.run("G28"), "");
-  }
+  ASSERT_EQ(rig.run("G28"), "");
   ASSERT_EQ(rig.run("G1 X30 Y40 Z5 F6000"), "");
   ASSERT_EQ(rig.run("M104 S200"), "");
   ASSERT_TRUE(rig.wait_idle());
@@ -225,9 +217,7 @@ TEST(Flush, AtRestWithNothingQueuedChangesNothingButTheHeaters) {
 TEST(Flush, ATravelAtFullSpeedStopsWithinVSquaredOverTwoAAlongItsLine) {
   FlushRig rig(flush_config());
   ASSERT_TRUE(rig.machine);
-  if (std::getenv("FLUSH_NO_HOMING") == nullptr) {
-    ASSERT_EQ(rig.run("G28"), "");
-  }
+  ASSERT_EQ(rig.run("G28"), "");
   ASSERT_EQ(rig.run("G1 X20 Y20 Z5 F6000"), "");
   ASSERT_EQ(rig.run("M140 S60"), "");
   ASSERT_EQ(rig.run("M104 S215"), "");
@@ -284,9 +274,7 @@ TEST(Flush, InTheMiddleOfTheBenchy) {
   const double z_mm = std::stod(text.substr(z_at + 5, 12));
   FlushRig rig(flush_config());
   ASSERT_TRUE(rig.machine);
-  if (std::getenv("FLUSH_NO_HOMING") == nullptr) {
-    ASSERT_EQ(rig.run("G28"), "");
-  }
+  ASSERT_EQ(rig.run("G28"), "");
   ASSERT_EQ(rig.run("M140 S60"), "");
   ASSERT_EQ(rig.run("M104 S215"), "");
   ASSERT_EQ(rig.run("G90"), "");
@@ -342,9 +330,7 @@ namespace {
 TEST(Return, TheRestPointWithinAStepDependsOnTheArrival) {
   FlushRig rig(flush_config());
   ASSERT_TRUE(rig.machine);
-  if (std::getenv("FLUSH_NO_HOMING") == nullptr) {
-    ASSERT_EQ(rig.run("G28"), "");
-  }
+  ASSERT_EQ(rig.run("G28"), "");
   const double count_mm = 0.49e-3;
   auto settle_and_read = [&](MachineStatus* out) {
     EXPECT_EQ(rig.run("M400"), "");
