@@ -98,9 +98,12 @@ struct FakeMachine final : JobSink {
   // an error), the motion stopped (here: nothing moves between commands).
   int flushes = 0;
   size_t dropped = 0;
+  size_t executed_at_flush = 0, queued_at_flush = 0;
   void cancel_motion() override {
     ++flushes;
-    all_heaters_off();
+    all_heaters_off();  // before anything queued runs or is dropped
+    executed_at_flush = executed.size();
+    queued_at_flush = queue.size();
     std::deque<Queued> drop;
     drop.swap(queue);
     for (Queued& q : drop) {
@@ -339,8 +342,8 @@ TEST_F(PrintJobTest, CancelFlushesTheQueueTurnsHeatersOffAtOnceThenParks) {
   EXPECT_EQ(m.flushes, 1);
   EXPECT_EQ(m.dropped, queued);
   EXPECT_GE(m.heaters_off, 1);
-  EXPECT_EQ(m.executed_at_heaters_off, executed);
-  EXPECT_EQ(m.queued_at_heaters_off, queued);
+  EXPECT_EQ(m.executed_at_flush, executed);
+  EXPECT_EQ(m.queued_at_flush, queued);
   EXPECT_EQ(job.state(), JobState::kCancelling);
   EXPECT_EQ(job.status().message, "");
   m.run();
