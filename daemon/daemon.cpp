@@ -795,7 +795,7 @@ json Daemon::status() const {
           {"heaters", heaters_json(s)},
           {"fans", fans_json(s)},
           {"queue", {{"depth", s.queue_depth}, {"capacity", s.queue_capacity}}},
-          {"commands", {{"executed", s.commands_executed}, {"rejected", s.commands_rejected}}},
+          {"commands", {{"executed", s.commands_executed}, {"rejected", s.commands_rejected}, {"flushed", s.commands_flushed}}},
           {"servo",
            {{"cycles", v.cycles},
             {"deadline_misses", v.deadline_misses},

@@ -119,6 +119,8 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   enum class Heater { kHotend, kBed };
   void set_heater_target(Heater heater, double target_c);
   void all_heaters_off() override;
+  // The job's cancel at once (JobSink::cancel_motion): engine::Machine::flush with the heaters off.
+  void cancel_motion() override;
 
   // web::PrinterBackend (daemon/web_backend.cpp): the web server's view of the printer. Print
   // jobs are the daemon's one print job (job_); heaters and fans are the machine's status.

@@ -160,6 +160,11 @@ void Daemon::all_heaters_off() {
   set_heater_target(Heater::kBed, 0.0);
 }
 
+void Daemon::cancel_motion() {
+  spdlog::info("cancel: the machine's queue dropped, the motion stopping, every heater off");
+  machine_->flush(/*heaters_off=*/true);
+}
+
 void Daemon::flush_internal() {
   while (!internal_backlog_.empty()) {
     const uint64_t ticket = next_ticket_;

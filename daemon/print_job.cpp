@@ -243,17 +243,25 @@ Status PrintJob::resume() {
 Status PrintJob::cancel() {
   if (!active()) return Error{std::string("no print to cancel (job ") + to_string(state_) + ")"};
   if (state_ == JobState::kCancelling) return Status::Ok();
-  if (state_ == JobState::kPausing) {  // finish parking first, then cancel (no half sequence)
-    cancel_after_pause_ = true;
-    resume_after_pause_ = false;
-    return Status::Ok();
-  }
-  if (state_ == JobState::kPaused) paused_total_ns_ += sink_.now_ns() - paused_since_ns_;
-  if (state_ == JobState::kResuming) parked_ = false;  // partly back over the part: park again
+  if (state_ == JobState::kPaused || state_ == JobState::kPausing)
+    paused_total_ns_ += sink_.now_ns() - paused_since_ns_;
+  // Resuming: partly back over the part; pausing: the park may be cut short. Park again.
+  if (state_ == JobState::kResuming || state_ == JobState::kPausing) parked_ = false;
+  cancel_after_pause_ = false;
+  resume_after_pause_ = false;
+  // At once (Klipper's CANCEL_PRINT, Marlin's M524): heaters off and the queued commands dropped
+  // now, not behind up to a queue of moves. While paused the job has nothing queued and another
+  // client may be moving the machine: heaters off only.
+  const bool paused = state_ == JobState::kPaused;
   state_ = JobState::kCancelling;
   phase_ = Phase::kCancelWait;
-  sequence_.clear();  // a resume in progress stops at a move boundary too
+  sequence_.clear();  // a resume in progress is dropped with the queue
   held_.reset();
+  // (The dropped commands' completions may come back from inside cancel_motion: the state is set.)
+  if (paused)
+    sink_.all_heaters_off();
+  else
+    sink_.cancel_motion();
   pump();
   return Status::Ok();
 }
@@ -269,7 +277,9 @@ std::function<void(const Status&)> PrintJob::completion(bool from_file, int64_t 
     auto a = alive.lock();
     if (!a || !*a) return;
     if (in_flight_ > 0) --in_flight_;
-    if (!st) {
+    if (!st && state_ == JobState::kCancelling && phase_ == Phase::kCancelWait) {
+      // Dropped by the cancel's flush (or cut short by it): nothing to report.
+    } else if (!st) {
       if (from_file) {
         fail(file_ + ":" + std::to_string(line) + ": " + st.error().to_string());
       } else {

@@ -14,9 +14,10 @@
 //   un-retract and prime (`prime_extra_mm`), G92 E back to the recorded
 //           E, settle dwell + M400 (the return position is measured here), restore the modes and
 //           the feedrate, continue with the next line of the file.
-//   cancel: stop reading; let the queued commands finish (at most the machine queue's capacity);
-//           every heater off (JobSink::all_heaters_off), retract, lift, park. Marlin's M524 /
-//           Klipper's CANCEL_PRINT.
+//   cancel: stop reading; every heater off and the machine's queue dropped at once, the motion
+//           stopped in a controlled deceleration (JobSink::cancel_motion; while paused nothing of
+//           the job is queued: heaters off only); retract, lift, park. Marlin's M524 / Klipper's
+//           CANCEL_PRINT.
 // A line of the file that fails to parse or that the machine refuses ends the job in `error` with
 // the file's name and line; an M25 or M601 in the file pauses the job there; the heaters are
 // switched off and the machine is not parked (the failed move may be the reason). The job is not
@@ -70,6 +71,11 @@ class JobSink {
   // The narrow heater hook: every heater's target to 0 (today: the HeaterSim targets through the
   // machine's queue, behind the commands already in it).
   virtual void all_heaters_off() = 0;
+  // Cancel at once (engine::Machine::flush): every heater's target 0 now, the machine's queue
+  // dropped (the job's commands in it complete with an error, which a cancelling job ignores), the
+  // motion stopped in a controlled deceleration; the machine then takes the park moves. Default
+  // (a sink without it): nothing, the queued commands run first.
+  virtual void cancel_motion() {}
 };
 
 struct JobOptions {

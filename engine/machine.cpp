@@ -84,6 +84,7 @@ Status Machine::start(std::string* warnings) {
 void Machine::stop() {
   if (!started_) return;
   cancel_.store(true);
+  interrupt_.store(true);
   stopping_.store(true);
   wake_cv_.notify_all();
   if (planner_thread_.joinable()) planner_thread_.join();
@@ -118,9 +119,44 @@ void take_stall(std::atomic<int64_t>& request_ns) {
 void Machine::emergency_stop(const std::string& reason) {
   estop_.store(true);
   cancel_.store(true);
+  interrupt_.store(true);
   set_error("emergency stop: " + reason);
   if (thermal_) thermal_->all_off(seconds_from_ns(clock_.now_ns()));
   wake_cv_.notify_all();
+}
+
+void Machine::flush(bool heaters_off) {
+  if (heaters_off) {
+    flush_heaters_off_.store(true);
+    if (thermal_) thermal_->all_off(seconds_from_ns(clock_.now_ns()));
+  }
+  flush_requested_.store(true);
+  interrupt_.store(true);
+  wake_cv_.notify_all();
+}
+
+// The planner thread's side of flush(): the queue drained (each command completed as dropped),
+// the executor's motion stopped, the heaters off again behind the drain.
+void Machine::run_flush() {
+  flush_running_.store(true);
+  flush_requested_.store(false);
+  const bool heaters_off = flush_heaters_off_.exchange(false);
+  // What is queued now (a command submitted while the drain runs, e.g. a cancel's park move
+  // answering the drops' completions, is not dropped).
+  size_t n = queue_.size();
+  Queued q;
+  while (n-- > 0 && queue_.try_pop(q)) {
+    flushed_.fetch_add(1, std::memory_order_relaxed);
+    if (on_done_)
+      on_done_(CommandDone{q.ticket, Error{"dropped: the machine's queue was flushed (cancel)"}});
+  }
+  if (heaters_off && thermal_) thermal_->all_off(seconds_from_ns(clock_.now_ns()));
+  executor_->flush_motion(cancel_);
+  flushes_.fetch_add(1, std::memory_order_relaxed);
+  // A flush requested meanwhile runs at the next turn; else the interrupt ends with this one.
+  if (!cancel_.load() && !flush_requested_.load()) interrupt_.store(false);
+  flush_running_.store(false);
+  publish_status();
 }
 
 // A thermal fault: every heater is already off (ThermalLoop::trip); the motion stops the way an
@@ -129,6 +165,7 @@ void Machine::emergency_stop(const std::string& reason) {
 void Machine::on_thermal_fault(const std::string& message) {
   estop_.store(true);
   cancel_.store(true);
+  interrupt_.store(true);
   set_error(message);
   wake_cv_.notify_all();
 }
@@ -168,7 +205,7 @@ bool Machine::healthy() const {
 }
 
 bool Machine::idle() const {
-  if (!queue_.empty() || executing_.load()) return false;
+  if (!queue_.empty() || executing_.load() || flushing()) return false;
   return executor_->faulted() || (!executor_->motion_pending() && !executor_->settling());
 }
 
@@ -193,6 +230,8 @@ void Machine::publish_status() {
   s.queue_capacity = static_cast<uint32_t>(queue_.capacity());
   s.commands_executed = executed_.load();
   s.commands_rejected = rejected_.load();
+  s.commands_flushed = flushed_.load(std::memory_order_relaxed);
+  s.flushes = flushes_.load(std::memory_order_relaxed);
   {
     std::lock_guard lock(error_mutex_);
     std::snprintf(s.last_error, sizeof s.last_error, "%s", last_error_.c_str());
@@ -230,7 +269,7 @@ bool Machine::is_machine_command(const gcode::Command& cmd) const {
 Status Machine::wait_for(const std::function<bool(double now_s)>& done) {
   for (;;) {
     if (auto f = thermal_->fault()) return Error{*f};
-    if (cancel_.load()) return Error{"wait for temperature cancelled"};
+    if (interrupt_.load()) return Error{"wait for temperature cancelled"};
     if (done(seconds_from_ns(clock_.now_ns()))) return Status::Ok();
     if (clock_.is_virtual()) {
       // Virtual time is the wait's own while nothing moves (the servo thread advances it only for
@@ -319,10 +358,12 @@ Status Machine::dispatch(const gcode::Command& cmd) {
   } else if (is_machine_command(cmd)) {
     st = execute_machine_command(cmd);
   } else {
-    st = executor_->execute(cmd, cancel_);
+    st = executor_->execute(cmd, interrupt_);
   }
   if (st) {
     executed_.fetch_add(1, std::memory_order_relaxed);
+  } else if (flush_requested_.load() && !estop_.load()) {
+    flushed_.fetch_add(1, std::memory_order_relaxed);  // cut short by a flush: not a refusal
   } else {
     rejected_.fetch_add(1, std::memory_order_relaxed);
     // Once stopped, the commands refused after it do not hide why it stopped.
@@ -339,6 +380,10 @@ Status Machine::execute_inline(const gcode::Command& cmd) {
 void Machine::planner_main() {
   while (!stopping_.load()) {
     take_stall(planner_stall_ns_);
+    if (flush_requested_.load() && !estop_.load()) {
+      run_flush();
+      continue;
+    }
     Queued q;
     // Busy from before the command leaves the queue: the servo thread reads the queue, then this
     // flag (servo_main), so it never sees neither while a command is on its way to the executor.
@@ -352,7 +397,7 @@ void Machine::planner_main() {
         wake_cv_.wait_for(lock, std::chrono::milliseconds(5));
       }
       if (estop_.load()) cancel_.store(true);  // stays latched
-      executor_->idle_tick(cancel_);
+      executor_->idle_tick(interrupt_);
       publish_status();
       continue;
     }
@@ -389,7 +434,7 @@ Status Machine::servo_cycle_inline(int64_t now_ns) {
 
 void Machine::idle_tick_inline() {
   if (started_) return;
-  executor_->idle_tick(cancel_);
+  executor_->idle_tick(interrupt_);
 }
 
 void Machine::servo_main() {

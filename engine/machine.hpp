@@ -61,6 +61,8 @@ struct MachineStatus {
   uint32_t queue_capacity = 0;
   uint64_t commands_executed = 0;
   uint64_t commands_rejected = 0;
+  uint64_t commands_flushed = 0;  // queued commands dropped by a flush (cancel), not run
+  uint64_t flushes = 0;           // flushes done (Machine::flush)
   // Motion (filled by the executor)
   bool moving = false;           // print time is anchored on the machine clock
   double print_time_s = 0.0;     // print time being executed now
@@ -133,6 +135,12 @@ class CommandExecutor {
   }
   // Fills the motion fields of a status snapshot. Any thread.
   virtual void motion_status(MachineStatus& /*s*/) const {}
+  // Planner thread, for Machine::flush: the motion planned so far stops as soon as the limits
+  // allow (a controlled deceleration along the path, no lost steps), the rest of it is dropped,
+  // and the position continues from where the machine stopped. Returns once the machine is at
+  // rest, or early when `cancel` becomes true (the machine stopping). Default: the motion ends
+  // as planned (an executor without a step stream has nothing to stop).
+  virtual void flush_motion(const std::atomic<bool>& /*cancel*/) {}
 };
 
 struct MachineOptions {
@@ -186,6 +194,18 @@ class Machine {
   bool try_submit(uint64_t ticket, const gcode::Command& cmd);
   // Any thread. Latches kEmergencyStopped; queued commands are cancelled.
   void emergency_stop(const std::string& reason);
+  // Any thread: a cancel at once, without the emergency stop's latch (Marlin's M524 / Klipper's
+  // CANCEL_PRINT as users expect them). The command executing now returns (a wait for a
+  // temperature or for the machine ends), every command still in the queue is dropped (its
+  // completion reports "dropped by a flush"; counted in commands_flushed, not rejected), and the
+  // executor stops its planned motion in a controlled deceleration (CommandExecutor::
+  // flush_motion). With `heaters_off` every heater's target is 0 at once, on the calling thread,
+  // and again once the queue is drained (a heater command already on its way cannot undo it).
+  // Commands submitted after the drain run normally once the machine is at rest (a cancel's park
+  // moves). The machine stays usable: no latch, no homing lost.
+  void flush(bool heaters_off);
+  // True from flush() until the machine is at rest and the queue drained.
+  bool flushing() const { return flush_requested_.load() || flush_running_.load(); }
 
   // Fault injection (the real-time lateness test, `docs/decisions.md` "Host stalls"): the planner
   // and servo threads each sleep `duration_ns` at their next turn, as a host that is descheduled
@@ -234,7 +254,11 @@ class Machine {
 
   std::atomic<bool> stopping_{false};
   std::atomic<int64_t> planner_stall_ns_{0}, servo_stall_ns_{0};  // inject_stall, not yet taken
-  std::atomic<bool> cancel_{false};
+  std::atomic<bool> cancel_{false};     // latched: emergency stop, stop()
+  std::atomic<bool> interrupt_{false};  // the command executing returns: cancel_ or a flush
+  std::atomic<bool> flush_requested_{false}, flush_running_{false}, flush_heaters_off_{false};
+  std::atomic<uint64_t> flushed_{0}, flushes_{0};
+  void run_flush();  // planner thread
   std::atomic<bool> estop_{false};
   std::atomic<bool> executing_{false};
   std::atomic<uint64_t> executed_{0};

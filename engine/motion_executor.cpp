@@ -37,6 +37,7 @@ void MotionExecutor::set_control(std::unique_ptr<ServoControl> control) {
   // Samples between the feedback instant (now) and the newest command (control_lead_s ahead).
   const double period_s = pcfg_.servo_period_s;
   history_.assign(static_cast<size_t>(std::max(options_.control_lead_s, options_.lead_s + kDeviceHorizonSlack_s) / period_s) + 16, Sample{});
+  stop_tau_.assign(static_cast<size_t>(control_ ? control_->preview_samples() : 0) + 4, 0.0);
 }
 
 Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) {
@@ -52,6 +53,7 @@ Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool
   if (motion && control_fault_.load()) return Error{std::string("motion stopped: ") + control_fault_text_};
   if (cmd.is('G', 28) && homes_through_endstops()) return home(cmd, cancel);
   if (motion) wait_for_room(cancel);
+  if (motion && cancel.load()) return Error{"cancelled before it was planned", cmd.where};
   Status st = interp_->execute(cmd);
   planner_queued_.store(planner_.queued());
   pa_advance_s_.store(interp_->state().pressure_advance_s, std::memory_order_relaxed);
@@ -89,8 +91,10 @@ bool MotionExecutor::faulted() const {
 
 bool MotionExecutor::motion_pending() const {
   const int h = homing_req_.load();
+  const int sr = stop_req_.load();  // a flush's stop: the servo thread has work until it is done
   return planner_queued_.load() > 0 || pushed_.load() != popped_.load() ||
-         telemetry_.anchored.load() || h == kHomingRequested || h == kHomingRunning;
+         telemetry_.anchored.load() || h == kHomingRequested || h == kHomingRunning ||
+         sr == kStopRequested || sr == kStopRunning;
 }
 
 void MotionExecutor::pause_for_machine() {
@@ -444,6 +448,18 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
     drop_queued_moves();
     return;
   }
+  if (const int sr = stop_req_.load(std::memory_order_acquire); sr == kStopRequested || sr == kStopRunning) {
+    if (sr == kStopRequested) {
+      stop_req_.store(kStopRunning, std::memory_order_relaxed);
+      stop_figures_ = StopFigures{};
+      stop_figures_.request_s = now_s;
+      if (anchored && control_) begin_stop(now_s);
+    }
+    if (!anchored) {  // at rest: nothing of what is queued has started
+      finish_stop();
+      return;
+    }
+  }
   if (control_) {
     sampled_cycle(now_s);
     return;
@@ -501,6 +517,164 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
     publish_step_counts();  // the counts a waiter reads once the motion has ended
   }
   telemetry_.anchored.store(anchored);
+}
+
+// Planner thread (Machine::flush): the stop requested, the lookahead released (each of its motions
+// ends at rest: the moves the servo thread takes while slowing down end where the plan could stop),
+// then the wait for the rest point, from which the interpreter continues.
+void MotionExecutor::flush_motion(const std::atomic<bool>& cancel) {
+  struct Waiting {
+    std::atomic<bool>& w;
+    explicit Waiting(std::atomic<bool>& f) : w(f) { w = true; }
+    ~Waiting() { w = false; }
+  } waiting(waiting_);
+  stop_released_.store(false);
+  stop_req_.store(kStopRequested, std::memory_order_release);
+  planner_.flush();
+  planner_queued_.store(planner_.queued());
+  stop_released_.store(true, std::memory_order_release);
+  while (stop_req_.load(std::memory_order_acquire) != kStopDone) {
+    if (cancel.load() || faulted()) {  // stopped otherwise: the servo thread drops it all
+      stop_req_.store(kNoStop);
+      return;
+    }
+    pause_for_machine();
+  }
+  if (stop_pos_valid_) interp_->set_machine_position(stop_pos_mm_);
+  stop_req_.store(kNoStop, std::memory_order_release);
+}
+
+// Servo thread: the plan at plan (print) time plan_s, E through the pressure advance when it runs
+// (its time keeps its offset to the plan's: plan_shift_s_ - pa_base_shift_s_).
+bool MotionExecutor::reference_plan(double plan_s, control::FeedforwardInput& out) const {
+  planner::CartesianSample c;
+  const bool covered = timeline_->sample(plan_s, c);
+  if (timeline_->size() == 0) return false;
+  out = input_at(c);
+  if (pa_active_) out.r_mm[3] = pa_.position_mm(plan_s + plan_shift_s_ - pa_base_shift_s_);
+  return covered;
+}
+
+namespace {
+// Path speed of a planned state: XYZ, or E alone for an E-only move.
+double path_speed_mm_s(const planner::CartesianSample& c) {
+  const double v = std::sqrt(c.vel_mm_s[0] * c.vel_mm_s[0] + c.vel_mm_s[1] * c.vel_mm_s[1] +
+                             c.vel_mm_s[2] * c.vel_mm_s[2]);
+  return v > 1e-9 ? v : std::fabs(c.vel_mm_s[3]);
+}
+}  // namespace
+
+// Servo thread: the stop starts after the samples already commanded (the MCUs hold them: with the
+// device loop lead_s + 35 ms of r(t) and steps); the feedforward has seen the plan P samples
+// further (its preview), so the slowing starts at its input, the preview front.
+void MotionExecutor::begin_stop(double now_s) {
+  const double period_s = pcfg_.servo_period_s;
+  const int preview = control_->preview_samples();
+  const size_t n = stop_tau_.size();
+  const double tau_now = next_sample_s_ - plan_shift_s_;
+  for (int i = 0; i <= preview; ++i)
+    stop_tau_[(sample_no_ + static_cast<uint64_t>(i)) % n] = tau_now + i * period_s;
+  stop_lead_plan_s_ = tau_now + preview * period_s;
+  stop_start_plan_s_ = stop_lead_plan_s_;
+  planner::CartesianSample c;
+  timeline_->sample(stop_lead_plan_s_, c);
+  stop_cap_mm_s_ = path_speed_mm_s(c);
+  stop_warping_ = true;
+  stop_frozen_ = false;
+  stop_figures_.warped = true;
+  stop_figures_.speed_mm_s = stop_cap_mm_s_;
+  stop_figures_.decel_mm_s2 = pcfg_.max_accel_mm_s2;
+  stop_figures_.begin_s = next_sample_s_ + offset_s_;
+  (void)now_s;
+}
+
+// Servo thread, one command sample at servo time t_s while stopping: the preview front's plan
+// time advances by lambda T, lambda = min(1, cap / v(tau)) where the cap falls by a T per sample,
+// so the commanded path speed lambda v falls at a (the time-scaled path r(tau(t)) has tangential
+// acceleration d(lambda v)/dt = -a and its normal acceleration scaled by lambda^2, so it stays
+// within the limits the plan met). a: the planner's max_accel_mm_s2, less where an axis's own
+// limit along the path's direction is lower. At cap 0 (or where the plan itself is at rest) the
+// plan time stands: the rest point. Sets plan_shift_s_ for t_s; returns the preview front's plan
+// time (the feedforward's input).
+double MotionExecutor::stop_step(double t_s) {
+  const double period_s = pcfg_.servo_period_s;
+  const int preview = control_->preview_samples();
+  const size_t n = stop_tau_.size();
+  const uint64_t k = sample_no_ + 1;  // this sample's number
+  if (!stop_frozen_) {
+    planner::CartesianSample c;
+    timeline_->sample(stop_lead_plan_s_, c);
+    const double v = path_speed_mm_s(c);
+    double a = pcfg_.max_accel_mm_s2;
+    for (size_t i = 0; i < 4; ++i) {
+      const double vi = std::fabs(c.vel_mm_s[i]);
+      if (vi > 1e-9 && v > 1e-9) a = std::min(a, pcfg_.max_axis_accel_mm_s2[i] * v / vi);
+    }
+    stop_figures_.decel_mm_s2 = std::min(stop_figures_.decel_mm_s2, a);
+    bool rest = false;
+    double lambda = 1.0;
+    if (v <= 1e-9) {
+      rest = stop_lead_plan_s_ > stop_start_plan_s_;  // the plan stands still here: stop here
+      if (rest) lambda = 0.0;
+    } else if (v > stop_cap_mm_s_) {
+      lambda = std::max(0.0, stop_cap_mm_s_ / v);
+    }
+    const double before_s = stop_lead_plan_s_;
+    stop_lead_plan_s_ += lambda * period_s;
+    stop_cap_mm_s_ -= a * period_s;
+    if (stop_lead_plan_s_ > before_s) {
+      planner::CartesianSample p0, p1;
+      timeline_->sample(before_s, p0);
+      timeline_->sample(stop_lead_plan_s_, p1);
+      double d2 = 0.0;
+      for (size_t i = 0; i < 3; ++i) d2 += (p1.pos_mm[i] - p0.pos_mm[i]) * (p1.pos_mm[i] - p0.pos_mm[i]);
+      stop_figures_.path_mm += std::sqrt(d2);
+    }
+    if (rest || stop_cap_mm_s_ <= 0.0) {
+      stop_frozen_ = true;
+      // The sample whose plan time is the rest point: P samples on (the preview), then the hold.
+      const bool pi_loop = control_->closed_loop() || device_loop_;
+      stop_end_s_ = t_s + preview * period_s + (pi_loop ? options_.control_settle_s : 0.0) +
+                    pa_half_window_s();
+      stop_figures_.rest_s = t_s + preview * period_s + offset_s_;
+      control::FeedforwardInput at;
+      reference_plan(stop_lead_plan_s_, at);
+      planner::CartesianSample c_rest;
+      timeline_->sample(stop_lead_plan_s_, c_rest);
+      for (size_t i = 0; i < 4; ++i) stop_pos_mm_[i] = c_rest.pos_mm[i];
+      stop_pos_mm_[3] = at.r_mm[3];  // E as commanded (with the advance, e_adv)
+      stop_pos_valid_ = true;
+      for (size_t i = 0; i < 4; ++i) stop_figures_.position_mm[i] = stop_pos_mm_[i];
+    }
+  }
+  stop_tau_[(k + static_cast<uint64_t>(preview)) % n] = stop_lead_plan_s_;
+  const double shift_s = t_s - stop_tau_[k % n];
+  pa_base_shift_s_ += shift_s - plan_shift_s_;  // the advance's time stands with the plan's
+  plan_shift_s_ = shift_s;
+  return stop_lead_plan_s_;
+}
+
+// Servo thread, the machine at rest with a stop requested: once the planner has released all it
+// held, the moves not executed are dropped; where the carriage rests is the stop's rest point, or
+// (nothing had started) the first dropped move's start.
+void MotionExecutor::finish_stop() {
+  if (!stop_released_.load(std::memory_order_acquire)) return;
+  planner::PlannedMove drop;
+  while (queue_.try_pop(drop)) {
+    if (!stop_pos_valid_) {
+      stop_pos_mm_ = drop.start_mm;
+      stop_pos_valid_ = true;
+    }
+    ++stop_figures_.moves_dropped;
+    popped_.fetch_add(1, std::memory_order_release);
+  }
+  timeline_->clear();
+  stop_warping_ = false;
+  stop_frozen_ = false;
+  executed_end_s_ = 0.0;
+  if (stop_pos_valid_)
+    for (size_t i = 0; i < 4; ++i) stop_figures_.position_mm[i] = stop_pos_mm_[i];
+  stop_req_.store(kStopDone, std::memory_order_release);
 }
 
 // After power-on or a fault: the joints restart from the plan (the steps queued before were not
@@ -561,6 +735,8 @@ void MotionExecutor::publish_sample(double now_s, double print_time_s, const con
 // Motion starts from rest on the sampled path: the first command sample is the first move's
 // start, control_lead_s from now.
 void MotionExecutor::start_sampled(const planner::PlannedMove& first, double now_s) {
+  stop_warping_ = false;
+  stop_frozen_ = false;
   // The first move's start, at rest: the reference every filter starts from.
   const control::FeedforwardInput at = input_at(planner::sample_move(first, first.start_time_s));
   if (resync_) {
@@ -729,7 +905,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
     // With the advance, later still: e_adv up to the newest sample (and its preview) assumed rest
     // after the plan's end; a move starting at s changes e_adv from s - h on.
     const double pa_late_s = pa_active_ ? pa_h_s + preview * period_s : 0.0;
-    if (m.start_time_s + plan_shift_s_ < next_sample_s_ + pa_late_s - 1e-9)
+    if (!stop_warping_ && m.start_time_s + plan_shift_s_ < next_sample_s_ + pa_late_s - 1e-9)
       plan_shift_s_ = next_sample_s_ + pa_late_s - m.start_time_s;
     if (pa_active_) pa_.push(m, plan_shift_s_ - pa_base_shift_s_);
     timeline_->push(m);  // in plan time
@@ -817,15 +993,19 @@ void MotionExecutor::sampled_cycle(double now_s) {
   // Command samples up to control_lead_s ahead: u = F(r) + C(e), one linear segment per period;
   // after the plan's end (and the feedforward's preview), the loop holds the position for
   // control_settle_s more (the PI removes what is left of the error), then stops.
-  const bool plan_empty = queue_.empty() && planner_queued_.load() == 0;
+  bool plan_empty = queue_.empty() && planner_queued_.load() == 0;
   // Closed loop, the loop holds the position for control_settle_s after the plan's end (thesis
   // Sect. 5.1: the integrator needs ~400 ms) before the motion counts as done; on the device loop
   // r(t) ends on that flat piece (longer than the device's 20 ms horizon margin, or the last
   // decelerating knots would read as r running out while it moves).
   const bool pi_loop = control_->closed_loop() || device_loop_;
   const double hold_s = pi_loop ? options_.control_settle_s : 0.0;
-  const double stop_s = executed_end_s_ + plan_shift_s_ + preview * period_s + hold_s +
-                        pa_half_window_s();  // servo time (the extruder's advance ends h later)
+  double stop_s = executed_end_s_ + plan_shift_s_ + preview * period_s + hold_s +
+                  pa_half_window_s();  // servo time (the extruder's advance ends h later)
+  if (stop_frozen_) {  // a flush's rest point: the plan ends there (the moves after are dropped)
+    plan_empty = true;
+    stop_s = stop_end_s_;
+  }
   // A late cycle (the thread woke more than the lead late, on a machine without real-time
   // scheduling): the samples still to come would be due in the past, and steps in the past stop
   // the MCU (queue underrun). Instead the plan pauses: the motor holds its last command over the
@@ -867,7 +1047,10 @@ void MotionExecutor::sampled_cycle(double now_s) {
     const double t_s = next_sample_s_ + period_s;
     if (device_loop_) refresh_clock_frame(t_s);
     control::FeedforwardInput ahead;
-    reference(t_s + preview * period_s, ahead);
+    if (stop_warping_)
+      reference_plan(stop_step(t_s), ahead);
+    else
+      reference(t_s + preview * period_s, ahead);
     control::JointArray u_ff{}, u{};
     control_->command(ahead, u_ff, u);
     const Sample& prev = history_[sample_no_ % cap];

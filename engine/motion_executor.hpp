@@ -95,6 +95,22 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void motion_status(MachineStatus& s) const override;
   bool may_advance_virtual(bool planner_busy) const override;
   void on_deadline_miss(int64_t now_ns, int64_t late_ns) override;
+  void flush_motion(const std::atomic<bool>& cancel) override;
+
+  // The last flush's stop (Machine::flush), as the servo thread commanded it. Read after
+  // flush_motion() returned.
+  struct StopFigures {
+    bool warped = false;             // sampled path: the plan was slowed to a stop along the path
+    double speed_mm_s = 0.0;         // path speed where the stop began
+    double decel_mm_s2 = 0.0;        // the smallest deceleration the limits allowed on the way
+    double path_mm = 0.0;            // XYZ path length from the stop's start to the rest point
+    double request_s = 0.0;          // host time the servo thread took the request
+    double begin_s = 0.0;            // host time of the first slowed sample (request + the lead)
+    double rest_s = 0.0;             // host time the command reached the rest point
+    uint64_t moves_dropped = 0;      // planned moves never executed
+    double position_mm[4] = {0, 0, 0, 0};  // where the plan stopped (machine coordinates)
+  };
+  StopFigures last_stop() const { return stop_figures_; }
 
   // The MCUs behind the batch sink (engine/mcu_bridge.hpp); set before the servo thread starts.
   // Each servo cycle then services it first, takes its clock estimates for step timing, waits
@@ -185,6 +201,29 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   // at 0) and after a fault (the steps queued then were not all executed).
   bool resync_ = true;
   void drop_queued_moves();
+  // Flush (Machine::flush): the planner thread asks (stop_req_), releases the lookahead's moves
+  // (each motion ends at rest) and says so (stop_released_); the servo thread slows the plan to a
+  // stop along the path (sampled path: the plan's time runs at a rate lambda <= 1 chosen so that
+  // the path speed lambda v falls at the deceleration the limits allow), drops the moves after the
+  // rest point, and reports the rest point (kStopDone), from which the interpreter continues. The
+  // exact path (open loop, no control law) has its steps computed lead_s ahead from whole moves:
+  // it runs the released moves to their end (the machine queue is still dropped).
+  enum StopRequest : int { kNoStop = 0, kStopRequested, kStopRunning, kStopDone };
+  std::atomic<int> stop_req_{kNoStop};
+  std::atomic<bool> stop_released_{false};
+  bool stop_warping_ = false, stop_frozen_ = false;  // servo thread
+  double stop_cap_mm_s_ = 0.0;     // the path speed allowed now
+  double stop_lead_plan_s_ = 0.0;  // plan time at the feedforward's input (the preview front)
+  double stop_start_plan_s_ = 0.0;
+  double stop_end_s_ = 0.0;        // servo time the motion ends (the rest point, the hold after)
+  std::vector<double> stop_tau_;   // plan time of each command sample (ring by sample number)
+  bool stop_pos_valid_ = false;
+  planner::Vec4 stop_pos_mm_{};
+  StopFigures stop_figures_{};
+  void begin_stop(double now_s);   // servo thread
+  double stop_step(double t_s);    // servo thread: one warped sample; the preview front's plan time
+  void finish_stop();              // servo thread, at rest
+  bool reference_plan(double plan_s, control::FeedforwardInput& out) const;
   planner::PlannedMove current_;  // the move most recently handed to step generation
   // Pressure advance (servo thread): active for the current motion from rest.
   planner::PressureAdvance pa_;

@@ -274,6 +274,18 @@ void Interpreter::set_homed(const bool axes[3], const Vec4& at_mm) {
   planner_.set_position(st_.machine_mm);
 }
 
+void Interpreter::set_machine_position(const Vec4& at_mm) {
+  for (int i = 0; i < 3; ++i) {
+    st_.machine_mm[i] = at_mm[static_cast<size_t>(i)];
+    st_.logical_mm[i] = at_mm[static_cast<size_t>(i)] - st_.offset_mm[i] - (i == kZ ? st_.hop_mm : 0.0);
+  }
+  // E: the logical E moves with the machine's by the flow factor (to_machine's inverse).
+  const double de_mm = at_mm[kE] - st_.machine_mm[kE];
+  st_.logical_mm[kE] += st_.flow_factor > 0.0 ? de_mm / st_.flow_factor : de_mm;
+  st_.machine_mm[kE] = at_mm[kE];
+  planner_.set_position(st_.machine_mm);
+}
+
 void Interpreter::set_unhomed(const bool axes[3]) {
   if (cfg_.allow_moves_before_homing) return;
   const bool delta = cfg_.kinematics == KinematicsKind::delta;

@@ -31,6 +31,7 @@ class MoveTimeline {
   // or in a dwell gap/after the last move: then the nearest end position is returned). RT-safe.
   bool sample(double t_s, CartesianSample& out) const;
   size_t size() const { return count_; }
+  void clear() { head_ = count_ = 0; }  // RT-safe
 
  private:
   const PlannedMove& at(size_t i) const { return ring_[(head_ + i) % ring_.size()]; }

@@ -94,6 +94,23 @@ struct FakeMachine final : JobSink {
     queued_at_heaters_off = queue.size();
     executed_at_heaters_off = executed.size();
   }
+  // As engine::Machine::flush: heaters off at once, what is queued now dropped (each completion
+  // an error), the motion stopped (here: nothing moves between commands).
+  int flushes = 0;
+  size_t dropped = 0;
+  size_t executed_at_flush = 0, queued_at_flush = 0;
+  void cancel_motion() override {
+    ++flushes;
+    all_heaters_off();  // before anything queued runs or is dropped
+    executed_at_flush = executed.size();
+    queued_at_flush = queue.size();
+    std::deque<Queued> drop;
+    drop.swap(queue);
+    for (Queued& q : drop) {
+      ++dropped;
+      q.done(Error{"dropped: the machine's queue was flushed (cancel)"});
+    }
+  }
 };
 
 class PrintJobTest : public ::testing::Test {
@@ -310,22 +327,29 @@ TEST_F(PrintJobTest, PauseParksAndResumeRestoresPositionModesAndFeedrate) {
   EXPECT_EQ(m.heaters_off, 0);  // heaters held on pause
 }
 
-TEST_F(PrintJobTest, CancelLetsQueuedCommandsFinishThenHeatersOffAndPark) {
+TEST_F(PrintJobTest, CancelFlushesTheQueueTurnsHeatersOffAtOnceThenParks) {
   ASSERT_TRUE(files_->write("part.gcode", part(80)).ok());
   FakeMachine m;
   m.capacity = 5;
   PrintJob job(*files_, options_, m);
   ASSERT_TRUE(job.start("part.gcode").ok());
   for (int i = 0; i < 30; ++i) m.step();
-  const size_t submitted = m.executed.size() + m.queue.size();
+  const size_t executed = m.executed.size();
+  const size_t queued = m.queue.size();
+  ASSERT_EQ(queued, 5u);
   ASSERT_TRUE(job.cancel().ok());
+  // At once: the heaters off and the queued commands dropped (not run), no error for them.
+  EXPECT_EQ(m.flushes, 1);
+  EXPECT_EQ(m.dropped, queued);
+  EXPECT_GE(m.heaters_off, 1);
+  EXPECT_EQ(m.executed_at_flush, executed);
+  EXPECT_EQ(m.queued_at_flush, queued);
   EXPECT_EQ(job.state(), JobState::kCancelling);
-  EXPECT_EQ(m.heaters_off, 0);  // not before the queued commands have run
+  EXPECT_EQ(job.status().message, "");
   m.run();
   EXPECT_EQ(job.state(), JobState::kCancelled);
-  EXPECT_EQ(m.heaters_off, 1);
-  EXPECT_EQ(m.executed_at_heaters_off, submitted);  // right behind the file's last queued command
-  EXPECT_EQ(m.queued_at_heaters_off, 0u);
+  EXPECT_EQ(m.executed[executed], "G21");  // the park sequence follows the last executed line
+  EXPECT_EQ(job.status().message, "");
   EXPECT_DOUBLE_EQ(m.rig.interp.state().logical_mm[0], 5.0);
   EXPECT_DOUBLE_EQ(m.rig.interp.state().logical_mm[1], 210.0);
   EXPECT_FALSE(job.active());
@@ -337,10 +361,12 @@ TEST_F(PrintJobTest, CancelLetsQueuedCommandsFinishThenHeatersOffAndPark) {
   m.run();
   ASSERT_EQ(job.state(), JobState::kPaused);
   const size_t before = m.executed.size();
+  const int heaters_off = m.heaters_off;
   ASSERT_TRUE(job.cancel().ok());
   m.run();
   EXPECT_EQ(job.state(), JobState::kCancelled);
-  EXPECT_EQ(m.heaters_off, 2);
+  EXPECT_EQ(m.flushes, 1);  // paused: nothing of the job queued, no flush
+  EXPECT_EQ(m.heaters_off, heaters_off + 2);  // at the cancel, and behind the (empty) queue
   EXPECT_EQ(m.executed.size(), before);
 }
 
