@@ -29,20 +29,14 @@ namespace feedloop::device {
 class HeaterBoard;
 class VirtualMcu;
 }  // namespace feedloop::device
-namespace feedloop::sim {
-class ThermalPlant;
-class PartFan;
-}  // namespace feedloop::sim
-
 namespace feedloop::engine {
 
 // What a simulated heater MCU owns besides its transport (the virtual MCU, its heater board and
-// plants); engine/simulated_printer.cpp implements it.
+// plants); engine/simulated_printer.cpp implements it (and gives the plants to the tests through
+// simulated_thermal_plant / simulated_part_fan: engine/ names no sim:: type outside the factory).
 class SimulatedHeaterDevice {
  public:
   virtual ~SimulatedHeaterDevice() = default;
-  virtual sim::ThermalPlant* plant(int local_heater) = 0;  // nullptr: none
-  virtual sim::PartFan* fan(int local_fan) = 0;
   virtual const device::HeaterBoard& board() const = 0;  // the device's own view (tests)
   virtual device::VirtualMcu& vmcu() = 0;
 };

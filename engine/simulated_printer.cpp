@@ -201,10 +201,10 @@ class SimulatedHeaterMcu final : public SimulatedHeaterDevice {
     device::MotorPort* none = nullptr;
     vmcu_ = std::make_unique<device::VirtualMcu>(vp, &none, 1, board_.get());
   }
-  sim::ThermalPlant* plant(int i) override {
+  sim::ThermalPlant* plant(int i) {
     return i >= 0 && i < static_cast<int>(plants_.size()) ? plants_[static_cast<size_t>(i)].get() : nullptr;
   }
-  sim::PartFan* fan(int i) override {
+  sim::PartFan* fan(int i) {
     return i >= 0 && i < static_cast<int>(fans_.size()) ? fans_[static_cast<size_t>(i)].get() : nullptr;
   }
   device::VirtualMcu& vmcu() override { return *vmcu_; }
@@ -274,13 +274,15 @@ sim::ThermalPlant* simulated_thermal_plant(HeaterLink& link, int heater) {
   auto* l = dynamic_cast<McuHeaterLink*>(&link);
   if (l == nullptr || heater < 0 || heater >= l->num_heaters()) return nullptr;
   const HeaterRoute& r = l->heater_route(heater);
-  return l->sim(r.mcu) ? l->sim(r.mcu)->plant(r.local) : nullptr;
+  auto* device = dynamic_cast<SimulatedHeaterMcu*>(l->sim(r.mcu));
+  return device != nullptr ? device->plant(r.local) : nullptr;
 }
 sim::PartFan* simulated_part_fan(HeaterLink& link, int fan) {
   auto* l = dynamic_cast<McuHeaterLink*>(&link);
   if (l == nullptr || fan < 0 || fan >= l->num_fans()) return nullptr;
   const HeaterRoute& r = l->fan_route(fan);
-  return l->sim(r.mcu) ? l->sim(r.mcu)->fan(r.local) : nullptr;
+  auto* device = dynamic_cast<SimulatedHeaterMcu*>(l->sim(r.mcu));
+  return device != nullptr ? device->fan(r.local) : nullptr;
 }
 
 Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfig& cfg, int joint) {

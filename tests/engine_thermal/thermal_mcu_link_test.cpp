@@ -160,8 +160,6 @@ TEST(ThermalMcuLink, AV2McuIsRefusedWithAMessage) {
       device::MotorPort* none = nullptr;
       vmcu_ = std::make_unique<device::VirtualMcu>(vp, &none, 1, &board_);
     }
-    sim::ThermalPlant* plant(int) override { return nullptr; }
-    sim::PartFan* fan(int) override { return nullptr; }
     const device::HeaterBoard& board() const override { return board_; }
     device::VirtualMcu& vmcu() override { return *vmcu_; }
     device::HeaterBoard board_{nullptr, 0, nullptr, 0, 1e6};
