@@ -54,7 +54,12 @@ function(feedloop_add_test name)
     PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
   # The sanitizer stage of scripts/test.sh runs only the tests without these labels, and builds
   # only what it runs (target `sanitizer_tests`, top-level CMakeLists.txt).
-  set(_skipped_under_sanitizers slow realtime long browser)
+  # alloc: tests that count allocations, which count nothing under the sanitizers (their
+  # allocator is the sanitizer's; tests/common/malloc_counter.hpp). numeric: the unit tests of the
+  # numerical modules (models, plant simulators, fits, the maneuvering controller), whose inputs are
+  # the project's own; their code runs under the sanitizers inside the machine tests (engine_*,
+  # cli, daemon) that stay in that stage (docs/decisions.md, "CI time").
+  set(_skipped_under_sanitizers slow realtime long browser alloc numeric)
   # Label fuzz_replay (tests/fuzz: a fuzz target's corpus replayed through its entry point): a
   # build with the fuzz targets leaves them out too, because its fuzz stage (fuzz/run.sh) runs
   # every file of the same corpus, reproducers included, through the same code first.
@@ -110,5 +115,32 @@ function(feedloop_add_library_pch)
       continue()
     endif()
     target_precompile_headers(${t} REUSE_FROM feedloop_lib_pch)
+  endforeach()
+endfunction()
+
+# feedloop_add_fuzz_coverage(DIRS d1 d2 ...): libFuzzer's coverage instrumentation (what
+# -fsanitize=fuzzer-no-link turns on, spelled as -fsanitize-coverage= so that the libraries'
+# precompiled header, built without it, stays usable: clang refuses a PCH whose -fsanitize= set
+# differs) for every library and program defined under those source directories. The fuzz
+# targets get theirs from -fsanitize=fuzzer (fuzz/CMakeLists.txt).
+function(feedloop_add_fuzz_coverage)
+  cmake_parse_arguments(P "" "" "DIRS" ${ARGN})
+  set(dirs ${P_DIRS})
+  set(targets)
+  while(dirs)
+    list(POP_FRONT dirs dir)
+    get_property(subdirs DIRECTORY ${dir} PROPERTY SUBDIRECTORIES)
+    list(APPEND dirs ${subdirs})
+    get_property(dir_targets DIRECTORY ${dir} PROPERTY BUILDSYSTEM_TARGETS)
+    list(APPEND targets ${dir_targets})
+  endwhile()
+  get_property(fuzzers GLOBAL PROPERTY FEEDLOOP_FUZZERS)
+  foreach(t IN LISTS targets)
+    get_target_property(type ${t} TYPE)
+    if(NOT type MATCHES "^(STATIC_LIBRARY|EXECUTABLE|OBJECT_LIBRARY)$" OR t IN_LIST fuzzers)
+      continue()
+    endif()
+    target_compile_options(${t} PRIVATE
+      -fsanitize-coverage=inline-8bit-counters,indirect-calls,trace-cmp,pc-table)
   endforeach()
 endfunction()

@@ -2,9 +2,10 @@
 # Sets up, builds and runs every test. Two builds (docs/decisions.md, "CI time"):
 #   1. GCC, RelWithDebInfo: every test, the slow ones included (timing and allocation tests run
 #      here, where no sanitizer changes the allocator or the speed);
-#   2. clang, ASan + UBSan with libFuzzer's coverage: the tests again under the sanitizers (the
-#      slow ones excluded), then a short run of every fuzz target from the same build. Its units
-#      compile with precompiled headers (FEEDLOOP_PCH, on by default with clang).
+#   2. clang, ASan + UBSan (libFuzzer's coverage in the input modules): the tests again under the
+#      sanitizers (without the slow, wall-clock, allocation-counting and numerical ones), then a
+#      short run of every fuzz target from the same build. Its units compile with precompiled
+#      headers (FEEDLOOP_PCH, on by default with clang).
 # Usage: scripts/test.sh [--fast]  (--fast: build 1 only)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -32,9 +33,10 @@ if [ "${1:-}" = "--fast" ]; then exit 0; fi
 stage "build 2: clang, ASan + UBSan + libFuzzer coverage"
 # -O1: sanitizers keep full precision; the plant simulator and fits stay fast enough to test.
 # Only what this stage runs is built (target sanitizer_tests): the tests not labelled
-# slow/realtime/long/browser, the programs they start, the fuzz targets. The wall-clock tests run
-# in build 1 only; their code paths run here in the virtual-time tests and the fuzz targets of the
-# daemon's channels (docs/decisions.md, "CI time").
+# slow/realtime/long/browser/alloc/numeric, the programs they start, the fuzz targets. The
+# wall-clock tests run in build 1 only; their code paths run here in the virtual-time tests and
+# the fuzz targets of the daemon's channels; the numerical modules run here inside the machine
+# tests (docs/decisions.md, "CI time").
 cmake -S . -B build-san -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=Debug \
   -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g1" -DFEEDLOOP_SANITIZE=ON -DFEEDLOOP_FUZZ=ON -DFEEDLOOP_BENCH=OFF >/dev/null
 cmake --build build-san -j"$JOBS" --target sanitizer_tests
@@ -42,7 +44,7 @@ stage "tests under sanitizers"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1
 # -E _NOT_BUILT: the placeholders ctest keeps for the test programs this stage did not build.
 # fuzz_replay: the corpus replay tests, not built here: the fuzz stage below runs every corpus file.
-ctest --test-dir build-san -j"$JOBS" --output-on-failure --timeout 900 -LE "slow|realtime|long|browser|fuzz_replay" -E _NOT_BUILT
+ctest --test-dir build-san -j"$JOBS" --output-on-failure --timeout 900 -LE "slow|realtime|long|browser|fuzz_replay|alloc|numeric" -E _NOT_BUILT
 
 stage "fuzz (short run of every target)"
 bash fuzz/run.sh build-san 5  # fuzz/README.md; 5 s each (the long runs are separate)

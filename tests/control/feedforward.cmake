@@ -7,8 +7,10 @@ feedloop_add_test(feedforward_model_test
           ${CMAKE_CURRENT_LIST_DIR}/feedforward_factory_test.cpp
           ${CMAKE_CURRENT_LIST_DIR}/velocity_jump_smoother_test.cpp
   LIBS feedloop_control feedloop_engine
-  TIMEOUT 120)
+  TIMEOUT 120
+  LABELS numeric)
 feedloop_add_test(feedforward_rt_test
   SOURCES ${CMAKE_CURRENT_LIST_DIR}/feedforward_rt_test.cpp
   LIBS feedloop_control
-  TIMEOUT 120)
+  TIMEOUT 120
+  LABELS alloc)

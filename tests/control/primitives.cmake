@@ -13,7 +13,8 @@ feedloop_add_test(control_primitives_test
 feedloop_add_test(control_primitives_rt_test
   SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/primitives_rt_test.cpp
   LIBS feedloop_control feedloop_engine
-  TIMEOUT 60)
+  TIMEOUT 60
+  LABELS alloc)
 # Sim-in-the-loop: PI + lost-step detector on the nonlinear gantry simulator (thesis Sect. 5.4).
 feedloop_add_test(control_lost_step_recovery_test
   SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/lost_step_recovery_test.cpp

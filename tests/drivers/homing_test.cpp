@@ -23,6 +23,7 @@
 #include "drivers/transport/mock_transport.hpp"
 #include "sim/endstop.hpp"
 #include "sim/gantry_axis.hpp"
+#include "tests/common/sanitizer_stage.hpp"
 
 using namespace feedloop;
 using drivers::HomingParams;
@@ -177,6 +178,7 @@ Spread repeatability(double sigma_mm, bool second_touch, uint64_t seed) {
 }
 
 TEST(Homing, RepeatabilityWithinTheSwitchModel) {
+  FEEDLOOP_GCC_STAGE_ONLY("statistics over 60 homings; the homing sequence runs here in the other tests");
   const sim::GantryAxisParams gp = sim::thesis_x_axis();
   const double q_um =
       2.0 * M_PI * gp.pulley_radius_mm / (gp.full_steps_per_rev * gp.microsteps) * 1e3;  // 10.6 um

@@ -11,11 +11,13 @@
 
 #include "cli/batch_command.hpp"
 #include "ident/trace.hpp"
+#include "tests/common/sanitizer_stage.hpp"
 
 namespace feedloop {
 namespace {
 
 TEST(ExportTrace, SimulatedPrintAsTraceCsvV1) {
+  FEEDLOOP_GCC_STAGE_ONLY("81 s of simulated printing; the trace CSV reader runs here in tests/ident");
   const std::string gcode = std::string(FEEDLOOP_SOURCE_DIR) + "/examples/gcode/cube20_3layers.gcode";
   const std::string out = std::string(FEEDLOOP_BINARY_DIR) + "/export_trace_test.csv";
   std::filesystem::remove(out);

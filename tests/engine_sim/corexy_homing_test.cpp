@@ -24,6 +24,7 @@
 #include "engine/machine.hpp"
 #include "engine/mcu_bridge.hpp"
 #include "gcode/parser.hpp"
+#include "tests/common/sanitizer_stage.hpp"
 
 namespace feedloop::engine {
 namespace {
@@ -158,6 +159,7 @@ constexpr bool kLayouts[] = {false, true};
 #endif
 
 TEST(CoreXyHoming, G28XG28YAndG28RepeatWithinTheSwitchSigmaFromRandomPositions) {
+  FEEDLOOP_GCC_STAGE_ONLY("statistics over 24 homings; CoreXY's G28 runs here in MoveBeforeG28...");
   constexpr int kRepeats = 8;
   for (bool one_mcu : kLayouts) {
     SCOPED_TRACE(one_mcu ? "A and B on one MCU" : "A and B on two MCUs");
