@@ -8,6 +8,11 @@ function(_feedloop_test_flags name)
   # Allocation-counting tests replace operator new/delete with malloc/free; GCC then reports
   # -Wmismatched-new-delete inside gtest's own allocations (a false positive).
   target_compile_options(${name} PRIVATE $<$<CXX_COMPILER_ID:GNU>:-Wno-mismatched-new-delete>)
+  # The test programs' own units at -Og in an optimized GCC build (after the config's -O2, so it
+  # wins): their code drives the libraries, which keep -O2 and do the simulating; -Og compiles
+  # a test unit in ~60-80 % of the time -O2 takes (docs/decisions.md, "CI time").
+  target_compile_options(${name} PRIVATE
+    $<$<AND:$<CXX_COMPILER_ID:GNU>,$<CONFIG:RelWithDebInfo,Release>>:-Og>)
   target_compile_definitions(${name} PRIVATE
     FEEDLOOP_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
     FEEDLOOP_SHARED_DIR="${CMAKE_SOURCE_DIR}/../shared"

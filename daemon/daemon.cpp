@@ -557,8 +557,23 @@ std::string Daemon::firmware_info() const {
 std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_view text,
                            recorder::GcodeSource source, std::function<void(const Status&)> done) {
   const uint64_t cid = c.id;
+  if (cmd.is('M', 999)) {
+    // Marlin's M999 (Marlin/src/gcode/control/M999.cpp: back to running after a stop), done as
+    // Klipper's FIRMWARE_RESTART: the machine is rebuilt from the config once it is idle, which
+    // clears an emergency stop and a thermal fault, turns the heaters off and unhomes the axes.
+    // Its ok comes after the rebuild, so the next line runs on the new machine. A machine that
+    // is not stopped is left alone (ok at once).
+    if (machine_->status().state != engine::MachineState::kEmergencyStopped) {
+      done(Status::Ok());
+      return {};
+    }
+    restart_waiters_.push_back(std::move(done));
+    if (!restart_requested_) spdlog::info("M999 from {}: the machine is rebuilt when idle", c.session->name());
+    restart_requested_ = true;
+    return {};
+  }
   if (machine_->status().state == engine::MachineState::kEmergencyStopped)
-    return "Printer halted (emergency stop); restart feedloopd to clear";
+    return "Printer halted (emergency stop); send M999 or restart feedloopd to clear";
   if (owner_ != 0 && owner_ != cid) return "busy: the print is owned by " + owner_name();
   if (owner_ != cid) {
     owner_ = cid;
@@ -931,7 +946,9 @@ void Daemon::tick() {
     spdlog::warn("command rejected: {}", summary);
   // The print ends when nobody owns the machine any more and it has stopped.
   if (print_open_ && owner_ == 0 && machine_->idle() && pending_.empty()) end_print();
-  if (reload_requested_ && machine_->idle() && pending_.empty() && !(job_ && job_->active())) reload_config();
+  if ((reload_requested_ || restart_requested_) && machine_->idle() && pending_.empty() &&
+      !(job_ && job_->active()))
+    reload_config();
   timer_.expires_after(kTickInterval);
   timer_.async_wait([this](const boost::system::error_code& ec) {
     if (!ec) tick();
@@ -954,14 +971,26 @@ void Daemon::arm_signals() {
 // SIGHUP: re-read the config file and rebuild the machine with it, only when idle. A config
 // with errors is reported and the running one is kept. Socket paths take effect on restart.
 void Daemon::reload_config() {
+  // SIGHUP and the web's RESTART re-read the file; M999 alone rebuilds from the running config.
+  const bool reread = reload_requested_;
   reload_requested_ = false;
+  restart_requested_ = false;
+  // The M999s waiting for this rebuild: ok once it ran, else the reason.
+  std::vector<std::function<void(const Status&)>> waiters;
+  waiters.swap(restart_waiters_);
+  auto answer = [&waiters](const Status& st) {
+    for (auto& w : waiters)
+      if (w) w(st);
+  };
   notifier_.reloading();
-  auto next = options_.config_path.empty() ? Result<config::MachineConfig>(config::default_config())
-                                           : config::load_config_file(options_.config_path);
+  auto next = !reread                       ? Result<config::MachineConfig>(cfg_)
+               : options_.config_path.empty() ? Result<config::MachineConfig>(config::default_config())
+                                              : config::load_config_file(options_.config_path);
   if (!next) {
     spdlog::error("config reload failed, keeping the running config:\n{}",
                   next.error().to_string());
     notifier_.ready();
+    answer(Error{"M999: the config does not load, the machine was not rebuilt: " + next.error().to_string()});
     return;
   }
   auto executor = engine::make_executor(*next);
@@ -969,6 +998,7 @@ void Daemon::reload_config() {
     spdlog::error("config reload failed, keeping the running config: {}",
                   executor.error().to_string());
     notifier_.ready();
+    answer(Error{"M999: the machine was not rebuilt: " + executor.error().to_string()});
     return;
   }
   machine_->stop();
@@ -980,19 +1010,25 @@ void Daemon::reload_config() {
   executor = make_recorded_executor();
   if (!executor) {
     spdlog::critical("machine failed to restart after reload: {}", executor.error().to_string());
+    answer(Error{"machine failed to restart: " + executor.error().to_string()});
     request_shutdown("reload failure");
     return;
   }
   std::string warnings;
   if (Status st = start_machine(std::move(*executor), &warnings); !st) {
     spdlog::critical("machine failed to restart after reload: {}", st.error().to_string());
+    answer(Error{"machine failed to restart: " + st.error().to_string()});
     request_shutdown("reload failure");
     return;
   }
   open_jobs();
   ++reloads_;
-  spdlog::info("config reloaded: '{}'", cfg_.name);
+  if (reread)
+    spdlog::info("config reloaded: '{}'", cfg_.name);
+  else
+    spdlog::info("machine rebuilt (M999): '{}'", cfg_.name);
   notifier_.ready();
+  answer(Status::Ok());
 }
 
 }  // namespace feedloop::daemon

@@ -256,7 +256,10 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   int64_t owner_last_activity_ns_ = 0;
   int64_t next_heater_log_ns_ = 0;  // the log's temperature line while heaters are on
   uint64_t homings_logged_ = 0;     // the G28s through the endstops already in the log
-  bool reload_requested_ = false;
+  bool reload_requested_ = false;   // SIGHUP / RESTART: re-read the config, rebuild when idle
+  bool restart_requested_ = false;  // M999: rebuild from the running config when idle
+  // M999s waiting for the rebuild they asked for: answered once it ran (or failed).
+  std::vector<std::function<void(const Status&)>> restart_waiters_;
   uint64_t reloads_ = 0;
   bool shutting_down_ = false;
   RepeatFilter rejected_log_;     // "command rejected" warnings: one line plus a count

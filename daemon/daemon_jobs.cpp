@@ -118,7 +118,7 @@ std::string Daemon::owner_name() const {
 JobSink::Offer Daemon::offer(const gcode::Command& cmd, std::string_view text,
                              std::function<void(const Status&)> done, std::string* why) {
   if (machine_->status().state == engine::MachineState::kEmergencyStopped) {
-    *why = "Printer halted (emergency stop); restart feedloopd to clear";
+    *why = "Printer halted (emergency stop); send M999 or restart feedloopd to clear";
     return Offer::kRefused;
   }
   if (!internal_backlog_.empty()) return Offer::kFull;  // the heater hook's commands go first

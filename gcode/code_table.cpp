@@ -151,6 +151,7 @@ constexpr CodeRule kRules[] = {
     {'M', 400, "wait for moves to finish", {}},
     {'M', 524, "abort file print", {}},
     {'M', 900, "linear advance factor", kLinearAdvance},
+    {'M', 999, "restart after a stop", {}},  // the daemon rebuilds the machine (docs/heaters.md)
 };
 constexpr CodeRule kToolRule{'T', 0, "select tool", kToolChange};
 

@@ -12,7 +12,7 @@
 //   G1 X1*75   (no N)  ->  Error:No Line Number with checksum, Last Line: 41 / ok   (nothing executed)
 //   M110 N100          ->  ok, and the next expected line is N101
 //   G1 X1 Q2 (invalid) ->  Error:<source>:<line>:<column>: <message> / ok   (nothing executed)
-//   M999 (unknown)     ->  echo:Unknown command: "M999" / ok   (still returned to the caller)
+//   M998 (unknown)     ->  echo:Unknown command: "M998" / ok   (still returned to the caller)
 //
 // As in Marlin the sequence check comes before the checksum check, the checksum is the XOR of
 // every byte from the first non-blank one up to the last '*', and blank or comment-only lines

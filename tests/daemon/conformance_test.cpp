@@ -82,6 +82,43 @@ TEST_F(Conformance, RefusedLinesGetAnErrorAndTheirOk) {
   EXPECT_EQ(c.read_line(), "ok");
 }
 
+// Marlin/src/gcode/control/M999.cpp: after a stop (M112 here) the printer refuses commands until
+// M999 returns it to running. feedloop rebuilds the machine from the running config, as Klipper's
+// FIRMWARE_RESTART does (klippy/klippy.py): the stop cleared, the heaters off, the axes unhomed;
+// M999's ok comes once the new machine runs, so the next line runs on it.
+TEST_F(Conformance, M999AfterAnEmergencyStopRebuildsTheMachine) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(c.send_line("M999"));  // not stopped: ok, nothing changes
+  EXPECT_EQ(c.read_line(), "ok");
+  for (const char* line : {"G28", "M104 S200", "G1 X20 Y10 F6000", "M400"}) {
+    ASSERT_TRUE(c.send_line(line));
+    ASSERT_EQ(c.read_until("ok", 20000), "ok") << line;
+  }
+  ASSERT_TRUE(c.send_line("M112"));
+  EXPECT_EQ(c.read_line(), "Error:Printer halted. kill() called!");
+  ASSERT_TRUE(c.send_line("G1 X30"));
+  auto refused = c.read_line();
+  ASSERT_TRUE(refused);
+  EXPECT_NE(refused->find("send M999"), std::string::npos) << *refused;
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("M999"));
+  EXPECT_EQ(c.read_until("ok", 20000), "ok");
+  // The new machine: the hotend's target is 0 and it homes and moves.
+  ASSERT_TRUE(c.send_line("M105"));
+  auto temps = c.read_until("ok T:", 5000);
+  ASSERT_TRUE(temps);
+  EXPECT_NE(temps->find(" /0.0 "), std::string::npos) << *temps;
+  for (const char* line : {"G28", "G1 X30 Y5 F6000", "M400"}) {
+    ASSERT_TRUE(c.send_line(line));
+    ASSERT_EQ(c.read_until("ok", 20000), "ok") << line;
+  }
+  ASSERT_TRUE(c.send_line("M114"));
+  auto pos = c.read_until("X:", 5000);
+  ASSERT_TRUE(pos);
+  EXPECT_EQ(pos->rfind("X:30.00 Y:5.00", 0), 0u) << *pos;
+}
+
 // Marlin/src/gcode/feature/advance/M900.cpp: "M900 K<k>" sets the linear advance factor (0..10)
 // and answers ok; "M900" alone reports "Advance K=<k>" (one extruder). Klipper's
 // SET_PRESSURE_ADVANCE (klippy/kinematics/extruder.py) sets both values; a bad value is refused

@@ -187,7 +187,7 @@ TEST(HostProtocol, OneOkPerNonBlankLine) {
   HostProtocol p;
   const std::vector<std::string> lines = {
       "M110 N0", numbered(1, "G28"), "", "; c", numbered(2, "G1 X1 Q2"), numbered(4, "G1 X4"),
-      numbered(3, "G1 X3"), "M999", "G1 X5", "N4", "(c)", numbered(4, "G1 X4")};
+      numbered(3, "G1 X3"), "M998", "G1 X5", "N4", "(c)", numbered(4, "G1 X4")};
   int oks = 0, non_blank = 0;
   for (const auto& l : lines) {
     Reply r;
