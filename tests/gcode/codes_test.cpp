@@ -97,6 +97,7 @@ const std::vector<Valid>& valid_cases() {
       {"M27 C", 'M', 27, {}, "C"},
       {"M32 !benchy.gcode#", 'M', 32, {}},
       {"M524", 'M', 524, {}},
+      {"M999", 'M', 999, {}},
       {"M900 K0.05 T0", 'M', 900, {{'K', 0.05}, {'T', 0}}},
       {"M220 B", 'M', 220, {}, "B"},
       {"M221 S95 T0", 'M', 221, {{'S', 95}, {'T', 0}}},
@@ -135,7 +136,9 @@ TEST(Codes, TheTableCoversExactlyTheIssueList) {
       // issue 16 (pressure advance): Marlin's linear advance factor
       "M900",
       // issue 16 (homing): Marlin's endstop report
-      "M119"};
+      "M119",
+      // issue 16 (thermal faults): Marlin's restart after a stop
+      "M999"};
   std::set<std::string> table, tested;
   for (const CodeRule& r : all_code_rules()) table.insert(r.letter + std::to_string(r.code));
   for (const Valid& v : valid_cases()) tested.insert(v.letter + std::to_string(v.code));
@@ -231,7 +234,7 @@ TEST(Codes, M204AndM205MeaningsAreDocumentedInTheTable) {
   for (const ParamRule& p : m205->params) l205 += p.letter;
   EXPECT_EQ(l204, "PRTS");
   EXPECT_EQ(l205, "XYZEJSTB");
-  EXPECT_EQ(find_code_rule('M', 999), nullptr);
+  EXPECT_EQ(find_code_rule('M', 998), nullptr);
   EXPECT_EQ(find_code_rule('G', 29), nullptr);
   EXPECT_EQ(find_code_rule('G', -1), nullptr);
 }
