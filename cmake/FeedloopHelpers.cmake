@@ -88,7 +88,8 @@ endfunction()
 # CMakeLists.txt after the modules, so no module's CMakeLists.txt names it. Left out:
 # - the test programs (their own PCH, feedloop_add_test_pch above);
 # - feedloop_axis_loop, built with -fno-exceptions -fno-rtti (a PCH must be built with the same);
-# - the fuzz targets, compiled with -fsanitize=fuzzer (also a flag the PCH must share).
+# - the fuzz targets, compiled with -fsanitize=fuzzer (also a flag the PCH must share);
+# - FEEDLOOP_O0_UNDER_SANITIZERS, at -O0 in the sanitizer build (__OPTIMIZE__ must match).
 function(feedloop_add_library_pch)
   cmake_parse_arguments(P "" "" "DIRS" ${ARGN})
   if(NOT FEEDLOOP_PCH)
@@ -116,7 +117,7 @@ function(feedloop_add_library_pch)
   foreach(t IN LISTS targets)
     get_target_property(type ${t} TYPE)
     if(NOT type MATCHES "^(STATIC_LIBRARY|EXECUTABLE)$" OR t STREQUAL "feedloop_axis_loop"
-       OR t IN_LIST fuzzers)
+       OR t IN_LIST fuzzers OR t IN_LIST FEEDLOOP_O0_UNDER_SANITIZERS)
       continue()
     endif()
     target_precompile_headers(${t} REUSE_FROM feedloop_lib_pch)
