@@ -194,6 +194,11 @@ MachineStatus Machine::status() const {
   MachineStatus s = status_.load();
   if (executor_) executor_->motion_status(s);  // live: the planner thread may be blocked
   fill_thermal(s);                             // live: the thermal thread moves on its own
+  // The published state is the planner thread's as of its last publish, which a long command
+  // (G28, M109) holds off; a command queued or running since is busy now (a status request right
+  // after a G28 was sent read "idle" with the G28 homing).
+  if (s.state == MachineState::kIdle && (!queue_.empty() || executing_.load()))
+    s.state = MachineState::kBusy;
   return s;
 }
 
