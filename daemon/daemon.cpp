@@ -568,7 +568,8 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
       return {};
     }
     restart_waiters_.push_back(std::move(done));
-    if (!restart_requested_) spdlog::info("M999 from {}: the machine is rebuilt when idle", c.session->name());
+    if (!restart_requested_)
+      spdlog::info("M999 from {}: the machine is rebuilt when idle", c.session->name());
     restart_requested_ = true;
     return {};
   }
@@ -983,14 +984,16 @@ void Daemon::reload_config() {
       if (w) w(st);
   };
   notifier_.reloading();
-  auto next = !reread                       ? Result<config::MachineConfig>(cfg_)
-               : options_.config_path.empty() ? Result<config::MachineConfig>(config::default_config())
-                                              : config::load_config_file(options_.config_path);
+  auto next = !reread ? Result<config::MachineConfig>(cfg_)
+              : options_.config_path.empty()
+                  ? Result<config::MachineConfig>(config::default_config())
+                  : config::load_config_file(options_.config_path);
   if (!next) {
     spdlog::error("config reload failed, keeping the running config:\n{}",
                   next.error().to_string());
     notifier_.ready();
-    answer(Error{"M999: the config does not load, the machine was not rebuilt: " + next.error().to_string()});
+    answer(Error{"M999: the config does not load, the machine was not rebuilt: " +
+                 next.error().to_string()});
     return;
   }
   auto executor = engine::make_executor(*next);
