@@ -1,4 +1,5 @@
-# feedloop_add_test(NAME SOURCES a.cpp b.cpp LIBS lib1 lib2 [LABELS l1 l2] [TIMEOUT s])
+# feedloop_add_test(NAME SOURCES a.cpp b.cpp LIBS lib1 lib2 [LABELS l1 l2] [TIMEOUT s]
+#                   [LONG_TESTS gtest-filter])
 # One GoogleTest executable; each TEST becomes a ctest case. Tests run from the build directory
 # and find repository files through FEEDLOOP_SOURCE_DIR and the corpus through
 # FEEDLOOP_SHARED_DIR (absent in a user's clone: such tests GTEST_SKIP with a message).
@@ -44,7 +45,7 @@ function(feedloop_add_test_pch)
 endfunction()
 
 function(feedloop_add_test name)
-  cmake_parse_arguments(T "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  cmake_parse_arguments(T "" "TIMEOUT;LONG_TESTS" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${name} ${T_SOURCES})
   target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main GTest::gmock)
   _feedloop_test_flags(${name})
@@ -55,8 +56,17 @@ function(feedloop_add_test name)
   if(NOT T_TIMEOUT)
     set(T_TIMEOUT 300)
   endif()
-  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
-    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+  if(T_LONG_TESTS)
+    # LONG_TESTS "Suite.Name:Suite.Other" (a gtest filter): those cases of the program get the
+    # label `long` (left out of scripts/test.sh, `ctest -L long` runs them), the others its labels.
+    gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 TEST_FILTER "-${T_LONG_TESTS}"
+      PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+    gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 TEST_FILTER "${T_LONG_TESTS}"
+      PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "long")
+  else()
+    gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
+      PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+  endif()
   # The sanitizer stage of scripts/test.sh runs only the tests without these labels, and builds
   # only what it runs (target `sanitizer_tests`, top-level CMakeLists.txt).
   # alloc: tests that count allocations, which count nothing under the sanitizers (their

@@ -14,6 +14,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libsystemd-dev libfftw3-dev nlohmann-json3-dev
   libsqlite3-dev                      # the web server's database (server.database.*)
   clang libclang-rt-14-dev            # libFuzzer + sanitizer runtimes
+  lld                                 # the linker (faster than GNU ld; CMakeLists.txt)
   pronsole                            # the serial host used in the pty test (not `printrun`:
                                       # its GUI parts pull in wxWidgets, GTK and numpy)
   systemd                             # systemd-analyze verify of the unit

@@ -2,7 +2,7 @@
 // the job folder by the daemon itself, Marlin's SD commands on the socket, pause/resume in the
 // middle of the benchy and cancel. The machine runs in virtual time (feedloopd --virtual-time),
 // the channels on the wall clock. Built twice: daemon_jobs_test (the short cube) and, with
-// FEEDLOOP_JOBS_BENCHY, daemon_jobs_benchy_test (label slow: half the benchy).
+// FEEDLOOP_JOBS_BENCHY, daemon_jobs_benchy_test (label long: half the benchy).
 #include <gtest/gtest.h>
 
 #include <chrono>
