@@ -251,7 +251,8 @@ async function runUi(ui, port) {
     await page.screenshot({ path: path.join(outDir, `${ui}-ready.png`) })
     const tempsOf = (t) => [...t.matchAll(/(\d+(?:\.\d)?)\s*°C/g)].map((m) => Number(m[1]))
     const startTemps = tempsOf(await text())
-    check(startTemps.length >= 2 && startTemps.every((v) => v < 30), `${ui} shows room temperatures at start: ${startTemps.join(', ')}`)
+    // In virtual time the simulated heaters report 0 °C until the first motion (docs/web.md, "Not done").
+    check(startTemps.length >= 2 && startTemps.every((v) => v < 30), `${ui} shows temperatures below 30 °C at start: ${startTemps.join(', ')}`)
 
     // Upload with the UI's own upload button: the file chooser gets the G-code file, the UI
     // posts it (its multipart POST /server/files/upload) and lists it.
