@@ -56,17 +56,16 @@ function(feedloop_add_test name)
   if(NOT T_TIMEOUT)
     set(T_TIMEOUT 300)
   endif()
+  # LONG_TESTS "Suite.Name:Suite.Other" (a gtest filter): those cases of the program get the label
+  # `long` (left out of scripts/test.sh, `ctest -L long` runs them), the others its labels.
+  set(others_filter)
   if(T_LONG_TESTS)
-    # LONG_TESTS "Suite.Name:Suite.Other" (a gtest filter): those cases of the program get the
-    # label `long` (left out of scripts/test.sh, `ctest -L long` runs them), the others its labels.
-    gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 TEST_FILTER "-${T_LONG_TESTS}"
-      PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+    set(others_filter TEST_FILTER "-${T_LONG_TESTS}")
     gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 TEST_FILTER "${T_LONG_TESTS}"
       PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "long")
-  else()
-    gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
-      PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
   endif()
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 ${others_filter}
+    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
   # The sanitizer stage of scripts/test.sh runs only the tests without these labels, and builds
   # only what it runs (target `sanitizer_tests`, top-level CMakeLists.txt).
   # alloc: tests that count allocations, which count nothing under the sanitizers (their

@@ -49,8 +49,8 @@ fi
 # Tests labelled `realtime` run a daemon or a serial link on the wall clock: they run one at a
 # time after the others, so that no other test competes with their threads at the same priority
 # (build 2's compilers run beside them at nice 19).
-# Tests labelled `long` (the whole corpus on the simulated printer, ~15 min of CPU) are not run
-# here: `ctest --test-dir build -L long` (README, "Tests").
+# Tests labelled `long` (the whole corpus on the simulated printer, ~15 min of CPU; the two
+# whole-benchy prints, ~5 min) are not run here: `ctest --test-dir build -L long` (README).
 stage "tests"
 ctest --test-dir build -j"$JOBS" --output-on-failure --timeout 600 -LE "realtime|long|browser"
 stage "tests on the wall clock, one at a time"
