@@ -155,8 +155,10 @@ void Machine::run_flush() {
   flushes_.fetch_add(1, std::memory_order_relaxed);
   // A flush requested meanwhile runs at the next turn; else the interrupt ends with this one.
   if (!cancel_.load() && !flush_requested_.load()) interrupt_.store(false);
-  flush_running_.store(false);
+  // Published before the flush ends, so whoever sees idle() after it reads the stop's position
+  // (status() makes the state live; a sanitizer run read the position from before the travel).
   publish_status();
+  flush_running_.store(false);
 }
 
 // A thermal fault: every heater is already off (ThermalLoop::trip); the motion stops the way an
@@ -199,6 +201,11 @@ MachineStatus Machine::status() const {
   // after a G28 was sent read "idle" with the G28 homing).
   if (s.state == MachineState::kIdle && (!queue_.empty() || executing_.load()))
     s.state = MachineState::kBusy;
+  // And the other way: the planner thread publishes before it clears its flags (a command's end,
+  // a flush's end), so a machine idle now has its position published; its state is idle now too.
+  else if (s.state == MachineState::kBusy && !estop_.load() && !stopping_.load() &&
+           !(executor_ && executor_->faulted()) && idle())
+    s.state = MachineState::kIdle;
   return s;
 }
 
@@ -407,8 +414,8 @@ void Machine::planner_main() {
       continue;
     }
     const Status st = dispatch(q.cmd);
+    publish_status();  // before the flag: idle() true means the command's position is published
     executing_.store(false);
-    publish_status();
     if (on_done_) on_done_(CommandDone{q.ticket, st});
   }
 }
