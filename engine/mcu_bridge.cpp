@@ -85,6 +85,7 @@ McuBridge::McuBridge(const config::MachineConfig&, const McuBridgeOptions& optio
   for (auto& e : encoder_mm_) e.store(NAN);
   for (auto& e : encoder_time_s_) e.store(NAN);
   for (auto& e : homed_mm_) e.store(NAN);
+  for (auto& e : steps_homed_mm_) e.store(NAN);
   for (auto& e : homed_truth_mm_) e.store(NAN);
   for (auto& e : first_touch_mm_) e.store(NAN);
   for (auto& e : endstop_state_) e.store(-1);
@@ -240,6 +241,11 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
     hp.second_touch = h.retract_dist_mm > 0.0;
     hp.accel_mm_s2 = a->max_accel_mm_s2;
     hp.queue_ahead_s = cfg.stepgen.queue_ahead_ms * 1e-3;
+    // A joint with a linear encoder homes to the carriage (the simulated delta has carriage
+    // encoders); a CoreXY carriage keeps the steps (its encoders are the motors' belts').
+    hp.report_encoder = (a->encoder.has_value() || cfg.kinematics == config::Kinematics::delta) &&
+                        encoder_mm_per_count_[js] > 0.0 &&
+                        cfg.kinematics != config::Kinematics::corexy;
     drivers::McuSession* follower_session = nullptr;
     homing_joints_[js] = {j, -1};
     if (corexy_ && j < 2) {
@@ -412,9 +418,22 @@ void McuBridge::poll_homing(double now_s) {
     if ((homing_mask_ >> j & 1u) == 0) continue;
     const drivers::HomingResult& r = homing_[js]->result();
     const bool cartesian_carriage = corexy_ && j < 2;
-    homed_mm_[js].store(cartesian_carriage ? homing_result_mm_[js] : r.position_mm,
-                        std::memory_order_relaxed);
-    first_touch_mm_[js].store(r.first_trigger_mm, std::memory_order_relaxed);
+    const double steps_mm = cartesian_carriage ? homing_result_mm_[js] : r.position_mm;
+    // Carriage-referenced: at the trigger the carriage was at the endstop (the encoder's count
+    // then, latched on the MCU); at rest now it is the encoder's travel since away from it, and the
+    // steps at rest sit where the carriage does. The steps alone would put the carriage's lag
+    // behind them at the trigger (v (c1/k1 + c2/k1 + c2/k2) on the two-mass belt, ~70 um at
+    // 10 mm/s) into every later position (docs/homing.md "Carriage-referenced homing").
+    const double enc_mm = encoder_mm_[js].load(std::memory_order_relaxed);
+    const bool by_encoder = !cartesian_carriage && r.has_trigger_encoder && std::isfinite(enc_mm);
+    const double homed =
+        by_encoder ? homing_[js]->params().position_endstop_mm +
+                         (enc_mm - static_cast<double>(r.trigger_encoder_counts) * encoder_mm_per_count_[js])
+                   : steps_mm;
+    homed_mm_[js].store(homed, std::memory_order_relaxed);
+    steps_homed_mm_[js].store(steps_mm, std::memory_order_relaxed);
+    encoder_referenced_[js].store(by_encoder, std::memory_order_relaxed);
+    first_touch_mm_[js].store(r.first_trigger_mm + (homed - steps_mm), std::memory_order_relaxed);
     relay_lag_steps_[js].store(r.relay_lag_steps, std::memory_order_relaxed);
     double truth = NAN;
     if (plant_ && mcus_[static_cast<size_t>(joint_mcu_[js])]->vmcu) {
@@ -530,6 +549,8 @@ HomingReport McuBridge::homing_report(int joint) const {
   r.first_touch_mm = first_touch_mm_[js].load();
   r.count = homing_count_[js].load();
   r.relay_lag_steps = relay_lag_steps_[js].load();
+  r.steps_homed_mm = steps_homed_mm_[js].load();
+  r.encoder_referenced = encoder_referenced_[js].load();
   return r;
 }
 

@@ -77,6 +77,12 @@ struct HomingReport {
   double first_touch_mm = NAN;    // the fast approach's trigger, in the final frame
   uint64_t count = 0;             // homings of this joint so far
   int64_t relay_lag_steps = 0;    // CoreXY: the second motor's steps after the first stopped
+  // Carriage-referenced (a joint with an encoder, MCU protocol v4): homed_mm is the endstop plus
+  // the encoder's travel from the trigger to the rest; steps_homed_mm is what the steps alone gave
+  // (the endstop plus the steps after the trigger). Their difference is the carriage's lag behind
+  // the steps at the trigger, which the steps-referenced frame keeps as an offset.
+  bool encoder_referenced = false;
+  double steps_homed_mm = NAN;
 };
 
 class McuBridge final : public stepgen::BatchSink, public ServoBackend {
@@ -241,6 +247,8 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   char homing_error_[192] = {};
   std::array<std::atomic<double>, kJoints> homed_mm_{}, homed_truth_mm_{}, first_touch_mm_{};
   std::array<std::atomic<uint64_t>, kJoints> homing_count_{};
+  std::array<std::atomic<double>, kJoints> steps_homed_mm_{};  // HomingReport::steps_homed_mm
+  std::array<std::atomic<bool>, kJoints> encoder_referenced_{};
   std::array<std::atomic<int>, kJoints> endstop_state_{};  // -1 unknown, 0 open, 1 triggered
   double next_endstop_query_s_ = 0.0;
 

@@ -480,11 +480,13 @@ void VirtualMcu::handle_queue_steps(MsgReader& r) {
 
 void VirtualMcu::handle_endstop_home(const uint8_t* p, size_t n) {
   protocol::EndstopHomeMsg m;
-  if (!protocol::decode_endstop_home(p, n, m) || m.axis >= num_axes_ || m.sample_count == 0) {
+  if (!protocol::decode_endstop_home(p, n, m) || m.axis >= num_axes_ || m.sample_count == 0 ||
+      (m.flags != 0 && negotiated_version_ < 4)) {
     send_error(McuError::kBadMessage, static_cast<int64_t>(MsgType::kEndstopHome));
     return;
   }
   Axis& a = axes_[m.axis];
+  a.es_report_encoder = (m.flags & protocol::kEndstopReportEncoder) != 0;
   a.es_triggered = false;
   a.es_seen = 0;
   a.es_armed = m.sample_ticks > 0;
@@ -497,6 +499,8 @@ void VirtualMcu::handle_endstop_home(const uint8_t* p, size_t n) {
     // motor stops where it is now, and the trigger and the stop are both this step position.
     a.es_first_clock = now_clock_;
     a.es_first_steps = a.st.position_steps;
+    if (a.es_report_encoder && a.port != nullptr)
+      a.es_first_encoder = a.port->read_encoder_counts(true_time_at(now_clock_));
     endstop_trigger(m.axis, now_clock_);
   }
 }
@@ -530,6 +534,8 @@ void VirtualMcu::endstop_sample(int axis) {
   if (a.es_seen++ == 0) {
     a.es_first_clock = at;
     a.es_first_steps = a.st.position_steps;
+    if (a.es_report_encoder && a.port != nullptr)
+      a.es_first_encoder = a.port->read_encoder_counts(true_time_at(at));
   }
   if (a.es_seen < a.es_count) return;
   endstop_trigger(axis, at);
@@ -548,6 +554,8 @@ void VirtualMcu::endstop_trigger(int axis, int64_t at) {
   m.trigger_steps = a.es_first_steps;
   m.stop_clock = at;
   m.stop_steps = a.st.position_steps;
+  m.has_encoder = a.es_report_encoder && a.port != nullptr;
+  m.trigger_encoder_counts = a.es_first_encoder;
   uint8_t buf[48];
   const size_t len = protocol::encode_endstop_trigger(m, buf, sizeof buf);
   if (len > 0) send_msg(buf, len);

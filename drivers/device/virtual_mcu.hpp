@@ -153,6 +153,8 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
     uint8_t es_level = 1, es_count = 1, es_seen = 0;
     int64_t es_ticks = 0, es_next_clock = 0;
     int64_t es_first_clock = 0, es_first_steps = 0;
+    bool es_report_encoder = false;  // v4: the encoder count at the first triggered sample
+    int64_t es_first_encoder = 0;
   };
   void handle_queue_steps(protocol::MsgReader& r);
   void handle_configure_loop(const uint8_t* p, size_t n);

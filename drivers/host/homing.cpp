@@ -92,11 +92,12 @@ void HomingSequence::fail(std::string message) {
 }
 
 void HomingSequence::arm(bool on) {
-  arm_motor(session_, p_.motor, on, protocol::EndstopSource::kPin);
+  arm_motor(session_, p_.motor, on, protocol::EndstopSource::kPin,
+            p_.report_encoder && session_.negotiated_version() >= 4 ? protocol::kEndstopReportEncoder : 0);
 }
 
 void HomingSequence::arm_motor(McuSession& s, uint8_t motor, bool on,
-                               protocol::EndstopSource source) {
+                               protocol::EndstopSource source, uint8_t flags) {
   protocol::EndstopHomeMsg m;
   m.axis = motor;
   m.trigger_level = 1;
@@ -105,6 +106,7 @@ void HomingSequence::arm_motor(McuSession& s, uint8_t motor, bool on,
   if (on && m.sample_ticks == 0) m.sample_ticks = 1;
   m.sample_count = static_cast<uint8_t>(p_.sample_count);
   m.source = on ? source : protocol::EndstopSource::kPin;
+  m.flags = on ? flags : 0;
   uint8_t buf[16];
   const size_t n = protocol::encode_endstop_home(m, buf, sizeof buf);
   if (n > 0) s.queue_message(buf, n);
@@ -322,6 +324,8 @@ void HomingSequence::after_stop(const protocol::EndstopTriggerMsg& t, double now
   }
   result_.trigger_steps = t.trigger_steps;
   result_.stop_steps = t.stop_steps;
+  result_.has_trigger_encoder = t.has_encoder;
+  result_.trigger_encoder_counts = t.trigger_encoder_counts;
   double moved_steps = static_cast<double>(p_.motor_sign * (t.stop_steps - t.trigger_steps));
   if (p_.has_follower) {
     // Where the follower was when the primary's switch tripped (the lockstep), and the axis's

@@ -53,6 +53,10 @@ struct HomingParams {
   bool has_follower = false;
   uint8_t follower_motor = 0;
   int follower_sign = 1;
+  // Ask the MCU for the motor's encoder count at the trigger (protocol v4; the owner sets it for
+  // a joint with a linear encoder): the owner then refers the homed position to the carriage, not
+  // to the steps (docs/homing.md "Carriage-referenced homing"). An older MCU: the steps only.
+  bool report_encoder = false;
 };
 
 Status check_homing_params(const HomingParams& p);
@@ -85,6 +89,10 @@ struct HomingResult {
   int64_t start_steps = 0, follower_start_steps = 0;
   int64_t follower_trigger_steps = 0, follower_stop_steps = 0;
   int64_t relay_lag_steps = 0;
+  // The encoder count at the final trigger, when the MCU reported it (report_encoder, v4): there
+  // the carriage was at position_endstop.
+  bool has_trigger_encoder = false;
+  int64_t trigger_encoder_counts = 0;
 };
 
 class HomingSequence {
@@ -129,7 +137,8 @@ class HomingSequence {
   void stream(double now_s);
   bool move_done(double now_s, double margin_s) const;
   void arm(bool on);
-  void arm_motor(McuSession& s, uint8_t motor, bool on, protocol::EndstopSource source);
+  void arm_motor(McuSession& s, uint8_t motor, bool on, protocol::EndstopSource source,
+                 uint8_t flags = 0);
   void on_primary_trigger(const protocol::EndstopTriggerMsg& t, double now_s);
   void on_follower_trigger(const protocol::EndstopTriggerMsg& t, double now_s);
   void after_stop(const protocol::EndstopTriggerMsg& t, double now_s);

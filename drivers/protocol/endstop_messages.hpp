@@ -38,8 +38,14 @@ struct EndstopHomeMsg {
   uint8_t trigger_level = 1;  // pin value that means "triggered"
   uint32_t sample_ticks = 0;  // sampling period; 0 disarms (and ends a triggered state)
   uint8_t sample_count = 1;   // consecutive triggered samples needed (debounce), >= 1
-  EndstopSource source = EndstopSource::kPin;  // encoded only when not kPin
+  EndstopSource source = EndstopSource::kPin;  // encoded only when not kPin (or with flags)
+  // Protocol v4: the optional byte after the source. kReportEncoder: ENDSTOP_TRIGGER carries the
+  // motor's encoder count at the first triggered sample (a carriage-referenced homing,
+  // docs/homing.md). Encoded only when not 0 (then the source byte is encoded too).
+  uint8_t flags = 0;
 };
+inline constexpr uint8_t kEndstopReportEncoder = 0x01;
+inline constexpr uint8_t kEndstopKnownFlags = kEndstopReportEncoder;
 
 struct EndstopQueryMsg {
   uint8_t axis = 0;
@@ -51,6 +57,10 @@ struct EndstopTriggerMsg {
   int64_t trigger_steps = 0;  // the motor's step position at that sample
   int64_t stop_clock = 0;     // when the steps were stopped (after sample_count samples)
   int64_t stop_steps = 0;     // the step position the motor stopped at
+  // Protocol v4, when the arming asked for it (kEndstopReportEncoder): the encoder count at
+  // trigger_clock, a trailing zz.
+  bool has_encoder = false;
+  int64_t trigger_encoder_counts = 0;
 };
 
 struct EndstopStateMsg {
@@ -67,7 +77,8 @@ inline size_t encode_endstop_home(const EndstopHomeMsg& m, uint8_t* buf, size_t 
       .u8(m.trigger_level)
       .var(m.sample_ticks)
       .u8(m.sample_count);
-  if (m.source != EndstopSource::kPin) w.u8(static_cast<uint8_t>(m.source));
+  if (m.source != EndstopSource::kPin || m.flags != 0) w.u8(static_cast<uint8_t>(m.source));
+  if (m.flags != 0) w.u8(m.flags);
   return w.ok() ? w.size() : 0;
 }
 inline bool decode_endstop_home(const uint8_t* p, size_t n, EndstopHomeMsg& out) {
@@ -84,6 +95,11 @@ inline bool decode_endstop_home(const uint8_t* p, size_t n, EndstopHomeMsg& out)
     const uint8_t src = r.u8();
     if (src >= kEndstopSourceCount) return false;  // a source this device does not know
     out.source = static_cast<EndstopSource>(src);
+  }
+  out.flags = 0;
+  if (r.ok() && !r.at_end()) {
+    out.flags = r.u8();
+    if ((out.flags & ~kEndstopKnownFlags) != 0) return false;  // a flag this device does not know
   }
   return r.ok() && r.at_end();
 }
@@ -108,6 +124,7 @@ inline size_t encode_endstop_trigger(const EndstopTriggerMsg& m, uint8_t* buf, s
       .zz(m.trigger_steps)
       .var(static_cast<uint64_t>(m.stop_clock))
       .zz(m.stop_steps);
+  if (m.has_encoder) w.zz(m.trigger_encoder_counts);
   return w.ok() ? w.size() : 0;
 }
 inline bool decode_endstop_trigger(const uint8_t* p, size_t n, EndstopTriggerMsg& out) {
@@ -118,6 +135,8 @@ inline bool decode_endstop_trigger(const uint8_t* p, size_t n, EndstopTriggerMsg
   out.trigger_steps = r.zz();
   out.stop_clock = static_cast<int64_t>(r.var());
   out.stop_steps = r.zz();
+  out.has_encoder = r.ok() && !r.at_end();
+  out.trigger_encoder_counts = out.has_encoder ? r.zz() : 0;
   return r.ok() && r.at_end();
 }
 

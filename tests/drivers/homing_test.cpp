@@ -437,9 +437,33 @@ TEST(EndstopMessages, RoundTripAndRejectTruncation) {
   EXPECT_EQ(hd.sample_count, 4);
   buf[m2 - 1] = protocol::kEndstopSourceCount;
   EXPECT_FALSE(protocol::decode_endstop_home(buf, m2, hd));
+  // v4: a flags byte after the source (kEndstopReportEncoder); an unknown flag or a third
+  // trailing byte is refused.
   buf[m2 - 1] = 1;
-  buf[m2] = 0;
+  buf[m2] = 0x80;
   EXPECT_FALSE(protocol::decode_endstop_home(buf, m2 + 1, hd));
+  h.source = protocol::EndstopSource::kPin;
+  h.flags = protocol::kEndstopReportEncoder;
+  const size_t m3 = protocol::encode_endstop_home(h, buf, sizeof buf);
+  ASSERT_EQ(m3, m + 2);  // the source byte (0) and the flags
+  ASSERT_TRUE(protocol::decode_endstop_home(buf, m3, hd));
+  EXPECT_EQ(hd.source, protocol::EndstopSource::kPin);
+  EXPECT_EQ(hd.flags, protocol::kEndstopReportEncoder);
+  buf[m3] = 0;
+  EXPECT_FALSE(protocol::decode_endstop_home(buf, m3 + 1, hd));
+  // ENDSTOP_TRIGGER: the encoder count trails only when asked for.
+  protocol::EndstopTriggerMsg te{3, 1000, -52, 1200, -55, true, -123456789};
+  const size_t mt = protocol::encode_endstop_trigger(te, buf, sizeof buf);
+  protocol::EndstopTriggerMsg td;
+  ASSERT_TRUE(protocol::decode_endstop_trigger(buf, mt, td));
+  EXPECT_TRUE(td.has_encoder);
+  EXPECT_EQ(td.trigger_encoder_counts, -123456789);
+  EXPECT_EQ(td.stop_steps, -55);
+  te.has_encoder = false;
+  const size_t mt0 = protocol::encode_endstop_trigger(te, buf, sizeof buf);
+  EXPECT_LT(mt0, mt);
+  ASSERT_TRUE(protocol::decode_endstop_trigger(buf, mt0, td));
+  EXPECT_FALSE(td.has_encoder);
 }
 
 TEST(EndstopSwitch, HysteresisAndScatter) {

@@ -33,7 +33,7 @@ TEST(ThermalMcuLink, HeatUpRunsThroughTheSessionsFrames) {
   ASSERT_EQ(link.mcu_count(), 1);
   drivers::McuSession& s = link.session(0);
   EXPECT_TRUE(s.ready());
-  EXPECT_EQ(s.negotiated_version(), 3);
+  EXPECT_EQ(s.negotiated_version(), protocol::kProtocolVersion);
   EXPECT_EQ(s.mcu_clock_hz(), static_cast<uint32_t>(rig.cfg.stepgen.mcu_clock_hz));
   const double t = rig.t;
   // A report every 0.3 s each way for two heaters, plus SET_HEATERs: hundreds of frames.
