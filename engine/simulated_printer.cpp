@@ -135,6 +135,12 @@ class SimulatedPrinter final : public SimulatedPlant {
       const Eigen::Vector3d n = delta_->nozzle_mm();
       return {n[0], n[1], n[2]};
     }
+    if (corexy_) {
+      // The belts' ends are the motors' A = x + y and B = x - y (planner/linear_kinematics.hpp):
+      // the Cartesian carriage is their half sum and half difference.
+      const double a = carriage_mm(0), b = carriage_mm(1);
+      return {0.5 * (a + b), 0.5 * (a - b), carriage_mm(2)};
+    }
     return {carriage_mm(0), carriage_mm(1), carriage_mm(2)};
   }
   int64_t lost_full_steps(int joint) const override {
@@ -158,6 +164,7 @@ class SimulatedPrinter final : public SimulatedPlant {
   std::array<std::unique_ptr<DeltaEndstopPort>, kJoints> delta_endstop_ports_;
   std::array<std::unique_ptr<CoreXyEndstopPort>, 2> corexy_ports_;  // motors A, B (CoreXY)
   std::unique_ptr<sim::DeltaPlant> delta_;
+  bool corexy_ = false;  // joints 0, 1 are the CoreXY motors A, B (nozzle_mm mixes them)
   std::unique_ptr<sim::ExternalPlant> external_;                       // simulator.external_plant
   std::array<sim::ExternalAxisPort*, kJoints> external_port_{};       // by joint (nullptr: built-in)
   std::array<double, kJoints> encoder_mm_per_count_{};
@@ -361,6 +368,7 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
     // CoreXY with switches on X and Y: on the Cartesian carriage, which starts start_distance_mm
     // from both (the motors where A = x + y, B = x - y put it) when the machine must home.
     const bool corexy = cfg.kinematics == config::Kinematics::corexy;
+    out->corexy_ = corexy;
     const config::AxisConfig* cx = cfg.axis(names[0]);
     const config::AxisConfig* cy = cfg.axis(names[1]);
     const bool corexy_switches = corexy && cx && cx->homing && cy && cy->homing;

@@ -140,6 +140,10 @@ TEST(CoreXyHoming, MoveBeforeG28IsRefusedThenG28HomesTheCarriageAndMovesLandRigh
                 one_mcu ? "one MCU" : "two MCUs", rig.true_x(), rig.true_y());
     EXPECT_NEAR(rig.true_x(), 50.0, 0.12);
     EXPECT_NEAR(rig.true_y(), 30.0, 0.12);
+    // The plant's nozzle (the flight recorder's truth) is the Cartesian carriage, not the belts.
+    const std::array<double, 3> n = rig.bridge->plant()->nozzle_mm();
+    EXPECT_NEAR(n[0], rig.true_x(), 1e-9);
+    EXPECT_NEAR(n[1], rig.true_y(), 1e-9);
     for (int j = 0; j < 2; ++j) EXPECT_EQ(rig.bridge->timing(j).unexpected_steps, 0u);
     EXPECT_EQ(rig.bridge->endstop_state(0), 0);  // released
     EXPECT_EQ(rig.bridge->endstop_state(1), 0);
