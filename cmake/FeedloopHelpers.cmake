@@ -19,7 +19,7 @@ function(_feedloop_test_flags name)
   # of their compile time over 5 units measured, ~70 s of the sanitizer build. The tests' PCH owner
   # has the same flags (__OPTIMIZE__ must match).
   # OPTIMIZED: a program whose own code does the heavy work (a step-by-step check of whole
-  # programs) keeps the build's -O1 and compiles without the tests' PCH: at -O0 three of them took
+  # programs) keeps the build's -O1 and compiles without the tests' PCH: at -O0 four checks took
   # 9 -> 44, 13 -> 32, 6 -> 32 and 5 -> 25 s under the sanitizers.
   if(FEEDLOOP_SANITIZE AND NOT F_OPTIMIZED)
     target_compile_options(${name} PRIVATE -O0)
