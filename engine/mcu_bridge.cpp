@@ -426,10 +426,10 @@ void McuBridge::poll_homing(double now_s) {
     // 10 mm/s) into every later position (docs/homing.md "Carriage-referenced homing").
     const double enc_mm = encoder_mm_[js].load(std::memory_order_relaxed);
     const bool by_encoder = !cartesian_carriage && r.has_trigger_encoder && std::isfinite(enc_mm);
-    const double homed =
-        by_encoder ? homing_[js]->params().position_endstop_mm +
-                         (enc_mm - static_cast<double>(r.trigger_encoder_counts) * encoder_mm_per_count_[js])
-                   : steps_mm;
+    const double homed = by_encoder ? homing_[js]->params().position_endstop_mm +
+                                          (enc_mm - static_cast<double>(r.trigger_encoder_counts) *
+                                                        encoder_mm_per_count_[js])
+                                    : steps_mm;
     homed_mm_[js].store(homed, std::memory_order_relaxed);
     steps_homed_mm_[js].store(steps_mm, std::memory_order_relaxed);
     encoder_referenced_[js].store(by_encoder, std::memory_order_relaxed);

@@ -93,7 +93,9 @@ void HomingSequence::fail(std::string message) {
 
 void HomingSequence::arm(bool on) {
   arm_motor(session_, p_.motor, on, protocol::EndstopSource::kPin,
-            p_.report_encoder && session_.negotiated_version() >= 4 ? protocol::kEndstopReportEncoder : 0);
+            p_.report_encoder && session_.negotiated_version() >= 4
+                ? protocol::kEndstopReportEncoder
+                : 0);
 }
 
 void HomingSequence::arm_motor(McuSession& s, uint8_t motor, bool on,

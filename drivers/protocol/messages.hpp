@@ -14,9 +14,9 @@ namespace feedloop::protocol {
 // The newest version this code speaks, and the oldest it still accepts (docs/protocol.md,
 // "Versioning"): a device answers IDENTIFY with the version both speak (the host's, when it is in
 // [kMinProtocolVersion, kProtocolVersion]), so a v1 host still works with a v2 device.
-// Version 2 adds the device loop's messages (CONFIGURE_LOOP, QUEUE_TARGET, LOOP_REPORT, LOOP_EVENT).
-// Version 3 adds heaters, fans and endstops; version 4 the encoder count at an endstop's trigger
-// (ENDSTOP_HOME's flags byte, ENDSTOP_TRIGGER's trailing count).
+// Version 2 adds the device loop's messages (CONFIGURE_LOOP, QUEUE_TARGET, LOOP_REPORT,
+// LOOP_EVENT). Version 3 adds heaters, fans and endstops; version 4 the encoder count at an
+// endstop's trigger (ENDSTOP_HOME's flags byte, ENDSTOP_TRIGGER's trailing count).
 inline constexpr uint16_t kProtocolVersion = 4;
 inline constexpr uint16_t kMinProtocolVersion = 1;
 

@@ -165,8 +165,8 @@ TEST(HomingPipeline, MoveBeforeG28IsRefusedThenG28HomesEveryAxisAndMovesFollow) 
   ASSERT_EQ(rig.run("M400"), "");
   ASSERT_EQ(rig.run("G4 P500"), "");
   ASSERT_EQ(rig.run("M400"), "");
-  std::printf("after G1 X20 Y10 Z1 at rest: carriages at %.4f %.4f %.4f mm\n", plant->carriage_mm(0),
-              plant->carriage_mm(1), plant->carriage_mm(2));
+  std::printf("after G1 X20 Y10 Z1 at rest: carriages at %.4f %.4f %.4f mm\n",
+              plant->carriage_mm(0), plant->carriage_mm(1), plant->carriage_mm(2));
   EXPECT_NEAR(plant->carriage_mm(0), 20.0, 0.01);  // no lag offset (carriage-referenced)
   EXPECT_NEAR(plant->carriage_mm(1), 10.0, 0.01);
   EXPECT_NEAR(plant->carriage_mm(2), 1.0, 0.05);  // Z: the homing's lag offset stays
@@ -275,8 +275,10 @@ TEST(HomingPipeline, DeltaTowersHomeTogetherAndTheEndstopOffsetsGiveTheNozzle) {
       // carriages have encoders, so the homed position is the carriage's at rest (docs/homing.md
       // "Carriage-referenced homing"): below the steps' by the carriage's lag and sag.
       EXPECT_TRUE(r.encoder_referenced) << "tower " << j;
-      EXPECT_GE(r.steps_homed_mm, cfg.axes[static_cast<size_t>(j)].homing->position_endstop_mm - 1e-9);
-      EXPECT_LT(r.steps_homed_mm, cfg.axes[static_cast<size_t>(j)].homing->position_endstop_mm + 0.05);
+      EXPECT_GE(r.steps_homed_mm,
+                cfg.axes[static_cast<size_t>(j)].homing->position_endstop_mm - 1e-9);
+      EXPECT_LT(r.steps_homed_mm,
+                cfg.axes[static_cast<size_t>(j)].homing->position_endstop_mm + 0.05);
       EXPECT_NEAR(r.homed_mm, r.steps_homed_mm, 0.2);
     }
     auto nozzle = kin->forward(q);
