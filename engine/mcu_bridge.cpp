@@ -424,12 +424,21 @@ void McuBridge::poll_homing(double now_s) {
     // steps at rest sit where the carriage does. The steps alone would put the carriage's lag
     // behind them at the trigger (v (c1/k1 + c2/k1 + c2/k2) on the two-mass belt, ~70 um at
     // 10 mm/s) into every later position (docs/homing.md "Carriage-referenced homing").
+    // A count that puts the carriage more than kMaxLag_mm from the steps is not a lag (a broken
+    // encoder or device): the steps' reference then, and the log says so.
+    constexpr double kMaxLag_mm = 1.0;
     const double enc_mm = encoder_mm_[js].load(std::memory_order_relaxed);
-    const bool by_encoder = !cartesian_carriage && r.has_trigger_encoder && std::isfinite(enc_mm);
-    const double homed = by_encoder ? homing_[js]->params().position_endstop_mm +
-                                          (enc_mm - static_cast<double>(r.trigger_encoder_counts) *
-                                                        encoder_mm_per_count_[js])
-                                    : steps_mm;
+    const double by_encoder_mm =
+        homing_[js]->params().position_endstop_mm +
+        (enc_mm - static_cast<double>(r.trigger_encoder_counts) * encoder_mm_per_count_[js]);
+    bool by_encoder = !cartesian_carriage && r.has_trigger_encoder && std::isfinite(by_encoder_mm);
+    if (by_encoder && std::fabs(by_encoder_mm - steps_mm) > kMaxLag_mm) {
+      by_encoder = false;
+      log("homing of " + joint_names_[js] + ": the encoder puts the carriage " +
+          std::to_string(by_encoder_mm - steps_mm) +
+          " mm from the steps at the trigger; homed by the steps");  // rare: allocates
+    }
+    const double homed = by_encoder ? by_encoder_mm : steps_mm;
     homed_mm_[js].store(homed, std::memory_order_relaxed);
     steps_homed_mm_[js].store(steps_mm, std::memory_order_relaxed);
     encoder_referenced_[js].store(by_encoder, std::memory_order_relaxed);

@@ -326,7 +326,7 @@ void HomingSequence::after_stop(const protocol::EndstopTriggerMsg& t, double now
   }
   result_.trigger_steps = t.trigger_steps;
   result_.stop_steps = t.stop_steps;
-  result_.has_trigger_encoder = t.has_encoder;
+  result_.has_trigger_encoder = p_.report_encoder && t.has_encoder;  // only when asked for
   result_.trigger_encoder_counts = t.trigger_encoder_counts;
   double moved_steps = static_cast<double>(p_.motor_sign * (t.stop_steps - t.trigger_steps));
   if (p_.has_follower) {
