@@ -25,14 +25,16 @@ ManeuverOutput ManeuverController::evaluate_at(const Vec3& yd, const Vec3& dyd, 
   o.z2_m_s = x.x2_m_s - alpha1;                                     // Eq. 27
   const Vec3 dalpha1 = g_.k_p * dyd + dyd * o.speed.dv_s_dtheta;    // Eq. 62
   // Eq. 45: M^-1 k_1 w = A_2 z_2 - P_2^-1 P_1 z_1 + M^-1 D x_2 + A_1 x_2 + dalpha_1/dtheta v_s.
-  const Vec3 accel = -g_.k_d * o.z2_m_s - (p1_ / p2_) * o.z1_m +
-                     mat_.d_n_s_m.cwiseQuotient(mat_.m_kg).cwiseProduct(x.x2_m_s) - g_.k_p * x.x2_m_s +
-                     dalpha1 * v_s;
+  const double coupling = g_.as_printed ? 1.0 : -1.0;  // Eq. 58 as printed : Eq. 45
+  const Vec3 accel = -g_.k_d * o.z2_m_s + coupling * (p1_ / p2_) * o.z1_m +
+                     mat_.d_n_s_m.cwiseQuotient(mat_.m_kg).cwiseProduct(x.x2_m_s) -
+                     g_.k_p * x.x2_m_s + dalpha1 * v_s;
   o.w_v = mat_.m_kg.cwiseProduct(accel) / mat_.k1_n_v;
   o.w_v.z() += gravity_offset_v_;                                   // Eq. 14
   o.dtheta = v_s - c.omega_s;                                       // Eq. 56
   const double zpb = p1_ * o.z1_m.dot(dyd) + p2_ * o.z2_m_s.dot(dalpha1);  // tau_1 + tau_2
-  o.domega_s = -g_.lambda * (c.omega_s + g_.mu * zpb);              // Eq. 52
+  const double mu = g_.as_printed ? 2.0 * g_.mu : g_.mu;  // Eq. 57 as printed : Eq. 52
+  o.domega_s = -g_.lambda * (c.omega_s + mu * zpb);       // Eq. 52
   o.lyapunov = 0.5 * p1_ * o.z1_m.squaredNorm() + 0.5 * p2_ * o.z2_m_s.squaredNorm() +
                c.omega_s * c.omega_s / (2.0 * g_.lambda * g_.mu);   // Eq. 51
   return o;

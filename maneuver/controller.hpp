@@ -36,6 +36,9 @@ struct ManeuverGains {
   double q2 = 1.0;       // Q_2 = q2 I
   double lambda = 30.0;  // filter cut-off of the gradient update, rad/s
   double mu = 1000.0;    // mu_1: gradient update gain
+  // true: the summary equations as printed, Eq. 58's +P_2^-1 P_1 z_1 and Eq. 57's 2 lambda mu,
+  // instead of the derivation's Eq. 45 and Eq. 52 (only to measure what the misprint would cost).
+  bool as_printed = false;
 };
 
 struct ManeuverState {

@@ -66,44 +66,47 @@ void track_errors(const PiecewiseLinearPath& path, size_t n, const Vec3& z1, dou
   cross = -s * z1.x() + c * z1.y();
 }
 
-Result<SimResult> simulate_sampled(const PiecewiseLinearPath& path, const SpeedAssignment& speed,
-                                   const ManeuverController& controller, const CartesianDcPlant& plant,
-                                   const SimOptions& opt) {
+Result<SimResult> run_sampled(const PiecewiseLinearPath& path, const SpeedAssignment& speed,
+                              const ManeuverController& controller, SampledPlant& plant,
+                              const SimOptions& opt) {
   ManeuverServo servo(path, speed, controller, opt.split_at_waypoints);
-  PlantState x = opt.initial;
-  if (opt.start_at_path) x.x1_m = path.point(0);
   const double period = opt.control_period_s;
-  const int substeps = std::max(1, static_cast<int>(std::ceil(period / opt.dt_s - 1e-9)));
-  const double h = period / substeps;
   const auto max_periods = static_cast<size_t>(opt.max_time_s / period) + 1;
   SimResult r;
   r.segment_entry_s.assign(path.segments() + 1, -1.0);
   r.segment_entry_s[1] = 0.0;
   if (opt.record_every > 0) r.samples.reserve(max_periods / opt.record_every / 8 + 16);
   double t = 0.0;
+  size_t limited = 0, periods = 0;
   for (size_t k = 0; k < max_periods; ++k) {
     const size_t n = servo.segment();
     const double theta = servo.state().theta;
-    const Vec3 w = servo.update(x, period);
+    const Vec3 w = servo.update(plant.measure(), period);
     const ManeuverOutput& o = servo.last();
+    // The true nozzle against y_d(theta) (for the controller's own model, o.z1_m).
+    const Vec3 nozzle = plant.nozzle_m();
+    const Vec3 z1 = nozzle - path.yd(theta, n);
     double along = 0.0, cross = 0.0;
-    track_errors(path, n, o.z1_m, along, cross);
+    track_errors(path, n, z1, along, cross);
     r.max_cross_m = std::max(r.max_cross_m, std::abs(cross));
     r.max_along_m = std::max(r.max_along_m, std::abs(along));
     r.iae_cross_m_s += std::abs(cross) * period;
     if (opt.record_every > 0 && k % opt.record_every == 0)
-      r.samples.push_back({t, x.x1_m, theta, n, along, cross, o.lyapunov, x.x2_m_s.norm(),
-                           o.speed.v_s * path.dyd(n).norm()});
-    for (int i = 0; i < substeps; ++i) plant.step_rk4(x, w, h);
-    r.steps += static_cast<size_t>(substeps);
+      r.samples.push_back({t, nozzle, theta, n, along, cross, o.lyapunov,
+                           plant.nozzle_velocity_m_s().norm(), o.speed.v_s * path.dyd(n).norm()});
+    plant.advance(w, period);
+    ++periods;
+    if (plant.limited()) ++limited;
+    r.steps += static_cast<size_t>(std::max(1.0, std::ceil(period / opt.dt_s - 1e-9)));
     t += period;
     const size_t m = servo.segment();
     for (size_t j = opt.split_at_waypoints ? n + 1 : m; j <= m; ++j)
       if (r.segment_entry_s[j] < 0.0) r.segment_entry_s[j] = t;
-    if (!std::isfinite(x.x1_m.squaredNorm()) || o.z1_m.norm() > 0.1 + path.length_m())
-      return Error{"simulation: the sampled loop diverged at t = " + std::to_string(t) + " s (|z_1| = " +
-                       std::to_string(o.z1_m.norm()) + " m): the control period " + std::to_string(period) +
-                       " s is too long for these gains (K_d T = " + std::to_string(controller.gains().k_d * period) +
+    if (!std::isfinite(plant.nozzle_m().squaredNorm()) || z1.norm() > 0.1 + path.length_m())
+      return Error{"simulation: the sampled loop diverged at t = " + std::to_string(t) +
+                       " s (|z_1| = " + std::to_string(z1.norm()) + " m): the control period " +
+                       std::to_string(period) + " s is too long for these gains (K_d T = " +
+                       std::to_string(controller.gains().k_d * period) +
                        "; with Table II's gains 1.5 holds, 1.67 diverges)",
                    {}};
     if (servo.finished()) {
@@ -113,17 +116,31 @@ Result<SimResult> simulate_sampled(const PiecewiseLinearPath& path, const SpeedA
     }
   }
   r.skipped_segments = servo.skipped_segments();
+  r.limited_fraction =
+      periods > 0 ? static_cast<double>(limited) / static_cast<double>(periods) : 0.0;
   return r;
 }
 
 }  // namespace
+
+void NominalSampledPlant::advance(const Vec3& w_v, double period_s) {
+  const int n = std::max(1, static_cast<int>(std::ceil(period_s / max_step_s_ - 1e-9)));
+  const double h = period_s / n;
+  for (int i = 0; i < n; ++i) plant_.step_rk4(x_, w_v, h);
+}
 
 Result<SimResult> simulate(const PiecewiseLinearPath& path, const SpeedAssignment& speed,
                            const ManeuverController& controller, const CartesianDcPlant& plant,
                            const SimOptions& opt) {
   if (!(opt.dt_s > 0.0) || !(opt.max_time_s > 0.0))
     return Error{"simulation: dt_s and max_time_s must be positive", {}};
-  if (opt.control_period_s > 0.0) return simulate_sampled(path, speed, controller, plant, opt);
+  if (opt.control_period_s > 0.0) {
+    NominalSampledPlant sampled(plant, opt.dt_s);
+    PlantState x = opt.initial;
+    if (opt.start_at_path) x.x1_m = path.point(0);
+    sampled.set_state(x);
+    return run_sampled(path, speed, controller, sampled, opt);
+  }
   const Loop loop{path, speed, controller, plant, opt.split_at_waypoints};
   LoopState s{opt.initial, {path.theta(0), 0.0}};
   if (opt.start_at_path) s.x.x1_m = path.point(0);
@@ -189,6 +206,19 @@ Result<SimResult> simulate(const PiecewiseLinearPath& path, const SpeedAssignmen
   }
   if (opt.record_every > 0 && step % opt.record_every != 0) record(0.0, true);
   return r;
+}
+
+}  // namespace feedloop::maneuver
+
+namespace feedloop::maneuver {
+
+Result<SimResult> simulate_sampled(const PiecewiseLinearPath& path, const SpeedAssignment& speed,
+                                   const ManeuverController& controller, SampledPlant& plant,
+                                   const SimOptions& opt) {
+  if (!(opt.control_period_s > 0.0) || !(opt.dt_s > 0.0) || !(opt.max_time_s > 0.0))
+    return Error{"simulation: control_period_s, dt_s and max_time_s must be positive", {}};
+  plant.reset(path.point(0));
+  return run_sampled(path, speed, controller, plant, opt);
 }
 
 }  // namespace feedloop::maneuver

@@ -15,6 +15,9 @@
 // Sampled servo (control_period_s > 0): a ManeuverServo (servo.hpp) is updated once per period
 // with the plant state, its voltages are held (zero-order hold) while the plant is integrated in
 // RK4 substeps of at most dt_s; errors and V are taken at the samples, as a servo would log them.
+// simulate_sampled() runs the same servo against any SampledPlant (sampled_plant.hpp), e.g. one
+// that is not the controller's model (offnominal_plant.hpp): the servo reads plant.measure(), and
+// the errors are those of the true nozzle, plant.nozzle_m(), against y_d(theta).
 //
 // Along/cross-track errors follow Eq. 70 with phi the XY heading of the current segment (for a
 // segment without XY extent, a layer change, cross-track is the XY norm of z_1).
@@ -25,6 +28,7 @@
 
 #include "core/result.hpp"
 #include "maneuver/controller.hpp"
+#include "maneuver/sampled_plant.hpp"
 #include "maneuver/servo.hpp"
 
 namespace feedloop::maneuver {
@@ -63,10 +67,17 @@ struct SimResult {
   // segment_entry_s[n]: time the controller's segment became n (first time), -1 if never
   // (skipped); index 0 unused. Allocated before the loop.
   std::vector<double> segment_entry_s;
+  double limited_fraction = 0.0;  // sampled runs: share of the periods in which a drive limit acted
 };
 
 Result<SimResult> simulate(const PiecewiseLinearPath& path, const SpeedAssignment& speed,
                            const ManeuverController& controller, const CartesianDcPlant& plant,
                            const SimOptions& options);
+
+// The sampled servo at options.control_period_s (must be > 0) against `plant`, reset at p_0
+// (options.initial and start_at_path are not used). The controller keeps its own model.
+Result<SimResult> simulate_sampled(const PiecewiseLinearPath& path, const SpeedAssignment& speed,
+                                   const ManeuverController& controller, SampledPlant& plant,
+                                   const SimOptions& options);
 
 }  // namespace feedloop::maneuver

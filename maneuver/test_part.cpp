@@ -62,11 +62,28 @@ Outline fin_outline() {
   p.emplace_back(0.0, 0.0);
   return p;
 }
+
+double outline_length_mm(const Outline& p) {
+  double l = 0.0;
+  for (size_t i = 1; i < p.size(); ++i)
+    l += std::hypot(p[i].first - p[i - 1].first, p[i].second - p[i - 1].second);
+  return l;
+}
 }  // namespace
+
+double test_part_layer_length_mm(TestPart part) {
+  return outline_length_mm(part == TestPart::fin ? fin_outline() : star_outline());
+}
 
 std::string test_part_gcode(const TestPartOptions& o) {
   std::string g = "; feedloop maneuver benchmark part (maneuver/test_part.hpp)\nG21\nG90\nM82\nG92 E0\n";
-  const Outline outline = o.part == TestPart::fin ? fin_outline() : star_outline();
+  Outline outline = o.part == TestPart::fin ? fin_outline() : star_outline();
+  if (o.layer_length_mm > 0.0) {
+    const double k = o.layer_length_mm / outline_length_mm(outline);
+    const auto p0 = outline[0];
+    for (auto& p : outline)
+      p = {p0.first + k * (p.first - p0.first), p0.second + k * (p.second - p0.second)};
+  }
   char buf[160];
   double e = 0.0;
   for (int layer = 0; layer < o.layers; ++layer) {

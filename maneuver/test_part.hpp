@@ -27,7 +27,13 @@ struct TestPartOptions {
   double layer_height_mm = 0.4;
   double origin_x_mm = 90.0;
   double origin_y_mm = 90.0;
+  // > 0: the outline scaled (about its first point) to this length per layer, e.g. 242 mm, the
+  // paper's layer (Table III: 2.42 s at 0.1 m/s).
+  double layer_length_mm = 0.0;
 };
+
+// The length of one layer's outline, mm (before any scaling).
+double test_part_layer_length_mm(TestPart part);
 
 std::string test_part_gcode(const TestPartOptions& options = {});
 
