@@ -386,7 +386,9 @@ int gap_table(const StudyOptions& o, const std::vector<Vec3>& layer, json& out) 
       kPaper[0].max_m / kPaper[2].max_m);
   // The paper's stepping on slicer output: unit theta and a fixed step skip segments shorter than
   // m_s dt (Sect. V-A); our part has none, slicer files have them.
-  std::printf("fixed-step stepping on slicer paths (nominal, continuous; factor against dt 1e-4 s on the same path):\n");
+  std::printf(
+      "fixed-step stepping on slicer paths (nominal, continuous; factor against dt 1e-4 s on the "
+      "same path):\n");
   out["stepping"] = json::array();
   for (const char* file : {"star_prism_cartesian.gcode", "circles_plate_cartesian.gcode"}) {
     GcodePathOptions gp;
@@ -408,8 +410,9 @@ int gap_table(const StudyOptions& o, const std::vector<Vec3>& layer, json& out) 
         st.dt_s = dts[k];
         f[k] = run(wp_m, prof, sp, st);
         if (f[k].ok)
-          std::printf(" | dt %.1e: max %.2e (x%.1f) IAE %.2e (x%.1f) skipped %zu", dts[k], f[k].max_m,
-                      f[k].max_m / f[0].max_m, f[k].iae_m_s, f[k].iae_m_s / f[0].iae_m_s, f[k].skipped);
+          std::printf(" | dt %.1e: max %.2e (x%.1f) IAE %.2e (x%.1f) skipped %zu", dts[k],
+                      f[k].max_m, f[k].max_m / f[0].max_m, f[k].iae_m_s,
+                      f[k].iae_m_s / f[0].iae_m_s, f[k].skipped);
         else
           std::printf(" | dt %.1e: %s", dts[k], f[k].error.c_str());
         out["stepping"].push_back({{"file", file},
@@ -579,9 +582,12 @@ int held_out(const StudyOptions& o, json& out) {
     {
       char line[256];
       std::snprintf(line, sizeof line, "%-30s | %9s %9s %7s | %9s %9s %7s\n", name,
-                    cs.ok ? fmt(cs.max_m, "%.2e").c_str() : "failed", cs.ok ? fmt(cs.iae_m_s, "%.2e").c_str() : "",
-                    cs.ok ? fmt(cs.time_s, "%.2f").c_str() : "", et.ok ? fmt(et.max_m, "%.2e").c_str() : "failed",
-                    et.ok ? fmt(et.iae_m_s, "%.2e").c_str() : "", et.ok ? fmt(et.time_s, "%.2f").c_str() : "");
+                    cs.ok ? fmt(cs.max_m, "%.2e").c_str() : "failed",
+                    cs.ok ? fmt(cs.iae_m_s, "%.2e").c_str() : "",
+                    cs.ok ? fmt(cs.time_s, "%.2f").c_str() : "",
+                    et.ok ? fmt(et.max_m, "%.2e").c_str() : "failed",
+                    et.ok ? fmt(et.iae_m_s, "%.2e").c_str() : "",
+                    et.ok ? fmt(et.time_s, "%.2f").c_str() : "");
       rows_iii += line;
     }
     if (!e67.ok || !arc.ok) {
@@ -604,13 +610,23 @@ int held_out(const StudyOptions& o, json& out) {
           {{"max_cross_m", e67.max_m}, {"iae_cross_m_s", e67.iae_m_s}, {"time_s", e67.time_s}}},
          {"arc",
           {{"max_cross_m", arc.max_m}, {"iae_cross_m_s", arc.iae_m_s}, {"time_s", arc.time_s}}},
-         {"constant", {{"ok", cs.ok}, {"max_cross_m", cs.max_m}, {"iae_cross_m_s", cs.iae_m_s}, {"time_s", cs.time_s}}},
+         {"constant",
+          {{"ok", cs.ok},
+           {"max_cross_m", cs.max_m},
+           {"iae_cross_m_s", cs.iae_m_s},
+           {"time_s", cs.time_s}}},
          {"every_transition",
-          {{"ok", et.ok}, {"max_cross_m", et.max_m}, {"iae_cross_m_s", et.iae_m_s}, {"time_s", et.time_s}}},
+          {{"ok", et.ok},
+           {"max_cross_m", et.max_m},
+           {"iae_cross_m_s", et.iae_m_s},
+           {"time_s", et.time_s}}},
          {"arc_better_on_all_three", better}});
   }
-  std::printf("Table III's other rows on the same parts and machines:\n%-30s | %9s %9s %7s | %9s %9s %7s\n%s",
-              "held-out part (layers)", "const max", "IAE", "time", "every max", "IAE", "time", rows_iii.c_str());
+  std::printf(
+      "Table III's other rows on the same parts and machines:\n%-30s | %9s %9s %7s | %9s %9s "
+      "%7s\n%s",
+      "held-out part (layers)", "const max", "IAE", "time", "every max", "IAE", "time",
+      rows_iii.c_str());
   std::printf("the arc variant better than Eq. 67 on max, IAE and time: %d of %d held-out parts\n",
               arc_better, scored);
   out["held_out_better"] = arc_better;
