@@ -144,6 +144,7 @@ Status MotionExecutor::home(const gcode::Command& cmd, const std::atomic<bool>& 
     pause_for_machine();
   }
   homing_mask_.store(mask);
+  homing_abort_.store(false, std::memory_order_relaxed);
   homing_req_.store(kHomingRequested, std::memory_order_release);
   auto cancelled_at = std::chrono::steady_clock::now();
   bool seen_cancel = false;
@@ -153,9 +154,10 @@ Status MotionExecutor::home(const gcode::Command& cmd, const std::atomic<bool>& 
     if (cancel.load() && !seen_cancel) {
       seen_cancel = true;
       cancelled_at = std::chrono::steady_clock::now();
+      homing_abort_.store(true, std::memory_order_release);  // a flush too, not only a stop
     }
-    // The servo thread aborts a running homing on cancel; should it be gone already (the machine
-    // stopping), do not wait for it forever.
+    // The servo thread aborts a running homing on cancel and reports it failed; should the servo
+    // thread be gone already (the machine stopping), do not wait for it forever.
     if (seen_cancel && std::chrono::steady_clock::now() - cancelled_at > std::chrono::seconds(1) &&
         !inline_driver_) {
       homing_req_.store(kNoHoming);
@@ -165,7 +167,9 @@ Status MotionExecutor::home(const gcode::Command& cmd, const std::atomic<bool>& 
     pause_for_machine();
   }
   if (homing_req_.load(std::memory_order_acquire) == kHomingFailed) {
-    const std::string why = homing_error_;
+    const std::string why = seen_cancel
+                                ? std::string("cancelled during homing (") + homing_error_ + ")"
+                                : std::string(homing_error_);
     homing_req_.store(kNoHoming);
     interp_->set_unhomed(axes);
     return Error{"G28: " + why + "; the axes are not homed", cmd.where};
@@ -435,7 +439,7 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
     if (!anchored && !backend_->ready()) return;  // motion waits for the MCUs and their clocks
     if (const int h = homing_req_.load(std::memory_order_acquire);
         h == kHomingRequested || h == kHomingRunning) {
-      homing_cycle(now_s, cancel);
+      homing_cycle(now_s, cancel || homing_abort_.load(std::memory_order_acquire));
       return;
     }
     if (!motion_maps_held_) {  // else the motion's clock frame (sampled_cycle) stays in force

@@ -167,6 +167,9 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
     kHomingFailed
   };
   std::atomic<int> homing_req_{kNoHoming};
+  // home() saw its command interrupted (a flush: a job's cancel, M524; or an emergency stop): the
+  // servo thread aborts the homing on the MCUs, and the G28 ends as failed, the axes unhomed.
+  std::atomic<bool> homing_abort_{false};
   std::atomic<unsigned> homing_mask_{0};
   std::array<double, kJoints> homed_joint_mm_{};        // servo thread writes before kHomingDone
   std::array<double, 3> homing_shift_mm_{};            // (CoreXY) likewise: unhomed axes moved

@@ -73,6 +73,24 @@ struct PipelineRig {
     return last_error;
   }
   double seconds() const { return seconds_from_ns(clock.now_ns()) - 1.0; }
+  // Submits one line without waiting for it; its ticket.
+  uint64_t submit(const std::string& line) {
+    auto cmd =
+        gcode::parse_line(line, SourceLocation{"homing.gcode", static_cast<int>(ticket) + 1, 0});
+    EXPECT_TRUE(cmd.ok());
+    while (!machine->try_submit(++ticket, cmd.value()))
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    return ticket;
+  }
+  // Waits for ticket t (and everything before it); its error, "" when it succeeded.
+  std::string wait(uint64_t t) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (done.load() < t && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    if (done.load() < t) return "timeout";
+    std::lock_guard lock(mutex);
+    return last_error;
+  }
 };
 
 config::MachineConfig homing_config(double sigma_um) {
@@ -172,6 +190,52 @@ TEST(HomingPipeline, MoveBeforeG28IsRefusedThenG28HomesEveryAxisAndMovesFollow) 
   EXPECT_NEAR(plant->carriage_mm(2), 1.0, 0.05);  // Z: the homing's lag offset stays
   EXPECT_EQ(rig.bridge->timing(0).unexpected_steps, 0u);
   EXPECT_EQ(rig.bridge->endstop_state(0), 0);  // released
+}
+
+// A cancel (a flush: M524, a job's cancel) while G28 runs aborts the homing on the MCUs at once:
+// the G28 fails with the reason, the carriage stops short of its switch, the axis is unhomed, and
+// the next G28 homes. (Before, the homing ran on to its end after the G28 had given up.)
+TEST(HomingPipeline, AFlushDuringG28AbortsTheHoming) {
+  PipelineRig rig(homing_config(2.0));
+  ASSERT_TRUE(rig.machine);
+  ASSERT_EQ(rig.run("G28"), "");
+  ASSERT_EQ(rig.run("G1 X60 F6000"), "");
+  ASSERT_EQ(rig.run("M400"), "");
+  SimulatedPlant* plant = rig.bridge->plant();
+  ASSERT_NE(plant, nullptr);
+  const uint64_t homings = rig.bridge->homing_report(0).count;
+  const uint64_t g28 = rig.submit("G28 X");
+  const double t_submit = rig.seconds();
+  // Well into the approach: the carriage 10 mm on its way to the switch (its encoder, an atomic the
+  // servo thread publishes; the plant itself is the servo thread's while it runs).
+  while (rig.bridge->encoder_mm(0) > 50.0 && rig.seconds() < t_submit + 10.0 &&
+         rig.done.load() < g28)
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  ASSERT_LT(rig.done.load(), g28) << "the homing ended before the flush";
+  const double x_at_flush = rig.bridge->encoder_mm(0);
+  const double t_flush = rig.seconds();
+  rig.machine->flush(false);
+  const std::string err = rig.wait(g28);
+  const double t_done = rig.seconds();
+  std::printf("flush at %.3f s into G28 X, carriage at %.2f mm; G28 ended %.3f s later: %s\n",
+              t_flush - t_submit, x_at_flush, t_done - t_flush, err.c_str());
+  EXPECT_NE(err.find("cancelled during homing"), std::string::npos) << err;
+  EXPECT_NE(err.find("not homed"), std::string::npos) << err;
+  EXPECT_LT(t_done - t_flush, 0.5);  // not the rest of the approach (60 mm)
+  EXPECT_GT(x_at_flush, 5.0);
+  ASSERT_EQ(rig.run("G4 P300"), "");  // the carriage has stopped, short of the switch
+  const double x_rest = plant->carriage_mm(0);
+  ASSERT_EQ(rig.run("G4 P300"), "");
+  EXPECT_NEAR(plant->carriage_mm(0), x_rest, 0.005);
+  EXPECT_GT(x_rest, 2.0);
+  EXPECT_EQ(rig.bridge->endstop_state(0), 0);
+  EXPECT_EQ(rig.bridge->homing_report(0).count, homings);  // no homing completed meanwhile
+  EXPECT_EQ(std::string(rig.machine->status().homed_axes).find('x'), std::string::npos);
+  const std::string refused = rig.run("G1 X10 F6000");
+  EXPECT_NE(refused.find("Must home axis first"), std::string::npos) << refused;
+  ASSERT_EQ(rig.run("G28 X"), "");
+  EXPECT_EQ(rig.bridge->homing_report(0).count, homings + 1);
+  EXPECT_NEAR(plant->carriage_mm(0), rig.bridge->homing_report(0).homed_mm, 0.01);
 }
 
 // Issue 16: homing repeatability on the simulator within the endstop model's repeatability,
