@@ -60,27 +60,24 @@ struct PipelineRig {
   }
   // Runs one line to its completion (virtual time runs meanwhile); its error, "" when it succeeded.
   std::string run(const std::string& line) {
-    auto cmd =
-        gcode::parse_line(line, SourceLocation{"homing.gcode", static_cast<int>(ticket) + 1, 0});
+    auto cmd = parse(line);
     if (!cmd.ok()) return cmd.error().message;
-    while (!machine->try_submit(++ticket, cmd.value()))
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-    while (done.load() < ticket && std::chrono::steady_clock::now() < deadline)
-      std::this_thread::sleep_for(std::chrono::microseconds(200));
-    if (done.load() < ticket) return "timeout";
-    std::lock_guard lock(mutex);
-    return last_error;
+    return wait(submit(cmd.value()));
   }
   double seconds() const { return seconds_from_ns(clock.now_ns()) - 1.0; }
-  // Submits one line without waiting for it; its ticket.
-  uint64_t submit(const std::string& line) {
-    auto cmd =
-        gcode::parse_line(line, SourceLocation{"homing.gcode", static_cast<int>(ticket) + 1, 0});
-    EXPECT_TRUE(cmd.ok());
-    while (!machine->try_submit(++ticket, cmd.value()))
+  Result<gcode::Command> parse(const std::string& line) const {
+    return gcode::parse_line(line, SourceLocation{"homing.gcode", static_cast<int>(ticket) + 1, 0});
+  }
+  // Submits one command (or line) without waiting for it; its ticket.
+  uint64_t submit(const gcode::Command& cmd) {
+    while (!machine->try_submit(++ticket, cmd))
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     return ticket;
+  }
+  uint64_t submit(const std::string& line) {
+    auto cmd = parse(line);
+    EXPECT_TRUE(cmd.ok());
+    return cmd.ok() ? submit(cmd.value()) : ticket;
   }
   // Waits for ticket t (and everything before it); its error, "" when it succeeded.
   std::string wait(uint64_t t) {
