@@ -42,6 +42,7 @@ constexpr double kFrameOverheadBytes = 9.0;
 struct Row {
   std::string workload;
   double err_us, steps, gen_ns, comp_ns, total_ns, msteps_s, run_bps, wire_bps, steps_per_run;
+  double searches_per_step, trials_per_search;
 };
 
 // Thread CPU time: robust against other processes on a shared machine (this is single-threaded
@@ -61,7 +62,7 @@ void compress(const StoreSteps& st, StepCompressor& c) {
 
 Row run(const std::string& name, const std::vector<JointSegment>& segs, double spm, double err_us) {
   const TickMap map{0.0, 20e6};
-  Row r{name, err_us, 0, 0, 0, 0, 0, 0, 0, 0};
+  Row r{name, err_us, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
   StoreSteps st;
   {
     // Generation alone (into a vector reserved beforehand: the stores are part of the cost).
@@ -114,6 +115,9 @@ Row run(const std::string& name, const std::vector<JointSegment>& segs, double s
   r.run_bps = cb.bytes / r.steps;
   r.wire_bps = (cb.bytes + kFrameOverheadBytes * cb.batches) / r.steps;
   r.steps_per_run = r.steps / static_cast<double>(c.stats().runs);
+  r.searches_per_step = static_cast<double>(c.stats().searches) / r.steps;
+  r.trials_per_search = static_cast<double>(c.stats().trials) /
+                        std::max<double>(1.0, static_cast<double>(c.stats().searches));
   return r;
 }
 
@@ -135,13 +139,15 @@ int main(int argc, char** argv) {
     rows.push_back(run("trapezoid", trap, 80.0, e));
     rows.push_back(run("cubic_1ms", cubic, 160.0, e));
   }
-  std::printf("%-10s %6s %10s %8s %8s %10s %9s %8s %8s %9s %10s\n", "workload", "err_us", "steps",
-              "gen_ns", "comp_ns", "comp_Mst/s", "total_ns", "Msteps/s", "run_B/st", "wire_B/st",
-              "steps/run");
+  std::printf("%-10s %6s %10s %8s %8s %10s %9s %8s %8s %9s %10s %9s %9s\n", "workload", "err_us",
+              "steps", "gen_ns", "comp_ns", "comp_Mst/s", "total_ns", "Msteps/s", "run_B/st",
+              "wire_B/st", "steps/run", "search/st", "trial/sr");
   for (const auto& r : rows)
-    std::printf("%-10s %6.0f %10.0f %8.2f %8.2f %10.1f %9.2f %8.1f %8.3f %9.3f %10.1f\n",
-                r.workload.c_str(), r.err_us, r.steps, r.gen_ns, r.comp_ns, 1e3 / r.comp_ns,
-                r.total_ns, r.msteps_s, r.run_bps, r.wire_bps, r.steps_per_run);
+    std::printf(
+        "%-10s %6.0f %10.0f %8.2f %8.2f %10.1f %9.2f %8.1f %8.3f %9.3f %10.1f %9.3f %9.2f\n",
+        r.workload.c_str(), r.err_us, r.steps, r.gen_ns, r.comp_ns, 1e3 / r.comp_ns, r.total_ns,
+        r.msteps_s, r.run_bps, r.wire_bps, r.steps_per_run, r.searches_per_step,
+        r.trials_per_search);
   if (!json.empty()) {
     FILE* f = std::fopen(json.c_str(), "w");
     if (!f) { std::perror(json.c_str()); return 1; }

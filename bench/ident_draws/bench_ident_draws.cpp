@@ -1,0 +1,298 @@
+// bench_ident_draws: does identification name what the machine has? Random machines drawn per
+// effect kind (sim/experiments/gantry_draws.hpp: the machine's own parameters off the thesis's, at
+// most one undeclared effect with a drawn size), an excitation recorded on each, `identify_axis`
+// run on the trace, and its answer scored against the truth (issue 15):
+//   named right  the kept effects are exactly the drawn one ("none" on a clean draw: nothing kept)
+//   key within 25 %  named right and the effect's key parameter within 25 % of the truth (scale:
+//                    of scale - 1)
+// Seeds are first_seed + i for draw i of each kind: every row can be rerun alone with --kinds and
+// --first-seed / --draws.
+//   bench_ident_draws [--draws N] [--first-seed S] [--kinds k1,k2,..] [--duration S] [--threads N]
+//                     [--verbose] [--json FILE]
+#include <sys/resource.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "ident/excitation.hpp"
+#include "ident/fit.hpp"
+#include "sim/experiments/gantry_draws.hpp"
+#include "sim/experiments/gantry_recording.hpp"
+
+namespace {
+
+using namespace feedloop;
+using ident::Effect;
+
+struct Kind {
+  std::string name;  // "none" or ident's effect name
+  std::optional<Effect> effect;
+};
+
+std::vector<Kind> all_kinds() {
+  std::vector<Kind> out{{"none", std::nullopt}};
+  for (int e = 0; e < ident::kEffectCount; ++e)
+    out.push_back({ident::effect_name(static_cast<Effect>(e)), static_cast<Effect>(e)});
+  return out;
+}
+
+// The value identification reports for the drawn effect's key parameter.
+double reported_key(const ident::AxisModel& m, Effect e) {
+  switch (e) {
+    case Effect::kPeriodicPosition:
+      return m.periodic_amplitude_um();
+    case Effect::kCoulombFriction:
+      return m.friction_force_n;
+    case Effect::kBacklash:
+      return m.backlash_width_um;
+    case Effect::kDirectionStiffness:
+      return m.stiffness_ratio;
+    case Effect::kExtraResonance:
+      return m.extra_freq_hz;
+    case Effect::kTimeDelay:
+      return m.delay_ms;
+    case Effect::kScaleError:
+      return m.scale;
+  }
+  return NAN;
+}
+
+struct Outcome {
+  std::string kind;
+  uint64_t seed = 0;
+  char axis = 'x';
+  std::string found;  // kept effects, space-separated ("none")
+  bool named_right = false, key_right = false;
+  double key_true = NAN, key_found = NAN;
+  double baseline_rms_um = 0, augmented_rms_um = 0;
+  double cpu_s = 0;
+  std::string error;
+};
+
+double thread_cpu_s() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+Outcome run_one(const Kind& kind, uint64_t seed, double duration_s) {
+  Outcome o;
+  o.kind = kind.name;
+  o.seed = seed;
+  const sim::DrawnGantryAxis d = sim::draw_gantry_axis(seed, kind.effect);
+  o.axis = d.axis;
+  ident::RandomMovesOptions ro;
+  ro.duration_s = duration_s;
+  ro.seed = seed;
+  if (d.needs_fixed_position) ro.travel_mm = 0.0;
+  const double t0 = thread_cpu_s();
+  auto trace =
+      sim::record_gantry_trace(d.params, ident::random_moves(ro), 1000.0, std::string(1, d.axis));
+  if (!trace.ok()) {
+    o.error = trace.error().to_string();
+    return o;
+  }
+  const ident::AxisTrace& a = trace.value().axes[0];
+  auto r = ident::identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(),
+                                ident::FitOptions{});
+  o.cpu_s = thread_cpu_s() - t0;
+  if (!r.ok()) {
+    o.error = r.error().to_string();
+    return o;
+  }
+  const ident::IdentResult& res = r.value();
+  o.baseline_rms_um = res.baseline_rms_um;
+  o.augmented_rms_um = res.augmented_rms_um;
+  for (Effect e : res.effects)
+    o.found += std::string(o.found.empty() ? "" : " ") + ident::effect_name(e);
+  if (o.found.empty()) o.found = "none";
+  if (!kind.effect) {
+    o.named_right = o.key_right = res.effects.empty();
+    return o;
+  }
+  o.named_right = res.effects.size() == 1 && res.effects[0] == *kind.effect;
+  o.key_true = d.key_value;
+  if (o.named_right) {
+    o.key_found = reported_key(res.augmented, *kind.effect);
+    const bool relative_to_one = *kind.effect == Effect::kScaleError;
+    const double want = relative_to_one ? d.key_value - 1.0 : d.key_value;
+    const double got = relative_to_one ? o.key_found - 1.0 : o.key_found;
+    o.key_right = std::abs(got - want) <= 0.25 * std::abs(want);
+  }
+  return o;
+}
+
+std::vector<std::string> split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  for (std::string item; std::getline(ss, item, ',');)
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int draws = 10, threads = 2;
+  uint64_t first_seed = 1000;
+  double duration_s = 30.0;
+  bool verbose = false;
+  std::string json_path, kinds_arg;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
+    if (a == "--draws")
+      draws = std::atoi(next().c_str());
+    else if (a == "--first-seed")
+      first_seed = std::strtoull(next().c_str(), nullptr, 10);
+    else if (a == "--kinds")
+      kinds_arg = next();
+    else if (a == "--duration")
+      duration_s = std::atof(next().c_str());
+    else if (a == "--threads")
+      threads = std::atoi(next().c_str());
+    else if (a == "--verbose")
+      verbose = true;
+    else if (a == "--json")
+      json_path = next();
+    else {
+      std::fprintf(
+          stderr,
+          "usage: bench_ident_draws [--draws N] [--first-seed S] [--kinds none,backlash,..] "
+          "[--duration S] [--threads N] [--verbose] [--json FILE]\n");
+      return 2;
+    }
+  }
+  if (draws < 1 || threads < 1 || duration_s <= 0.0) {
+    std::fprintf(stderr, "bench_ident_draws: --draws, --threads and --duration must be positive\n");
+    return 2;
+  }
+  std::vector<Kind> kinds;
+  if (kinds_arg.empty()) {
+    kinds = all_kinds();
+  } else {
+    for (const std::string& name : split(kinds_arg)) {
+      bool known = false;
+      for (const Kind& k : all_kinds())
+        if (k.name == name) kinds.push_back(k), known = true;
+      if (!known) {
+        std::fprintf(stderr, "bench_ident_draws: unknown kind '%s'\n", name.c_str());
+        return 2;
+      }
+    }
+  }
+  struct Job {
+    size_t kind;
+    uint64_t seed;
+  };
+  std::vector<Job> jobs;
+  for (size_t k = 0; k < kinds.size(); ++k)
+    for (int i = 0; i < draws; ++i) jobs.push_back({k, first_seed + static_cast<uint64_t>(i)});
+  std::printf(
+      "identification on random draws of the first simulator (sim/, thesis axes): %d draw(s) per "
+      "kind, "
+      "seeds %llu..%llu, random-move excitation of %.0f s at 1 kHz, %d thread(s)\n",
+      draws, static_cast<unsigned long long>(first_seed),
+      static_cast<unsigned long long>(first_seed + static_cast<uint64_t>(draws) - 1), duration_s,
+      threads);
+  std::vector<Outcome> outcomes(jobs.size());
+  std::atomic<size_t> next_job{0}, done{0};
+  std::mutex print_mutex;
+  const auto wall0 = std::chrono::steady_clock::now();
+  auto worker = [&] {
+    for (size_t j; (j = next_job.fetch_add(1)) < jobs.size();) {
+      outcomes[j] = run_one(kinds[jobs[j].kind], jobs[j].seed, duration_s);
+      const size_t n = ++done;
+      std::lock_guard<std::mutex> lock(print_mutex);
+      const Outcome& o = outcomes[j];
+      if (verbose || !o.error.empty())
+        std::printf(
+            "  [%zu/%zu] %-30s seed %llu axis %c: found %-40s %s key %.4g (true %.4g) rms %.2f -> "
+            "%.2f um, "
+            "%.1f s%s%s\n",
+            n, jobs.size(), o.kind.c_str(), static_cast<unsigned long long>(o.seed), o.axis,
+            o.found.c_str(), o.named_right ? "RIGHT" : "WRONG", o.key_found, o.key_true,
+            o.baseline_rms_um, o.augmented_rms_um, o.cpu_s,
+            o.error.empty() ? "" : " error: ", o.error.c_str());
+      else
+        std::fprintf(stderr, "\r  %zu/%zu identifications", n, jobs.size());
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
+  for (auto& t : pool) t.join();
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  std::fprintf(stderr, "\n");
+
+  std::printf("\n%-30s %6s %12s %14s %10s  %s\n", "kind", "draws", "named right", "key within 25%",
+              "cpu s/draw", "what it named instead (count)");
+  nlohmann::json rows = nlohmann::json::array();
+  int total = 0, total_right = 0, total_key = 0;
+  for (const Kind& k : kinds) {
+    int n = 0, right = 0, key = 0;
+    double cpu = 0;
+    std::map<std::string, int> instead;
+    nlohmann::json seeds = nlohmann::json::array();
+    for (const Outcome& o : outcomes) {
+      if (o.kind != k.name) continue;
+      ++n;
+      cpu += o.cpu_s;
+      right += o.named_right;
+      key += o.key_right;
+      if (!o.named_right) ++instead[o.error.empty() ? o.found : "error"];
+      seeds.push_back(
+          {{"seed", o.seed},
+           {"axis", std::string(1, o.axis)},
+           {"found", o.found},
+           {"named_right", o.named_right},
+           {"key_right", o.key_right},
+           {"key_true", std::isnan(o.key_true) ? nlohmann::json() : nlohmann::json(o.key_true)},
+           {"key_found", std::isnan(o.key_found) ? nlohmann::json() : nlohmann::json(o.key_found)},
+           {"baseline_rms_um", o.baseline_rms_um},
+           {"augmented_rms_um", o.augmented_rms_um},
+           {"cpu_s", o.cpu_s},
+           {"error", o.error}});
+    }
+    std::string others;
+    for (const auto& [name, count] : instead)
+      others += (others.empty() ? "" : ", ") + name + " (" + std::to_string(count) + ")";
+    std::printf("%-30s %6d %7d %3.0f%% %9d %3.0f%% %10.1f  %s\n", k.name.c_str(), n, right,
+                100.0 * right / n, key, 100.0 * key / n, cpu / n, others.c_str());
+    total += n;
+    total_right += right;
+    total_key += key;
+    rows.push_back({{"kind", k.name},
+                    {"draws", n},
+                    {"named_right", right},
+                    {"key_right", key},
+                    {"cpu_s_per_draw", cpu / n},
+                    {"outcomes", seeds}});
+  }
+  std::printf("%-30s %6d %7d %3.0f%% %9d %3.0f%%   (wall %.0f s)\n", "all", total, total_right,
+              100.0 * total_right / total, total_key, 100.0 * total_key / total, wall_s);
+  if (!json_path.empty()) {
+    nlohmann::json j{{"benchmark", "ident_draws"}, {"simulator", "sim (first)"},
+                     {"first_seed", first_seed},   {"draws_per_kind", draws},
+                     {"duration_s", duration_s},   {"rows", rows}};
+    std::ofstream f(json_path);
+    if (!f) {
+      std::perror(json_path.c_str());
+      return 1;
+    }
+    f << j.dump(2) << "\n";
+  }
+  return 0;
+}
