@@ -13,6 +13,9 @@ constexpr double kTwoPi = 6.283185307179586;
 // Width of the smooth switch of the direction-dependent stiffness (thesis Eq. 6's sgn(-r theta -
 // x_2), smoothed over a micrometre so that the force stays continuous).
 constexpr double kDirectionSwitchM = 1e-6;
+// The step rule's factor: semi-implicit Euler is stable for omega dt < 2 (undamped); with the
+// Gershgorin bound's omega + gamma this keeps the fastest mode at omega dt <= 1.5.
+constexpr double kStepFactor = 1.5;
 
 LuGreParams lugre_of(const CarriageParams& c) {
   LuGreParams l;
@@ -102,11 +105,13 @@ Result<Axis2> Axis2::create(const Axis2Params& p) {
 
 double Axis2::pulley_m(double theta) const {
   const StepperParams& st = params_.stepper;
+  if (st.runout_m == 0.0) return st.pulley_radius_m * theta;
   return st.pulley_radius_m * theta + st.runout_m * std::sin(theta + st.runout_phase_rad);
 }
 
 double Axis2::pulley_gain_m(double theta) const {
   const StepperParams& st = params_.stepper;
+  if (st.runout_m == 0.0) return st.pulley_radius_m;
   return st.pulley_radius_m + st.runout_m * std::cos(theta + st.runout_phase_rad);
 }
 
@@ -200,7 +205,7 @@ double Axis2::compute_max_step() const {
   } else {
     consider(k_motor + k_wrap, c_motor + c_wrap, m_rotor + wrap_kg + m_seg);
   }
-  return 0.9 / rate;
+  return kStepFactor / rate;
 }
 
 void Axis2::advance(double u_m, double duration_s) {
@@ -259,7 +264,8 @@ void Axis2::step(double u_m, double dt_s) {
     f_[e] -= t;
   }
   // LuGre friction on the carriage (thesis Eq. 4's F_f).
-  f_[c] -= friction_.force_n(v_[c]);
+  // (z advances over the step with the speed at its start.)
+  f_[c] -= friction_.step(v_[c], dt_s);
   // The extra resonance: a mass on a spring-damper on the carriage.
   if (has_extra_) {
     const double t = extra_k_ * (x_[extra_] - x_[c]) + extra_c_ * (v_[extra_] - v_[c]);
@@ -270,9 +276,10 @@ void Axis2::step(double u_m, double dt_s) {
   // The rotor (thesis Eq. 1): torque law (Eq. 2) against the field, detent, damping, the belt.
   const double nr = st.rotor_teeth;
   double torque = -st.holding_torque_nm * std::sin(nr * theta_ - phi_f_) -
-                  st.detent_torque_nm * std::sin(4.0 * nr * theta_ + st.detent_phase_rad) -
                   st.field_damping_nm_s_rad * (omega_ - phi_rate / nr) -
                   st.bearing_damping_nm_s_rad * omega_;
+  if (st.detent_torque_nm != 0.0)
+    torque -= st.detent_torque_nm * std::sin(4.0 * nr * theta_ + st.detent_phase_rad);
   double inertia = st.rotor_inertia_kg_m2;
   if (rigid_wrap_) {
     torque += gain * f_[0];  // the belt's pull on the pulley's pitch line
@@ -303,7 +310,6 @@ void Axis2::step(double u_m, double dt_s) {
     x_[0] = pulley_m(theta_);
     v_[0] = pulley_gain_m(theta_) * omega_;
   }
-  friction_.advance(v_[c], dt_s);
   phi_f_ = phi_target_ + (phi_f_ - phi_target_) * decay_;
   t_s_ += dt_s;
   encoder_.push(t_s_, x_[c]);

@@ -11,10 +11,11 @@
 //
 // Integration: semi-implicit (symplectic) Euler on the flat state arrays, one force evaluation per
 // step; the field's lag and the LuGre bristle state advance with their exact solutions over the
-// step. The step rule (max_step_s): dt = 0.9 / max_i (sqrt(2 K_i / m_i) + 2 C_i / m_i) over every
+// step. The step rule (max_step_s): dt = 1.5 / max_i (sqrt(2 K_i / m_i) + 2 C_i / m_i) over every
 // degree of freedom i, K_i and C_i the sums of the stiffness and damping attached to it at the
 // stiffest geometry (both variable spans at min_span_m): a Gershgorin bound on the largest
-// eigenvalue of M^-1 K and of M^-1 C, so the fastest mode has omega dt < 0.9. Nothing allocates
+// eigenvalue of M^-1 K and of M^-1 C, so the fastest mode has omega dt <= 1.5 (semi-implicit
+// Euler is stable below 2; the measured modes, < 1 kHz, have omega dt < 0.02). Nothing allocates
 // after create().
 #pragma once
 

@@ -62,6 +62,27 @@ class LuGre {
     z_ = z_ss + (z_ - z_ss) * std::exp(-a * dt_s);
   }
 
+  // One integration step: the force at speed v for the current z (returned), then z advanced over
+  // dt with v held, g(v) evaluated once for both.
+  double step(double v_m_s, double dt_s) {
+    if (v_m_s == 0.0) return p_.sigma0_n_m * z_;  // at rest: dz/dt = 0
+    const double g = stribeck_n(v_m_s);
+    if (g <= 0.0) {
+      z_ = 0.0;
+      return p_.sigma2_n_s_m * v_m_s;
+    }
+    const double a = p_.sigma0_n_m * std::fabs(v_m_s) / g;
+    const double rate = v_m_s - a * z_;
+    const double f = p_.sigma0_n_m * z_ + p_.sigma1_n_s_m * rate + p_.sigma2_n_s_m * v_m_s;
+    if (a * dt_s < 1e-9) {
+      z_ += v_m_s * dt_s;
+    } else {
+      const double z_ss = v_m_s / a;
+      z_ = z_ss + (z_ - z_ss) * std::exp(-a * dt_s);
+    }
+    return f;
+  }
+
   double z_m() const { return z_; }
   void set_z_m(double z) { z_ = z; }
   const LuGreParams& params() const { return p_; }

@@ -229,6 +229,34 @@ TEST(Axis2, BacklashIsLostMotionOfItsWidthOnReversal) {
               (back - forward) * 1e6, 2e6 * stretch);
 }
 
+TEST(Axis2, DirectionDependentStiffnessIsTheRatioOfTheBeltsStretch) {
+  // Coulomb friction F stretches the belt by F / K while the pulley pulls: K(pulling +) going
+  // forward, K(pulling -) going back; their ratio is the drawn ratio.
+  Axis2Params p = quiet_params();
+  p.belt.stiffness_ratio = 1.7;
+  p.carriage.coulomb_n = 2.0;
+  p.carriage.static_n = 2.0;
+  auto a = Axis2::create(p);
+  ASSERT_TRUE(a.ok()) << a.error().message;
+  Axis2& axis = a.value();
+  auto stretch_during = [&axis](double from, double to) {
+    const double dt = 1e-4;
+    const int n = static_cast<int>(std::fabs(to - from) / 5e-3 / dt);
+    double mid = 0.0;
+    for (int i = 1; i <= n; ++i) {
+      axis.advance(from + (to - from) * i / n, dt);
+      if (i == n / 2) mid = axis.rotor_position_m() - axis.carriage_m();
+    }
+    return mid;
+  };
+  const double x0 = p.start_m;
+  const double forward = stretch_during(x0, x0 + 1e-3);
+  const double back = stretch_during(x0 + 1e-3, x0);
+  const double k = Axis2::belt_stiffness_n_m(p.belt, x0 + 0.5e-3);
+  EXPECT_NEAR(forward, 2.0 / (k * std::sqrt(1.7)), 0.03 * forward);
+  EXPECT_NEAR(-back / forward, 1.7, 0.05);
+}
+
 TEST(Axis2, AtRestNothingDrifts) {
   Axis2Params p;  // defaults: friction and detent on
   p.stepper.detent_torque_nm = 0.01;
