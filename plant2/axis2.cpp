@@ -33,9 +33,7 @@ LuGreParams lugre_of(const CarriageParams& c) {
 }  // namespace
 
 Axis2::Axis2(const Axis2Params& p)
-    : params_(p),
-      friction_(lugre_of(p.carriage)),
-      encoder_(p.encoder, p.start_m, 1e-5) {}
+    : params_(p), friction_(lugre_of(p.carriage)), encoder_(p.encoder, p.start_m, 1e-5) {}
 
 void Axis2::span_lengths(const BeltParams& b, double x_m, double out_m[3]) {
   out_m[0] = std::max(b.min_span_m, b.pulley_gap_m + x_m);
@@ -85,8 +83,9 @@ Result<Axis2> Axis2::create(const Axis2Params& p) {
   for (int it = 0; it < 20; ++it) {
     const double t = -st.holding_torque_nm * std::sin(nr * th - a.phi_f_) -
                      st.detent_torque_nm * std::sin(4.0 * nr * th + st.detent_phase_rad);
-    const double dt = -st.holding_torque_nm * nr * std::cos(nr * th - a.phi_f_) -
-                      st.detent_torque_nm * 4.0 * nr * std::cos(4.0 * nr * th + st.detent_phase_rad);
+    const double dt =
+        -st.holding_torque_nm * nr * std::cos(nr * th - a.phi_f_) -
+        st.detent_torque_nm * 4.0 * nr * std::cos(4.0 * nr * th + st.detent_phase_rad);
     th -= t / dt;
   }
   a.theta_ = th;
@@ -187,7 +186,8 @@ double Axis2::compute_max_step() const {
   consider(2.0 * k_seg + lg.sigma0_n_m + k_extra,
            2.0 * c_seg + 2.0 * c_span + lg.sigma1_n_s_m + lg.sigma2_n_s_m + c_extra,
            params_.carriage.mass_kg + m_seg);
-  if (params_.carriage.extra_mass_kg > 0.0) consider(k_extra, c_extra, params_.carriage.extra_mass_kg);
+  if (params_.carriage.extra_mass_kg > 0.0)
+    consider(k_extra, c_extra, params_.carriage.extra_mass_kg);
   // The idler.
   consider(2.0 * k_seg, 2.0 * c_seg + c_span + c_long, b.idler_mass_kg + m_seg);
   // The belt on the pulley and the rotor (in the pulley's linear coordinate, Eq. 14).

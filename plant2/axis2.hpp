@@ -79,10 +79,10 @@ class Axis2 {
   double pulley_gain_m(double theta) const;  // dp/dtheta
 
   Axis2Params params_;
-  int n_ = 4;             // segments per span
-  size_t ring_ = 0;       // 3 n ring nodes: 0 the belt on the pulley, n the carriage, 2 n the idler
+  int n_ = 4;        // segments per span
+  size_t ring_ = 0;  // 3 n ring nodes: 0 the belt on the pulley, n the carriage, 2 n the idler
   size_t carriage_ = 0;
-  size_t extra_ = 0;      // the extra resonance's mass (index ring_), when present
+  size_t extra_ = 0;  // the extra resonance's mass (index ring_), when present
   bool has_extra_ = false;
   bool rigid_wrap_ = true;  // no backlash: node 0 rides on the pulley
 

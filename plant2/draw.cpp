@@ -29,7 +29,7 @@ Axis2Params draw_baseline(Uniform& u) {
   // 122-244 and Table 4's 355-392 kN/m.
   s.holding_torque_nm = u(0.10, 0.25);
   s.rotor_inertia_kg_m2 = u(3.2e-6, 4.5e-6);  // 38 g cm^2 (Table 2) +- 15 %
-  s.pulley_radius_m = 5.40e-3;  // the config's mm per step is calibrated: r is exact
+  s.pulley_radius_m = 5.40e-3;                // the config's mm per step is calibrated: r is exact
   s.field_tau_s = u(30e-6, 150e-6);
   const double r2 = s.pulley_radius_m * s.pulley_radius_m;
   s.field_damping_nm_s_rad = u(150.0, 600.0) * r2;  // c_1 (Eq. 14) 150-600 N s/m (Y: 411)
@@ -157,14 +157,22 @@ void add_effect(Draw& d, Uniform& u) {
 
 const char* effect_name(EffectKind kind) {
   switch (kind) {
-    case EffectKind::none: return "none";
-    case EffectKind::periodic_position: return "periodic_position";
-    case EffectKind::coulomb_friction: return "coulomb_friction";
-    case EffectKind::backlash: return "backlash";
-    case EffectKind::direction_dependent_stiffness: return "direction_dependent_stiffness";
-    case EffectKind::extra_resonance: return "extra_resonance";
-    case EffectKind::time_delay: return "time_delay";
-    case EffectKind::scale_error: return "scale_error";
+    case EffectKind::none:
+      return "none";
+    case EffectKind::periodic_position:
+      return "periodic_position";
+    case EffectKind::coulomb_friction:
+      return "coulomb_friction";
+    case EffectKind::backlash:
+      return "backlash";
+    case EffectKind::direction_dependent_stiffness:
+      return "direction_dependent_stiffness";
+    case EffectKind::extra_resonance:
+      return "extra_resonance";
+    case EffectKind::time_delay:
+      return "time_delay";
+    case EffectKind::scale_error:
+      return "scale_error";
   }
   return "none";
 }
@@ -188,8 +196,8 @@ Draw draw_axis(uint64_t seed, EffectKind kind) {
   Uniform base{Rng(seed)};
   d.params = draw_baseline(base);
   // The effect's own stream: the baseline does not change with the kind.
-  Uniform eff{Rng(seed * 0x9E3779B97F4A7C15ULL + 0x632BE59BD9B4E019ULL +
-                  static_cast<uint64_t>(kind))};
+  Uniform eff{
+      Rng(seed * 0x9E3779B97F4A7C15ULL + 0x632BE59BD9B4E019ULL + static_cast<uint64_t>(kind))};
   add_effect(d, eff);
   return d;
 }

@@ -38,7 +38,7 @@ class Encoder {
   double origin_m_;
   std::vector<double> t_;
   std::vector<double> x_;
-  size_t head_ = 0;   // next slot to write
+  size_t head_ = 0;  // next slot to write
   size_t count_ = 0;
 };
 

@@ -15,12 +15,12 @@
 namespace feedloop::plant2 {
 
 struct LuGreParams {
-  double coulomb_n = 0.0;         // F_c
-  double static_n = 0.0;          // F_s >= F_c
-  double stribeck_m_s = 1e-3;     // v_s
-  double sigma0_n_m = 1e5;        // bristle stiffness
-  double sigma1_n_s_m = 0.0;      // bristle damping
-  double sigma2_n_s_m = 0.0;      // viscous
+  double coulomb_n = 0.0;      // F_c
+  double static_n = 0.0;       // F_s >= F_c
+  double stribeck_m_s = 1e-3;  // v_s
+  double sigma0_n_m = 1e5;     // bristle stiffness
+  double sigma1_n_s_m = 0.0;   // bristle damping
+  double sigma2_n_s_m = 0.0;   // viscous
 };
 
 class LuGre {

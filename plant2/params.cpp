@@ -8,10 +8,16 @@ namespace feedloop::plant2 {
 
 namespace {
 
-bool positive(double v) { return std::isfinite(v) && v > 0.0; }
-bool non_negative(double v) { return std::isfinite(v) && v >= 0.0; }
+bool positive(double v) {
+  return std::isfinite(v) && v > 0.0;
+}
+bool non_negative(double v) {
+  return std::isfinite(v) && v >= 0.0;
+}
 
-Status fail(const std::string& what) { return Error{"plant2: " + what, {}}; }
+Status fail(const std::string& what) {
+  return Error{"plant2: " + what, {}};
+}
 
 }  // namespace
 

@@ -11,8 +11,8 @@
 // delay are in it. --carriage answers the true carriage position instead. --truth writes the
 // ground truth of every axis to stderr at the start.
 //
-// Exits 0 when stdin closes (at any point); 2 with a message on stderr on a malformed handshake or line, a time
-// that is not k * period_s, or a start position the drawn machine cannot have.
+// Exits 0 when stdin closes (at any point); 2 with a message on stderr on a malformed handshake or
+// line, a time that is not k * period_s, or a start position the drawn machine cannot have.
 #include <cmath>
 #include <cstdint>
 #include <cstdio>

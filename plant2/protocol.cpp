@@ -81,8 +81,8 @@ std::string parse_period_line(std::string_view line, size_t n, double* t_s, doub
     while (j < line.size() && line[j] != ' ' && line[j] != '\t') ++j;
     double v = 0.0;
     if (field > n) {
-      return "expected " + std::to_string(n + 1) + " numbers (t_s and one per axis), got more: " +
-             quoted(line);
+      return "expected " + std::to_string(n + 1) +
+             " numbers (t_s and one per axis), got more: " + quoted(line);
     }
     if (!parse_number(line.substr(i, j - i), &v))
       return "field " + std::to_string(field + 1) + " is not a number: " + quoted(line);

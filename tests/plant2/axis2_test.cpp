@@ -90,7 +90,8 @@ TEST(Axis2, LowestModeMatchesTheTwoMassModelAndFollowsThePosition) {
     const double measured = peak_hz(y, fs, 10.0, 400.0);
     const double expect = two_mass_lowest_hz(p, x);
     EXPECT_NEAR(measured, expect, 0.03 * expect) << "x = " << x;
-    std::printf("x = %.3f m: lowest mode %.2f Hz, two-mass estimate %.2f Hz\n", x, measured, expect);
+    std::printf("x = %.3f m: lowest mode %.2f Hz, two-mass estimate %.2f Hz\n", x, measured,
+                expect);
     (x < 0.1 ? freq_near : freq_far) = measured;
   }
   // Near the pulley the short span is stiffer: the mode is higher there.

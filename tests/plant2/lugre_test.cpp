@@ -14,7 +14,7 @@ LuGreParams params() {
   p.coulomb_n = 2.0;
   p.static_n = 3.0;
   p.stribeck_m_s = 2e-3;
-  p.sigma0_n_m = 6e5;   // 5 um of pre-sliding at breakaway
+  p.sigma0_n_m = 6e5;  // 5 um of pre-sliding at breakaway
   p.sigma1_n_s_m = 300.0;
   p.sigma2_n_s_m = 20.0;
   return p;
