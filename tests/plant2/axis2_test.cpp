@@ -10,6 +10,8 @@
 #include <ctime>
 #include <vector>
 
+#include <Eigen/Dense>
+
 #include "plant2/axis2.hpp"
 #include "tests/plant2/common.hpp"
 
@@ -148,6 +150,71 @@ TEST(Axis2, DetentTorqueRipplesOncePerFullStep) {
   const double amp = ripple_amplitude_m(p, kTwoPi * r / 200.0);
   EXPECT_NEAR(amp, expect, 0.1 * expect);
   EXPECT_LT(ripple_amplitude_m(p, kTwoPi * r / 50.0), 0.1 * expect);
+}
+
+TEST(Axis2, PulleyRunoutRipplesOncePerPulleyTurn) {
+  Axis2Params p = quiet_params();
+  p.stepper.runout_m = 25e-6;
+  p.stepper.runout_phase_rad = 2.0;
+  p.start_m = 0.02;
+  auto a = Axis2::create(p);
+  ASSERT_TRUE(a.ok()) << a.error().message;
+  Axis2& axis = a.value();
+  const double period_m = kTwoPi * p.stepper.pulley_radius_m;  // 33.93 mm
+  const double speed = 0.02;
+  std::vector<double> err, ph;
+  const double dt = 5e-4;
+  const double settle_s = 0.2;
+  for (double t = dt; t <= settle_s + 7.0 * period_m / speed + 1e-9; t += dt) {
+    const double u = p.start_m + speed * t;
+    axis.advance(u, dt);
+    if (t > settle_s) {
+      err.push_back(axis.carriage_m() - u);
+      ph.push_back(kTwoPi * (u - p.start_m) / period_m);
+    }
+  }
+  EXPECT_NEAR(amplitude_at(err, ph), 25e-6, 1.5e-6);
+}
+
+TEST(Axis2, ExtraResonanceAddsAModeWhereTheThreeMassModelPutsIt) {
+  Axis2Params p = quiet_params();
+  p.stepper.field_damping_nm_s_rad = 0.0;
+  p.stepper.bearing_damping_nm_s_rad = 0.0;
+  p.belt.span_damping_s = 0.0;
+  p.carriage.extra_mass_kg = 0.12;
+  p.carriage.extra_freq_hz = 90.0;
+  p.carriage.extra_damping_ratio = 0.0;
+  auto a = Axis2::create(p);
+  ASSERT_TRUE(a.ok()) << a.error().message;
+  Axis2& axis = a.value();
+  const double fs = 4000.0;
+  std::vector<double> y;
+  for (int i = 0; i < 16000; ++i) {
+    axis.advance(p.start_m + 5e-6, 1.0 / fs);
+    y.push_back(axis.carriage_m());
+  }
+  // Rotor (J / r^2 plus the belt on the pulley), carriage, extra mass: thesis Eq. 13 with a third
+  // mass on the carriage.
+  const double r = p.stepper.pulley_radius_m;
+  double l[3];
+  Axis2::span_lengths(p.belt, p.start_m, l);
+  const double m1 = p.stepper.rotor_inertia_kg_m2 / (r * r) + p.belt.linear_density_kg_m * kPi * r;
+  const double m2 = p.carriage.mass_kg + p.belt.linear_density_kg_m * (l[0] + l[1] + l[2]) / 3.0;
+  const double m3 = 0.12;
+  const double k1 = p.stepper.holding_torque_nm * p.stepper.rotor_teeth / (r * r);
+  const double k2 = Axis2::belt_stiffness_n_m(p.belt, p.start_m);
+  const double k3 = m3 * std::pow(kTwoPi * 90.0, 2);
+  Eigen::Matrix3d K, M = Eigen::Vector3d(m1, m2, m3).asDiagonal();
+  K << k1 + k2, -k2, 0.0, -k2, k2 + k3, -k3, 0.0, -k3, k3;
+  Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::Matrix3d> es(K, M);
+  const double f_low = std::sqrt(es.eigenvalues()(0)) / kTwoPi;
+  const double f_mid = std::sqrt(es.eigenvalues()(1)) / kTwoPi;
+  const double got_low = peak_hz(y, fs, 0.85 * f_low, 1.15 * f_low);
+  const double got_mid = peak_hz(y, fs, 0.85 * f_mid, 1.15 * f_mid);
+  EXPECT_NEAR(got_low, f_low, 0.03 * f_low);
+  EXPECT_NEAR(got_mid, f_mid, 0.03 * f_mid);
+  std::printf("extra resonance 90 Hz on the carriage: modes %.2f and %.2f Hz (model %.2f, %.2f)\n",
+              got_low, got_mid, f_low, f_mid);
 }
 
 TEST(Axis2, EncoderInterpolationErrorHasItsPeriodAndAmplitude) {
