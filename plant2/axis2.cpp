@@ -96,7 +96,7 @@ Result<Axis2> Axis2::create(const Axis2Params& p) {
   // Tooth contact damping from the belt-on-pulley node's own mass.
   a.tooth_c_ = 2.0 * b.tooth_damping_ratio * std::sqrt(b.tooth_stiffness_n_m * a.m_[0]);
   a.max_step_s_ = a.compute_max_step();
-  a.encoder_ = Encoder(p.encoder, p0, a.max_step_s_ * 0.5);
+  a.encoder_ = Encoder(p.encoder, p0, a.max_step_s_);
   a.encoder_.push(0.0, p0);
   a.encoder_zero_m_ = a.encoder_.reading_of(p0);
   return a;

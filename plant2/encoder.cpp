@@ -7,15 +7,27 @@
 namespace feedloop::plant2 {
 
 Encoder::Encoder(const EncoderParams& p, double origin_m, double step_s)
-    : p_(p), origin_m_(origin_m) {
-  // Enough samples for the longest delay at the smallest step, plus margin.
-  const double steps = std::ceil(std::max(p.max_delay_s, p.delay_s) / std::max(step_s, 1e-9));
+    : p_(p), origin_m_(origin_m), min_spacing_s_(0.5 * step_s) {
+  // Enough samples for the longest delay at half the step (push() keeps the spacing), plus margin.
+  const double steps = std::ceil(std::max(p.max_delay_s, p.delay_s) / std::max(0.5 * step_s, 1e-9));
   const size_t n = static_cast<size_t>(steps) + 8;
   t_.assign(n, 0.0);
   x_.assign(n, origin_m);
 }
 
 void Encoder::push(double t_s, double x_m) {
+  const size_t n = t_.size();
+  if (count_ >= 2) {
+    // Too close to the newest held sample: it moves up to now (the one before stays), so the
+    // spacing between held samples never falls below half a step.
+    const size_t newest = (head_ + n - 1) % n;
+    const size_t before = (head_ + n - 2) % n;
+    if (t_s - t_[before] < 2.0 * min_spacing_s_) {
+      t_[newest] = t_s;
+      x_[newest] = x_m;
+      return;
+    }
+  }
   t_[head_] = t_s;
   x_[head_] = x_m;
   head_ = (head_ + 1) % t_.size();

@@ -16,7 +16,9 @@ class Encoder {
   // `step_s`: the smallest integration step the delay line must cover at max_delay_s.
   Encoder(const EncoderParams& p, double origin_m, double step_s);
 
-  // Records the true carriage position at time t_s (times increasing).
+  // Records the true carriage position at time t_s (times increasing). Samples closer than
+  // `step_s` / 2 to the newest held one replace it, so the line reaches max_delay_s whatever the
+  // caller's step.
   void push(double t_s, double x_m);
 
   // The true position delay_s before t_s (the oldest or newest held value beyond the line).
@@ -36,6 +38,7 @@ class Encoder {
  private:
   EncoderParams p_;
   double origin_m_;
+  double min_spacing_s_;
   std::vector<double> t_;
   std::vector<double> x_;
   size_t head_ = 0;  // next slot to write

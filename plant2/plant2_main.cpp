@@ -13,6 +13,7 @@
 //
 // Exits 0 when stdin closes (at any point); 2 with a message on stderr on a malformed handshake or
 // line, a time that is not k * period_s, or a start position the drawn machine cannot have.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -103,7 +104,9 @@ int main(int argc, char** argv) {
     const std::string err = parse_period_line(line, n, &t_s, u.data());
     if (!err.empty()) return fail("line " + std::to_string(k + 1) + ": " + err);
     const double expect = static_cast<double>(k) * period_s;
-    if (std::fabs(t_s - expect) > 1e-6 * std::max(1.0, expect) + 1e-9) {
+    // Within the rounding of 9 significant digits, and well within a period.
+    const double tol_s = std::min(0.25 * period_s, 1e-8 * std::max(1.0, expect));
+    if (std::fabs(t_s - expect) > tol_s) {
       return fail("line " + std::to_string(k + 1) + ": t_s=" + std::to_string(t_s) +
                   ", expected period " + std::to_string(k) + " at " + std::to_string(expect));
     }

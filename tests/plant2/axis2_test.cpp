@@ -264,6 +264,24 @@ TEST(Axis2, TransportDelayIsTheLagOfTheMeasurement) {
   EXPECT_NEAR(lag_sum / lag_n, 1.3e-3, 0.02e-3);
 }
 
+TEST(Axis2, TheDelayLineReachesTheLongestDelayWhateverTheStep) {
+  // Steps a tenth of the step rule's: the line still holds 2 ms (max_delay_s 2.5 ms).
+  Axis2Params p = quiet_params();
+  p.encoder.delay_s = 2e-3;
+  auto a = Axis2::create(p);
+  ASSERT_TRUE(a.ok()) << a.error().message;
+  Axis2& axis = a.value();
+  const double dt = axis.max_step_s() / 10.0;
+  const double speed = 0.02;
+  double t = 0.0;
+  while (t < 0.25) {
+    t += dt;
+    axis.step(p.start_m + speed * t, dt);
+  }
+  const double lag_s = (axis.carriage_m() - axis.measured_m()) / axis.carriage_velocity_m_s();
+  EXPECT_NEAR(lag_s, 2e-3, 0.03e-3);
+}
+
 TEST(Axis2, BacklashIsLostMotionOfItsWidthOnReversal) {
   // Coulomb friction loads the belt at constant speed, so the teeth drive from one side of the
   // dead band going forward and from the other going back: the carriage's lag behind the rotor
