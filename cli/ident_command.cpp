@@ -21,14 +21,23 @@ namespace {
 
 void usage(std::FILE* out) {
   std::fputs(
-      "usage: feedloop ident fit --trace FILE.csv --out DIR [--axis NAME] [--max-effects N] [--no-plots]\n"
-      "       feedloop ident frf --trace FILE.csv --out FRF.csv [--axis NAME] [--segment S] [--overlap F]\n"
-      "                          [--window hann|rect]   (H1 and coherence, 2-125 Hz in 0.5 Hz steps)\n"
+      "usage: feedloop ident fit --trace FILE.csv --out DIR [--axis NAME] [--max-effects N] "
+      "[--no-plots]\n"
+      "       feedloop ident frf --trace FILE.csv --out FRF.csv [--axis NAME] [--segment S] "
+      "[--overlap F]\n"
+      "                          [--window hann|rect]   (H1 and coherence, 2-125 Hz in 0.5 Hz "
+      "steps)\n"
       "       feedloop ident excite --axis x|y --out FILE.csv [--effect NAME[:key=value,...]]...\n"
-      "                             [--duration S] [--travel MM] [--seed N] [--sweep]\n"
-      "effects: periodic_position:period_mm=,amplitude_um=  coulomb_friction:force_n=  backlash:width_um=\n"
-      "         extra_resonance:freq_hz=,damping=,mass_kg=  time_delay:delay_ms=  scale_error:scale=\n"
-      "         direction_dependent_stiffness:x0_mm= (belt anchor offset; ratio (350+x0)/(350-x0))\n",
+      "                             [--duration S] [--travel MM] [--seed N] [--sweep | "
+      "--calibration]\n"
+      "                             (--calibration: the calibration program, "
+      "ident/excitation.hpp)\n"
+      "effects: periodic_position:period_mm=,amplitude_um=  coulomb_friction:force_n=  "
+      "backlash:width_um=\n"
+      "         extra_resonance:freq_hz=,damping=,mass_kg=  time_delay:delay_ms=  "
+      "scale_error:scale=\n"
+      "         direction_dependent_stiffness:x0_mm= (belt anchor offset; ratio "
+      "(350+x0)/(350-x0))\n",
       out);
 }
 
@@ -113,7 +122,7 @@ std::string apply_effect(const std::string& spec, sim::GantryAxisParams* p) {
 int excite(const std::vector<std::string>& args) {
   std::string axis = "x", out;
   ident::RandomMovesOptions ro;
-  bool sweep = false;
+  bool sweep = false, calibration = false;
   bool direction = false;
   std::vector<std::string> effects;
   for (size_t i = 0; i < args.size(); ++i) {
@@ -138,6 +147,8 @@ int excite(const std::vector<std::string>& args) {
       ++i;
     } else if (a == "--sweep") {
       sweep = true;
+    } else if (a == "--calibration") {
+      calibration = true;
     } else if (a == "--help" || a == "-h") {
       usage(stdout);
       return 0;
@@ -147,7 +158,7 @@ int excite(const std::vector<std::string>& args) {
       return 2;
     }
   }
-  if (out.empty() || (axis != "x" && axis != "y")) {
+  if (out.empty() || (axis != "x" && axis != "y") || (sweep && calibration)) {
     usage(stderr);
     return 2;
   }
@@ -166,6 +177,12 @@ int excite(const std::vector<std::string>& args) {
     ident::SineSweepOptions so;
     so.duration_s = ro.duration_s;
     cmd = ident::sine_sweep(so);
+  } else if (calibration) {
+    ident::CalibrationProgramOptions co;
+    co.seed = ro.seed;
+    co.travel_mm = ro.travel_mm;
+    if (direction) co.run_mm = 0.0;
+    cmd = ident::calibration_program(co);
   } else {
     cmd = ident::random_moves(ro);
   }

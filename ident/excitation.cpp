@@ -1,6 +1,7 @@
 // Excitation programs (see excitation.hpp).
 #include "ident/excitation.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/rng.hpp"
@@ -46,4 +47,67 @@ std::vector<double> sine_sweep(const SineSweepOptions& o) {
   }
   return u;
 }
+
+std::vector<double> calibration_program(const CalibrationProgramOptions& o) {
+  std::vector<double> u;
+  const double dt = 1.0 / o.sample_rate_hz;
+  auto append_from = [&](const std::vector<double>& section) {
+    const double base = u.empty() ? 0.0 : u.back();
+    for (double x : section) u.push_back(base + x);
+  };
+  // A triangle back and forth of `span` at `speed` for `periods` periods (starts and ends at 0).
+  auto triangle = [&](double span, double speed, double periods) {
+    std::vector<double> s;
+    if (span <= 0.0 || speed <= 0.0) return s;
+    const double period_s = 2.0 * span / speed;
+    const auto n = static_cast<size_t>(std::round(periods * period_s / dt));
+    for (size_t k = 1; k <= n; ++k) {
+      const double ph = std::fmod(static_cast<double>(k) * dt / period_s, 1.0);
+      s.push_back(span * (ph < 0.5 ? 2.0 * ph : 2.0 * (1.0 - ph)));
+    }
+    return s;
+  };
+  for (int c = 0; c < o.cycles; ++c) {
+    RandomMovesOptions ro;
+    ro.duration_s = o.random_s;
+    ro.sample_rate_hz = o.sample_rate_hz;
+    ro.travel_mm = 0.0;  // the program's own drift is added at the end
+    ro.seed = o.seed * 7919 + static_cast<uint64_t>(c);
+    std::vector<double> rm = random_moves(ro);
+    // random_moves ends away from its start by its last moves: ramp that offset out over the
+    // section's last 0.2 s so the next section starts from the drift's end.
+    if (!rm.empty()) {
+      const double end_offset = rm.back();
+      const size_t ramp = std::min(rm.size(), static_cast<size_t>(0.2 * o.sample_rate_hz));
+      for (size_t i = 0; i < ramp; ++i)
+        rm[rm.size() - ramp + i] -=
+            end_offset * static_cast<double>(i + 1) / static_cast<double>(ramp);
+    }
+    append_from(rm);
+    SineSweepOptions so;
+    so.duration_s = o.sweep_s;
+    so.sample_rate_hz = o.sample_rate_hz;
+    so.f_start_hz = o.sweep_f_start_hz;
+    so.f_end_hz = o.sweep_f_end_hz;
+    so.amplitude_mm = o.sweep_amplitude_mm;
+    std::vector<double> sw = sine_sweep(so);
+    // Fade in and out over 0.1 s (the sweep starts with a velocity step otherwise).
+    const size_t fade = std::min(sw.size() / 2, static_cast<size_t>(0.1 * o.sample_rate_hz));
+    for (size_t i = 0; i < fade; ++i) {
+      const double w = static_cast<double>(i) / static_cast<double>(fade);
+      sw[i] *= w;
+      sw[sw.size() - 1 - i] *= w;
+    }
+    append_from(sw);
+    for (double speed : o.reversal_speeds_mm_s)
+      append_from(triangle(o.reversal_span_mm, speed, o.reversals_per_speed));
+    append_from(triangle(o.run_mm, o.run_speed_mm_s, 1.0));
+  }
+  for (size_t k = 0; k < u.size(); ++k) {
+    const double phase = static_cast<double>(k) / static_cast<double>(u.size());
+    u[k] += o.travel_mm * (phase < 0.5 ? 2.0 * phase : 2.0 * (1.0 - phase));
+  }
+  return u;
+}
+
 }  // namespace feedloop::ident

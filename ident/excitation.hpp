@@ -35,8 +35,40 @@ struct SineSweepOptions {
   double amplitude_mm = 0.05;
 };
 
+// The calibration program: an excitation that separates the candidate effects (issue 15), as
+// `cycles` repeats of one cycle, so that the training part of a fit and its held-out last 30 %
+// both see every section, and the first cycle fits the screening window (FitOptions):
+//   1. random small moves (thesis App. D.3): the baseline;
+//   2. an exponential sine sweep f_start -> f_end at constant amplitude: resonances (modes);
+//   3. triangle reversals of reversal_span_mm at each of reversal_speeds_mm_s: Coulomb friction
+//      (a lag of about 2 F_c / k after every reversal, rounded by the bristles) against backlash
+//      (a dead band of fixed width whatever the speed), and both directions of pull;
+//   4. constant-speed runs of run_mm, forward and back: periodic position errors and
+//      direction-dependent effects at steady speed.
+// Under all of it a slow drift 0 -> travel_mm -> 0 over the whole program (2.9 mm/s with the
+// defaults) carries the sections across the travel: a periodic error is only claimed over at least
+// two periods, so travel_mm bounds the longest period found (40 mm at 80 mm). Sections are joined
+// continuously (each starts where the last ended).
+struct CalibrationProgramOptions {
+  double sample_rate_hz = 1000.0;
+  int cycles = 3;
+  double random_s = 6.0;
+  double sweep_s = 6.0;
+  double sweep_f_start_hz = 5.0;
+  double sweep_f_end_hz = 150.0;
+  double sweep_amplitude_mm = 0.03;
+  double reversal_span_mm = 1.0;
+  double reversal_speeds_mm_s[3] = {2.0, 5.0, 12.0};
+  double reversals_per_speed = 2.0;  // back-and-forth periods at each speed
+  double run_speed_mm_s = 10.0;      // constant-speed runs
+  double run_mm = 20.0;              // length of each run (0: none)
+  double travel_mm = 80.0;           // the drift under the whole program (0: none)
+  uint64_t seed = 1;
+};
+
 // Commanded positions (mm), one per sample, starting at 0.
 std::vector<double> random_moves(const RandomMovesOptions& o);
 std::vector<double> sine_sweep(const SineSweepOptions& o);
+std::vector<double> calibration_program(const CalibrationProgramOptions& o);
 
 }  // namespace feedloop::ident

@@ -73,7 +73,8 @@ struct Outcome {
   std::string kind;
   uint64_t seed = 0;
   char axis = 'x';
-  std::string found;  // kept effects, space-separated ("none")
+  std::string found;         // kept effects, space-separated ("none")
+  std::string found_values;  // the same with each one's key parameter
   bool named_right = false, key_right = false;
   double key_true = NAN, key_found = NAN;
   double baseline_rms_um = 0, augmented_rms_um = 0;
@@ -87,7 +88,7 @@ double thread_cpu_s() {
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
-Outcome run_one(const Kind& kind, uint64_t seed, double duration_s) {
+Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibration) {
   Outcome o;
   o.kind = kind.name;
   o.seed = seed;
@@ -97,9 +98,13 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s) {
   ro.duration_s = duration_s;
   ro.seed = seed;
   if (d.needs_fixed_position) ro.travel_mm = 0.0;
+  ident::CalibrationProgramOptions co;
+  co.seed = seed;
+  if (d.needs_fixed_position) co.travel_mm = co.run_mm = 0.0;
   const double t0 = thread_cpu_s();
-  auto trace =
-      sim::record_gantry_trace(d.params, ident::random_moves(ro), 1000.0, std::string(1, d.axis));
+  auto trace = sim::record_gantry_trace(
+      d.params, calibration ? ident::calibration_program(co) : ident::random_moves(ro), 1000.0,
+      std::string(1, d.axis));
   if (!trace.ok()) {
     o.error = trace.error().to_string();
     return o;
@@ -115,9 +120,14 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s) {
   const ident::IdentResult& res = r.value();
   o.baseline_rms_um = res.baseline_rms_um;
   o.augmented_rms_um = res.augmented_rms_um;
-  for (Effect e : res.effects)
+  for (Effect e : res.effects) {
     o.found += std::string(o.found.empty() ? "" : " ") + ident::effect_name(e);
-  if (o.found.empty()) o.found = "none";
+    char value[48];
+    std::snprintf(value, sizeof value, "%s%s=%.4g", o.found_values.empty() ? "" : " ",
+                  ident::effect_name(e), reported_key(res.augmented, e));
+    o.found_values += value;
+  }
+  if (o.found.empty()) o.found = o.found_values = "none";
   if (!kind.effect) {
     o.named_right = o.key_right = res.effects.empty();
     return o;
@@ -148,7 +158,7 @@ int main(int argc, char** argv) {
   int draws = 10, threads = 2;
   uint64_t first_seed = 1000;
   double duration_s = 30.0;
-  bool verbose = false;
+  bool verbose = false, calibration = false;
   std::string json_path, kinds_arg;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -165,13 +175,17 @@ int main(int argc, char** argv) {
       threads = std::atoi(next().c_str());
     else if (a == "--verbose")
       verbose = true;
+    else if (a == "--excitation" && i + 1 < argc &&
+             (std::string(argv[i + 1]) == "random" || std::string(argv[i + 1]) == "calibration"))
+      calibration = next() == "calibration";
     else if (a == "--json")
       json_path = next();
     else {
       std::fprintf(
           stderr,
           "usage: bench_ident_draws [--draws N] [--first-seed S] [--kinds none,backlash,..] "
-          "[--duration S] [--threads N] [--verbose] [--json FILE]\n");
+          "[--duration S] [--excitation random|calibration] [--threads N] [--verbose] [--json "
+          "FILE]\n");
       return 2;
     }
   }
@@ -200,30 +214,33 @@ int main(int argc, char** argv) {
   std::vector<Job> jobs;
   for (size_t k = 0; k < kinds.size(); ++k)
     for (int i = 0; i < draws; ++i) jobs.push_back({k, first_seed + static_cast<uint64_t>(i)});
+  const std::string excitation =
+      calibration
+          ? "the calibration program (ident/excitation.hpp, 3 cycles)"
+          : "random-move excitation of " + std::to_string(static_cast<int>(duration_s)) + " s";
   std::printf(
       "identification on random draws of the first simulator (sim/, thesis axes): %d draw(s) per "
       "kind, "
-      "seeds %llu..%llu, random-move excitation of %.0f s at 1 kHz, %d thread(s)\n",
+      "seeds %llu..%llu, %s at 1 kHz, %d thread(s)\n",
       draws, static_cast<unsigned long long>(first_seed),
-      static_cast<unsigned long long>(first_seed + static_cast<uint64_t>(draws) - 1), duration_s,
-      threads);
+      static_cast<unsigned long long>(first_seed + static_cast<uint64_t>(draws) - 1),
+      excitation.c_str(), threads);
   std::vector<Outcome> outcomes(jobs.size());
   std::atomic<size_t> next_job{0}, done{0};
   std::mutex print_mutex;
   const auto wall0 = std::chrono::steady_clock::now();
   auto worker = [&] {
     for (size_t j; (j = next_job.fetch_add(1)) < jobs.size();) {
-      outcomes[j] = run_one(kinds[jobs[j].kind], jobs[j].seed, duration_s);
+      outcomes[j] = run_one(kinds[jobs[j].kind], jobs[j].seed, duration_s, calibration);
       const size_t n = ++done;
       std::lock_guard<std::mutex> lock(print_mutex);
       const Outcome& o = outcomes[j];
       if (verbose || !o.error.empty())
         std::printf(
-            "  [%zu/%zu] %-30s seed %llu axis %c: found %-40s %s key %.4g (true %.4g) rms %.2f -> "
-            "%.2f um, "
+            "  [%zu/%zu] %-30s seed %llu axis %c: found %-52s %s (true %.4g) rms %.2f -> %.2f um, "
             "%.1f s%s%s\n",
             n, jobs.size(), o.kind.c_str(), static_cast<unsigned long long>(o.seed), o.axis,
-            o.found.c_str(), o.named_right ? "RIGHT" : "WRONG", o.key_found, o.key_true,
+            o.found_values.c_str(), o.named_right ? "RIGHT" : "WRONG", o.key_true,
             o.baseline_rms_um, o.augmented_rms_um, o.cpu_s,
             o.error.empty() ? "" : " error: ", o.error.c_str());
       else
@@ -257,6 +274,7 @@ int main(int argc, char** argv) {
           {{"seed", o.seed},
            {"axis", std::string(1, o.axis)},
            {"found", o.found},
+           {"found_values", o.found_values},
            {"named_right", o.named_right},
            {"key_right", o.key_right},
            {"key_true", std::isnan(o.key_true) ? nlohmann::json() : nlohmann::json(o.key_true)},
@@ -284,9 +302,13 @@ int main(int argc, char** argv) {
   std::printf("%-30s %6d %7d %3.0f%% %9d %3.0f%%   (wall %.0f s)\n", "all", total, total_right,
               100.0 * total_right / total, total_key, 100.0 * total_key / total, wall_s);
   if (!json_path.empty()) {
-    nlohmann::json j{{"benchmark", "ident_draws"}, {"simulator", "sim (first)"},
-                     {"first_seed", first_seed},   {"draws_per_kind", draws},
-                     {"duration_s", duration_s},   {"rows", rows}};
+    nlohmann::json j{{"benchmark", "ident_draws"},
+                     {"simulator", "sim (first)"},
+                     {"first_seed", first_seed},
+                     {"draws_per_kind", draws},
+                     {"duration_s", duration_s},
+                     {"excitation", calibration ? "calibration" : "random"},
+                     {"rows", rows}};
     std::ofstream f(json_path);
     if (!f) {
       std::perror(json_path.c_str());
