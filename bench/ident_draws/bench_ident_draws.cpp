@@ -28,9 +28,9 @@
 
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
-#include "sim/experiments/gantry_draws.hpp"
 #include "plant2/draw.hpp"
 #include "plant2/recording.hpp"
+#include "sim/experiments/gantry_draws.hpp"
 #include "sim/experiments/gantry_recording.hpp"
 
 namespace {
@@ -100,13 +100,20 @@ struct Plant2Case {
 // The key parameter each effect is judged on, as plant2's ground truth names it.
 const char* judged_param(Effect e) {
   switch (e) {
-    case Effect::kPeriodicPosition: return "amplitude_um";
-    case Effect::kCoulombFriction: return "force_n";
-    case Effect::kBacklash: return "width_um";
-    case Effect::kDirectionStiffness: return "ratio";
-    case Effect::kExtraResonance: return "freq_hz";
-    case Effect::kTimeDelay: return "delay_ms";
-    case Effect::kScaleError: return "scale";
+    case Effect::kPeriodicPosition:
+      return "amplitude_um";
+    case Effect::kCoulombFriction:
+      return "force_n";
+    case Effect::kBacklash:
+      return "width_um";
+    case Effect::kDirectionStiffness:
+      return "ratio";
+    case Effect::kExtraResonance:
+      return "freq_hz";
+    case Effect::kTimeDelay:
+      return "delay_ms";
+    case Effect::kScaleError:
+      return "scale";
   }
   return "";
 }
@@ -118,7 +125,8 @@ Plant2Case record_plant2(const Kind& kind, uint64_t seed, const std::vector<doub
   // The axis named for the preset whose carriage mass is nearer (a user knows which axis is
   // the light extruder carriage and which the heavy gantry; identification fixes that mass).
   c.axis = d.params.carriage.mass_kg < 0.5 * (0.45 + 1.07) ? 'x' : 'y';
-  if (kind.effect && !d.effects.empty()) c.key_true = d.effects[0].param(judged_param(*kind.effect));
+  if (kind.effect && !d.effects.empty())
+    c.key_true = d.effects[0].param(judged_param(*kind.effect));
   c.trace = plant2::record_axis2_trace(d.params, program, 1000.0, std::string(1, c.axis));
   return c;
 }
@@ -136,7 +144,8 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
   // The first simulator's anchored belt changes its stiffness with position: its direction draws
   // stay in place (the second simulator's do not).
   if (!plant2 && d.needs_fixed_position) ro.travel_mm = co.travel_mm = co.run_mm = 0.0;
-  const std::vector<double> program = calibration ? ident::calibration_program(co) : ident::random_moves(ro);
+  const std::vector<double> program =
+      calibration ? ident::calibration_program(co) : ident::random_moves(ro);
   const double t0 = thread_cpu_s();
   Result<ident::Trace> trace{Error{"not run", {}}};
   if (plant2) {
@@ -230,7 +239,8 @@ int main(int argc, char** argv) {
       std::fprintf(
           stderr,
           "usage: bench_ident_draws [--draws N] [--first-seed S] [--kinds none,backlash,..] "
-          "[--duration S] [--excitation random|calibration] [--simulator sim|plant2] [--threads N] [--verbose] [--json "
+          "[--duration S] [--excitation random|calibration] [--simulator sim|plant2] [--threads N] "
+          "[--verbose] [--json "
           "FILE]\n");
       return 2;
     }
@@ -265,9 +275,11 @@ int main(int argc, char** argv) {
           ? "the calibration program (ident/excitation.hpp, 3 cycles)"
           : "random-move excitation of " + std::to_string(static_cast<int>(duration_s)) + " s";
   std::printf(
-      "identification on random draws of %s: %d draw(s) per kind, seeds %llu..%llu, %s at 1 kHz, %d thread(s)\n",
-      plant2 ? "the second simulator (plant2/, docs/plant2.md)" : "the first simulator (sim/, thesis axes)", draws,
-      static_cast<unsigned long long>(first_seed),
+      "identification on random draws of %s: %d draw(s) per kind, seeds %llu..%llu, %s at 1 kHz, "
+      "%d thread(s)\n",
+      plant2 ? "the second simulator (plant2/, docs/plant2.md)"
+             : "the first simulator (sim/, thesis axes)",
+      draws, static_cast<unsigned long long>(first_seed),
       static_cast<unsigned long long>(first_seed + static_cast<uint64_t>(draws) - 1),
       excitation.c_str(), threads);
   std::vector<Outcome> outcomes(jobs.size());
