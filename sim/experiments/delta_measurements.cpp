@@ -183,7 +183,7 @@ Result<std::vector<Complex>> measure_carriage_h1(const DeltaPlantParams& truth,
 
   const model::FrequencyGrid& grid = plan.carriage_grid;
   const double period_s = 1.0 / grid.step_hz;
-  const double rate_hz = p.substep_hz;
+  const double rate_hz = pl.params().substep_hz;  // the rate the plant chose (sim/linearize.hpp)
   const auto per_period = static_cast<int>(std::llround(period_s * rate_hz));
   if (std::abs(per_period / rate_hz - period_s) > 1e-9 * period_s)
     return Error{"sweep: the multisine period must be a whole number of simulator substeps", {}};
