@@ -162,16 +162,12 @@ void DeltaPlant::derive_(const double* x, const double* qd_m, double* d) const {
     q[a] = x[4 * (a / 2) + 2];
     qdot[a] = x[4 * (a / 2) + 3];
   }
-  double arm_r[3][kArms], dvec[3][kArms], dv[3][kArms];
+  double arm_r[3][kArms], dvec[3][kArms];
   for (int r = 0; r < 3; ++r)
     for (int a = 0; a < kArms; ++a)
       arm_r[r][a] = rot[r][0] * k.joint_body[0][a] + rot[r][1] * k.joint_body[1][a] +
                     rot[r][2] * k.joint_body[2][a];
   for (int a = 0; a < kArms; ++a) {
-    // Carriage joint velocity (0, 0, qdot) minus effector joint velocity v + omega x arm_r.
-    dv[0][a] = -(v[0] + om[1] * arm_r[2][a] - om[2] * arm_r[1][a]);
-    dv[1][a] = -(v[1] + om[2] * arm_r[0][a] - om[0] * arm_r[2][a]);
-    dv[2][a] = qdot[a] - (v[2] + om[0] * arm_r[1][a] - om[1] * arm_r[0][a]);
     dvec[0][a] = k.joint_carriage[0][a] - (c[0] + arm_r[0][a]);
     dvec[1][a] = k.joint_carriage[1][a] - (c[1] + arm_r[1][a]);
     dvec[2][a] = k.joint_carriage[2][a] + q[a] - (c[2] + arm_r[2][a]);
@@ -197,23 +193,26 @@ void DeltaPlant::derive_(const double* x, const double* qd_m, double* d) const {
       stretch[a] = l - k.arm_len;
       inv_l[a] = 1.0 / l;
     }
-  double f[3][kArms];
-  for (int a = 0; a < kArms; ++a) {
-    const double n0 = dvec[0][a] * inv_l[a], n1 = dvec[1][a] * inv_l[a], n2 = dvec[2][a] * inv_l[a];
-    const double tension =
-        k.arm_k * stretch[a] + k.arm_c * (n0 * dv[0][a] + n1 * dv[1][a] + n2 * dv[2][a]);
-    f[0][a] = tension * n0;
-    f[1][a] = tension * n1;
-    f[2][a] = tension * n2;
-  }
+  // Tension: spring plus damping on the stretch rate n . (carriage joint velocity (0, 0, qdot) -
+  // effector joint velocity v + omega x r), where n . (omega x r) = omega . (r x n); the same
+  // r x n gives the arm's torque on the effector, tension (r x n).
+  double fz[kArms];
   double force[3] = {0.0, 0.0, 0.0}, torque[3] = {0.0, 0.0, 0.0};
   for (int a = 0; a < kArms; ++a) {
-    force[0] += f[0][a];
-    force[1] += f[1][a];
-    force[2] += f[2][a];
-    torque[0] += arm_r[1][a] * f[2][a] - arm_r[2][a] * f[1][a];
-    torque[1] += arm_r[2][a] * f[0][a] - arm_r[0][a] * f[2][a];
-    torque[2] += arm_r[0][a] * f[1][a] - arm_r[1][a] * f[0][a];
+    const double n0 = dvec[0][a] * inv_l[a], n1 = dvec[1][a] * inv_l[a], n2 = dvec[2][a] * inv_l[a];
+    const double rn0 = arm_r[1][a] * n2 - arm_r[2][a] * n1;
+    const double rn1 = arm_r[2][a] * n0 - arm_r[0][a] * n2;
+    const double rn2 = arm_r[0][a] * n1 - arm_r[1][a] * n0;
+    const double stretch_rate = n2 * qdot[a] - (n0 * v[0] + n1 * v[1] + n2 * v[2]) -
+                                (om[0] * rn0 + om[1] * rn1 + om[2] * rn2);
+    const double tension = k.arm_k * stretch[a] + k.arm_c * stretch_rate;
+    force[0] += tension * n0;
+    force[1] += tension * n1;
+    force[2] += tension * n2;
+    torque[0] += tension * rn0;
+    torque[1] += tension * rn1;
+    torque[2] += tension * rn2;
+    fz[a] = tension * n2;
   }
 
   for (int i = 0; i < 3; ++i) {
@@ -221,7 +220,7 @@ void DeltaPlant::derive_(const double* x, const double* qd_m, double* d) const {
     // its two forearms.
     const double z = x[4 * i], zd = x[4 * i + 1], qi = x[4 * i + 2], qdi = x[4 * i + 3];
     const double zdd = k.d0 * (qd_m[i] - z) - k.d2 * zd;
-    double f_carriage = -k.b * qdi - k.m * k.g - f[2][2 * i] - f[2][2 * i + 1];
+    double f_carriage = -k.b * qdi - k.m * k.g - fz[2 * i] - fz[2 * i + 1];
     if (enabled_[static_cast<size_t>(i)]) {
       const double e = z + k.d1_over_d0 * zd;
       const double edot = zd + k.d1_over_d0 * zdd;

@@ -10,7 +10,8 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kTimeEps_s = 1e-12;
 // Dahl bristle deflection at full sliding friction: small against the positions of interest,
-// large enough that RK4 stays stable (h |v| / z_max < 1.5 up to 2 m/s at 40 kHz).
+// large enough that RK4 stays stable (h |v| / z_max < 2.79: to 0.89 m/s at 16 kHz, the rate
+// kBristleSlide_m_s asks for at least).
 constexpr double kBristle_m = 20e-6;
 
 size_t history_capacity(const GantryAxisParams& p) {
