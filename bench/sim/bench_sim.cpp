@@ -39,7 +39,7 @@ struct Row {
   double sim_s;
   double wall_s;
   long long steps;
-  double max_dev_um = 0.0;       // against the first rate's run of the same machine
+  double max_dev_nm = 0.0;       // against the first rate's run of the same machine
   std::vector<double> truth_mm;  // carriage positions (and the delta's nozzle) at each read
 };
 
@@ -139,10 +139,10 @@ Row run_delta(double substep_hz, double sim_s) {
           std::move(truth)};
 }
 
-double max_dev_um(const Row& a, const Row& ref) {
+double max_dev_nm(const Row& a, const Row& ref) {
   double worst = 0.0;
   for (size_t i = 0; i < a.truth_mm.size() && i < ref.truth_mm.size(); ++i)
-    worst = std::max(worst, std::abs(a.truth_mm[i] - ref.truth_mm[i]) * 1e3);
+    worst = std::max(worst, std::abs(a.truth_mm[i] - ref.truth_mm[i]) * 1e6);
   return worst;
 }
 
@@ -151,7 +151,7 @@ double max_dev_um(const Row& a, const Row& ref) {
 int main(int argc, char** argv) {
   const char* json_path = nullptr;
   double sim_s = 2.0;
-  // The first rate is the reference of the max_dev_um column; 0 = each plant's own choice.
+  // The first rate is the reference of the max_dev_nm column; 0 = each plant's own choice.
   std::vector<double> rates_hz{40000.0, 0.0};
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--json") == 0 && i + 1 < argc) {
@@ -186,14 +186,14 @@ int main(int argc, char** argv) {
     const size_t first = rows.size();
     for (double hz : rates_hz) {
       rows.push_back(machine == 0 ? run_cartesian(hz, sim_s) : run_delta(hz, sim_s));
-      rows.back().max_dev_um = max_dev_um(rows.back(), rows[first]);
+      rows.back().max_dev_nm = max_dev_nm(rows.back(), rows[first]);
     }
   }
   std::printf("%-32s %-18s %8s %9s %16s %10s %10s\n", "machine", "substep_hz", "sim_s", "wall_s",
-              "sim_s_per_wall_s", "steps", "max_dev_um");
+              "sim_s_per_wall_s", "steps", "max_dev_nm");
   for (const Row& r : rows)
-    std::printf("%-32s %-18s %8.2f %9.3f %16.1f %10lld %10.4f\n", r.machine.c_str(),
-                r.substep.c_str(), r.sim_s, r.wall_s, r.sim_s / r.wall_s, r.steps, r.max_dev_um);
+    std::printf("%-32s %-18s %8.2f %9.3f %16.1f %10lld %10.3f\n", r.machine.c_str(),
+                r.substep.c_str(), r.sim_s, r.wall_s, r.sim_s / r.wall_s, r.steps, r.max_dev_nm);
   if (json_path) {
     FILE* f = std::fopen(json_path, "w");
     if (!f) {
@@ -206,9 +206,9 @@ int main(int argc, char** argv) {
       std::fprintf(
           f,
           "  {\"machine\": \"%s\", \"substep_hz\": \"%s\", \"sim_s\": %.3f, \"wall_s\": %.6f, "
-          "\"sim_s_per_wall_s\": %.2f, \"steps\": %lld, \"max_dev_um\": %.4f}%s\n",
+          "\"sim_s_per_wall_s\": %.2f, \"steps\": %lld, \"max_dev_nm\": %.4f}%s\n",
           r.machine.c_str(), r.substep.c_str(), r.sim_s, r.wall_s, r.sim_s / r.wall_s, r.steps,
-          r.max_dev_um, i + 1 < rows.size() ? "," : "");
+          r.max_dev_nm, i + 1 < rows.size() ? "," : "");
     }
     std::fprintf(f, "]}\n");
     std::fclose(f);
