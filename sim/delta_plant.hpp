@@ -48,7 +48,9 @@ struct DeltaPlantParams {
   double mm_per_step = 0.0125;            // 80 steps/mm (GT2 belt, 20-tooth pulley, 16 microsteps)
   Eigen::Vector3d initial_nozzle_mm{0.0, 0.0, 30.0};  // power-on position; steps and encoders zero here
   EncoderParams encoder;
-  double substep_hz = 40000.0;
+  // Fixed RK4 step rate (step events split a substep at their exact time). 0: from the plant's
+  // fastest mode (DeltaPlant::fastest_mode_rad_s, kRk4HOmegaMax in sim/linearize.hpp).
+  double substep_hz = 0.0;
   uint64_t seed = 1;
 };
 
@@ -61,7 +63,13 @@ class DeltaPlant {
 
   // Finds the static equilibrium at the initial position (gravity sag included). Error for bad
   // parameters or an unreachable position.
+  // With p.substep_hz = 0 the rate comes from fastest_mode_rad_s (substep_hz_for); params()
+  // .substep_hz is the rate in use.
   static Result<std::unique_ptr<DeltaPlant>> create(const DeltaPlantParams& p);
+  // The fastest mode of the linearised plant (rad/s) at its power-on equilibrium, times
+  // kModeHeadroom for the rest of the workspace (the arm modes move with the arms' angles).
+  double fastest_mode_rad_s() const;
+  static constexpr double kModeHeadroom = 1.15;
   DeltaPlant(const DeltaPlant&) = delete;
   DeltaPlant& operator=(const DeltaPlant&) = delete;
 
@@ -100,7 +108,20 @@ class DeltaPlant {
     int i_ = 0;
   };
 
+  // derivative()'s coefficients, derived once from the parameters (SI; reciprocals where the
+  // model divides): the hot loop reads them from one flat block.
+  struct Coeffs {
+    double m = 0.0, inv_m = 0.0, inv_m1 = 0.0, m2 = 0.0, inv_m2 = 0.0, g = 0.0;
+    double d0 = 0.0, d1_over_d0 = 0.0, d2 = 0.0, k = 0.0, c = 0.0, b = 0.0;  // carriage (Eq. 30-34)
+    double arm_k = 0.0, arm_c = 0.0, arm_len = 0.0, inv_arm_len = 0.0, inv_arm_len2 = 0.0;
+    std::array<double, 3> kj{}, bj{}, inertia{}, inv_inertia{};
+    // Per forearm a (on carriage a / 2), component-major ([x|y|z][a]): its effector joint from the
+    // centre of mass in the body frame, and its carriage joint at q = 0.
+    double joint_body[3][6] = {}, joint_carriage[3][6] = {};
+  };
+
   explicit DeltaPlant(const DeltaPlantParams& p);
+  void derive_(const double* x, const double* qd_m, double* d) const;
   Status settle_static_();
   void integrate_(double h);
   Eigen::Vector3d qd_m_() const;
@@ -118,6 +139,7 @@ class DeltaPlant {
   Eigen::Vector3d qd0_m_ = Eigen::Vector3d::Zero();  // commanded positions at power-on (step zero)
   int64_t late_events_ = 0;
   double h_s_ = 0.0;
+  Coeffs k_;
 };
 
 }  // namespace feedloop::sim

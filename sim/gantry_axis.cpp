@@ -10,7 +10,8 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kTimeEps_s = 1e-12;
 // Dahl bristle deflection at full sliding friction: small against the positions of interest,
-// large enough that RK4 stays stable (h |v| / z_max < 1.5 up to 2 m/s at 40 kHz).
+// large enough that RK4 stays stable (h |v| / z_max < 2.79: to 0.89 m/s at 16 kHz, the rate
+// kBristleSlide_m_s asks for at least).
 constexpr double kBristle_m = 20e-6;
 
 size_t history_capacity(const GantryAxisParams& p) {
@@ -19,11 +20,53 @@ size_t history_capacity(const GantryAxisParams& p) {
   // Samples are kept at least half a substep apart (History::push below).
   return static_cast<size_t>(std::ceil(delay_s * p.substep_hz * 2.0)) + 8;
 }
+
+// The bristle's sliding rate |v2| / z_max is a real mode of the friction model; the auto substep
+// resolves it up to this carriage speed (the example configs' max_velocity_mm_s) and stays stable
+// (h |lambda| < 2.79) to 2.79 times as fast.
+constexpr double kBristleSlide_m_s = 0.3;
+// Belt: Eq. 6's active length never falls below this fraction of the span (the model's clamp).
+constexpr double kMinActiveSpan = 0.05;
+// The sine law's stages: sin(phase0 + d) by angle addition from the substep's sin/cos of phase0,
+// with Taylor series of sin d and cos d (exact to rounding below this |d|: the first omitted terms
+// are d^13 / 13! and d^12 / 12!, < 2e-16 here). A stage moves the phase by h times the rotor's
+// speed relative to the field: ~0.1 rad at a slip at 150 mm/s and 62.5 us.
+constexpr double kMaxSeriesRad = 0.25;
+
+double sin_near(double phase, double phase0, double s0, double c0) {
+  const double d = phase - phase0;
+  if (!(std::abs(d) <= kMaxSeriesRad)) return std::sin(phase);
+  const double d2 = d * d;
+  const double sin_d =
+      d *
+      (1.0 -
+       d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0 * (1.0 - d2 / 72.0 * (1.0 - d2 / 110.0)))));
+  const double cos_d =
+      1.0 -
+      d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0 * (1.0 - d2 / 56.0 * (1.0 - d2 / 90.0))));
+  return s0 * cos_d + c0 * sin_d;
+}
 }  // namespace
 
 Result<GantryAxis> GantryAxis::create(const GantryAxisParams& p) {
   if (Status s = validate(p); !s) return Error{"gantry axis: " + s.error().message, s.error().where};
-  return GantryAxis(p);
+  if (p.substep_hz > 0.0) return GantryAxis(p);
+  GantryAxisParams q = p;
+  q.substep_hz = substep_hz_for(fastest_mode_rad_s(p));
+  if (q.substep_hz > 1e6) return Error{"gantry axis: fastest mode above 1 MHz: set substep_hz", {}};
+  return GantryAxis(q);
+}
+
+double GantryAxis::fastest_mode_rad_s(const GantryAxisParams& p) {
+  GantryAxisParams q = p;
+  q.substep_hz = 40000.0;  // any valid rate: only the model is used
+  // In the dead band the belt carries nothing; outside it, its full stiffness.
+  q.effects.backlash.enabled = false;
+  double w = sim::fastest_mode_rad_s(GantryAxis(q).linearize().a);
+  q.belt_stiffness_n_m /= kMinActiveSpan;  // K2 = k_hat / (0.05 L) = 20 k2 at x2 = 0
+  w = std::max(w, sim::fastest_mode_rad_s(GantryAxis(q).linearize().a));
+  if (p.effects.coulomb_friction.enabled) w = std::max(w, kBristleSlide_m_s / kBristle_m);
+  return w;
 }
 
 GantryAxis::GantryAxis(const GantryAxisParams& p)
@@ -40,12 +83,31 @@ GantryAxis::GantryAxis(const GantryAxisParams& p)
   k_hat_ = p.belt_stiffness_n_m * p.belt_span_mm * 1e-3;
   read_delay_s_ = p.encoder.sampling_delay_s +
                   (p.effects.time_delay.enabled ? p.effects.time_delay.delay_ms * 1e-3 : 0.0);
+  phase_per_m_ = 2.0 * kPi / lambda_m_;
+  inv_tau_per_s_ = 1.0 / tau_s_;
+  inv_corner_s_m_ =
+      p.pullout_corner_speed_mm_s > 0.0 ? 1.0 / (p.pullout_corner_speed_mm_s * 1e-3) : 0.0;
+  span_m_ = p.belt_span_mm * 1e-3;
+  x0_m_ = p.belt_x0_mm * 1e-3;
+  min_active_m_ = kMinActiveSpan * span_m_;
+  inv_efficiency_ = 1.0 / p.efficiency;
+  inv_m1_ = 1.0 / p.rotor_mass_kg;
+  inv_m2_ = 1.0 / p.carriage_mass_kg;
+  if (p.effects.periodic_position.enabled) {
+    runout_m_ = p.effects.periodic_position.amplitude_um * 1e-6;
+    runout_per_m_ = 2.0 * kPi / (p.effects.periodic_position.period_mm * 1e-3);
+  }
+  if (p.effects.backlash.enabled) backlash_half_m_ = 0.5 * p.effects.backlash.width_um * 1e-6;
+  if (p.effects.coulomb_friction.enabled)
+    friction_n_per_m_ = p.effects.coulomb_friction.force_n / kBristle_m;
   if (p.effects.extra_resonance.enabled) {
     const auto& er = p.effects.extra_resonance;
     const double w = 2.0 * kPi * er.freq_hz;
     extra_k_ = er.mass_kg * w * w;
     extra_c_ = 2.0 * er.damping * er.mass_kg * w;
+    inv_m3_ = 1.0 / er.mass_kg;
   }
+  u0_m_ = p.initial_pos_mm * 1e-3;
   const double x0_m = p.initial_pos_mm * 1e-3;
   x_ << x0_m, x0_m, 0.0, x0_m, 0.0, x0_m, 0.0, 0.0;
   xc_ = x_;
@@ -57,67 +119,65 @@ double GantryAxis::commanded_mm() const {
 }
 
 GantryAxis::State GantryAxis::derivative(const State& x, double u_m) const {
-  const GantryEffects& fx = p_.effects;
+  return derivative_(x, u_m, std::sin(phase_per_m_ * (x[kField] - x[kRotor])));
+}
+
+GantryAxis::State GantryAxis::derivative_(const State& x, double u_m, double sin_phase) const {
   const double uf = x[kField], y1 = x[kRotor], v1 = x[kRotorVel];
   const double y2 = x[kCarriage], v2 = x[kCarriageVel], x3 = x[kExtra], v3 = x[kExtraVel];
 
   // Driver field: tau du_f/dt = u - u_f.
-  const double duf = (u_m - uf) / tau_s_;
+  const double duf = (u_m - uf) * inv_tau_per_s_;
 
   // Motor (Eq. 2-3 with the microstep equilibrium u_f; damping relative to the field, Eq. 9).
   double f_motor = 0.0;
   if (enabled_) {
     // Every electromagnetic force scales with the phase current, which falls with speed.
-    double current_frac = 1.0;
-    if (p_.pullout_corner_speed_mm_s > 0.0) {
-      const double vr = v1 / (p_.pullout_corner_speed_mm_s * 1e-3);
-      current_frac = 1.0 / std::sqrt(1.0 + vr * vr);
-    }
-    f_motor = current_frac * (f_hold_n_ * std::sin(2.0 * kPi * (uf - y1) / lambda_m_) +
-                              p_.motor_damping_n_s_m * (duf - v1));
+    const double vr = v1 * inv_corner_s_m_;
+    const double current_frac = inv_corner_s_m_ > 0.0 ? 1.0 / std::sqrt(1.0 + vr * vr) : 1.0;
+    f_motor = current_frac * (f_hold_n_ * sin_phase + p_.motor_damping_n_s_m * (duf - v1));
   }
 
   // Belt (Eq. 5-6), with pulley runout and backlash when enabled.
   double belt_rotor_m = y1;
-  if (fx.periodic_position.enabled) {
-    const double period_m = fx.periodic_position.period_mm * 1e-3;
-    belt_rotor_m += fx.periodic_position.amplitude_um * 1e-6 * std::sin(2.0 * kPi * y1 / period_m);
-  }
+  if (runout_m_ != 0.0) belt_rotor_m += runout_m_ * std::sin(runout_per_m_ * y1);
   double stretch_m = belt_rotor_m - y2;
-  if (fx.backlash.enabled) {
-    const double half_m = 0.5 * fx.backlash.width_um * 1e-6;
+  if (backlash_half_m_ > 0.0) {
+    const double half_m = backlash_half_m_;
     stretch_m = stretch_m > half_m ? stretch_m - half_m : (stretch_m < -half_m ? stretch_m + half_m : 0.0);
   }
   const double sgn = stretch_m > 0.0 ? 1.0 : (stretch_m < 0.0 ? -1.0 : 0.0);
-  const double span_m = p_.belt_span_mm * 1e-3;
-  const double active_m = std::max(span_m - (p_.belt_x0_mm * 1e-3 + y2) * sgn, 0.05 * span_m);
+  const double active_m = std::max(span_m_ - (x0_m_ + y2) * sgn, min_active_m_);
   const double f_belt = k_hat_ / active_m * stretch_m;  // on the carriage; -f_belt / e on the rotor (Eq. 7)
 
   // Rails (Eq. 10) and Coulomb friction.
   double f_rail = -p_.bearing_damping_n_s_m * v2;
   double dz = 0.0;
-  if (fx.coulomb_friction.enabled) {
+  if (friction_n_per_m_ > 0.0) {
     const double z = x[kBristle];
     dz = v2 - std::abs(v2) * z / kBristle_m;
-    f_rail -= fx.coulomb_friction.force_n * z / kBristle_m;
+    f_rail -= friction_n_per_m_ * z;
   }
 
-  const double f_rotor = f_motor - f_belt / p_.efficiency;
   // Extra mass on its mount (extra_resonance): a spring-damper to the carriage.
-  double f_mount = 0.0;
-  if (fx.extra_resonance.enabled) f_mount = extra_k_ * (x3 - y2) + extra_c_ * (v3 - v2);
-  const double a3 = fx.extra_resonance.enabled ? -f_mount / fx.extra_resonance.mass_kg : 0.0;
+  const double f_mount = inv_m3_ > 0.0 ? extra_k_ * (x3 - y2) + extra_c_ * (v3 - v2) : 0.0;
   State d;
-  d << duf, v1, f_rotor / p_.rotor_mass_kg, v2, (f_belt + f_rail + f_mount) / p_.carriage_mass_kg, v3, a3, dz;
+  d << duf, v1, (f_motor - f_belt * inv_efficiency_) * inv_m1_, v2,
+      (f_belt + f_rail + f_mount) * inv_m2_, v3, -f_mount * inv_m3_, dz;
   return d;
 }
 
 void GantryAxis::integrate_(State& x, double h) const {
-  const double u = static_cast<double>(steps_) * m_per_step_true_ + p_.initial_pos_mm * 1e-3;
-  const State k1 = derivative(x, u);
-  const State k2 = derivative(x + 0.5 * h * k1, u);
-  const State k3 = derivative(x + 0.5 * h * k2, u);
-  const State k4 = derivative(x + h * k3, u);
+  const double u = static_cast<double>(steps_) * m_per_step_true_ + u0_m_;
+  const double phase0 = phase_per_m_ * (x[kField] - x[kRotor]);
+  const double s0 = std::sin(phase0), c0 = std::cos(phase0);
+  auto stage = [&](const State& xs) {
+    return derivative_(xs, u, sin_near(phase_per_m_ * (xs[kField] - xs[kRotor]), phase0, s0, c0));
+  };
+  const State k1 = derivative_(x, u, s0);
+  const State k2 = stage(x + (0.5 * h) * k1);
+  const State k3 = stage(x + (0.5 * h) * k2);
+  const State k4 = stage(x + h * k3);
   x += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
 }
 
@@ -195,7 +255,7 @@ int64_t GantryAxis::read_encoder_counts(double t_s) {
 }
 
 LinearModel GantryAxis::linearize() const {
-  const double u0 = static_cast<double>(steps_) * m_per_step_true_ + p_.initial_pos_mm * 1e-3;
+  const double u0 = static_cast<double>(steps_) * m_per_step_true_ + u0_m_;
   Dynamics f = [this](const Eigen::VectorXd& x, const Eigen::VectorXd& u) -> Eigen::VectorXd {
     return derivative(State(x), u[0]);
   };

@@ -41,7 +41,14 @@ class GantryAxis final : public device::MotorPort {
   using State = Eigen::Matrix<double, 8, 1>;
   enum Index : int { kField = 0, kRotor, kRotorVel, kCarriage, kCarriageVel, kExtra, kExtraVel, kBristle };
 
+  // With p.substep_hz = 0 the substep rate comes from fastest_mode_rad_s (substep_hz_for in
+  // sim/linearize.hpp); params().substep_hz is the rate in use.
   static Result<GantryAxis> create(const GantryAxisParams& p);
+  // The fastest mode of the plant anywhere in its travel (rad/s): the linearisation at rest, where
+  // the motor's stiffness (the sine law's slope) and damping (full current) are largest, with the
+  // belt as built and at its stiffest (Eq. 6 at the shortest active length the model allows, 20 k2)
+  // and, with Coulomb friction on, the bristle's sliding rate |v2| / z_max at 0.3 m/s.
+  static double fastest_mode_rad_s(const GantryAxisParams& p);
 
   // MotorPort (RT-safe: no allocation).
   void step(double t_s, int direction) override;
@@ -71,6 +78,7 @@ class GantryAxis final : public device::MotorPort {
 
   // The model: dx/dt for state x and step command u (m), with the current enable state.
   State derivative(const State& x, double u_m) const;
+  double substep_s() const { return h_s_; }
   const State& state() const { return x_; }
   // Small-signal model around the current state (call at rest). Input: the field command u in
   // mm; output: carriage position in mm (what the encoder sees, before quantisation and delay).
@@ -81,6 +89,9 @@ class GantryAxis final : public device::MotorPort {
 
  private:
   explicit GantryAxis(const GantryAxisParams& p);
+  // derivative() with the sine law's value sin(2 pi (u_f - x1) / lambda) given: RK4 evaluates it
+  // once per substep and carries it to the stages by angle addition (integrate_).
+  State derivative_(const State& x, double u_m, double sin_phase) const;
   void integrate_(State& x, double h_s) const;
   void after_substep_();
   void commit_substeps_(double t_s);
@@ -110,7 +121,17 @@ class GantryAxis final : public device::MotorPort {
   double tau_s_ = 0.0;       // field time constant c1/k1
   double k_hat_ = 0.0;       // belt unit stiffness, N (k2 * L)
   double read_delay_s_ = 0.0;
-  double extra_k_ = 0.0, extra_c_ = 0.0;  // mount of the extra_resonance mass
+  // derivative_'s coefficients: the parameters in SI, reciprocals where the model divides.
+  double phase_per_m_ = 0.0;     // 2 pi / lambda
+  double inv_tau_per_s_ = 0.0;   // 1 / tau
+  double inv_corner_s_m_ = 0.0;  // 1 / pull-out corner speed (0: no roll-off)
+  double span_m_ = 0.0, x0_m_ = 0.0, min_active_m_ = 0.0;  // belt L, x0, shortest active length
+  double inv_efficiency_ = 1.0, inv_m1_ = 0.0, inv_m2_ = 0.0;
+  double runout_m_ = 0.0, runout_per_m_ = 0.0;  // periodic_position: amplitude, 2 pi / period
+  double backlash_half_m_ = 0.0;
+  double friction_n_per_m_ = 0.0;                        // Coulomb: F_c / z_max
+  double extra_k_ = 0.0, extra_c_ = 0.0, inv_m3_ = 0.0;  // mount of the extra_resonance mass
+  double u0_m_ = 0.0;  // step command at zero steps (initial position)
 };
 
 }  // namespace feedloop::sim

@@ -35,12 +35,14 @@ Status positive(double v, const char* name) {
 }  // namespace
 
 Status validate(const GantryAxisParams& p) {
-  const std::pair<double, const char*> pos[] = {
-      {p.motor_stiffness_n_m, "motor_stiffness_n_m"}, {p.rotor_mass_kg, "rotor_mass_kg"},
-      {p.motor_damping_n_s_m, "motor_damping_n_s_m"}, {p.pulley_radius_mm, "pulley_radius_mm"},
-      {p.belt_stiffness_n_m, "belt_stiffness_n_m"},   {p.belt_span_mm, "belt_span_mm"},
-      {p.efficiency, "efficiency"},                   {p.carriage_mass_kg, "carriage_mass_kg"},
-      {p.substep_hz, "substep_hz"}};
+  const std::pair<double, const char*> pos[] = {{p.motor_stiffness_n_m, "motor_stiffness_n_m"},
+                                                {p.rotor_mass_kg, "rotor_mass_kg"},
+                                                {p.motor_damping_n_s_m, "motor_damping_n_s_m"},
+                                                {p.pulley_radius_mm, "pulley_radius_mm"},
+                                                {p.belt_stiffness_n_m, "belt_stiffness_n_m"},
+                                                {p.belt_span_mm, "belt_span_mm"},
+                                                {p.efficiency, "efficiency"},
+                                                {p.carriage_mass_kg, "carriage_mass_kg"}};
   for (const auto& [v, name] : pos)
     if (Status s = positive(v, name); !s) return s;
   if (p.efficiency > 1.0) return Error{"efficiency must be in (0, 1]", {}};
@@ -51,7 +53,8 @@ Status validate(const GantryAxisParams& p) {
   if (p.microsteps < 1 || p.microsteps > 256) return Error{"microsteps must be in [1, 256]", {}};
   if (std::abs(p.initial_pos_mm + p.belt_x0_mm) >= 0.9 * p.belt_span_mm)
     return Error{"initial position too close to a pulley: |x0 + x2| must stay below 0.9 L", {}};
-  if (p.substep_hz < 1000.0 || p.substep_hz > 1e6) return Error{"substep_hz must be in [1 kHz, 1 MHz]", {}};
+  if (p.substep_hz != 0.0 && !(p.substep_hz >= 1000.0 && p.substep_hz <= 1e6))
+    return Error{"substep_hz must be 0 (from the fastest mode) or in [1 kHz, 1 MHz]", {}};
   if (Status s = validate(p.encoder); !s) return s;
   const GantryEffects& e = p.effects;
   if (e.coulomb_friction.enabled && !(e.coulomb_friction.force_n >= 0.0))
@@ -65,7 +68,7 @@ Status validate(const GantryAxisParams& p) {
     if (Status s = positive(e.extra_resonance.freq_hz, "extra_resonance.freq_hz"); !s) return s;
     if (Status s = positive(e.extra_resonance.mass_kg, "extra_resonance.mass_kg"); !s) return s;
     if (!(e.extra_resonance.damping >= 0.0)) return Error{"extra_resonance.damping must be >= 0", {}};
-    if (e.extra_resonance.freq_hz > 0.2 * p.substep_hz)
+    if (p.substep_hz > 0.0 && e.extra_resonance.freq_hz > 0.2 * p.substep_hz)
       return Error{"extra_resonance.freq_hz must be below substep_hz / 5", {}};
   }
   if (e.time_delay.enabled && !(e.time_delay.delay_ms >= 0.0 && e.time_delay.delay_ms <= 1000.0))

@@ -76,7 +76,9 @@ struct GantryAxisParams {
 
   EncoderParams encoder;
   GantryEffects effects;
-  double substep_hz = 40000.0;  // fixed RK4 step; step events split a substep at their exact time
+  // Fixed RK4 step rate; step events split a substep at their exact time. 0: from the plant's
+  // fastest mode (GantryAxis::fastest_mode_rad_s, kRk4HOmegaMax in sim/linearize.hpp).
+  double substep_hz = 0.0;
   uint64_t seed = 1;            // encoder noise
 };
 

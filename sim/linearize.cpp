@@ -1,6 +1,11 @@
 // Finite-difference linearisation and frequency response (see linearize.hpp).
 #include "sim/linearize.hpp"
 
+#include <algorithm>  // max
+#include <cmath>      // ceil
+
+#include <Eigen/Eigenvalues>
+
 namespace feedloop::sim {
 
 LinearModel linearize_dynamics(const Dynamics& f, const Eigen::VectorXd& x0, const Eigen::VectorXd& u0,
@@ -29,6 +34,17 @@ Eigen::MatrixXcd frequency_response(const LinearModel& m, double freq_hz) {
   sys.diagonal().array() += jw;
   const Eigen::MatrixXcd x = sys.partialPivLu().solve(m.b.cast<std::complex<double>>());
   return m.c.cast<std::complex<double>>() * x;
+}
+
+double fastest_mode_rad_s(const Eigen::MatrixXd& a) {
+  const Eigen::VectorXcd ev = Eigen::EigenSolver<Eigen::MatrixXd>(a, false).eigenvalues();
+  double w = 0.0;
+  for (Eigen::Index i = 0; i < ev.size(); ++i) w = std::max(w, std::abs(ev[i]));
+  return w;
+}
+
+double substep_hz_for(double omega_max_rad_s) {
+  return std::max(1.0, std::ceil(omega_max_rad_s / kRk4HOmegaMax / 1000.0)) * 1000.0;
 }
 
 }  // namespace feedloop::sim

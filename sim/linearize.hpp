@@ -27,4 +27,18 @@ LinearModel linearize_dynamics(const Dynamics& f, const Eigen::VectorXd& x0, con
 // p x m frequency response matrix at freq_hz.
 Eigen::MatrixXcd frequency_response(const LinearModel& m, double freq_hz);
 
+// The plants' fixed RK4 step from their fastest mode: h * omega_max <= kRk4HOmegaMax, omega_max the
+// largest |eigenvalue| of the linearised plant (rad/s). RK4 is stable to |h lambda| = 2.79 on the
+// real axis and 2.83 on the imaginary axis; at h omega = 1 it damps an undamped mode by 0.6 % per
+// step and gets a real mode's decay per step right within 2 % (exp(-1) = 0.368 against 0.375), and
+// every slower mode (the ones the encoder sees, < 1 kHz) far better (the error falls as (h
+// omega)^5). docs/simulator.md, "Integration".
+inline constexpr double kRk4HOmegaMax = 1.0;
+
+// Largest |eigenvalue| of a (rad/s).
+double fastest_mode_rad_s(const Eigen::MatrixXd& a);
+// The substep rate for a fastest mode omega_max: omega_max / kRk4HOmegaMax rounded up to a whole
+// kHz (so that drives updated at a round rate can land on substeps), at least 1 kHz.
+double substep_hz_for(double omega_max_rad_s);
+
 }  // namespace feedloop::sim

@@ -177,6 +177,10 @@ Result<std::vector<Complex>> measure_carriage_h1(const DeltaPlantParams& truth,
   p.gravity_m_s2 = 0.0;
   p.initial_nozzle_mm = plan.centre_mm;
   if (added_mass) p.model.m_c_kg += plan.m_add_kg;
+  // The sweep samples and updates the drive once per substep (every step on an update instant),
+  // so the substep is the measurement's rate: 40 kHz unless the caller fixed one. The detached
+  // carriage's own fastest mode would give 1 kHz, too coarse for H1 of lines up to 300 Hz.
+  if (p.substep_hz == 0.0) p.substep_hz = 40000.0;
   auto plant = DeltaPlant::create(p);
   if (!plant.ok()) return plant.error();
   DeltaPlant& pl = **plant;
