@@ -55,7 +55,7 @@ function(feedloop_add_test_pch)
 endfunction()
 
 function(feedloop_add_test name)
-  cmake_parse_arguments(T "OPTIMIZED" "TIMEOUT;LONG_TESTS" "SOURCES;LIBS;LABELS" ${ARGN})
+  cmake_parse_arguments(T "OPTIMIZED" "TIMEOUT;LONG_TESTS;COST" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${name} ${T_SOURCES})
   target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main GTest::gmock)
   set(_opt)
@@ -78,8 +78,15 @@ function(feedloop_add_test name)
     gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 TEST_FILTER "${T_LONG_TESTS}"
       PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "long")
   endif()
+  # COST N: ctest -j starts the costliest tests first (without its timing data from an earlier
+  # run, as in a fresh clone, it starts them in the order they were declared, and a long test that
+  # starts last runs alone at the end: docs/decisions.md, "CI time"). N ~ the seconds it takes.
+  set(_cost)
+  if(T_COST)
+    set(_cost COST ${T_COST})
+  endif()
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 ${others_filter}
-    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}")
+    PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "${T_LABELS}" ${_cost})
   # The sanitizer stage of scripts/test.sh runs only the tests without these labels, and builds
   # only what it runs (target `sanitizer_tests`, top-level CMakeLists.txt).
   # alloc: tests that count allocations, which count nothing under the sanitizers (their
