@@ -12,7 +12,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr int kSubsteps = 5;
-constexpr double kBristle_m = 20e-6;  // Dahl bristle deflection at full sliding friction
 
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 using Mat63 = Eigen::Matrix<double, 6, 3>;
@@ -136,6 +135,8 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
   const double r = std::max(m.stiffness_ratio, 1e-3);
   const double k_pos = k2 * 2.0 * r / (1.0 + r), k_neg = k2 * 2.0 / (1.0 + r);
   const double fc = std::max(m.friction_force_n, 0.0);
+  const double bristle_m =
+      std::max(m.presliding_um, 0.1) * 1e-6;  // Dahl: deflection at full friction
 
   // Discretisation: u ramps linearly over each (sub)step (first-order hold, exact for the linear
   // part), the effect forces are held (zero-order hold). Augmented exponential
@@ -201,11 +202,11 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
           double f_fric = 0.0;
           if (friction) {
             // Dahl: dz/dt = v (1 - sgn(v) z / z_max), solved exactly over the substep for fixed v.
-            f_fric = -fc * z / kBristle_m;
+            f_fric = -fc * z / bristle_m;
             const double av = std::abs(vc);
             if (av > 0.0) {
-              const double zss = vc > 0.0 ? kBristle_m : -kBristle_m;
-              z = zss + (z - zss) * std::exp(-av * h / kBristle_m);
+              const double zss = vc > 0.0 ? bristle_m : -bristle_m;
+              z = zss + (z - zss) * std::exp(-av * h / bristle_m);
             }
           }
           q = Ad * q + g0u * (u_prev + du * j) + G0.col(1) * (-df) + G0.col(2) * (df + f_fric) + g1 * du;
@@ -234,9 +235,15 @@ model::StateSpace axis_state_space(const AxisModel& m) {
 }
 
 Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double period_s, std::vector<double>* y_mm) {
-  const double vals[] = {m.m1_kg, m.m2_kg, m.k1_n_m, m.k2_n_m, m.c1_n_s_m, m.c2_n_s_m, m.scale, m.delay_ms,
-                         m.period_mm, m.extra_freq_hz, m.extra_damping, m.extra_mass_kg, m.stiffness_ratio,
-                         m.friction_force_n, m.backlash_width_um, m.periodic_sin_um, m.periodic_cos_um};
+  const double vals[] = {m.m1_kg,           m.m2_kg,
+                         m.k1_n_m,          m.k2_n_m,
+                         m.c1_n_s_m,        m.c2_n_s_m,
+                         m.scale,           m.delay_ms,
+                         m.period_mm,       m.extra_freq_hz,
+                         m.extra_damping,   m.extra_mass_kg,
+                         m.stiffness_ratio, m.friction_force_n,
+                         m.presliding_um,   m.backlash_width_um,
+                         m.periodic_sin_um, m.periodic_cos_um};
   for (double v : vals)
     if (!std::isfinite(v)) return Error{"axis model has a non-finite parameter", {}};
   if (!(period_s > 0.0)) return Error{"sample period must be > 0", {}};

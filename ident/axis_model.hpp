@@ -37,7 +37,8 @@ struct AxisModel {
   bool enabled[kEffectCount] = {};
   // periodic_position: runout u + a sin + b cos of 2 pi x1 / P (amplitude_um = hypot(a, b)).
   double period_mm = 33.93, periodic_sin_um = 0.0, periodic_cos_um = 0.0;
-  double friction_force_n = 0.0;     // coulomb_friction (Dahl, bristle 20 um)
+  double friction_force_n = 0.0;     // coulomb_friction (Dahl) ...
+  double presliding_um = 20.0;       // ... its bristle deflection at full sliding friction (fitted)
   double backlash_width_um = 0.0;    // backlash: total dead band in the belt
   double stiffness_ratio = 1.0;      // direction_dependent_stiffness: K2(pulling +) / K2(pulling -)
   double extra_freq_hz = 60.0, extra_damping = 0.05, extra_mass_kg = 0.15;  // extra_resonance

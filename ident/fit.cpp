@@ -2,12 +2,14 @@
 #include "ident/fit.hpp"
 
 #include <algorithm>
-#include <cmath>
 #include <atomic>
+#include <cmath>
+#include <complex>
 #include <mutex>
 #include <thread>
 
 #include <Eigen/Dense>
+#include <unsupported/Eigen/FFT>
 
 #include "ident/frf.hpp"
 
@@ -17,8 +19,24 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 // One free parameter: where it lives in the model and how it is transformed for the solver.
-enum class Param { kK1, kK2, kC1, kC2, kPeriod, kPerSin, kPerCos, kFriction, kBacklash, kRatio, kExtraF,
-                   kExtraZeta, kExtraMass, kDelay, kScale };
+enum class Param {
+  kK1,
+  kK2,
+  kC1,
+  kC2,
+  kPeriod,
+  kPerSin,
+  kPerCos,
+  kFriction,
+  kPresliding,
+  kBacklash,
+  kRatio,
+  kExtraF,
+  kExtraZeta,
+  kExtraMass,
+  kDelay,
+  kScale
+};
 
 double& slot(AxisModel& m, Param p) {
   switch (p) {
@@ -30,6 +48,8 @@ double& slot(AxisModel& m, Param p) {
     case Param::kPerSin: return m.periodic_sin_um;
     case Param::kPerCos: return m.periodic_cos_um;
     case Param::kFriction: return m.friction_force_n;
+    case Param::kPresliding:
+      return m.presliding_um;
     case Param::kBacklash: return m.backlash_width_um;
     case Param::kRatio: return m.stiffness_ratio;
     case Param::kExtraF: return m.extra_freq_hz;
@@ -48,16 +68,43 @@ double to_solver(Param p, double v) {
   if (p == Param::kScale) return (v - 1.0) * 1e3;
   return is_log(p) ? std::log(std::max(v, 1e-12)) : v;
 }
+// The baseline's plausible ranges (a bounded physical baseline, issue 15): a belt-driven axis's
+// motor stiffness T_max n_r / r^2 (thesis Table 4: 355-391 kN/m), belt stiffness k^ / length
+// (20-110 kN/m), motor and carriage damping, each within about two decades of the thesis's
+// values; beyond them the data are no longer telling the two masses apart (fits of the second
+// simulator's axes ran k1 to 1e14 N/m, a rigid motor, where 2e7 predicts the same).
+struct Range {
+  double lo, hi;
+};
+Range baseline_range(Param p) {
+  switch (p) {
+    case Param::kK1:
+      return {2e4, 2e7};
+    case Param::kK2:
+      return {2e3, 2e6};
+    case Param::kC1:
+      return {1.0, 2e5};
+    case Param::kC2:
+      return {0.1, 2e3};
+    case Param::kPresliding:
+      return {1.0, 300.0};  // a rail's presliding displacement, um
+    default:
+      return {1e-12, 1e12};
+  }
+}
 double from_solver(Param p, double x) {
   if (p == Param::kScale) return 1.0 + x * 1e-3;
-  return is_log(p) ? std::exp(std::clamp(x, -40.0, 40.0)) : x;
+  if (!is_log(p)) return x;
+  const Range r = baseline_range(p);
+  return std::exp(std::clamp(x, std::max(-40.0, std::log(r.lo)), std::min(40.0, std::log(r.hi))));
 }
 double fd_step(Param p) { return is_log(p) ? 1e-3 : (p == Param::kScale ? 1e-3 : 0.02); }
 
 std::vector<Param> effect_params(Effect e) {
   switch (e) {
     case Effect::kPeriodicPosition: return {Param::kPeriod, Param::kPerSin, Param::kPerCos};
-    case Effect::kCoulombFriction: return {Param::kFriction};
+    case Effect::kCoulombFriction:
+      return {Param::kFriction, Param::kPresliding};
     case Effect::kBacklash: return {Param::kBacklash};
     case Effect::kDirectionStiffness: return {Param::kRatio};
     case Effect::kExtraResonance: return {Param::kExtraF, Param::kExtraZeta, Param::kExtraMass};
@@ -256,6 +303,65 @@ double frf_misfit(const AxisModel& m, const FrfData& d, double period_s) {
 
 // The regressions (runout, scale, lag) use the whole training part; everything that simulates
 // candidates (the grids, the preset-or-current choice) only its first `window` samples.
+// The short periods of a stepper axis (a microstep table's error once per full step or once per
+// electrical cycle, a detent: 0.1-2 mm on a belt axis) by the same weighted sin/cos regression of
+// the residual on commanded position as the long periods below, over all periods from
+// kShortPeriodMinMm to 2 mm at once: the residual is summed in position bins of 1/8 of the
+// shortest period and the normal equations of every period come from two FFTs (of the bin sums
+// and of the bin counts, the latter at twice the frequency for the sin^2, cos^2, sin cos terms),
+// zero-padded 4x so that the grid is finer than a period's resolution over the covered travel.
+// Keeps the best period in *m when it explains more than *best.
+constexpr double kShortPeriodMinMm = 0.12;
+void short_period_scan(const std::vector<double>& u, const std::vector<double>& res, size_t n,
+                       AxisModel* m, double* best) {
+  const auto [lo_it, hi_it] = std::minmax_element(u.begin(), u.begin() + static_cast<long>(n));
+  const double lo = *lo_it, range = *hi_it - lo;
+  if (range < 4.0) return;
+  const double bin_mm = kShortPeriodMinMm / 8.0;
+  const auto bins = static_cast<size_t>(std::floor(range / bin_mm)) + 1;
+  size_t padded = 1;
+  while (padded < 4 * bins) padded *= 2;
+  std::vector<std::complex<double>> sum(padded, 0.0), count(padded, 0.0);
+  for (size_t k = 0; k < n; ++k) {
+    const auto b = std::min(bins - 1, static_cast<size_t>((u[k] - lo) / bin_mm));
+    sum[b] += res[k];
+    count[b] += 1.0;
+  }
+  Eigen::FFT<double> fft;
+  std::vector<std::complex<double>> S, C;
+  fft.fwd(S, sum);
+  fft.fwd(C, count);
+  const double x0 =
+      lo + 0.5 * bin_mm - u[0];  // bin j's centre relative to the first command: x0 + j bin_mm
+  const double W = C[0].real();
+  const double df = 1.0 / (static_cast<double>(padded) * bin_mm);  // cycles per mm per FFT bin
+  const auto k_lo = static_cast<size_t>(std::ceil(0.5 / df));
+  const auto k_hi =
+      std::min(padded / 4, static_cast<size_t>(std::floor(1.0 / kShortPeriodMinMm / df)));
+  for (size_t k = k_lo; k <= k_hi; ++k) {
+    const double f = static_cast<double>(k) * df;
+    // sum_j w_j e^{i theta_j}, theta_j = 2 pi f (x0 + j bin_mm): the conjugate of the forward DFT
+    // (e^{-i...}) times the phase of x0; the same at 2 f from DFT bin 2 k.
+    const std::complex<double> rot = std::polar(1.0, 2.0 * kPi * f * x0);
+    const std::complex<double> rot2 = std::polar(1.0, 4.0 * kPi * f * x0);
+    const std::complex<double> r1 = std::conj(S[k]) * rot;
+    const std::complex<double> w2 = std::conj(C[2 * k]) * rot2;
+    Eigen::Matrix2d N;
+    N(0, 0) = 0.5 * (W - w2.real());  // sum w sin^2
+    N(1, 1) = 0.5 * (W + w2.real());  // sum w cos^2
+    N(0, 1) = N(1, 0) = 0.5 * w2.imag();
+    const Eigen::Vector2d b(r1.imag(), r1.real());
+    const Eigen::Vector2d ab = N.ldlt().solve(b);
+    const double explained = ab.dot(b);
+    if (std::isfinite(explained) && explained > *best) {
+      *best = explained;
+      m->period_mm = 1.0 / f;
+      m->periodic_sin_um = ab[0];
+      m->periodic_cos_um = ab[1];
+    }
+  }
+}
+
 AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb,
                         const std::vector<double>& y_cur, size_t window, const FrfData& frf_train) {
   AxisModel m = cur;
@@ -304,6 +410,7 @@ AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb,
         count[b] += 1.0;
       }
       double best = -1.0;
+      short_period_scan(u, res, n, &m, &best);
       for (int i = 0; i <= 160; ++i) {
         const double period = 2.0 * std::pow(max_period / 2.0, i / 160.0);  // 2 mm .. max_period
         Eigen::Matrix2d N = Eigen::Matrix2d::Zero();
@@ -457,10 +564,17 @@ AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb,
 // An effect is only reported when its size is resolvable by the measurement: the deflection or
 // offset it causes must reach min_effect_um (about two encoder counts). This keeps a tiny
 // "friction" that only bends the fit around unmodelled sub-micron dynamics out of the report.
-bool resolvable(const AxisModel& m, Effect e, const Problem& pb, double min_effect_um) {
+// The floor is also the held-out RMS the current model already misses by (cur_val_um): on a
+// plant whose structure the baseline lacks (the second simulator: 4-9 um RMS on clean draws) a
+// scale error of 3 um over the whole travel, fitted beside a 30 um runout, is not a finding.
+bool resolvable(const AxisModel& m, Effect e, const Problem& pb, const FitOptions& o,
+                double cur_val_um) {
+  const double min_effect_um = std::max(o.min_effect_um, cur_val_um);
   const double k_series = m.k1_n_m * m.k2_n_m / (m.k1_n_m + m.k2_n_m);
   switch (e) {
-    case Effect::kCoulombFriction: return 2.0 * m.friction_force_n / k_series * 1e6 >= min_effect_um;
+    case Effect::kCoulombFriction:
+      return 2.0 * m.friction_force_n / k_series * 1e6 >= min_effect_um &&
+             m.friction_force_n >= o.min_friction_n;
     case Effect::kBacklash: return m.backlash_width_um >= min_effect_um;
     case Effect::kPeriodicPosition: return 2.0 * m.periodic_amplitude_um() >= min_effect_um;
     case Effect::kScaleError: {
@@ -563,6 +677,28 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
         }
       }
     }
+    // The null candidate fitted exactly as every candidate is screened below (from the current
+    // model, the same iterations, the same window): on a plant the baseline cannot fit exactly
+    // (the second simulator: distributed belt, LuGre friction) a fit on the screening window can
+    // predict the held-out part better than the longer fit did, and any candidate would then be
+    // credited with that (every one of the seven lowered the held-out RMS of a clean draw from
+    // 5.6 to 3.3-3.8 um). An effect must beat the baseline refitted the same way.
+    const size_t screen_end = static_cast<size_t>(std::max(o.screen_window_s, 1.0) / period_s);
+    {
+      report(static_cast<double>(round - 1) / rounds, "refit current model as screened");
+      AxisModel null_model =
+          levenberg_marquardt(cur, free_params(cur), pb, o.screen_iterations, screen_end);
+      std::vector<double> ys;
+      if (run(null_model, pb, &ys)) {
+        const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);
+        if (val < cur_val) {
+          cur = null_model;
+          cur_val = val;
+          y_cur = std::move(ys);
+          cur_converged = false;
+        }
+      }
+    }
     // Screening every candidate: two worker threads take candidates from a shared counter (the
     // expensive extra_resonance guess first); each candidate's fit is single-threaded and
     // independent of the others, so the result does not depend on the scheduling.
@@ -581,7 +717,6 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
     std::atomic<size_t> next{0};
     std::atomic<int> finished{0};
     std::mutex progress_mutex;
-    const size_t screen_end = static_cast<size_t>(std::max(o.screen_window_s, 1.0) / period_s);
     auto worker = [&] {
       for (size_t t = next.fetch_add(1); t < todo.size(); t = next.fetch_add(1)) {
         const Effect e = todo[t];
@@ -618,7 +753,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
       Screened& sc = screened[static_cast<size_t>(it - todo.begin())];
       if (!sc.done) continue;
       out.candidates.push_back(CandidateResult{e, sc.val, false, round});
-      if (sc.val < best_val && resolvable(sc.model, e, pb, o.min_effect_um)) {
+      if (sc.val < best_val && resolvable(sc.model, e, pb, o, cur_val)) {
         best_val = sc.val;
         best = i;
         best_model = sc.model;

@@ -27,6 +27,11 @@ struct FitOptions {
   double min_improvement = 0.15;   // keep an effect only if held-out RMS falls by more than this
   double min_explained_um = 0.6;   // ... and only if it explains at least this much RMS (in quadrature)
   double min_effect_um = 1.0;       // ... and only if the effect's own size is resolvable (2 counts)
+  // Friction is named only above a free-running carriage's drag: every axis has some (the second
+  // simulator draws 0.05-0.25 N into every machine, its friction effect 1.5-5 N; the first
+  // simulator's friction effect 0.8-4 N), and a drag that small is not what `coulomb_friction`
+  // reports (docs/ident.md, "Judged on random draws").
+  double min_friction_n = 0.5;
   // A resonance that the time-domain test cannot see is kept when the baseline misses the
   // held-out FRF by more than this (mean |H1 / G - 1| where coherent; clean thesis axes: 0.02-0.06)
   // and the resonance at least halves that.

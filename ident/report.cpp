@@ -49,7 +49,8 @@ Status write_file(const std::filesystem::path& p, const std::string& text) {
 std::vector<std::pair<std::string, double>> effect_params_report(const AxisModel& m, Effect e) {
   switch (e) {
     case Effect::kPeriodicPosition: return {{"period_mm", m.period_mm}, {"amplitude_um", m.periodic_amplitude_um()}};
-    case Effect::kCoulombFriction: return {{"force_n", m.friction_force_n}};
+    case Effect::kCoulombFriction:
+      return {{"force_n", m.friction_force_n}, {"presliding_um", m.presliding_um}};
     case Effect::kBacklash: return {{"width_um", m.backlash_width_um}};
     case Effect::kDirectionStiffness: return {{"ratio", m.stiffness_ratio}};
     case Effect::kExtraResonance: return {{"freq_hz", m.extra_freq_hz}, {"damping", m.extra_damping}};
