@@ -657,6 +657,18 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   for (size_t k = 0; k < n; ++k) out.baseline_residual_mm[k] = meas_mm[k] - y_cur[k];
 
   const auto fit_end = static_cast<size_t>(std::max(o.fit_window_s, 1.0) / period_s);
+  // Adopts a refitted model when its held-out RMS is lower than *val.
+  auto keep_if_better = [&](const AxisModel& fitted, bool fitted_converged, AxisModel* model,
+                            double* val, std::vector<double>* y, bool* converged) {
+    std::vector<double> ys;
+    if (!run(fitted, pb, &ys)) return;
+    const double v = residual_rms_um(ys, meas_mm, pb.train_end, n);
+    if (v >= *val) return;
+    *model = fitted;
+    *val = v;
+    *y = std::move(ys);
+    *converged = fitted_converged;
+  };
   AxisModel cur = out.baseline;
   double cur_val = out.baseline_validation_rms_um;
   const int rounds = std::max(o.max_effects, 0);
@@ -666,16 +678,9 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
     // its last fit converged already).
     if (!cur_converged) {
       report(static_cast<double>(round - 1) / rounds, "polish current model");
-      AxisModel polished = levenberg_marquardt(cur, free_params(cur), pb, o.screen_iterations, fit_end);
-      std::vector<double> ys;
-      if (run(polished, pb, &ys)) {
-        const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);
-        if (val < cur_val) {
-          cur = polished;
-          cur_val = val;
-          y_cur = std::move(ys);
-        }
-      }
+      // cur_converged is false here and stays so.
+      keep_if_better(levenberg_marquardt(cur, free_params(cur), pb, o.screen_iterations, fit_end),
+                     false, &cur, &cur_val, &y_cur, &cur_converged);
     }
     // The null candidate fitted exactly as every candidate is screened below (from the current
     // model, the same iterations, the same window): on a plant the baseline cannot fit exactly
@@ -686,18 +691,9 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
     const size_t screen_end = static_cast<size_t>(std::max(o.screen_window_s, 1.0) / period_s);
     {
       report(static_cast<double>(round - 1) / rounds, "refit current model as screened");
-      AxisModel null_model =
-          levenberg_marquardt(cur, free_params(cur), pb, o.screen_iterations, screen_end);
-      std::vector<double> ys;
-      if (run(null_model, pb, &ys)) {
-        const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);
-        if (val < cur_val) {
-          cur = null_model;
-          cur_val = val;
-          y_cur = std::move(ys);
-          cur_converged = false;
-        }
-      }
+      keep_if_better(
+          levenberg_marquardt(cur, free_params(cur), pb, o.screen_iterations, screen_end), false,
+          &cur, &cur_val, &y_cur, &cur_converged);
     }
     // Screening every candidate: two worker threads take candidates from a shared counter (the
     // expensive extra_resonance guess first); each candidate's fit is single-threaded and
@@ -772,16 +768,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
         bool refit_converged = false;
         AxisModel refit = levenberg_marquardt(best_model, free_params(best_model), pb,
                                               o.max_iterations, fit_end, true, &refit_converged);
-        std::vector<double> ys;
-        if (run(refit, pb, &ys)) {
-          const double val = residual_rms_um(ys, meas_mm, pb.train_end, n);
-          if (val < best_val) {
-            best_val = val;
-            best_model = refit;
-            best_y = std::move(ys);
-            best_converged = refit_converged;
-          }
-        }
+        keep_if_better(refit, refit_converged, &best_model, &best_val, &best_y, &best_converged);
       }
       // Significant: a relative drop of the held-out RMS, and an explained part (the RMS that the
       // effect removes, in quadrature) above the encoder's resolution.
