@@ -1,6 +1,8 @@
 // Step generation + compression throughput and bytes on the wire per step.
-// Usage: bench_stepgen [--json FILE] [--moves N]
-// Workloads: printing-like trapezoid moves (quadratic pieces) and 1 ms cubic pieces (delta-like).
+// Usage: bench_stepgen [--json FILE] [--moves N] [--gcode FILE [--config FILE]]
+// Workloads: printing-like trapezoid moves (quadratic pieces) and 1 ms cubic pieces (delta-like);
+// with --gcode, also every joint of a real slicer file as batch mode plans it (its joint segments,
+// its steps/mm and MCU clock), one row per joint and error bound.
 // Columns: workload, error bound, steps, ns/step for generation alone, ns/step for
 // generation+compression+batch encoding, Msteps/s, run bytes per step, wire bytes per step
 // (including frame and message headers, docs/protocol.md), mean steps per run.
@@ -8,13 +10,17 @@
 
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "config/config.hpp"
 #include "drivers/stepgen/step_batcher.hpp"
 #include "drivers/stepgen/step_compressor.hpp"
 #include "drivers/stepgen/step_generator.hpp"
+#include "engine/batch.hpp"
+#include "engine/config_mapping.hpp"
 #include "segment_streams.hpp"
 
 using namespace feedloop;
@@ -60,8 +66,9 @@ void compress(const StoreSteps& st, StepCompressor& c) {
     c.on_steps(st.ticks.data() + i, st.dirs.data() + i, std::min(kChunk, st.ticks.size() - i));
 }
 
-Row run(const std::string& name, const std::vector<JointSegment>& segs, double spm, double err_us) {
-  const TickMap map{0.0, 20e6};
+Row run(const std::string& name, const std::vector<JointSegment>& segs, double spm, double err_us,
+        double clock_hz = 20e6) {
+  const TickMap map{0.0, clock_hz};
   Row r{name, err_us, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
   StoreSteps st;
   {
@@ -88,7 +95,7 @@ Row run(const std::string& name, const std::vector<JointSegment>& segs, double s
     StepBatcher b;
     b.configure(0, 200, &cb);
     StepCompressor c;
-    c.configure({err_us * 20.0, 65535}, &b);
+    c.configure({err_us * clock_hz * 1e-6, 65535}, &b);
     const double t0 = now_s();
     compress(st, c);
     c.flush();
@@ -100,7 +107,7 @@ Row run(const std::string& name, const std::vector<JointSegment>& segs, double s
   StepBatcher b;
   b.configure(0, 200, &cb);
   StepCompressor c;
-  c.configure({err_us * 20.0, 65535}, &b);
+  c.configure({err_us * clock_hz * 1e-6, 65535}, &b);
   StepGenerator g;
   g.configure(spm, map, &c);
   g.set_position_mm(segs.front().c0_mm);
@@ -121,15 +128,60 @@ Row run(const std::string& name, const std::vector<JointSegment>& segs, double s
   return r;
 }
 
+// Every joint's segments of a G-code file as batch mode plans them (one thread, no stepping).
+struct SegmentLog final : planner::JointSink {
+  std::array<std::vector<JointSegment>, engine::kJoints> joints;
+  void on_joint_segment(int joint, const JointSegment& s) override {
+    joints[static_cast<size_t>(joint)].push_back(s);
+  }
+};
+
+// Appends one row per joint that moves and error bound; false (with a message) on a bad file.
+bool gcode_rows(const std::string& gcode, const std::string& config_path, std::vector<Row>& rows) {
+  auto cfg = config_path.empty() ? Result<config::MachineConfig>(config::default_config())
+                                 : config::load_config_file(config_path);
+  if (!cfg) {
+    std::fprintf(stderr, "%s\n", cfg.error().to_string().c_str());
+    return false;
+  }
+  SegmentLog log;
+  engine::BatchOptions opt;
+  opt.threads = 1;
+  opt.last_stage = engine::BatchStage::step_times;  // the joints' segments reach the tap
+  opt.segment_tap = &log;
+  auto sum = engine::run_batch(gcode, cfg.value(), opt);
+  if (!sum) {
+    std::fprintf(stderr, "%s\n", sum.error().to_string().c_str());
+    return false;
+  }
+  const auto spm = engine::steps_per_mm(cfg.value());
+  const auto clock_hz = static_cast<double>(cfg.value().stepgen.mcu_clock_hz);
+  const std::string base = std::filesystem::path(gcode).stem().string();
+  for (double e : {5.0, 25.0})
+    for (size_t j = 0; j < engine::kJoints; ++j)
+      if (!log.joints[j].empty())
+        rows.push_back(
+            run(base + ":" + sum.value().joint_names[j], log.joints[j], spm[j], e, clock_hz));
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string json;
+  std::string json, gcode, config_path;
   int moves = 20000;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--json") && i + 1 < argc) json = argv[++i];
     else if (!std::strcmp(argv[i], "--moves") && i + 1 < argc) moves = std::atoi(argv[++i]);
-    else { std::fprintf(stderr, "usage: %s [--json FILE] [--moves N]\n", argv[0]); return 2; }
+    else if (!std::strcmp(argv[i], "--gcode") && i + 1 < argc)
+      gcode = argv[++i];
+    else if (!std::strcmp(argv[i], "--config") && i + 1 < argc)
+      config_path = argv[++i];
+    else {
+      std::fprintf(stderr, "usage: %s [--json FILE] [--moves N] [--gcode FILE [--config FILE]]\n",
+                   argv[0]);
+      return 2;
+    }
   }
   std::mt19937_64 rng(42);
   const auto trap = testing::trapezoid_stream(rng, moves);
@@ -139,12 +191,13 @@ int main(int argc, char** argv) {
     rows.push_back(run("trapezoid", trap, 80.0, e));
     rows.push_back(run("cubic_1ms", cubic, 160.0, e));
   }
-  std::printf("%-10s %6s %10s %8s %8s %10s %9s %8s %8s %9s %10s %9s %9s\n", "workload", "err_us",
+  if (!gcode.empty() && !gcode_rows(gcode, config_path, rows)) return 1;
+  std::printf("%-20s %6s %10s %8s %8s %10s %9s %8s %8s %9s %10s %9s %9s\n", "workload", "err_us",
               "steps", "gen_ns", "comp_ns", "comp_Mst/s", "total_ns", "Msteps/s", "run_B/st",
               "wire_B/st", "steps/run", "search/st", "trial/sr");
   for (const auto& r : rows)
     std::printf(
-        "%-10s %6.0f %10.0f %8.2f %8.2f %10.1f %9.2f %8.1f %8.3f %9.3f %10.1f %9.3f %9.2f\n",
+        "%-20s %6.0f %10.0f %8.2f %8.2f %10.1f %9.2f %8.1f %8.3f %9.3f %10.1f %9.3f %9.2f\n",
         r.workload.c_str(), r.err_us, r.steps, r.gen_ns, r.comp_ns, 1e3 / r.comp_ns, r.total_ns,
         r.msteps_s, r.run_bps, r.wire_bps, r.steps_per_run, r.searches_per_step,
         r.trials_per_search);
