@@ -40,13 +40,18 @@ Result<std::vector<Complex>> pole_pairs(const model::TransferFunction& tf, size_
 struct CarriageTheta {
   double wn, zeta, c_over_m, d0, d1, d2, wn_added;
   static constexpr int kSize = 7;
-  // x = [ln wn, ln zeta, c/m / 10, ln d0, d1 / 100, ln d2, ln wn']
+  // x = [ln wn, ln zeta, sqrt(c/m / 10), ln d0, d1 / 100, ln d2, ln wn']. c/m >= 0 by construction:
+  // the zero -k/c (~23 krad/s) is seen only as a phase lead of c/k (~44 us) across the band, which
+  // a measurement delay of the same size cancels (an encoder read 50 us late asks for c < 0); then
+  // c ends at 0 and the delay is left in the fit's residual instead (docs/ident_delta.md).
   static CarriageTheta from(const Eigen::VectorXd& x) {
-    return {std::exp(x[0]), std::exp(x[1]), 10.0 * x[2], std::exp(x[3]), 100.0 * x[4], std::exp(x[5]), std::exp(x[6])};
+    return {std::exp(x[0]), std::exp(x[1]), 10.0 * x[2] * x[2], std::exp(x[3]),
+            100.0 * x[4],   std::exp(x[5]), std::exp(x[6])};
   }
   Eigen::VectorXd to() const {
     Eigen::VectorXd x(kSize);
-    x << std::log(wn), std::log(zeta), c_over_m / 10.0, std::log(d0), d1 / 100.0, std::log(d2), std::log(wn_added);
+    x << std::log(wn), std::log(zeta), std::sqrt(std::max(c_over_m, 0.0) / 10.0), std::log(d0),
+        d1 / 100.0, std::log(d2), std::log(wn_added);
     return x;
   }
   Complex electrical(Complex s) const { return (d1 * s + d0) / (s * s + d2 * s + d0); }

@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cmath>
+#include <memory>
 #include <numbers>
 #include <string>
 
@@ -165,6 +166,97 @@ Result<ident::delta::DeltaMeasurements> simulate_measurements(
   return m;
 }
 
+namespace {
+
+// The commanded staircase of the driven carriage and every carriage's reading, one sample per
+// substep, after one settling period.
+struct SweepRecord {
+  double rate_hz = 0.0;
+  std::vector<double> u;
+  std::array<std::vector<double>, 3> y;
+};
+
+// A random-phase multisine (one line per grid frequency, period 1 / grid step, sweep.rms_mm RMS)
+// on carriage `driven`'s steps; the plant's substep is the sample rate (every step on an update
+// instant).
+Result<SweepRecord> run_multisine(DeltaPlant& pl, int driven, const model::FrequencyGrid& grid,
+                                  uint64_t seed, const SweepSpec& sweep) {
+  const DeltaPlantParams& p = pl.params();
+  const double period_s = 1.0 / grid.step_hz;
+  SweepRecord rec;
+  rec.rate_hz = p.substep_hz;
+  const auto per_period = static_cast<int>(std::llround(period_s * rec.rate_hz));
+  if (std::abs(per_period / rec.rate_hz - period_s) > 1e-9 * period_s)
+    return Error{"sweep: the multisine period must be a whole number of simulator substeps", {}};
+  Rng rng(seed);
+  std::vector<double> phase(static_cast<size_t>(grid.size()));
+  for (double& ph : phase) ph = kTwoPi * rng.uniform();
+  const double amp = sweep.rms_mm * std::sqrt(2.0 / grid.size());
+  StepDriver drive(pl.carriage_port(driven), p.mm_per_step, 0.0, 0.0);
+  const int total = (sweep.periods + 1) * per_period;
+  const auto kept = static_cast<size_t>(sweep.periods * per_period);
+  rec.u.reserve(kept);
+  for (auto& y : rec.y) y.reserve(kept);
+  const double mm_per_count = p.encoder.resolution_um * 1e-3;
+  // sin(w_k t + phi_k) by rotation: one complex multiply per line per sample.
+  std::vector<Complex> rot(phase.size()), cur(phase.size());
+  for (size_t k = 0; k < phase.size(); ++k) {
+    rot[k] = std::polar(1.0, kTwoPi * grid.at_hz(static_cast<int>(k)) / rec.rate_hz);
+    cur[k] = std::polar(1.0, phase[k]);
+  }
+  for (int n = 1; n <= total; ++n) {
+    double target = 0.0;
+    for (size_t k = 0; k < cur.size(); ++k) {
+      cur[k] *= rot[k];
+      target += amp * cur[k].imag();
+    }
+    if (n % per_period == 0)  // renormalise against rounding drift once a period
+      for (size_t k = 0; k < cur.size(); ++k) cur[k] /= std::abs(cur[k]);
+    const double t = n / rec.rate_hz;
+    drive.update(t, target);
+    pl.advance_to(t);
+    if (n > per_period) {
+      rec.u.push_back(drive.commanded_mm());
+      for (int i = 0; i < 3; ++i)
+        rec.y[static_cast<size_t>(i)].push_back(
+            sweep.read_encoders
+                ? static_cast<double>(pl.carriage_port(i).read_encoder_counts(t)) * mm_per_count
+                : pl.carriage_rel_mm(i));
+    }
+  }
+  return rec;
+}
+
+// H1 of y against the staircase u (rectangular window, one period per segment), divided by the
+// zero-order hold of the staircase, (1 - e^{-jwT}) / (jwT).
+Result<std::vector<Complex>> h1_over_zoh(const SweepRecord& rec, const std::vector<double>& y,
+                                         const model::FrequencyGrid& grid, double period_s) {
+  ident::WelchOptions opt;
+  opt.segment_s = period_s;
+  opt.overlap = 0.0;
+  opt.window = ident::FrfWindow::kRectangular;
+  opt.detrend = false;
+  auto est = ident::estimate_frf_h1(rec.u, y, rec.rate_hz, grid, opt);
+  if (!est.ok()) return Error{"sweep H1: " + est.error().message, {}};
+  std::vector<Complex> h(est->h1.size());
+  const double dt = 1.0 / rec.rate_hz;
+  for (size_t k = 0; k < h.size(); ++k) {
+    const double w = kTwoPi * grid.at_hz(static_cast<int>(k));
+    const Complex zoh = (1.0 - std::polar(1.0, -w * dt)) / Complex(0.0, w * dt);
+    h[k] = est->h1[k] / zoh;
+  }
+  return h;
+}
+
+// The sweeps sample and update the drive once per substep (every step on an update instant), so
+// the substep is the measurement's rate: 40 kHz unless the caller fixed one.
+Result<std::unique_ptr<DeltaPlant>> sweep_plant(DeltaPlantParams p) {
+  if (p.substep_hz == 0.0) p.substep_hz = 40000.0;
+  return DeltaPlant::create(p);
+}
+
+}  // namespace
+
 Result<std::vector<Complex>> measure_carriage_h1(const DeltaPlantParams& truth,
                                                  const ident::delta::MeasurementPlan& plan,
                                                  bool added_mass, const SweepSpec& sweep) {
@@ -177,67 +269,85 @@ Result<std::vector<Complex>> measure_carriage_h1(const DeltaPlantParams& truth,
   p.gravity_m_s2 = 0.0;
   p.initial_nozzle_mm = plan.centre_mm;
   if (added_mass) p.model.m_c_kg += plan.m_add_kg;
-  // The sweep samples and updates the drive once per substep (every step on an update instant),
-  // so the substep is the measurement's rate: 40 kHz unless the caller fixed one. The detached
-  // carriage's own fastest mode would give 1 kHz, too coarse for H1 of lines up to 300 Hz.
-  if (p.substep_hz == 0.0) p.substep_hz = 40000.0;
-  auto plant = DeltaPlant::create(p);
+  // (The detached carriage's own fastest mode would give 1 kHz, too coarse for H1 of lines up to
+  // 300 Hz.)
+  auto plant = sweep_plant(p);
   if (!plant.ok()) return plant.error();
-  DeltaPlant& pl = **plant;
+  auto rec =
+      run_multisine(**plant, 0, plan.carriage_grid, plan.seed + (added_mass ? 101 : 0), sweep);
+  if (!rec.ok()) return rec.error();
+  return h1_over_zoh(*rec, rec->y[0], plan.carriage_grid, 1.0 / plan.carriage_grid.step_hz);
+}
 
-  const model::FrequencyGrid& grid = plan.carriage_grid;
-  const double period_s = 1.0 / grid.step_hz;
-  const double rate_hz = p.substep_hz;
-  const auto per_period = static_cast<int>(std::llround(period_s * rate_hz));
-  if (std::abs(per_period / rate_hz - period_s) > 1e-9 * period_s)
-    return Error{"sweep: the multisine period must be a whole number of simulator substeps", {}};
-  // Random-phase multisine, one line per grid frequency, scaled to the requested RMS.
-  Rng rng(plan.seed + (added_mass ? 101 : 0));
-  std::vector<double> phase(static_cast<size_t>(grid.size()));
-  for (double& ph : phase) ph = kTwoPi * rng.uniform();
-  const double amp = sweep.rms_mm * std::sqrt(2.0 / grid.size());
-  StepDriver drive(pl.carriage_port(0), p.mm_per_step, 0.0, 0.0);
-  const int total = (sweep.periods + 1) * per_period;
-  std::vector<double> u, y;
-  u.reserve(static_cast<size_t>(sweep.periods * per_period));
-  y.reserve(u.capacity());
-  // sin(w_k t + phi_k) by rotation: one complex multiply per line per sample.
-  std::vector<Complex> rot(phase.size()), cur(phase.size());
-  for (size_t k = 0; k < phase.size(); ++k) {
-    rot[k] = std::polar(1.0, kTwoPi * grid.at_hz(static_cast<int>(k)) / rate_hz);
-    cur[k] = std::polar(1.0, phase[k]);
-  }
-  for (int n = 1; n <= total; ++n) {
-    double target = 0.0;
-    for (size_t k = 0; k < cur.size(); ++k) {
-      cur[k] *= rot[k];
-      target += amp * cur[k].imag();
-    }
-    if (n % per_period == 0)  // renormalise against rounding drift once a period
-      for (size_t k = 0; k < cur.size(); ++k) cur[k] /= std::abs(cur[k]);
-    const double t = n / rate_hz;
-    drive.update(t, target);
-    pl.advance_to(t);
-    if (n > per_period) {
-      u.push_back(drive.commanded_mm());
-      y.push_back(pl.carriage_rel_mm(0));
+Result<AssemblyH1> measure_assembly_h1(const DeltaPlantParams& truth,
+                                       const Eigen::Vector3d& position_mm,
+                                       const model::FrequencyGrid& grid, uint64_t seed,
+                                       const SweepSpec& sweep, const model::FrequencyGrid* also) {
+  if (Status s = check_grid(grid, "sweep grid"); !s) return s.error();
+  if (!(sweep.rms_mm > 0.0) || sweep.periods < 1)
+    return Error{"sweep: rms_mm > 0 and periods >= 1 needed", {}};
+  if (also != nullptr &&
+      (std::abs(also->step_hz - grid.step_hz) > 1e-12 || also->start_hz < grid.start_hz ||
+       also->stop_hz > grid.stop_hz ||
+       std::abs(std::remainder(also->start_hz - grid.start_hz, grid.step_hz)) > 1e-9))
+    return Error{"sweep: the second grid's lines must be among the excited ones", {}};
+  AssemblyH1 out;
+  out.h.assign(static_cast<size_t>(grid.size()), Eigen::Matrix3cd::Zero());
+  if (also != nullptr)
+    out.h_also.assign(static_cast<size_t>(also->size()), Eigen::Matrix3cd::Zero());
+  for (int j = 0; j < 3; ++j) {
+    DeltaPlantParams p = truth;
+    p.initial_nozzle_mm = position_mm;
+    p.seed = truth.seed + 17 * static_cast<uint64_t>(j + 1);  // the encoders' noise differs per run
+    auto plant = sweep_plant(p);
+    if (!plant.ok()) return plant.error();
+    auto rec = run_multisine(**plant, j, grid, seed + 7 * static_cast<uint64_t>(j), sweep);
+    if (!rec.ok()) return rec.error();
+    for (int i = 0; i < 3; ++i) {
+      const auto& y = rec->y[static_cast<size_t>(i)];
+      auto h = h1_over_zoh(*rec, y, grid, 1.0 / grid.step_hz);
+      if (!h.ok()) return h.error();
+      for (size_t k = 0; k < h->size(); ++k) out.h[k](i, j) = (*h)[k];
+      if (also == nullptr) continue;
+      auto ha = h1_over_zoh(*rec, y, *also, 1.0 / grid.step_hz);
+      if (!ha.ok()) return ha.error();
+      for (size_t k = 0; k < ha->size(); ++k) out.h_also[k](i, j) = (*ha)[k];
     }
   }
-  ident::WelchOptions opt;
-  opt.segment_s = period_s;
-  opt.overlap = 0.0;
-  opt.window = ident::FrfWindow::kRectangular;
-  opt.detrend = false;
-  auto est = ident::estimate_frf_h1(u, y, rate_hz, grid, opt);
-  if (!est.ok()) return Error{"sweep H1: " + est.error().message, {}};
-  std::vector<Complex> h(est->h1.size());
-  const double dt = 1.0 / rate_hz;
-  for (size_t k = 0; k < h.size(); ++k) {
-    const double w = kTwoPi * grid.at_hz(static_cast<int>(k));
-    const Complex zoh = (1.0 - std::polar(1.0, -w * dt)) / Complex(0.0, w * dt);
-    h[k] = est->h1[k] / zoh;
+  return out;
+}
+
+Result<ident::delta::DeltaMeasurements> simulate_measurements_from_encoders(
+    const DeltaPlantParams& truth, const ident::delta::MeasurementPlan& plan, SweepSpec sweep) {
+  sweep.read_encoders = true;
+  ident::delta::MeasurementPlan small = plan;
+  small.noise_rel = 0.0;
+  // The impact test and the known quantities as simulate_measurements has them; the rest replaced.
+  auto m = simulate_measurements(truth, small);
+  if (!m.ok()) return m.error();
+  for (int pass = 0; pass < 2; ++pass) {
+    auto h = measure_carriage_h1(truth, plan, pass == 1, sweep);
+    if (!h.ok()) return Error{"carriage sweep: " + h.error().message, {}};
+    (pass == 0 ? m->carriage : m->carriage_added) = std::move(*h);
   }
-  return h;
+  auto jbar = model::jacobian(truth.model.geometry, plan.centre_mm);
+  if (!jbar.ok()) return Error{"centre position: " + jbar.error().message, {}};
+  const Eigen::Matrix3d jinv = jbar->inverse();
+  auto centre = measure_assembly_h1(truth, plan.centre_mm, plan.centre_grid, plan.seed + 1000,
+                                    sweep, &plan.validation_grid);
+  if (!centre.ok()) return Error{"centre sweeps: " + centre.error().message, {}};
+  m->centre_task.clear();
+  for (const auto& h : centre->h) m->centre_task.push_back(h * jinv);
+  m->centre = to_set(plan.validation_grid, std::move(centre->h_also));
+  for (int p = 0; p < 3; ++p) {
+    auto v =
+        measure_assembly_h1(truth, plan.validation_mm[static_cast<size_t>(p)], plan.validation_grid,
+                            plan.seed + 2000 + 100 * static_cast<uint64_t>(p), sweep);
+    if (!v.ok()) return Error{"validation sweeps: " + v.error().message, {}};
+    m->validation[static_cast<size_t>(p)] = to_set(plan.validation_grid, std::move(v->h));
+  }
+  m->plan = plan;
+  return m;
 }
 
 }  // namespace feedloop::sim
