@@ -175,10 +175,14 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
   o.augmented_rms_um = res.augmented_rms_um;
   for (Effect e : res.effects) {
     o.found += std::string(o.found.empty() ? "" : " ") + ident::effect_name(e);
-    char value[48];
+    char value[64];
     std::snprintf(value, sizeof value, "%s%s=%.4g", o.found_values.empty() ? "" : " ",
                   ident::effect_name(e), reported_key(res.augmented, e));
     o.found_values += value;
+    if (e == Effect::kCoulombFriction) {  // and the fitted presliding (not judged)
+      std::snprintf(value, sizeof value, "(z %.3g um)", res.augmented.presliding_um);
+      o.found_values += value;
+    }
   }
   if (o.found.empty()) o.found = o.found_values = "none";
   if (!kind.effect) {
