@@ -124,6 +124,7 @@ void write_motion(Writer& w, const MachineConfig& c) {
   w.word("mode", enum_name(control_mode_names(), k.mode));
   w.word("loop", enum_name(control_loop_names(), k.loop));
   w.num("device_rate_hz", k.device_rate_hz);
+  w.boolean("sub_step_trim", k.sub_step_trim);
   w.num("kp", k.kp);
   w.num("ki_per_s", k.ki_per_s);
   w.num("max_correction_mm_s", k.max_correction_mm_s);

@@ -167,6 +167,9 @@ struct ControlConfig {
   ControlMode mode = ControlMode::open_loop;  // pi needs encoders
   ControlLoop loop = ControlLoop::device;     // mode pi: where the PI runs
   double device_rate_hz = 1000.0;             // loop device: the MCU's control rate (thesis: 1 kHz)
+  bool sub_step_trim = true;                  // loop device: the correction below a step as a
+                                              // driver current phase (drivers with direct current
+                                              // control; a no-op for others)
   double kp = 0.5;                            // thesis Sect. 5: P = 0.5
   double ki_per_s = 20.0;                     // thesis Sect. 5: I = 20
   double max_correction_mm_s = 50.0;          // clamp of the PI correction (per period: / rate_hz)

@@ -114,6 +114,7 @@ void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag) 
   c.choice("mode", cc.mode, control_mode_names());
   c.choice("loop", cc.loop, control_loop_names());
   c.number("device_rate_hz", cc.device_rate_hz, Range::closed(100.0, 20000.0));
+  c.boolean("sub_step_trim", cc.sub_step_trim);
   c.number("kp", cc.kp, Range::non_negative());
   c.number("ki_per_s", cc.ki_per_s, Range::non_negative());
   c.number("max_correction_mm_s", cc.max_correction_mm_s, Range::positive());

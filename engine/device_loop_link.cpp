@@ -70,6 +70,7 @@ device::LoopParams DeviceLoopLink::params_from_config(const config::MachineConfi
   // expects (the belt's position and direction dependence, the identified friction): the slip
   // check takes that lead (the host loop's detector does the same, engine/servo_control.cpp).
   p.deflection_from_host_steps = cfg.feedforward.type == config::FeedforwardType::lpv;
+  p.sub_step_trim = cfg.control.sub_step_trim;
   p.report_every_ticks =
       static_cast<uint32_t>(std::max(1.0, std::round(c.device_rate_hz / 100.0)));  // 100 Hz
   // A delta carriage's correction acts through its electrical part, a 46-65 Hz mode with zeta

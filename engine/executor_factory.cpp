@@ -32,6 +32,9 @@ MotionOptions motion_options(const config::MachineConfig& cfg) {
   // the steps, so a host stall shorter than that changes nothing. On the host: its loop delay.
   const bool device_loop = cfg.control.mode == config::ControlMode::pi && cfg.control.loop == config::ControlLoop::device;
   mo.control_lead_s = device_loop ? cfg.stepgen.queue_ahead_ms * 1e-3 : cfg.control.command_lead_ms * 1e-3;
+  // With the sub-step trim the loop can settle within a count; its integral's tail after a stop
+  // (an overshoot of up to ~0.2 mm decaying with ~70 ms) needs ~0.7 s for that, not 0.4.
+  if (device_loop && cfg.control.sub_step_trim) mo.control_settle_s = 0.8;
   return mo;
 }
 

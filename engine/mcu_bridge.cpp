@@ -75,6 +75,7 @@ struct McuBridge::JointPort final : device::MotorPort {
     plant->step(t_s, direction);
   }
   void set_enabled(double t_s, bool on) override { plant->set_enabled(t_s, on); }
+  void set_step_fraction(double t_s, float f) override { plant->set_step_fraction(t_s, f); }
   int64_t read_encoder_counts(double t_s) override {
     return plant->read_encoder_counts(t_s) + encoder_offset_counts;
   }

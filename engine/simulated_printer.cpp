@@ -57,6 +57,7 @@ class DeltaEndstopPort final : public device::MotorPort {
       : plant_(&plant), port_(&plant.carriage_port(carriage)), carriage_(carriage), sw_(&sw) {}
   void step(double t_s, int direction) override { port_->step(t_s, direction); }
   void set_enabled(double t_s, bool enabled) override { port_->set_enabled(t_s, enabled); }
+  void set_step_fraction(double t_s, float f) override { port_->set_step_fraction(t_s, f); }
   int64_t read_encoder_counts(double t_s) override { return port_->read_encoder_counts(t_s); }
   bool read_endstop(double t_s) override {
     plant_->advance_to(t_s);
@@ -80,6 +81,7 @@ class CoreXyEndstopPort final : public device::MotorPort {
       : own_(&own), a_(&a), b_(&b), b_sign_(b_sign), sw_(&sw) {}
   void step(double t_s, int direction) override { own_->step(t_s, direction); }
   void set_enabled(double t_s, bool enabled) override { own_->set_enabled(t_s, enabled); }
+  void set_step_fraction(double t_s, float f) override { own_->set_step_fraction(t_s, f); }
   int64_t read_encoder_counts(double t_s) override { return own_->read_encoder_counts(t_s); }
   bool read_endstop(double t_s) override {
     a_->advance_to(t_s);

@@ -168,7 +168,7 @@ GantryAxis::State GantryAxis::derivative_(const State& x, double u_m, double sin
 }
 
 void GantryAxis::integrate_(State& x, double h) const {
-  const double u = static_cast<double>(steps_) * m_per_step_true_ + u0_m_;
+  const double u = (static_cast<double>(steps_) + step_fraction_) * m_per_step_true_ + u0_m_;
   const double phase0 = phase_per_m_ * (x[kField] - x[kRotor]);
   const double s0 = std::sin(phase0), c0 = std::cos(phase0);
   auto stage = [&](const State& xs) {
@@ -233,6 +233,15 @@ void GantryAxis::step(double t_s, int direction) {
   if (t_s_ > tc_s_) advance_to_view_();
 }
 
+void GantryAxis::set_step_fraction(double t_s, float fraction) {
+  const double f = std::clamp(static_cast<double>(fraction), -1.0, 1.0);
+  if (f == step_fraction_) return;
+  if (t_s < tc_s_) ++late_events_;
+  commit_to_(t_s);
+  step_fraction_ = f;
+  if (t_s_ > tc_s_) advance_to_view_();
+}
+
 void GantryAxis::set_enabled(double t_s, bool enabled) {
   if (t_s < tc_s_) ++late_events_;
   commit_to_(t_s);
@@ -255,7 +264,7 @@ int64_t GantryAxis::read_encoder_counts(double t_s) {
 }
 
 LinearModel GantryAxis::linearize() const {
-  const double u0 = static_cast<double>(steps_) * m_per_step_true_ + u0_m_;
+  const double u0 = (static_cast<double>(steps_) + step_fraction_) * m_per_step_true_ + u0_m_;
   Dynamics f = [this](const Eigen::VectorXd& x, const Eigen::VectorXd& u) -> Eigen::VectorXd {
     return derivative(State(x), u[0]);
   };

@@ -52,6 +52,9 @@ class GantryAxis final : public device::MotorPort {
 
   // MotorPort (RT-safe: no allocation).
   void step(double t_s, int direction) override;
+  // The driver's current vector `fraction` of a microstep beyond the step count (direct current
+  // control): the commanded position is (steps + fraction) x step.
+  void set_step_fraction(double t_s, float fraction) override;
   void set_enabled(double t_s, bool enabled) override;
   int64_t read_encoder_counts(double t_s) override;
 
@@ -108,6 +111,7 @@ class GantryAxis final : public device::MotorPort {
   State x_ = State::Zero();
   double t_s_ = 0.0;
   int64_t steps_ = 0;
+  double step_fraction_ = 0.0;  // set_step_fraction
   bool enabled_ = true;
   int64_t slip_periods_ = 0;
   int64_t slip_events_ = 0;

@@ -39,6 +39,7 @@ void AxisLoop::init(float clock_hz) {
   e_nm_ = v_ref_nm_s_ = a_ref_nm_s2_ = v_motor_nm_s_ = last_target_slope_nm_s_ = 0.0f;
   last_motor_nm_ = device_steps_ = 0;
   last_step_dir_ = 0;
+  step_fraction_ = 0.0f;
   ticks_ = deadline_misses_ = encoder_rejects_ = events_dropped_ = 0;
   max_cost_ = 0;
   ev_head_ = ev_count_ = 0;
@@ -132,6 +133,7 @@ void AxisLoop::apply_staged(int64_t clock) {
     // from an empty queue and holds where the carriage is.
     p_ = p;
     state_ = LoopState::kIdle;
+    step_fraction_ = 0.0f;
     target_.reset();
     have_hold_r_ = false;
     last_target_slope_nm_s_ = 0.0f;
@@ -139,6 +141,7 @@ void AxisLoop::apply_staged(int64_t clock) {
     return;
   }
   step_nm_ = static_cast<float>(p.nm_per_step_q16) * (1.0f / 65536.0f);
+  count_nm_ = static_cast<float>(p.nm_per_count_q16) * (1.0f / 65536.0f);
   const float per_tick_nm = p.max_correction_rate_nm_s * static_cast<float>(p.period_ticks) * inv_hz_;
   // At most one step per MCU tick of the period (the owner spreads them over it): a valid but
   // huge rate (1e30 nm/s) neither overflows the cast nor asks for billions of steps per tick.
@@ -216,6 +219,7 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
       next_grid_clock_ = in.clock;
     }
   }
+  out.step_fraction = step_fraction_;  // held unless step 5 below sets it (0 once disabled)
   if (state_ != LoopState::kRunning && state_ != LoopState::kStopping) return;
 
   // Time: the tick grid, deadline misses, and the elapsed MCU time since the last tick.
@@ -329,7 +333,11 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
       return;
     }
     // 3. PI on the elapsed MCU time.
-    pi_.update(e_nm_, dt_s);
+    // With the sub-step trim the motor resolves less than a count, and an integral that keeps
+    // summing an error the encoder cannot resolve (r between two counts) dithers the carriage
+    // over counts around r: inside one count the integral holds.
+    const bool inside_count = p_.sub_step_trim && absf(e_nm_) < count_nm_;
+    pi_.update(e_nm_, dt_s, !inside_count);
     if (settle_pi) pi_.set_output(static_cast<float>(in.device_steps) * step_nm_);
     // 4. Skipped steps: motor - carriage against the deflection model, or behind a model inverse
     //    against the lead its steps have over r (the host's steps: all but the loop's own).
@@ -370,6 +378,15 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
   if (n < -max_steps_per_tick_) n = -max_steps_per_tick_;
   out.extra_steps = static_cast<int32_t>(n);
   out.over_ticks = next_grid_clock_ - in.clock;
+  // The rest below one step, as a phase offset of the driver's current (sub_step_trim): with it
+  // the motor delivers u itself, not u rounded to steps.
+  if (p_.sub_step_trim) {
+    float f = u_steps - static_cast<float>(sub_saturate_i64(in.device_steps, -n));
+    step_fraction_ = f > 1.0f ? 1.0f : (f < -1.0f ? -1.0f : f);
+  } else {
+    step_fraction_ = 0.0f;
+  }
+  out.step_fraction = step_fraction_;
 }
 
 }  // namespace feedloop::device

@@ -80,6 +80,9 @@ struct LoopTickOut {
   bool flush_host_steps = false;  // a controlled stop began: drop the host's queued steps
   bool stopped = false;           // the controlled stop ended: the axis is at rest
   bool report_due = false;        // a LOOP_REPORT is due (take_report)
+  // With sub_step_trim: the correction not delivered in whole steps, in steps (|f| <= 1), for
+  // MotorPort::set_step_fraction. 0 without it, and held while the loop stops.
+  float step_fraction = 0.0f;
 };
 
 // Telemetry of one report window (LOOP_REPORT).
@@ -177,6 +180,7 @@ class AxisLoop {
   int32_t max_steps_per_tick_ = 1;       // correction steps per tick (the rate limit)
   int32_t max_stop_steps_per_tick_ = 1;  // steps per tick of a controlled stop: one per MCU tick
   float step_nm_ = 1.0f;
+  float count_nm_ = 1.0f;  // one encoder count
   int64_t horizon_margin_ticks_ = 0;
   // Last tick's values.
   int64_t r_nm_ = 0, y_nm_ = 0, hold_r_nm_ = 0;
@@ -188,6 +192,7 @@ class AxisLoop {
   int64_t device_steps_ = 0;
   int last_step_dir_ = 0;  // direction of the last correction step (the reversal hysteresis)
   float integral_before_slip_nm_ = 0.0f;
+  float step_fraction_ = 0.0f;  // the last tick's LoopTickOut::step_fraction
 
   // Counters.
   uint64_t ticks_ = 0, deadline_misses_ = 0, encoder_rejects_ = 0, events_dropped_ = 0;

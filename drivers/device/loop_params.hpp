@@ -56,6 +56,12 @@ struct LoopParams {
   // this many steps beyond the rounding threshold (0: plain rounding). A lightly damped carriage
   // (the delta's electrical mode) turns a step toggling at half a step into a limit cycle.
   float reversal_hysteresis_steps = 0.0f;
+
+  // The correction below one step goes to the motor port as a fraction of a step
+  // (MotorPort::set_step_fraction: a driver with direct current control), so the carriage can be
+  // held on the encoder within a count instead of within half a step (issue 16's return after a
+  // pause). Without such a driver it changes nothing.
+  bool sub_step_trim = false;
 };
 
 // What is wrong with a parameter set (validate_loop_params); kOk when usable.

@@ -15,10 +15,10 @@ void LoopPi::reset() {
   saturated_ = 0;
 }
 
-float LoopPi::update(float error_nm, float dt_s) {
+float LoopPi::update(float error_nm, float dt_s, bool integrate) {
   last_error_nm_ = error_nm;
   // Thesis Sect. 4.6: I[k] = I[k-1] + K_I e[k] (t[k] - t[k-1]).
-  const float integral_try = integral_nm_ + ki_per_s_ * error_nm * dt_s;
+  const float integral_try = integral_nm_ + (integrate ? ki_per_s_ * error_nm * dt_s : 0.0f);
   const float want = offset_nm_ + kp_ * error_nm + integral_try;
   // The recovery offset is outside the clamp: the clamp bounds what the PI adds to it.
   const float hi = offset_nm_ + max_nm_, lo = offset_nm_ - max_nm_;

@@ -16,8 +16,9 @@ class LoopPi {
  public:
   void configure(float kp, float ki_per_s, float max_output_nm);
   void reset();
-  // One tick: error e (nm), dt_s = t[k] - t[k-1] (s, MCU time). Returns u (nm).
-  float update(float error_nm, float dt_s);
+  // One tick: error e (nm), dt_s = t[k] - t[k-1] (s, MCU time). Returns u (nm). integrate false:
+  // the integral is held this tick (an error inside the sensor's resolution).
+  float update(float error_nm, float dt_s, bool integrate = true);
   // Bumpless gain and clamp change (the output for the last error stays the same).
   void set_gains(float kp, float ki_per_s, float max_output_nm);
   void shift(float shift_nm);

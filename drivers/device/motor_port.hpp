@@ -21,6 +21,14 @@ class MotorPort {
   virtual void device_step(double t_s, int direction) { step(t_s, direction); }
   // Driver enable: a disabled motor holds no torque.
   virtual void set_enabled(double t_s, bool enabled) = 0;
+  // The driver's current vector moved by `fraction` of one (micro)step beyond the step count, from
+  // t_s on (|fraction| <= 1): the device loop's correction below one step (LoopParams::
+  // sub_step_trim). A driver with direct coil-current control does it (Trinamic's XDIRECT mode;
+  // the simulated drivers); one without ignores it, and the loop then corrects in whole steps.
+  virtual void set_step_fraction(double t_s, float fraction) {
+    (void)t_s;
+    (void)fraction;
+  }
   // Encoder reading at t_s, in counts of the encoder's resolution (signed, carriage side).
   virtual int64_t read_encoder_counts(double t_s) = 0;
   // The endstop input's level at t_s (protocol v3 homing). A motor without an endstop reads 0.

@@ -354,6 +354,10 @@ void VirtualMcu::loop_tick(int axis) {
   } else {
     a.loop.tick(in, out);
   }
+  if (out.step_fraction != a.step_fraction && a.port != nullptr) {
+    a.step_fraction = out.step_fraction;
+    a.port->set_step_fraction(true_time_at(now_clock_), out.step_fraction);
+  }
   a.extra_left = out.extra_steps;
   if (out.extra_steps != 0) {
     a.extra_n = out.extra_steps > 0 ? out.extra_steps : -out.extra_steps;

@@ -145,6 +145,7 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
     int64_t samples[kMaxSamples] = {};
     // Device loop (protocol v2) and its extra steps, spread evenly over a control period.
     AxisLoop loop;
+    float step_fraction = 0.0f;  // applied to the port (the loop's sub_step_trim)
     int32_t extra_left = 0, extra_n = 0, extra_k = 0;
     int64_t extra_start = 0, extra_span = 0, extra_next_clock = 0;
     // Endstop (protocol v3): sampled every endstop_ticks while armed; after endstop_count

@@ -14,7 +14,8 @@ size_t encode_configure_loop(const ConfigureLoopMsg& m, uint8_t* buf, size_t cap
   w.u8(static_cast<uint8_t>(MsgType::kConfigureLoop))
       .u8(m.axis)
       .var(static_cast<uint64_t>(m.activation_clock))
-      .u8(static_cast<uint8_t>((p.enabled ? 1 : 0) | (p.deflection_from_host_steps ? 2 : 0)))
+      .u8(static_cast<uint8_t>((p.enabled ? 1 : 0) | (p.deflection_from_host_steps ? 2 : 0) |
+                               (p.sub_step_trim ? 4 : 0)))
       .var(p.period_ticks)
       .var(p.nm_per_count_q16)
       .var(p.nm_per_step_q16)
@@ -56,6 +57,7 @@ bool decode_configure_loop(const uint8_t* buf, size_t n, ConfigureLoopMsg& out) 
   const uint8_t flags = r.u8();
   p.enabled = (flags & 1) != 0;
   p.deflection_from_host_steps = (flags & 2) != 0;
+  p.sub_step_trim = (flags & 4) != 0;
   p.period_ticks = u32_of(r.var(), ok);
   p.nm_per_count_q16 = u32_of(r.var(), ok);
   p.nm_per_step_q16 = u32_of(r.var(), ok);

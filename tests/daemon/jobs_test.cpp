@@ -265,11 +265,10 @@ TEST_F(Jobs, PauseResumeInTheMiddleOfTheBenchyAndCancel) {
         "counts)\n",
         "XY"[i], pp["encoder_mm"][i].get<double>(), rp["encoder_mm"][i].get<double>(), d * 1e3,
         std::fabs(d) / count_mm);
-    // The issue asks for one encoder count; measured 3-5 (X) and 8 (Y) counts at this pause point
-    // (the rest point within a step depends on how the carriage arrives; the loop corrects in
-    // whole steps). Asserted: within one motor step, and the same step count above.
-    const double step_mm = 1.0 / config::default_config().axis(i == 0 ? "x" : "y")->steps_per_mm;
-    EXPECT_LE(std::fabs(d), step_mm) << "axis " << i;
+    // Issue 16: within one encoder count. In whole steps it was 3-5 (X) and 8 (Y) counts here (the
+    // rest point within a 10.6 um step depends on the arrival); the device loop's sub-step trim
+    // (control.sub_step_trim, on by default) holds the encoder within a count of r.
+    EXPECT_LE(std::fabs(d), count_mm * (1.0 + 1e-6)) << "axis " << i;
   }
   // Let it print on a little, then cancel: every heater off, parked.
   const uint64_t lines = r["lines_submitted"].get<uint64_t>();

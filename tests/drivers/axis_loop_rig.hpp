@@ -160,6 +160,7 @@ class LoopRig {
     u_log_.push_back({t_, loop_.pi().output_nm(), loop_.last_error_nm()});
     if (out.flush_host_steps) host_steps_on_ = false;
     if (out.stopped) stopped_at_s_ = t_;
+    step_fraction_ = out.step_fraction;  // the driver's current phase below a step (sub_step_trim)
     extra_left_ = out.extra_steps;
     extra_n_ = out.extra_steps < 0 ? -out.extra_steps : out.extra_steps;
     extra_start_ = clock;
@@ -174,7 +175,9 @@ class LoopRig {
     return static_cast<int64_t>(std::floor((x_c_ + glitch_m_) * 1e9 / p_.count_nm));
   }
   double carriage_mm() const { return x_c_ * 1e3; }
-  double motor_mm() const { return (motor_steps_ * p_.step_nm * 1e-9 - lost_m_) * 1e3; }
+  double motor_mm() const {
+    return ((motor_steps_ + step_fraction_) * p_.step_nm * 1e-9 - lost_m_) * 1e3;
+  }
   double error_mm(double t) const { return r_mm(t) - carriage_mm(); }
   double t() const { return t_; }
 
@@ -208,7 +211,7 @@ class LoopRig {
       v_c_ = 0.0;
       return;
     }
-    const double m = motor_steps_ * p_.step_nm * 1e-9 - lost_m_;
+    const double m = (motor_steps_ + step_fraction_) * p_.step_nm * 1e-9 - lost_m_;
     const double f_spring = p_.belt_n_m * (m - x_c_) - p_.damping_n_s_m * v_c_;
     // Coulomb friction with sticking.
     double f = f_spring;
@@ -232,6 +235,7 @@ class LoopRig {
   double x_c_ = 0.0, v_c_ = 0.0, lost_m_ = 0.0, glitch_m_ = 0.0;
   bool blocked_ = false;
   int64_t motor_steps_ = 0, host_steps_ = 0, device_steps_ = 0;
+  double step_fraction_ = 0.0;
   bool host_steps_on_ = true;
   int32_t extra_left_ = 0, extra_n_ = 0, extra_k_ = 0;
   int64_t extra_start_ = 0, extra_next_clock_ = 0;

@@ -24,6 +24,7 @@ TEST(LoopProtocol, ConfigureLoopRoundTripsAndRefusesTruncation) {
   m.params.slip_cycle_nm = 678000.0f;
   m.params.deflection_s = 0.0069f;
   m.params.deflection_from_host_steps = true;
+  m.params.sub_step_trim = true;
   m.params.horizon_margin_ticks = 400000;
   m.params.reversal_hysteresis_steps = 0.5f;
   uint8_t buf[protocol::kMaxPayload];
@@ -42,6 +43,7 @@ TEST(LoopProtocol, ConfigureLoopRoundTripsAndRefusesTruncation) {
   EXPECT_EQ(d.params.slip_cycle_nm, 678000.0f);
   EXPECT_EQ(d.params.deflection_s, 0.0069f);
   EXPECT_TRUE(d.params.deflection_from_host_steps);  // flags bit 2
+  EXPECT_TRUE(d.params.sub_step_trim);               // flags bit 4
   EXPECT_EQ(d.params.horizon_margin_ticks, 400000u);
   EXPECT_EQ(d.params.report_every_ticks, m.params.report_every_ticks);
   EXPECT_EQ(d.params.reversal_hysteresis_steps, 0.5f);

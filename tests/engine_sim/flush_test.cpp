@@ -319,8 +319,10 @@ TEST(Flush, InTheMiddleOfTheBenchy) {
   const MotionExecutor::StopFigures f = rig.ex->last_stop();
   EXPECT_NEAR(rig.bridge->plant()->carriage_mm(0), f.position_mm[0], 0.12);
   EXPECT_NEAR(rig.bridge->plant()->carriage_mm(1), f.position_mm[1], 0.12);
-  // Idle within the lead, the stop and the loop's 0.4 s hold (plus a few periods).
-  EXPECT_LE(idle_s, 0.135 + f.speed_mm_s / f.decel_mm_s2 + 0.4 + 0.05);
+  // Idle within the lead, the stop and the loop's hold (0.8 s with the sub-step trim; plus a few
+  // periods).
+  EXPECT_LE(idle_s,
+            0.135 + f.speed_mm_s / f.decel_mm_s2 + motion_options(rig.cfg).control_settle_s + 0.05);
   check_usable(rig);
 }
 
@@ -333,10 +335,10 @@ namespace {
 // Issue 16's "return within one encoder count" (docs/jobs.md "The return"): the same rest point
 // (same step count) reached again along different ways; the encoder at rest each time against
 // the first arrival's, in counts (0.49 um). A pause's return cannot copy the way the print
-// arrived (the park is elsewhere), so this measures what the arrival costs. The readings vary from
-// run to run (the threads' interleaving in virtual time moves the device loop's correction steps):
-// asserted is the same step count and one motor step; the counts are printed.
-TEST(Return, TheRestPointWithinAStepDependsOnTheArrival) {
+// arrived (the park is elsewhere), so this measures what the arrival costs. With the device
+// loop's sub-step trim (control.sub_step_trim, on by default) the loop holds the encoder within
+// a count of r whatever the arrival; in whole steps it was up to 17 counts (half a 10.6 um step).
+TEST(Return, EveryArrivalRestsWithinOneEncoderCount) {
   FlushRig rig(flush_config());
   ASSERT_TRUE(rig.machine);
   ASSERT_EQ(rig.run("G28"), "");
@@ -380,11 +382,12 @@ TEST(Return, TheRestPointWithinAStepDependsOnTheArrival) {
     std::printf("return %zu, %s: encoder X %+.1f counts, Y %+.1f counts against the first arrival "
                 "(same step count)\n",
                 k, ways[k].name, counts[0], counts[1]);
-    if (k < 2) same_worst = std::max({same_worst, std::fabs(counts[0]), std::fabs(counts[1])});
-    // Whatever the way: within one motor step (21.6 counts on the 94.314 steps/mm axes).
-    for (int j = 0; j < 2; ++j) EXPECT_LE(std::fabs(counts[j]) * count_mm, 1.0 / rig.spm(j)) << ways[k].name;
+    for (int j = 0; j < 2; ++j) {
+      same_worst = std::max(same_worst, std::fabs(counts[j]));
+      EXPECT_LE(std::fabs(counts[j]), 1.0 + 1e-9) << ways[k].name << " axis " << j;
+    }
   }
-  std::printf("the same final move: worst %.1f counts\n", same_worst);
+  std::printf("every way: worst %.1f counts\n", same_worst);
   EXPECT_EQ(rig.machine->status().lost_step_events, 0u);
 }
 

@@ -135,6 +135,24 @@ TEST(GantryMotion, EncoderQuantisationIs049um) {
   for (double e : errs) EXPECT_LE(std::abs(e), 0.245 + 1e-9);
 }
 
+// MotorPort::set_step_fraction: the driver's current vector moved by a fraction of a microstep
+// moves the carriage at rest by that fraction of the step (the device loop's sub-step trim).
+TEST(GantryMotion, AStepFractionMovesTheCarriageAtRestByThatFraction) {
+  GantryAxisParams p = thesis_x_axis();
+  p.encoder.noise_um = 0.0;
+  GantryAxis axis = make(p);
+  axis.advance_to(0.2);
+  const double x0 = axis.carriage_mm();
+  const double step_um = axis.mm_per_step() * 1e3;
+  for (double f : {0.25, 0.5, -0.5, 1.0}) {
+    axis.set_step_fraction(axis.time_s(), static_cast<float>(f));
+    axis.advance_to(axis.time_s() + 0.3);
+    const double moved_um = (axis.carriage_mm() - x0) * 1e3;
+    std::printf("fraction %+.2f: carriage moved %+.3f um (step %.3f um)\n", f, moved_um, step_um);
+    EXPECT_NEAR(moved_um, f * step_um, 0.02 * step_um) << f;
+  }
+}
+
 TEST(GantryMotion, EncoderNoiseHasConfiguredSpread) {
   GantryAxisParams p = thesis_x_axis();
   p.encoder.noise_um = 1.0;
