@@ -506,7 +506,8 @@ struct JobsConfig {
   // Y max - 10) on Cartesian and CoreXY machines; on a delta XY stay (only Z is raised).
   std::optional<double> park_x_mm, park_y_mm;
   double travel_speed_mm_s = 100.0;
-  double settle_ms = 500.0;  // dwell before a pause/resume position is taken
+  double settle_ms = 1000.0;  // dwell before a pause/resume position is taken (the device
+                              // loop settles within a count in ~0.7 s)
   bool operator==(const JobsConfig&) const = default;
 };
 

@@ -87,7 +87,7 @@ struct JobOptions {
   std::optional<double> park_x_mm, park_y_mm;  // XY park point (none: XY stay)
   double travel_speed_mm_s = 100.0;
   double z_max_mm = 1e9;     // travel limit of Z (logical = machine coordinates)
-  int settle_ms = 500;       // dwell before a pause/resume position is taken
+  int settle_ms = 1000;      // dwell before a pause/resume position is taken
   int lines_per_pump = 256;  // bounds one pump's work on the I/O thread
   // No line is read while the machine holds more planned motion than this ahead of the motion
   // executing now (Klipper's virtual_sdcard: its lookahead holds about 2 s of moves), so that a
