@@ -11,7 +11,9 @@
 //     shifts u by its size (recovery: the motor re-synchronises);
 //  5. the correction becomes extra steps: round(u / step) minus the loop's steps already issued,
 //     at most max_correction_rate x T per tick, spread by the owner over the next period on top
-//     of the host's timed feedforward steps;
+//     of the host's timed feedforward steps; with sub_step_trim the rest below one step goes out
+//     as LoopTickOut::step_fraction (the driver's current phase) and the integral holds while |e|
+//     is inside one encoder count;
 //  6. watchdog: the target queue about to end while r moves (horizon - t < horizon_margin), the
 //     host silent (request_stop from the owner) or a trip start a controlled stop
 //     (stop_ramp.hpp): the owner drops the host's queued steps and the loop issues a constant
