@@ -303,6 +303,19 @@ double frf_misfit(const AxisModel& m, const FrfData& d, double period_s) {
 
 // The regressions (runout, scale, lag) use the whole training part; everything that simulates
 // candidates (the grids, the preset-or-current choice) only its first `window` samples.
+// One period's sin/cos regression solved from its normal equations N [a b]^T = r; kept in *m when
+// it explains more of the residual (r . [a b]) than *best.
+void keep_period_if_better(const Eigen::Matrix2d& N, const Eigen::Vector2d& r, double period_mm,
+                           AxisModel* m, double* best) {
+  const Eigen::Vector2d ab = N.ldlt().solve(r);
+  const double explained = ab.dot(r);
+  if (!(std::isfinite(explained) && explained > *best)) return;
+  *best = explained;
+  m->period_mm = period_mm;
+  m->periodic_sin_um = ab[0];
+  m->periodic_cos_um = ab[1];
+}
+
 // The short periods of a stepper axis (a microstep table's error once per full step or once per
 // electrical cycle, a detent: 0.1-2 mm on a belt axis) by the same weighted sin/cos regression of
 // the residual on commanded position as the long periods below, over all periods from
@@ -350,15 +363,7 @@ void short_period_scan(const std::vector<double>& u, const std::vector<double>& 
     N(0, 0) = 0.5 * (W - w2.real());  // sum w sin^2
     N(1, 1) = 0.5 * (W + w2.real());  // sum w cos^2
     N(0, 1) = N(1, 0) = 0.5 * w2.imag();
-    const Eigen::Vector2d b(r1.imag(), r1.real());
-    const Eigen::Vector2d ab = N.ldlt().solve(b);
-    const double explained = ab.dot(b);
-    if (std::isfinite(explained) && explained > *best) {
-      *best = explained;
-      m->period_mm = 1.0 / f;
-      m->periodic_sin_um = ab[0];
-      m->periodic_cos_um = ab[1];
-    }
+    keep_period_if_better(N, Eigen::Vector2d(r1.imag(), r1.real()), 1.0 / f, m, best);
   }
 }
 
@@ -423,14 +428,7 @@ AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb,
           N += count[j] * f * f.transpose();
           b += f * sum[j];
         }
-        const Eigen::Vector2d ab = N.ldlt().solve(b);
-        const double explained = ab.dot(b);
-        if (explained > best) {
-          best = explained;
-          m.period_mm = period;
-          m.periodic_sin_um = ab[0];
-          m.periodic_cos_um = ab[1];
-        }
+        keep_period_if_better(N, b, period, &m, &best);
       }
       break;
     }
