@@ -444,10 +444,11 @@ void PrintJob::park_lines(const engine::MachineStatus& at, bool retract) {
 void PrintJob::on_phase_done() {
   switch (phase_) {
     case Phase::kPauseWait:
-      // The file's queued commands have executed; wait for their motion, then settle.
+      // The file's queued commands have executed; their motion ends, then the machine stands
+      // still for the settle dwell (a G4 right after motion is part of it: the loops hold the
+      // carriages through it), as on the resume's side.
       exclude_from_s_ = -1.0;
       phase_ = Phase::kPauseSettled;
-      add_sequence("M400");
       add_sequence("G4 P" + std::to_string(options_.settle_ms));
       add_sequence("M400");
       pump();

@@ -278,22 +278,26 @@ bool Machine::is_machine_command(const gcode::Command& cmd) const {
   return thermal_ && thermal_->num_fans() > 0 && (cmd.is('M', 106) || cmd.is('M', 107));
 }
 
-Status Machine::wait_for(const std::function<bool(double now_s)>& done) {
+Status Machine::wait_for(const std::function<bool(double now_s)>& done, const char* what,
+                         double until_s) {
   for (;;) {
-    if (auto f = thermal_->fault()) return Error{*f};
-    if (interrupt_.load()) return Error{"wait for temperature cancelled"};
-    if (done(seconds_from_ns(clock_.now_ns()))) return Status::Ok();
+    if (thermal_)
+      if (auto f = thermal_->fault()) return Error{*f};
+    if (interrupt_.load()) return Error{std::string(what) + " cancelled"};
+    const double now_s = seconds_from_ns(clock_.now_ns());
+    if (now_s >= until_s || done(now_s)) return Status::Ok();
+    const double step_s = std::min(0.02, until_s - now_s);
     if (clock_.is_virtual()) {
       // Virtual time is the wait's own while nothing moves (the servo thread advances it only for
       // motion): 20 ms per step, the heaters following the clock.
       if (!executor_->motion_pending() && !executor_->settling()) {
-        clock_.sleep_until_ns(clock_.now_ns() + 20'000'000);
+        clock_.sleep_until_ns(clock_.now_ns() + static_cast<int64_t>(std::ceil(step_s * 1e9)));
         thermal_step();
       } else {
         std::this_thread::sleep_for(std::chrono::microseconds(200));
       }
     } else {
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      std::this_thread::sleep_for(std::chrono::duration<double>(step_s));
     }
     publish_status();
   }
@@ -371,6 +375,11 @@ Status Machine::dispatch(const gcode::Command& cmd) {
     st = execute_machine_command(cmd);
   } else {
     st = executor_->execute(cmd, interrupt_);
+    // A G4 on a machine at rest: Marlin's dwell still waits (an M400 after it too).
+    if (const double dwell_s = executor_->take_idle_dwell_s(); st && dwell_s > 0.0) {
+      const double end_s = seconds_from_ns(clock_.now_ns()) + dwell_s;
+      st = wait_for([](double) { return false; }, "G4 dwell", end_s);
+    }
   }
   if (st) {
     executed_.fetch_add(1, std::memory_order_relaxed);

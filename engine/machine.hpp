@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <cstring>  // memcpy
 #include <functional>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -135,6 +136,10 @@ class CommandExecutor {
   }
   // Fills the motion fields of a status snapshot. Any thread.
   virtual void motion_status(MachineStatus& /*s*/) const {}
+  // Planner thread, after execute(): the time of a dwell (G4) the executor could not put into its
+  // motion (the machine was at rest, or homing), which the machine then waits on its own clock;
+  // 0 when none. Taking it clears it.
+  virtual double take_idle_dwell_s() { return 0.0; }
   // Planner thread, for Machine::flush: the motion planned so far stops as soon as the limits
   // allow (a controlled deceleration along the path, no lost steps), the rest of it is dropped,
   // and the position continues from where the machine stopped. Returns once the machine is at
@@ -235,7 +240,11 @@ class Machine {
   bool is_machine_command(const gcode::Command& cmd) const;
   // Waits until the heater's temperature is reached (M109/M190) or the autotune ends (M303):
   // in virtual time with nothing moving, the wait itself advances the clock.
-  Status wait_for(const std::function<bool(double now_s)>& done);
+  // Waits on the machine's clock (virtual time: advanced by the wait while nothing moves) until
+  // done(now) or until_s; `what` names the wait in the error when it is cancelled.
+  Status wait_for(const std::function<bool(double now_s)>& done,
+                  const char* what = "wait for temperature",
+                  double until_s = std::numeric_limits<double>::infinity());
   void thermal_step();  // runs the thermal loop to now; a fault stops the machine
   void thermal_main();
   void on_thermal_fault(const std::string& message);

@@ -285,6 +285,10 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
 
 void MotionExecutor::on_move(const planner::PlannedMove& m) {
   if (tap_ != nullptr) tap_->on_planned_move(m);
+  queue_move(m);
+}
+
+void MotionExecutor::queue_move(const planner::PlannedMove& m) {
   if (pushed_.load() == popped_.load() && !telemetry_.anchored.load())
     idle_base_s_.store(m.start_time_s);  // the servo side is at rest: motion restarts here
   while (!queue_.try_push(m)) {
@@ -299,6 +303,20 @@ void MotionExecutor::on_move(const planner::PlannedMove& m) {
 
 void MotionExecutor::on_event(const planner::PlannerEvent& e) {
   if (e.kind == planner::EventKind::moves_done) wait_until_s_ = e.time_s;
+  // G4 (Marlin's dwell waits, also with nothing moving; an M400 after it waits for its end).
+  // Right after motion (still running, holding or settling) the dwell becomes motion: the machine
+  // stands at the plan's end for it, in the timeline, so the loops keep holding and virtual time
+  // simulates it. The planner flushed its moves before the event: its position is that end.
+  // At rest (or homing: the plan's end is not where the carriages are) the machine waits the time
+  // on its clock instead (Machine::dispatch, take_idle_dwell_s).
+  if (e.kind == planner::EventKind::dwell && e.duration_s > 0.0) {
+    const int h = homing_req_.load();
+    const bool homing = h == kHomingRequested || h == kHomingRunning;
+    if (!homing && (motion_pending() || settling()))
+      queue_move(planner::standstill_move(planner_.position(), e.time_s, e.duration_s, e.line));
+    else
+      idle_dwell_s_ += e.duration_s;
+  }
 }
 
 double MotionExecutor::executing_print_time_s() const {

@@ -37,6 +37,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "core/spsc_queue.hpp"
@@ -92,6 +93,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   bool faulted() const override;
   bool motion_pending() const override;
   bool settling() const override { return settling_.load(std::memory_order_relaxed); }
+  double take_idle_dwell_s() override { return std::exchange(idle_dwell_s_, 0.0); }
   void motion_status(MachineStatus& s) const override;
   bool may_advance_virtual(bool planner_busy) const override;
   void on_deadline_miss(int64_t now_ns, int64_t late_ns) override;
@@ -141,6 +143,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
  private:
   void on_move(const planner::PlannedMove& m) override;
   void on_event(const planner::PlannerEvent& e) override;
+  void queue_move(const planner::PlannedMove& m);  // planner thread: into the servo thread's queue
   // Planner thread: blocks until the servo thread has executed print time `t_s`.
   void wait_print_time(double t_s, const std::atomic<bool>& cancel);
   // Print time the machine is executing now (or where it will restart from rest).
@@ -181,6 +184,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   MotionOptions options_;
   std::unique_ptr<planner::Kinematics> kin_;
   planner::Planner planner_;
+  double idle_dwell_s_ = 0.0;  // planner thread: a G4's time with no motion to put it in
   std::unique_ptr<planner::Interpreter> interp_;
   planner::JointEmitter emitter_;
   SpscQueue<planner::PlannedMove> queue_;

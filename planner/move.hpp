@@ -61,6 +61,23 @@ struct PlannedMove {
   double end_time_s() const { return start_time_s + duration_s; }
 };
 
+// A dwell (G4) as motion: the machine stands at `at_mm` from start_time_s for duration_s (one
+// piece of zero velocity). The executors that run a machine queue it so the dwell takes time on
+// the machine (Marlin's G4 waits even when nothing moves; an M400 after it waits for its end).
+inline PlannedMove standstill_move(const Vec4& at_mm, double start_time_s, double duration_s,
+                                   int line) {
+  PlannedMove m;
+  m.line = line;
+  m.start_time_s = start_time_s;
+  m.duration_s = duration_s;
+  m.start_mm = at_mm;
+  m.end_mm = at_mm;
+  m.cruise_t_s = duration_s;
+  m.pieces[0].duration_s = duration_s;
+  m.piece_count = 1;
+  return m;
+}
+
 enum class EventKind {
   dwell,          // G4: the machine stands still from time_s for duration_s
   moves_done,     // M400: every move planned so far finishes at time_s; the caller may wait on it

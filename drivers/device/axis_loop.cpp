@@ -336,8 +336,14 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
     // With the sub-step trim the motor resolves less than a count, and an integral that keeps
     // summing an error the encoder cannot resolve (r between two counts) dithers the carriage
     // over counts around r: inside one count the integral holds.
+    // And the proportional term acts on the error beyond kProportionalBandCounts: a P term on
+    // the count-quantised error, delivered below a step by the trim, held the benchy's Y carriage
+    // in a 25 Hz limit cycle of +-2.6 counts after a pause's return (its 21 Hz mode stiffened by
+    // the friction's presliding; docs/decisions.md); inside the band the integral alone places the
+    // carriage, slowly enough not to excite the mode.
     const bool inside_count = p_.sub_step_trim && absf(e_nm_) < count_nm_;
-    pi_.update(e_nm_, dt_s, !inside_count);
+    const float p_band_nm = p_.sub_step_trim ? kProportionalBandCounts * count_nm_ : 0.0f;
+    pi_.update(e_nm_, dt_s, !inside_count, p_band_nm);
     if (settle_pi) pi_.set_output(static_cast<float>(in.device_steps) * step_nm_);
     // 4. Skipped steps: motor - carriage against the deflection model, or behind a model inverse
     //    against the lead its steps have over r (the host's steps: all but the loop's own).

@@ -102,6 +102,9 @@ class AxisLoop {
  public:
   static constexpr int kEventCapacity = 32;
   static constexpr int64_t kNever = INT64_MAX;
+  // With the sub-step trim: the P term acts on the error beyond this many encoder counts
+  // (axis_loop.cpp, step 3).
+  static constexpr float kProportionalBandCounts = 3.0f;
 
   void init(float clock_hz);
   // Stages a parameter set for activation_clock (replacing one not yet applied). Returns the

@@ -11,15 +11,19 @@ void LoopPi::configure(float kp, float ki_per_s, float max_output_nm) {
 }
 
 void LoopPi::reset() {
-  integral_nm_ = offset_nm_ = last_error_nm_ = u_nm_ = 0.0f;
+  integral_nm_ = offset_nm_ = last_error_nm_ = last_p_error_nm_ = u_nm_ = 0.0f;
   saturated_ = 0;
 }
 
-float LoopPi::update(float error_nm, float dt_s, bool integrate) {
+float LoopPi::update(float error_nm, float dt_s, bool integrate, float p_band_nm) {
   last_error_nm_ = error_nm;
+  const float p_error_nm = error_nm > p_band_nm
+                               ? error_nm - p_band_nm
+                               : (error_nm < -p_band_nm ? error_nm + p_band_nm : 0.0f);
+  last_p_error_nm_ = p_error_nm;
   // Thesis Sect. 4.6: I[k] = I[k-1] + K_I e[k] (t[k] - t[k-1]).
   const float integral_try = integral_nm_ + (integrate ? ki_per_s_ * error_nm * dt_s : 0.0f);
-  const float want = offset_nm_ + kp_ * error_nm + integral_try;
+  const float want = offset_nm_ + kp_ * p_error_nm + integral_try;
   // The recovery offset is outside the clamp: the clamp bounds what the PI adds to it.
   const float hi = offset_nm_ + max_nm_, lo = offset_nm_ - max_nm_;
   float u = want;
@@ -39,7 +43,7 @@ float LoopPi::update(float error_nm, float dt_s, bool integrate) {
 }
 
 void LoopPi::set_gains(float kp, float ki_per_s, float max_output_nm) {
-  integral_nm_ += (kp_ - kp) * last_error_nm_;
+  integral_nm_ += (kp_ - kp) * last_p_error_nm_;
   kp_ = kp;
   ki_per_s_ = ki_per_s;
   max_nm_ = max_output_nm;

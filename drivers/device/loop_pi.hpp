@@ -18,7 +18,8 @@ class LoopPi {
   void reset();
   // One tick: error e (nm), dt_s = t[k] - t[k-1] (s, MCU time). Returns u (nm). integrate false:
   // the integral is held this tick (an error inside the sensor's resolution).
-  float update(float error_nm, float dt_s, bool integrate = true);
+  // p_band_nm: the proportional term acts on the error beyond +-p_band_nm only (0: on all of it).
+  float update(float error_nm, float dt_s, bool integrate = true, float p_band_nm = 0.0f);
   // Bumpless gain and clamp change (the output for the last error stays the same).
   void set_gains(float kp, float ki_per_s, float max_output_nm);
   void shift(float shift_nm);
@@ -27,7 +28,7 @@ class LoopPi {
   // Sets the integral so that the output for the last error is u_nm (a motion's start: the output
   // the steps already made, without the fraction of a step the integral held at rest).
   void set_output(float u_nm) {
-    integral_nm_ = u_nm - offset_nm_ - kp_ * last_error_nm_;
+    integral_nm_ = u_nm - offset_nm_ - kp_ * last_p_error_nm_;
     u_nm_ = u_nm;
   }
 
@@ -43,6 +44,7 @@ class LoopPi {
   float integral_nm_ = 0.0f;  // K_I sum e dt
   float offset_nm_ = 0.0f;    // sum of shift()s
   float last_error_nm_ = 0.0f;
+  float last_p_error_nm_ = 0.0f;  // the part of the last error the proportional term acted on
   float u_nm_ = 0.0f;
   int saturated_ = 0;
 };

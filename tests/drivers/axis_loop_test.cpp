@@ -13,12 +13,14 @@
 #include <new>
 
 #include "axis_loop_rig.hpp"
+#include "drivers/device/loop_pi.hpp"
 
 using feedloop::device::AxisLoop;
 using feedloop::device::LoopEvent;
 using feedloop::device::LoopEventKind;
 using feedloop::device::LoopParamError;
 using feedloop::device::LoopParams;
+using feedloop::device::LoopPi;
 using feedloop::device::LoopState;
 using feedloop::device::StopReason;
 using feedloop::testing::LoopRig;
@@ -142,6 +144,21 @@ TEST(AxisLoop, TheSubStepTrimHoldsTheCarriageWithinACount) {
       EXPECT_GT(without.worst_reading_counts, 2.0);  // whole steps: up to half a 5 um step
     }
   }
+}
+
+// The proportional band (AxisLoop::kProportionalBandCounts with the trim): P acts on the error
+// beyond the band only, the integral on all of it; a gain change stays bumpless.
+TEST(LoopPi, TheProportionalTermActsOnTheErrorBeyondItsBand) {
+  LoopPi pi;
+  pi.configure(0.5f, 20.0f, 1.0e6f);
+  EXPECT_FLOAT_EQ(pi.update(1000.0f, 1e-4f, false, 1470.0f), 0.0f);    // inside: nothing
+  EXPECT_FLOAT_EQ(pi.update(2000.0f, 1e-4f, false, 1470.0f), 265.0f);  // 0.5 x (2000 - 1470)
+  EXPECT_FLOAT_EQ(pi.update(-2000.0f, 1e-4f, false, 1470.0f), -265.0f);
+  EXPECT_FLOAT_EQ(pi.update(2000.0f, 1e-4f, false, 0.0f), 1000.0f);  // no band: all of it
+  EXPECT_FLOAT_EQ(pi.update(2000.0f, 0.1f, true, 1470.0f), 265.0f + 20.0f * 2000.0f * 0.1f);
+  const float before = pi.output_nm();
+  pi.set_gains(1.0f, 20.0f, 1.0e6f);
+  EXPECT_FLOAT_EQ(pi.update(2000.0f, 1e-4f, false, 1470.0f), before);
 }
 
 TEST(AxisLoop, FollowingErrorTripsIntoAControlledStop) {
