@@ -1,5 +1,6 @@
 #include "daemon/daemon.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include <spdlog/spdlog.h>
@@ -408,6 +409,10 @@ void Daemon::process_marlin_line(Client& c, std::string_view line) {
     if (cmd.is('M', 155)) {  // Marlin's AUTO_REPORT_TEMPERATURES, per client
       c.autoreport_period_ns = ns_from_seconds(cmd.has('S') ? cmd.get('S') : 0.0);
       c.next_autoreport_ns = clock_.now_ns() + c.autoreport_period_ns;
+    }
+    if (cmd.is('M', 27) && cmd.has('S') && job_) {  // Marlin's AUTO_REPORT_SD_STATUS, per client
+      c.sd_report_period_ns = ns_from_seconds(std::clamp(cmd.get('S'), 0.0, 60.0));
+      c.next_sd_report_ns = clock_.now_ns() + c.sd_report_period_ns;
     }
     if (c.replies.empty()) {
       std::string answer;
@@ -927,6 +932,13 @@ void Daemon::tick() {
         next_heater_log_ns_ = now + (heating ? 5 : 1) * kNsPerS;
       }
     }
+  }
+  // M27 S auto-reports of the print job (Marlin's CardReader::report_status, without an ok).
+  for (auto& [id, c] : clients_) {
+    if (c.kind != Kind::kMarlin || c.sd_report_period_ns <= 0 || now < c.next_sd_report_ns || !job_)
+      continue;
+    c.session->send_line(sd_status_line());
+    c.next_sd_report_ns = now + c.sd_report_period_ns;
   }
   // Lines waiting for their turn or for the rate limit; flooding clients are dropped here.
   {

@@ -168,6 +168,8 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
     int64_t last_progress_ns = 0;     // last ok, or last keepalive sent
     int64_t autoreport_period_ns = 0;  // M155 S<seconds>: temperature auto-report (0: off)
     int64_t next_autoreport_ns = 0;
+    int64_t sd_report_period_ns = 0;  // M27 S<seconds>: print job status auto-report (0: off)
+    int64_t next_sd_report_ns = 0;
     std::deque<std::shared_ptr<ReplySlot>> replies;  // Marlin channels: answers not yet sent
   };
   // A submitted command: who gets the answer.
@@ -190,6 +192,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   bool answer_query(const gcode::Command& cmd, std::string& reply, uint64_t client_id = 0);
   static bool is_query(const gcode::Command& cmd);
   // Marlin's SD-card commands (M20 M21 M23 M24 M25 M26 M27 M32 M524) on the job folder.
+  std::string sd_status_line() const;  // M27's line
   bool answer_sd_command(const gcode::Command& cmd, std::string& reply, uint64_t client_id);
   // JobSink
   Offer offer(const gcode::Command& cmd, std::string_view text, std::function<void(const Status&)> done,

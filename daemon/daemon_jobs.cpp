@@ -321,6 +321,14 @@ std::optional<MethodResult> Daemon::call_method(ClientSession& client, const std
   return MethodResult{job_status_json()};
 }
 
+// Marlin's CardReader::report_status: the job's progress in bytes, or that none prints.
+std::string Daemon::sd_status_line() const {
+  if (!job_ || !job_->active()) return "Not SD printing";
+  const JobStatus j = job_->status();
+  return "SD printing byte " + std::to_string(j.bytes_submitted) + "/" +
+         std::to_string(j.size_bytes);
+}
+
 // Marlin's SD-card commands on the job folder (marlinfw.org/docs/gcode/M020.html ... M032, M524;
 // the texts follow Marlin's CardReader messages).
 bool Daemon::answer_sd_command(const gcode::Command& cmd, std::string& reply, uint64_t client_id) {
@@ -386,15 +394,14 @@ bool Daemon::answer_sd_command(const gcode::Command& cmd, std::string& reply, ui
       else
         reply = "ok";
       return true;
-    case 27: {  // M27: progress; M27 C: the current file
+    case 27: {  // M27: progress; M27 C: the current file; M27 S<s>: auto-report every s (0: off)
       const JobStatus j = job_->status();
-      if (cmd.has('C')) {
+      if (cmd.has('S')) {
+        reply = "ok";  // the period is the client's (Daemon::on_line)
+      } else if (cmd.has('C')) {
         reply = "Current file: " + (j.file.empty() ? std::string("(no file)") : j.file) + "\nok";
-      } else if (job_->active()) {
-        reply = "SD printing byte " + std::to_string(j.bytes_submitted) + "/" +
-                std::to_string(j.size_bytes) + "\nok";
       } else {
-        reply = "Not SD printing\nok";
+        reply = sd_status_line() + "\nok";
       }
       return true;
     }

@@ -144,6 +144,19 @@ TEST_F(Jobs, AFileFromTheFolderRunsStartToEndThroughTheDaemon) {
   auto refused = marlin.read_until("Error:", 5000);
   ASSERT_TRUE(refused);
   EXPECT_NE(refused->find("owned by the print job 'cube.gcode'"), std::string::npos) << *refused;
+  // M27 S1: Marlin's auto-report of the job's progress every second (of the machine's time).
+  ASSERT_TRUE(marlin.send_line("M27 S1"));
+  ASSERT_TRUE(marlin.read_until("ok"));
+  uint64_t last_byte = 0;
+  for (int k = 0; k < 2; ++k) {
+    auto report = marlin.read_until("SD printing byte ", 10000);
+    ASSERT_TRUE(report) << "auto-report " << k;
+    const uint64_t byte = std::stoull(report->substr(report->rfind(' ') + 1));
+    EXPECT_GE(byte, last_byte);
+    last_byte = byte;
+  }
+  ASSERT_TRUE(marlin.send_line("M27 S0"));
+  ASSERT_TRUE(marlin.read_until("ok"));
 
   LineClient api2;
   ASSERT_TRUE(api2.connect_unix(daemon_->api_socket_path()));
