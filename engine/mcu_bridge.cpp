@@ -644,6 +644,15 @@ stepgen::TickMap McuBridge::tick_map(int joint) const {
   return {m.offset_ticks - m.ticks_per_s * epoch_s_, m.ticks_per_s};
 }
 
+void McuBridge::set_motors_enabled(unsigned joint_mask, bool on) {
+  for (size_t i = 0; i < mcus_.size(); ++i) {
+    bool drives = false;
+    for (size_t j = 0; j < kJoints; ++j)
+      drives = drives || ((joint_mask >> j) & 1u && joint_mcu_[j] == static_cast<int>(i));
+    if (drives) mcus_[i]->session->set_enabled(on);
+  }
+}
+
 void McuBridge::inject_lost_steps(int joint, int64_t steps) {
   if (joint < 0 || joint >= kJoints || !ports_[static_cast<size_t>(joint)]) return;
   ports_[static_cast<size_t>(joint)]->swallow += steps;

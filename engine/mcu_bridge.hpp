@@ -128,6 +128,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   }
   bool start_homing(unsigned joint_mask, double now_s, char* why, size_t cap) override;
   void abort_homing(const char* why) override;
+  void set_motors_enabled(unsigned joint_mask, bool on) override;
   HomingState homing_state() const override { return homing_state_; }
   double homed_position_mm(int joint) const override;
   double homing_shift_mm(int axis) const override;

@@ -55,6 +55,7 @@ Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool
   if (motion) wait_for_room(cancel);
   if (motion && cancel.load()) return Error{"cancelled before it was planned", cmd.where};
   Status st = interp_->execute(cmd);
+  if (st && (cmd.is('M', 18) || cmd.is('M', 84))) motors_off(cmd, cancel);
   planner_queued_.store(planner_.queued());
   pa_advance_s_.store(interp_->state().pressure_advance_s, std::memory_order_relaxed);
   pa_smooth_time_s_.store(interp_->state().pressure_advance_smooth_time_s,
@@ -94,7 +95,8 @@ bool MotionExecutor::motion_pending() const {
   const int sr = stop_req_.load();  // a flush's stop: the servo thread has work until it is done
   return planner_queued_.load() > 0 || pushed_.load() != popped_.load() ||
          telemetry_.anchored.load() || h == kHomingRequested || h == kHomingRunning ||
-         sr == kStopRequested || sr == kStopRunning;
+         sr == kStopRequested || sr == kStopRunning ||
+         motors_off_req_.load() != 0;  // M84: work for the servo thread too
 }
 
 void MotionExecutor::pause_for_machine() {
@@ -111,6 +113,43 @@ bool MotionExecutor::homes_through_endstops() const {
   for (int j = 0; j < 3; ++j)
     if (!backend_->can_home(j)) return false;
   return true;
+}
+
+// M18/M84 (Marlin's finish_and_disable): the motion planned so far ends (the device loops' hold
+// too), then the servo thread switches the drivers off (McuBridge::set_motors_enabled: per MCU).
+// Axis letters select joints: a delta's towers and a CoreXY's A and B go together, E alone is the
+// extruder's; none: all. M84 S<seconds> alone only sets the idle timeout. The next motion or
+// homing switches them on again first (servo_cycle). With allow_moves_before_homing the position
+// is kept (the interpreter's old behaviour), so the drivers stay on.
+void MotionExecutor::motors_off(const gcode::Command& cmd, const std::atomic<bool>& cancel) {
+  const bool letters = cmd.has('X') || cmd.has('Y') || cmd.has('Z') || cmd.has('E');
+  if (cmd.has('S') && !letters) return;
+  if (pcfg_.allow_moves_before_homing || backend_ == nullptr) return;
+  unsigned mask = 0;
+  if (!letters) {
+    mask = 0xFu;
+  } else {
+    const bool delta = pcfg_.kinematics == planner::KinematicsKind::delta;
+    const bool corexy = pcfg_.kinematics == planner::KinematicsKind::corexy;
+    for (int i = 0; i < 3; ++i)
+      if (cmd.has(static_cast<char>('X' + i)))
+        mask |= delta ? 0x7u : (corexy && i < 2 ? 0x3u : 1u << i);
+    if (cmd.has('E')) mask |= 1u << 3;
+  }
+  planner_.flush();
+  planner_queued_.store(planner_.queued());
+  {
+    struct Waiting {
+      std::atomic<bool>& w;
+      explicit Waiting(std::atomic<bool>& f) : w(f) { w = true; }
+      ~Waiting() { w = false; }
+    } waiting(waiting_);
+    while (!cancel.load() && motion_pending()) pause_for_machine();
+    if (cancel.load()) return;
+    motors_off_req_.fetch_or(mask, std::memory_order_release);
+    while (!cancel.load() && motors_off_req_.load(std::memory_order_acquire) != 0)
+      pause_for_machine();
+  }
 }
 
 // G28 [X] [Y] [Z] through the endstops. Marlin and Klipper home the named axes (all without
@@ -455,6 +494,25 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
       return;
     }
     if (!anchored && !backend_->ready()) return;  // motion waits for the MCUs and their clocks
+    // M18/M84: the drivers off at rest; on again before the next motion or homing.
+    // (The request stays pending 20 ms after the message, so that the MCUs have it when M84
+    // returns: in virtual time the link delivers only while the servo thread runs.)
+    if (const unsigned off = motors_off_req_.load(std::memory_order_acquire);
+        off != 0 && !anchored) {
+      if ((motors_off_mask_ & off) != off) {
+        backend_->set_motors_enabled(off, false);
+        motors_off_mask_ |= off;
+        motors_off_sent_s_ = now_s;
+      } else if (now_s - motors_off_sent_s_ >= 0.02) {
+        motors_off_req_.store(0, std::memory_order_release);
+      }
+    }
+    if (motors_off_mask_ != 0 && motors_off_req_.load(std::memory_order_relaxed) == 0 &&
+        (queue_.front() != nullptr ||
+         homing_req_.load(std::memory_order_acquire) == kHomingRequested)) {
+      backend_->set_motors_enabled(motors_off_mask_, true);
+      motors_off_mask_ = 0;
+    }
     if (const int h = homing_req_.load(std::memory_order_acquire);
         h == kHomingRequested || h == kHomingRunning) {
       homing_cycle(now_s, cancel || homing_abort_.load(std::memory_order_acquire));

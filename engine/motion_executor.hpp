@@ -144,6 +144,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void on_move(const planner::PlannedMove& m) override;
   void on_event(const planner::PlannerEvent& e) override;
   void queue_move(const planner::PlannedMove& m);  // planner thread: into the servo thread's queue
+  void motors_off(const gcode::Command& cmd, const std::atomic<bool>& cancel);  // M18/M84
   // Planner thread: blocks until the servo thread has executed print time `t_s`.
   void wait_print_time(double t_s, const std::atomic<bool>& cancel);
   // Print time the machine is executing now (or where it will restart from rest).
@@ -184,7 +185,11 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   MotionOptions options_;
   std::unique_ptr<planner::Kinematics> kin_;
   planner::Planner planner_;
-  double idle_dwell_s_ = 0.0;  // planner thread: a G4's time with no motion to put it in
+  double idle_dwell_s_ = 0.0;
+  std::atomic<unsigned> motors_off_req_{0};  // M18/M84's joints, for the servo thread to switch off
+  unsigned motors_off_mask_ = 0;             // servo thread: the joints whose drivers are off
+  double motors_off_sent_s_ = 0.0;  // servo thread: when the last M84 went out  // planner thread:
+                                    // a G4's time with no motion to put it in
   std::unique_ptr<planner::Interpreter> interp_;
   planner::JointEmitter emitter_;
   SpscQueue<planner::PlannedMove> queue_;

@@ -65,6 +65,9 @@ class ServoBackend {
   // `joint` has an endstop and a homing sequence. Any thread (fixed at construction). On a CoreXY
   // machine the homing's "joints" are the Cartesian axes X, Y, Z (X and Y each move both motors).
   virtual bool can_home(int /*joint*/) const { return false; }
+  // Servo thread: switches the drivers of the joints in joint_mask off (M18/M84) or on. The
+  // enable is per MCU: every motor of an MCU that drives a joint of the mask. Default: no drivers.
+  virtual void set_motors_enabled(unsigned /*joint_mask*/, bool /*on*/) {}
   // Servo thread, with no motion running: starts homing every joint in joint_mask (bit j) at host
   // time now_s, the joints together. false (and the reason in why) when it cannot start.
   virtual bool start_homing(unsigned /*joint_mask*/, double /*now_s*/, char* why, size_t cap) {

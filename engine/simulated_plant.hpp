@@ -39,6 +39,8 @@ class SimulatedPlant {
   // Slips of the joint's motor so far, in either direction (each 4 full steps); 0 where the plant
   // does not model slips. A slip forward and one back cancel in lost_full_steps, not here.
   virtual int64_t slip_events(int /*joint*/) const { return 0; }
+  // Whether the joint's driver is enabled (holding torque); true where the plant does not say.
+  virtual bool motor_enabled(int /*joint*/) const { return true; }
 };
 
 }  // namespace feedloop::engine

@@ -153,6 +153,11 @@ class SimulatedPrinter final : public SimulatedPlant {
     const sim::GantryAxis* g = gantry(joint);
     return g ? g->slip_events() : 0;
   }
+  bool motor_enabled(int joint) const override {
+    if (delta_ && joint >= 0 && joint < 3) return delta_->motor_enabled(joint);
+    const sim::GantryAxis* g = gantry(joint);
+    return g ? g->enabled() : true;
+  }
 
   sim::GantryAxis* gantry(int joint) const {
     return joint < 0 || joint >= kJoints ? nullptr : gantries_[static_cast<size_t>(joint)].get();

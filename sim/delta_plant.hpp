@@ -81,6 +81,7 @@ class DeltaPlant {
   // Ground truth.
   double time_s() const { return t_s_; }
   double carriage_mm(int i) const { return x_[4 * i + 2] * 1e3; }  // absolute carriage height
+  bool motor_enabled(int i) const { return enabled_[static_cast<size_t>(i)]; }
   double carriage_rel_mm(int i) const { return (x_[4 * i + 2] - q0_m_[i]) * 1e3; }  // from power-on
   double commanded_rel_mm(int i) const { return static_cast<double>(steps_[static_cast<size_t>(i)]) * p_.mm_per_step; }
   Eigen::Vector3d nozzle_mm() const;

@@ -388,6 +388,39 @@ TEST(Dwell, AG4RightAfterAMoveHoldsTheMachineAndTheM400AfterItWaitsForItsEnd) {
   EXPECT_EQ(s.lost_step_events, 0u);
 }
 
+// M18/M84 switch the drivers off (Marlin's finish_and_disable): the simulated motors lose their
+// holding torque, the axes must be homed again, and G28 switches them on first. (X Y Z: the
+// simulated extruder's motor has no enable.)
+TEST(MotorsOff, M84SwitchesTheDriversOffAndG28OnAgain) {
+  FlushRig rig(flush_config());
+  ASSERT_TRUE(rig.machine);
+  SimulatedPlant* plant = rig.bridge->plant();
+  ASSERT_NE(plant, nullptr);
+  ASSERT_EQ(rig.run("G28"), "");
+  ASSERT_EQ(rig.run("G1 X50 Y50 F6000"), "");
+  for (int j = 0; j < 3; ++j) EXPECT_TRUE(plant->motor_enabled(j)) << j;
+  ASSERT_EQ(rig.run("M84"), "");  // after the move has ended
+  EXPECT_NEAR(rig.machine->status().pos_mm[0], 50.0, 1e-9);
+  for (int j = 0; j < 3; ++j) EXPECT_FALSE(plant->motor_enabled(j)) << j;
+  EXPECT_NE(rig.run("G1 X10 F6000").find("Must home axis first"), std::string::npos);
+  ASSERT_EQ(rig.run("G28"), "");
+  for (int j = 0; j < 3; ++j) EXPECT_TRUE(plant->motor_enabled(j)) << j;
+  ASSERT_EQ(rig.run("G1 X60 Y40 F6000"), "");
+  ASSERT_EQ(rig.run("M400"), "");
+  // One axis: only its driver (one MCU per joint on the default printer); S alone changes nothing.
+  ASSERT_EQ(rig.run("M84 S60"), "");
+  for (int j = 0; j < 3; ++j) EXPECT_TRUE(plant->motor_enabled(j)) << j;
+  ASSERT_EQ(rig.run("M18 X"), "");
+  EXPECT_FALSE(plant->motor_enabled(0));
+  EXPECT_TRUE(plant->motor_enabled(1));
+  EXPECT_EQ(std::string(rig.machine->status().homed_axes).find('x'), std::string::npos);
+  EXPECT_NE(std::string(rig.machine->status().homed_axes).find('y'), std::string::npos);
+  ASSERT_EQ(rig.run("G1 Y60 F6000"), "");  // Y still homed: it moves, and switches X on again
+  ASSERT_EQ(rig.run("M400"), "");
+  EXPECT_TRUE(plant->motor_enabled(0));
+  EXPECT_EQ(rig.machine->status().lost_step_events, 0u);
+}
+
 // Issue 16's "return within one encoder count" (docs/jobs.md "The return"): the same rest point
 // (same step count) reached again along different ways; the encoder at rest each time against
 // the first arrival's, in counts (0.49 um). A pause's return cannot copy the way the print
