@@ -48,6 +48,7 @@ void write_axes(Writer& w, const MachineConfig& c) {
     if (a.encoder) {
       w.begin("encoder");
       w.num("resolution_um", a.encoder->resolution_um);
+      if (a.encoder->index_period_mm > 0.0) w.num("index_period_mm", a.encoder->index_period_mm);
       w.end();
     }
     if (std::isfinite(a.min_mm)) w.num("min_mm", a.min_mm);
@@ -63,6 +64,8 @@ void write_axes(Writer& w, const MachineConfig& c) {
       w.num("second_homing_speed_mm_s", h.second_homing_speed_mm_s);
       w.num("retract_dist_mm", h.retract_dist_mm);
       w.num("max_travel_mm", h.max_travel_mm);
+      if (h.index) w.boolean("index", true);
+      if (h.index_position_mm) w.num("index_position_mm", *h.index_position_mm);
       w.end();
     }
     w.end();

@@ -24,6 +24,8 @@ enum class Drive { stepper, dc_servo };
 
 struct EncoderConfig {
   double resolution_um = 0.49;  // AS5311 linear encoder (thesis Sect. 3)
+  double index_period_mm =
+      0.0;  // its index marks' spacing (AS5311: 2 mm, one per pole pair); 0: none
   bool operator==(const EncoderConfig&) const = default;
 };
 
@@ -39,6 +41,11 @@ struct HomingConfig {
   double second_homing_speed_mm_s = 2.5;     // Klipper's default: homing_speed / 2
   double retract_dist_mm = 5.0;              // Klipper's homing_retract_dist; 0: no second touch
   double max_travel_mm = 0.0;                // default 1.5 x (max_mm - min_mm)
+  // Encoder-index homing: after the switch, the encoder's next index mark away from it is the
+  // reference (needs encoder.index_period_mm). index_position_mm: the mark's machine position
+  // (unset: measured from the switch at the first G28 and logged, kept while the daemon runs).
+  bool index = false;
+  std::optional<double> index_position_mm;
   bool operator==(const HomingConfig&) const = default;
 };
 

@@ -45,6 +45,12 @@ void read_homing(MapReader& a, AxisConfig& axis, Diagnostics& diag) {
   if (!h.number("second_homing_speed_mm_s", c.second_homing_speed_mm_s, Range::positive()))
     c.second_homing_speed_mm_s = c.homing_speed_mm_s / 2.0;
   h.number("retract_dist_mm", c.retract_dist_mm, Range::non_negative());
+  h.boolean("index", c.index);
+  double index_pos = 0.0;
+  if (h.number("index_position_mm", index_pos, Range::any())) c.index_position_mm = index_pos;
+  if (c.index && !(axis.encoder && axis.encoder->index_period_mm > 0.0))
+    diag.add(h.key_mark("index"), h.path() + ".index: encoder-index homing needs " + a.path() +
+                                      ".encoder.index_period_mm (the encoder's index marks)");
   const double range_mm = axis.max_mm - axis.min_mm;
   const bool has_travel = h.number("max_travel_mm", c.max_travel_mm, Range::positive());
   if (!has_travel) c.max_travel_mm = std::isfinite(range_mm) ? 1.5 * range_mm : 0.0;
@@ -134,6 +140,7 @@ void read_axes(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& d
       MapReader enc = a.sub("encoder");
       EncoderConfig e;
       enc.number("resolution_um", e.resolution_um, Range::open_closed(0.0, 1000.0), Need::required);
+      enc.number("index_period_mm", e.index_period_mm, Range::closed(0.0, 1000.0));
       enc.finish();
       axis.encoder = e;
     } else {

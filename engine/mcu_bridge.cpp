@@ -80,6 +80,7 @@ struct McuBridge::JointPort final : device::MotorPort {
     return plant->read_encoder_counts(t_s) + encoder_offset_counts;
   }
   bool read_endstop(double t_s) override { return plant->read_endstop(t_s); }
+  bool read_encoder_index(double t_s) override { return plant->read_encoder_index(t_s); }
 };
 
 McuBridge::McuBridge(const config::MachineConfig&, const McuBridgeOptions& options) : options_(options) {
@@ -247,6 +248,15 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
     hp.report_encoder = (a->encoder.has_value() || cfg.kinematics == config::Kinematics::delta) &&
                         encoder_mm_per_count_[js] > 0.0 &&
                         cfg.kinematics != config::Kinematics::corexy;
+    // Encoder-index homing: the next mark lies within one period of the switch.
+    if (h.index && cfg.kinematics != config::Kinematics::cartesian)
+      return Error{
+          "axes." + names[js] +
+          ".homing.index: encoder-index homing is for Cartesian axes (this printer is " +
+          std::string(cfg.kinematics == config::Kinematics::delta ? "a delta" : "a corexy") + ")"};
+    hp.index_search = h.index && hp.report_encoder && a->encoder;
+    if (hp.index_search) hp.index_search_mm = a->encoder->index_period_mm * 1.05;
+    index_position_mm_[js] = h.index_position_mm ? *h.index_position_mm : NAN;
     drivers::McuSession* follower_session = nullptr;
     homing_joints_[js] = {j, -1};
     if (corexy_ && j < 2) {
@@ -439,7 +449,26 @@ void McuBridge::poll_homing(double now_s) {
           std::to_string(by_encoder_mm - steps_mm) +
           " mm from the steps at the trigger; homed by the steps");  // rare: allocates
     }
-    const double homed = by_encoder ? by_encoder_mm : steps_mm;
+    // Encoder-index homing: the mark is the reference. Its position from the config, or measured
+    // from the switch at the first homing (kept while the daemon runs; the log gives the value).
+    double by_index_mm = NAN;
+    if (by_encoder && r.has_index) {
+      const double mark_from_switch_mm =
+          homing_[js]->params().position_endstop_mm +
+          static_cast<double>(r.index_encoder_counts - r.trigger_encoder_counts) *
+              encoder_mm_per_count_[js];
+      if (!std::isfinite(index_position_mm_[js])) {
+        index_position_mm_[js] = mark_from_switch_mm;
+        log("homing of " + joint_names_[js] + ": its encoder index mark is at " +
+            std::to_string(mark_from_switch_mm) + " mm by the switch; set axes." +
+            joint_names_[js] + ".homing.index_position_mm to keep it");  // once: allocates
+      }
+      by_index_mm = index_position_mm_[js] + (enc_mm - static_cast<double>(r.index_encoder_counts) *
+                                                           encoder_mm_per_count_[js]);
+    }
+    const double homed = std::isfinite(by_index_mm) ? by_index_mm
+                         : by_encoder               ? by_encoder_mm
+                                                    : steps_mm;
     homed_mm_[js].store(homed, std::memory_order_relaxed);
     steps_homed_mm_[js].store(steps_mm, std::memory_order_relaxed);
     encoder_referenced_[js].store(by_encoder, std::memory_order_relaxed);

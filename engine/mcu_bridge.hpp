@@ -25,6 +25,7 @@
 
 #include <array>
 #include <atomic>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -180,6 +181,8 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   McuBridgeOptions options_;
   std::vector<std::unique_ptr<Mcu>> mcus_;
   std::array<int, kJoints> joint_mcu_{{-1, -1, -1, -1}};
+  std::array<double, kJoints> index_position_mm_{
+      {NAN, NAN, NAN, NAN}};  // encoder-index homing's marks
   std::array<int, kJoints> joint_motor_{{0, 0, 0, 0}};
   std::array<std::string, kJoints> joint_names_;
   std::array<double, kJoints> encoder_mm_per_count_{};

@@ -311,8 +311,10 @@ Result<sim::GantryAxisParams> simulated_gantry_params(const config::MachineConfi
   p.pulley_radius_mm = p.full_steps_per_rev * p.microsteps / (2.0 * std::numbers::pi * spm[js]);
   p.encoder.noise_um = cfg.simulator.encoder_noise_um;
   p.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
-  if (const config::AxisConfig* a = cfg.axis(names[js]); a && a->encoder)
+  if (const config::AxisConfig* a = cfg.axis(names[js]); a && a->encoder) {
     p.encoder.resolution_um = a->encoder->resolution_um;
+    p.encoder.index_period_mm = a->encoder->index_period_mm;
+  }
   p.seed = cfg.simulator.seed + 1000 * js;
   apply_effects(cfg.simulator.effects, names[js], p.effects);
   // direction_dependent_stiffness: the belt anchor offset x0 of Eq. 6 that gives K2(pulling +) /

@@ -18,6 +18,10 @@ struct EncoderParams {
   double resolution_um = 0.49;    // AS5311: 2 mm pole pair / 4096 interpolation steps (thesis: 0.49 um)
   double noise_um = 0.3;          // standard deviation of the Gaussian reading noise (0 = none)
   double sampling_delay_s = 0.0;  // the reading at t shows the position at t - delay
+  // Index marks (the AS5311's index: once per 2 mm pole pair): the index line is high while the
+  // true position (from the zero) lies within one count above a multiple of the period, with no
+  // reading noise (a decoder latches the mark's edge). 0: no index.
+  double index_period_mm = 0.0;
 };
 
 Status validate(const EncoderParams& p);

@@ -57,6 +57,7 @@ class EndstopAxis final : public device::MotorPort {
   void set_enabled(double t_s, bool enabled) override { axis_->set_enabled(t_s, enabled); }
   void set_step_fraction(double t_s, float f) override { axis_->set_step_fraction(t_s, f); }
   int64_t read_encoder_counts(double t_s) override { return axis_->read_encoder_counts(t_s); }
+  bool read_encoder_index(double t_s) override { return axis_->read_encoder_index(t_s); }
   bool read_endstop(double t_s) override {
     axis_->advance_to(t_s);
     return sw_->sample(axis_->carriage_mm());

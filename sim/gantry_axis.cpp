@@ -263,6 +263,17 @@ int64_t GantryAxis::read_encoder_counts(double t_s) {
   return encoder_.counts((pos_m - p_.initial_pos_mm * 1e-3) * 1e3);
 }
 
+bool GantryAxis::read_encoder_index(double t_s) {
+  const double period_mm = p_.encoder.index_period_mm;
+  if (!(period_mm > 0.0)) return false;
+  advance_to(t_s);
+  const double pos_m =
+      read_delay_s_ > 0.0 ? history_.value_at(t_s_ - read_delay_s_) : x_[kCarriage];
+  const double from_zero_mm = (pos_m - p_.initial_pos_mm * 1e-3) * 1e3;
+  const double in_period_mm = from_zero_mm - std::floor(from_zero_mm / period_mm) * period_mm;
+  return in_period_mm < encoder_.mm_per_count();
+}
+
 LinearModel GantryAxis::linearize() const {
   const double u0 = (static_cast<double>(steps_) + step_fraction_) * m_per_step_true_ + u0_m_;
   Dynamics f = [this](const Eigen::VectorXd& x, const Eigen::VectorXd& u) -> Eigen::VectorXd {

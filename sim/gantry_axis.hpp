@@ -57,6 +57,7 @@ class GantryAxis final : public device::MotorPort {
   void set_step_fraction(double t_s, float fraction) override;
   void set_enabled(double t_s, bool enabled) override;
   int64_t read_encoder_counts(double t_s) override;
+  bool read_encoder_index(double t_s) override;
 
   // Integrate to t_s with no event (RT-safe).
   void advance_to(double t_s);

@@ -36,6 +36,12 @@ class MotorPort {
     (void)t_s;
     return false;
   }
+  // The encoder's index line at t_s (its reference mark: high over one count at each mark). An
+  // encoder without an index reads 0.
+  virtual bool read_encoder_index(double t_s) {
+    (void)t_s;
+    return false;
+  }
 };
 
 }  // namespace feedloop::device

@@ -491,6 +491,7 @@ void VirtualMcu::handle_endstop_home(const uint8_t* p, size_t n) {
   }
   Axis& a = axes_[m.axis];
   a.es_report_encoder = (m.flags & protocol::kEndstopReportEncoder) != 0;
+  a.es_index = m.source == protocol::EndstopSource::kEncoderIndex;
   a.es_triggered = false;
   a.es_seen = 0;
   a.es_armed = m.sample_ticks > 0;
@@ -530,7 +531,8 @@ void VirtualMcu::endstop_sample(int axis) {
   Axis& a = axes_[axis];
   const int64_t at = a.es_next_clock;
   a.es_next_clock += a.es_ticks;
-  const bool pin = a.port != nullptr && a.port->read_endstop(true_time_at(at));
+  const bool pin = a.port != nullptr && (a.es_index ? a.port->read_encoder_index(true_time_at(at))
+                                                    : a.port->read_endstop(true_time_at(at)));
   if ((pin ? 1 : 0) != a.es_level) {
     a.es_seen = 0;
     return;

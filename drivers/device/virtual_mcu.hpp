@@ -155,6 +155,7 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
     int64_t es_ticks = 0, es_next_clock = 0;
     int64_t es_first_clock = 0, es_first_steps = 0;
     bool es_report_encoder = false;  // v4: the encoder count at the first triggered sample
+    bool es_index = false;           // the source is the encoder's index line, not the pin
     int64_t es_first_encoder = 0;
   };
   void handle_queue_steps(protocol::MsgReader& r);

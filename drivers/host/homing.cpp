@@ -42,6 +42,9 @@ Status check_homing_params(const HomingParams& p) {
   if (p.motor_sign != 1 && p.motor_sign != -1) return bad("motor_sign must be -1 or +1");
   if (p.has_follower && p.follower_sign != 1 && p.follower_sign != -1)
     return bad("follower_sign must be -1 or +1");
+  if (p.index_search && (!positive(p.index_search_mm) || !p.report_encoder || p.has_follower))
+    return bad(
+        "encoder-index homing needs the encoder's count and a search distance > 0 (one motor)");
   return {};
 }
 
@@ -106,7 +109,9 @@ void HomingSequence::arm_motor(McuSession& s, uint8_t motor, bool on,
   m.sample_ticks =
       on ? static_cast<uint32_t>(std::llround(p_.sample_period_s * s.mcu_clock_hz())) : 0;
   if (on && m.sample_ticks == 0) m.sample_ticks = 1;
-  m.sample_count = static_cast<uint8_t>(p_.sample_count);
+  // An index line is a clean digital signal one count wide: the first sample on it is the mark.
+  m.sample_count =
+      static_cast<uint8_t>(source == protocol::EndstopSource::kEncoderIndex ? 1 : p_.sample_count);
   m.source = on ? source : protocol::EndstopSource::kPin;
   m.flags = on ? flags : 0;
   uint8_t buf[16];
@@ -279,6 +284,24 @@ void HomingSequence::on_primary_trigger(const protocol::EndstopTriggerMsg& t, do
     located_p_ = true;
     return;
   }
+  if (phase_ == HomingPhase::kIndexSearch) {
+    streaming_ = false;
+    pos_steps_ = t.stop_steps;
+    arm_motor(session_, p_.motor, false, protocol::EndstopSource::kPin);
+    if (!t.has_encoder) {
+      fail("homing of " + p_.axis_name + ": the MCU did not report the encoder count at the index");
+      return;
+    }
+    result_.has_index = true;
+    result_.index_encoder_counts = t.trigger_encoder_counts;
+    result_.stop_steps = t.stop_steps;
+    result_.position_mm =
+        p_.position_endstop_mm +
+        static_cast<double>(p_.motor_sign * (t.stop_steps - result_.trigger_steps)) *
+            p_.mm_per_step;
+    phase_ = HomingPhase::kDone;
+    return;
+  }
   if (phase_ != HomingPhase::kApproach && phase_ != HomingPhase::kSecondTouch) return;  // stale
   streaming_ = false;
   pos_steps_ = t.stop_steps;  // the MCU's word: what it executed before it stopped
@@ -345,6 +368,14 @@ void HomingSequence::after_stop(const protocol::EndstopTriggerMsg& t, double now
       p_.position_endstop_mm +
       static_cast<double>(p_.motor_sign * (first_trigger_steps_ - result_.trigger_steps)) *
           p_.mm_per_step;
+  if (p_.index_search && !p_.has_follower) {
+    // Away from the switch to the encoder's next index mark (its count is the reference).
+    phase_ = HomingPhase::kIndexSearch;
+    arm_motor(session_, p_.motor, true, protocol::EndstopSource::kEncoderIndex,
+              protocol::kEndstopReportEncoder);
+    begin_move(-p_.direction * p_.index_search_mm, p_.second_homing_speed_mm_s, now_s);
+    return;
+  }
   phase_ = HomingPhase::kDone;
 }
 
@@ -388,6 +419,13 @@ HomingPhase HomingSequence::poll(double now_s) {
         char buf[96];
         std::snprintf(buf, sizeof buf, " after full movement (%.3f mm)", move_.d_mm);
         fail("No trigger on " + p_.axis_name + buf);  // Klipper's wording (homing.py)
+      }
+      break;
+    case HomingPhase::kIndexSearch:
+      if (move_done(now_s, 0.1)) {
+        char buf[96];
+        std::snprintf(buf, sizeof buf, " within %.3f mm of the switch", move_.d_mm);
+        fail("No encoder index on " + p_.axis_name + buf);
       }
       break;
     case HomingPhase::kRetract:

@@ -57,6 +57,12 @@ struct HomingParams {
   // a joint with a linear encoder): the owner then refers the homed position to the carriage, not
   // to the steps (docs/homing.md "Carriage-referenced homing"). An older MCU: the steps only.
   bool report_encoder = false;
+  // Encoder-index homing (docs/homing.md "Encoder-index homing"; needs report_encoder and an MCU
+  // with protocol v4): after the last touch the motor moves away from the switch at
+  // second_homing_speed until the encoder's index line triggers (ENDSTOP_HOME source
+  // kEncoderIndex), at most index_search_mm. The switch picks the mark; the mark is the reference.
+  bool index_search = false;
+  double index_search_mm = 0.0;
 };
 
 Status check_homing_params(const HomingParams& p);
@@ -70,6 +76,7 @@ enum class HomingPhase {
   kRetract,
   kCheckRelease,
   kSecondTouch,
+  kIndexSearch,
   kFollowerStop,
   kDone,
   kFailed
@@ -93,6 +100,10 @@ struct HomingResult {
   // the carriage was at position_endstop.
   bool has_trigger_encoder = false;
   int64_t trigger_encoder_counts = 0;
+  // Encoder-index homing: the encoder count at the index mark (the mark's own count), and the
+  // index search's steps (position_mm is then where the motor stopped after the mark).
+  bool has_index = false;
+  int64_t index_encoder_counts = 0;
 };
 
 class HomingSequence {

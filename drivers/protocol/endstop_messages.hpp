@@ -30,8 +30,12 @@ enum class EndstopSource : uint8_t {
   // (a CoreXY carriage's switch stops the second motor: Klipper's trsync_trigger from the host),
   // and a motor at rest reports its step position with it.
   kNow = 1,
+  // The motor's encoder index (its reference mark) at trigger_level: an encoder-index homing's
+  // last phase (docs/homing.md "Encoder-index homing"). An MCU whose encoder has no index line
+  // never triggers on it.
+  kEncoderIndex = 2,
 };
-constexpr uint8_t kEndstopSourceCount = 2;
+constexpr uint8_t kEndstopSourceCount = 3;
 
 struct EndstopHomeMsg {
   uint8_t axis = 0;

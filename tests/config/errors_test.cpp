@@ -408,6 +408,15 @@ TEST(ConfigHoming, SecondTouchFasterThanTheFirst) {
                pos_of(y, "second_homing_speed_mm_s"));
 }
 
+TEST(ConfigHoming, EncoderIndexHomingNeedsTheEncodersIndexMarks) {
+  const std::string y =
+      edit(kMinimal, kX, "    max_accel_mm_s2: 3000\n    homing: {index: true}\n  y:");
+  expect_error(y,
+               "axes.x.homing.index: encoder-index homing needs axes.x.encoder.index_period_mm "
+               "(the encoder's index marks)",
+               pos_of(y, "index: true"));
+}
+
 TEST(ConfigHoming, OvershootBeyondTheRetract) {
   const std::string y =
       edit(kMinimal, kX,
