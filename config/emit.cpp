@@ -66,6 +66,10 @@ void write_axes(Writer& w, const MachineConfig& c) {
       w.num("max_travel_mm", h.max_travel_mm);
       if (h.index) w.boolean("index", true);
       if (h.index_position_mm) w.num("index_position_mm", *h.index_position_mm);
+      if (h.stall) {
+        w.boolean("stall", true);
+        w.num("stall_threshold_mm", h.stall_threshold_mm);
+      }
       w.end();
     }
     w.end();

@@ -46,6 +46,11 @@ struct HomingConfig {
   // (unset: measured from the switch at the first G28 and logged, kept while the daemon runs).
   bool index = false;
   std::optional<double> index_position_mm;
+  // Stall (sensorless) homing: no switch; the carriage is driven against the hard stop at
+  // position_endstop_mm until the encoder falls stall_threshold_mm behind the steps (needs an
+  // encoder; no second touch). The simulator puts a hard stop there.
+  bool stall = false;
+  double stall_threshold_mm = 0.5;
   bool operator==(const HomingConfig&) const = default;
 };
 

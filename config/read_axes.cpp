@@ -48,6 +48,13 @@ void read_homing(MapReader& a, AxisConfig& axis, Diagnostics& diag) {
   h.boolean("index", c.index);
   double index_pos = 0.0;
   if (h.number("index_position_mm", index_pos, Range::any())) c.index_position_mm = index_pos;
+  h.boolean("stall", c.stall);
+  h.number("stall_threshold_mm", c.stall_threshold_mm, Range::open_closed(0.0, 5.0));
+  if (c.stall && !axis.encoder)
+    diag.add(h.key_mark("stall"), h.path() + ".stall: stall homing needs " + a.path() +
+                                      ".encoder (the MCU compares its counts with the steps)");
+  if (c.stall && c.index)
+    diag.add(h.key_mark("stall"), h.path() + ": stall and index homing do not go together");
   if (c.index && !(axis.encoder && axis.encoder->index_period_mm > 0.0))
     diag.add(h.key_mark("index"), h.path() + ".index: encoder-index homing needs " + a.path() +
                                       ".encoder.index_period_mm (the encoder's index marks)");

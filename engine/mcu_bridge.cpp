@@ -249,12 +249,21 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
                         encoder_mm_per_count_[js] > 0.0 &&
                         cfg.kinematics != config::Kinematics::corexy;
     // Encoder-index homing: the next mark lies within one period of the switch.
-    if (h.index && cfg.kinematics != config::Kinematics::cartesian)
+    if ((h.index || h.stall) && cfg.kinematics != config::Kinematics::cartesian)
       return Error{
           "axes." + names[js] +
-          ".homing.index: encoder-index homing is for Cartesian axes (this printer is " +
+          ".homing: encoder-index and stall homing are for Cartesian axes (this printer is " +
           std::string(cfg.kinematics == config::Kinematics::delta ? "a delta" : "a corexy") + ")"};
     hp.index_search = h.index && hp.report_encoder && a->encoder;
+    if (h.stall) {
+      if (!hp.report_encoder)
+        return Error{"axes." + names[js] +
+                     ".homing.stall: stall homing needs the encoder on a Cartesian axis"};
+      hp.stall = true;
+      hp.second_touch = false;
+      hp.stall_threshold_mm = h.stall_threshold_mm;
+      hp.encoder_mm_per_count = encoder_mm_per_count_[js];
+    }
     if (hp.index_search) hp.index_search_mm = a->encoder->index_period_mm * 1.05;
     index_position_mm_[js] = h.index_position_mm ? *h.index_position_mm : NAN;
     drivers::McuSession* follower_session = nullptr;

@@ -405,6 +405,12 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
         p.value().initial_pos_mm =
             h.position_endstop_mm + (h.direction == config::EndstopSide::min ? d : -d);
       }
+      if (has_switch && ac->homing->stall) {  // stall homing: the frame's hard stop there
+        const config::HomingConfig& h = *ac->homing;
+        (h.direction == config::EndstopSide::min ? p.value().hard_stop_min_mm
+                                                 : p.value().hard_stop_max_mm) =
+            h.position_endstop_mm;
+      }
       auto g = sim::GantryAxis::create(p.value());
       if (!g.ok()) return Error{"simulated axis " + names[js] + ": " + g.error().message};
       out->gantries_[js] = std::make_unique<sim::GantryAxis>(std::move(g.value()));

@@ -66,12 +66,17 @@ double GantryAxis::fastest_mode_rad_s(const GantryAxisParams& p) {
   q.belt_stiffness_n_m /= kMinActiveSpan;  // K2 = k_hat / (0.05 L) = 20 k2 at x2 = 0
   w = std::max(w, sim::fastest_mode_rad_s(GantryAxis(q).linearize().a));
   if (p.effects.coulomb_friction.enabled) w = std::max(w, kBristleSlide_m_s / kBristle_m);
+  if (std::isfinite(p.hard_stop_min_mm) || std::isfinite(p.hard_stop_max_mm))
+    w = std::max(w, 2.0 * std::sqrt(p.hard_stop_n_m / p.carriage_mass_kg));  // the contact's mode
   return w;
 }
 
 GantryAxis::GantryAxis(const GantryAxisParams& p)
     : p_(p), encoder_(p.encoder, p.seed), history_(history_capacity(p)) {
   h_s_ = 1.0 / p.substep_hz;
+  stop_min_m_ = p.hard_stop_min_mm * 1e-3;
+  stop_max_m_ = p.hard_stop_max_mm * 1e-3;
+  stop_c_ = std::sqrt(p.hard_stop_n_m * p.carriage_mass_kg);  // 2 zeta sqrt(k m), zeta 0.5
   const double r_m = p.pulley_radius_mm * 1e-3;
   const double scale = p.effects.scale_error.enabled ? p.effects.scale_error.scale : 1.0;
   mm_per_step_nominal_ = 2.0 * kPi * p.pulley_radius_mm / (p.full_steps_per_rev * p.microsteps);
@@ -158,6 +163,10 @@ GantryAxis::State GantryAxis::derivative_(const State& x, double u_m, double sin
     dz = v2 - std::abs(v2) * z / kBristle_m;
     f_rail -= friction_n_per_m_ * z;
   }
+
+  // The hard stops: a stiff contact while the carriage is past one.
+  if (y2 < stop_min_m_) f_rail += p_.hard_stop_n_m * (stop_min_m_ - y2) - stop_c_ * v2;
+  if (y2 > stop_max_m_) f_rail -= p_.hard_stop_n_m * (y2 - stop_max_m_) + stop_c_ * v2;
 
   // Extra mass on its mount (extra_resonance): a spring-damper to the carriage.
   const double f_mount = inv_m3_ > 0.0 ? extra_k_ * (x3 - y2) + extra_c_ * (v3 - v2) : 0.0;

@@ -114,6 +114,7 @@ class GantryAxis final : public device::MotorPort {
   int64_t steps_ = 0;
   double step_fraction_ = 0.0;  // set_step_fraction
   bool enabled_ = true;
+  double stop_min_m_ = 0.0, stop_max_m_ = 0.0, stop_c_ = 0.0;  // the hard stops (gantry_params.hpp)
   int64_t slip_periods_ = 0;
   int64_t slip_events_ = 0;
   int64_t late_events_ = 0;

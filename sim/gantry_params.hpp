@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>  // uint64_t
+#include <limits>
 
 #include "core/result.hpp"
 #include "sim/encoder.hpp"
@@ -72,6 +73,12 @@ struct GantryAxisParams {
   // Carriage (Eq. 4, 10).
   double carriage_mass_kg = 0.45;        // m2
   double bearing_damping_n_s_m = 111.845;  // c2
+  // A hard stop (the frame at the travel's end, stall homing's reference): a stiff contact
+  // (hard_stop_n_m, damped at zeta 0.5) that pushes the carriage back past this position;
+  // infinite: none. min: the carriage stops below it; max: above.
+  double hard_stop_min_mm = -std::numeric_limits<double>::infinity();
+  double hard_stop_max_mm = std::numeric_limits<double>::infinity();
+  double hard_stop_n_m = 2.0e5;
   double initial_pos_mm = 0.0;           // carriage position x2 at power-on (encoder and steps zero here)
 
   EncoderParams encoder;

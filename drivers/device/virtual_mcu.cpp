@@ -492,6 +492,13 @@ void VirtualMcu::handle_endstop_home(const uint8_t* p, size_t n) {
   Axis& a = axes_[m.axis];
   a.es_report_encoder = (m.flags & protocol::kEndstopReportEncoder) != 0;
   a.es_index = m.source == protocol::EndstopSource::kEncoderIndex;
+  a.es_stall = m.source == protocol::EndstopSource::kStall && a.port != nullptr;
+  if (a.es_stall) {
+    a.es_stall_cps_q16 = m.stall_counts_per_step_q16;
+    a.es_stall_threshold = m.stall_threshold_counts;
+    a.es_stall_steps0 = a.st.position_steps;
+    a.es_stall_enc0 = a.port->read_encoder_counts(true_time_at(now_clock_));
+  }
   a.es_triggered = false;
   a.es_seen = 0;
   a.es_armed = m.sample_ticks > 0;
@@ -531,8 +538,18 @@ void VirtualMcu::endstop_sample(int axis) {
   Axis& a = axes_[axis];
   const int64_t at = a.es_next_clock;
   a.es_next_clock += a.es_ticks;
-  const bool pin = a.port != nullptr && (a.es_index ? a.port->read_encoder_index(true_time_at(at))
-                                                    : a.port->read_endstop(true_time_at(at)));
+  bool pin = false;
+  if (a.port != nullptr && a.es_stall) {
+    // Steps since arming in counts (16.16, exact in int64 for any travel), less the encoder's.
+    const int64_t steps = a.st.position_steps - a.es_stall_steps0;
+    const int64_t expected = (steps * a.es_stall_cps_q16) / 65536;
+    const int64_t moved = a.port->read_encoder_counts(true_time_at(at)) - a.es_stall_enc0;
+    const int64_t lag = expected - moved;
+    pin = lag > a.es_stall_threshold || lag < -a.es_stall_threshold;
+  } else if (a.port != nullptr) {
+    pin = a.es_index ? a.port->read_encoder_index(true_time_at(at))
+                     : a.port->read_endstop(true_time_at(at));
+  }
   if ((pin ? 1 : 0) != a.es_level) {
     a.es_seen = 0;
     return;

@@ -156,6 +156,8 @@ class VirtualMcu final : private protocol::FrameOutput, private protocol::Payloa
     int64_t es_first_clock = 0, es_first_steps = 0;
     bool es_report_encoder = false;  // v4: the encoder count at the first triggered sample
     bool es_index = false;           // the source is the encoder's index line, not the pin
+    bool es_stall = false;           // the source is a stall: the encoder stops following the steps
+    int64_t es_stall_cps_q16 = 0, es_stall_threshold = 0, es_stall_steps0 = 0, es_stall_enc0 = 0;
     int64_t es_first_encoder = 0;
   };
   void handle_queue_steps(protocol::MsgReader& r);

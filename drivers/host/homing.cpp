@@ -42,6 +42,11 @@ Status check_homing_params(const HomingParams& p) {
   if (p.motor_sign != 1 && p.motor_sign != -1) return bad("motor_sign must be -1 or +1");
   if (p.has_follower && p.follower_sign != 1 && p.follower_sign != -1)
     return bad("follower_sign must be -1 or +1");
+  if (p.stall && (!p.report_encoder || p.has_follower || p.second_touch ||
+                  !positive(p.encoder_mm_per_count) || !positive(p.stall_threshold_mm) ||
+                  p.stall_backoff_mm < 0.0 || p.mm_per_step / p.encoder_mm_per_count > 60000.0))
+    return bad(
+        "stall homing needs the encoder's count, one motor, no second touch and a threshold > 0");
   if (p.index_search && (!positive(p.index_search_mm) || !p.report_encoder || p.has_follower))
     return bad(
         "encoder-index homing needs the encoder's count and a search distance > 0 (one motor)");
@@ -95,7 +100,8 @@ void HomingSequence::fail(std::string message) {
 }
 
 void HomingSequence::arm(bool on) {
-  arm_motor(session_, p_.motor, on, protocol::EndstopSource::kPin,
+  arm_motor(session_, p_.motor, on,
+            p_.stall ? protocol::EndstopSource::kStall : protocol::EndstopSource::kPin,
             p_.report_encoder && session_.negotiated_version() >= 4
                 ? protocol::kEndstopReportEncoder
                 : 0);
@@ -114,7 +120,13 @@ void HomingSequence::arm_motor(McuSession& s, uint8_t motor, bool on,
       static_cast<uint8_t>(source == protocol::EndstopSource::kEncoderIndex ? 1 : p_.sample_count);
   m.source = on ? source : protocol::EndstopSource::kPin;
   m.flags = on ? flags : 0;
-  uint8_t buf[16];
+  if (m.source == protocol::EndstopSource::kStall) {
+    m.stall_counts_per_step_q16 =
+        static_cast<uint32_t>(std::llround(p_.mm_per_step / p_.encoder_mm_per_count * 65536.0));
+    m.stall_threshold_counts = static_cast<uint32_t>(
+        std::max(1.0, std::round(p_.stall_threshold_mm / p_.encoder_mm_per_count)));
+  }
+  uint8_t buf[32];
   const size_t n = protocol::encode_endstop_home(m, buf, sizeof buf);
   if (n > 0) s.queue_message(buf, n);
 }
@@ -368,6 +380,12 @@ void HomingSequence::after_stop(const protocol::EndstopTriggerMsg& t, double now
       p_.position_endstop_mm +
       static_cast<double>(p_.motor_sign * (first_trigger_steps_ - result_.trigger_steps)) *
           p_.mm_per_step;
+  if (p_.stall && p_.stall_backoff_mm > 0.0) {
+    // Off the hard stop, so that the steps and the carriage agree again at rest.
+    phase_ = HomingPhase::kBackoff;
+    begin_move(-p_.direction * p_.stall_backoff_mm, p_.second_homing_speed_mm_s, now_s);
+    return;
+  }
   if (p_.index_search && !p_.has_follower) {
     // Away from the switch to the encoder's next index mark (its count is the reference).
     phase_ = HomingPhase::kIndexSearch;
@@ -419,6 +437,16 @@ HomingPhase HomingSequence::poll(double now_s) {
         char buf[96];
         std::snprintf(buf, sizeof buf, " after full movement (%.3f mm)", move_.d_mm);
         fail("No trigger on " + p_.axis_name + buf);  // Klipper's wording (homing.py)
+      }
+      break;
+    case HomingPhase::kBackoff:
+      if (move_done(now_s, 0.02)) {
+        result_.stop_steps = pos_steps_;
+        result_.position_mm =
+            p_.position_endstop_mm +
+            static_cast<double>(p_.motor_sign * (pos_steps_ - result_.trigger_steps)) *
+                p_.mm_per_step;
+        phase_ = HomingPhase::kDone;
       }
       break;
     case HomingPhase::kIndexSearch:

@@ -63,6 +63,14 @@ struct HomingParams {
   // kEncoderIndex), at most index_search_mm. The switch picks the mark; the mark is the reference.
   bool index_search = false;
   double index_search_mm = 0.0;
+  // Stall (sensorless) homing against a hard stop at position_endstop (docs/homing.md "Stall
+  // homing"; needs report_encoder): the approach is armed with ENDSTOP_HOME source kStall: the MCU
+  // trips when the encoder falls stall_threshold_mm behind the steps. No second touch; then the
+  // motor backs off stall_backoff_mm at second_homing_speed (off the stop, the belt relaxed).
+  bool stall = false;
+  double stall_threshold_mm = 0.5;
+  double stall_backoff_mm = 1.0;
+  double encoder_mm_per_count = 0.0;  // for the MCU's comparison of steps and counts
 };
 
 Status check_homing_params(const HomingParams& p);
@@ -77,6 +85,7 @@ enum class HomingPhase {
   kCheckRelease,
   kSecondTouch,
   kIndexSearch,
+  kBackoff,
   kFollowerStop,
   kDone,
   kFailed

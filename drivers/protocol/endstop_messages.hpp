@@ -34,8 +34,13 @@ enum class EndstopSource : uint8_t {
   // last phase (docs/homing.md "Encoder-index homing"). An MCU whose encoder has no index line
   // never triggers on it.
   kEncoderIndex = 2,
+  // A stall (sensorless homing against a hard stop): the encoder stops following the steps. The
+  // motor's steps since arming times counts_per_step, less the encoder's counts since arming,
+  // beyond threshold_counts (either sign) is a triggered sample. Two varints follow the flags byte
+  // (encoded always with this source): counts_per_step_q16 and threshold_counts.
+  kStall = 3,
 };
-constexpr uint8_t kEndstopSourceCount = 3;
+constexpr uint8_t kEndstopSourceCount = 4;
 
 struct EndstopHomeMsg {
   uint8_t axis = 0;
@@ -47,6 +52,8 @@ struct EndstopHomeMsg {
   // motor's encoder count at the first triggered sample (a carriage-referenced homing,
   // docs/homing.md). Encoded only when not 0 (then the source byte is encoded too).
   uint8_t flags = 0;
+  uint32_t stall_counts_per_step_q16 = 0;  // kStall: encoder counts per motor step, 16.16
+  uint32_t stall_threshold_counts = 0;     // kStall: the divergence that is a stall, > 0
 };
 inline constexpr uint8_t kEndstopReportEncoder = 0x01;
 inline constexpr uint8_t kEndstopKnownFlags = kEndstopReportEncoder;
@@ -81,8 +88,10 @@ inline size_t encode_endstop_home(const EndstopHomeMsg& m, uint8_t* buf, size_t 
       .u8(m.trigger_level)
       .var(m.sample_ticks)
       .u8(m.sample_count);
+  const bool stall = m.source == EndstopSource::kStall;
   if (m.source != EndstopSource::kPin || m.flags != 0) w.u8(static_cast<uint8_t>(m.source));
-  if (m.flags != 0) w.u8(m.flags);
+  if (m.flags != 0 || stall) w.u8(m.flags);
+  if (stall) w.var(m.stall_counts_per_step_q16).var(m.stall_threshold_counts);
   return w.ok() ? w.size() : 0;
 }
 inline bool decode_endstop_home(const uint8_t* p, size_t n, EndstopHomeMsg& out) {
@@ -104,6 +113,13 @@ inline bool decode_endstop_home(const uint8_t* p, size_t n, EndstopHomeMsg& out)
   if (r.ok() && !r.at_end()) {
     out.flags = r.u8();
     if ((out.flags & ~kEndstopKnownFlags) != 0) return false;  // a flag this device does not know
+  }
+  out.stall_counts_per_step_q16 = out.stall_threshold_counts = 0;
+  if (out.source == EndstopSource::kStall) {
+    const uint64_t cps = r.var(), thr = r.var();
+    if (cps == 0 || cps > UINT32_MAX || thr == 0 || thr > UINT32_MAX) return false;
+    out.stall_counts_per_step_q16 = static_cast<uint32_t>(cps);
+    out.stall_threshold_counts = static_cast<uint32_t>(thr);
   }
   return r.ok() && r.at_end();
 }

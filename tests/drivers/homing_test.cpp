@@ -451,6 +451,29 @@ TEST(EndstopMessages, RoundTripAndRejectTruncation) {
   EXPECT_EQ(hd.flags, protocol::kEndstopReportEncoder);
   buf[m3] = 0;
   EXPECT_FALSE(protocol::decode_endstop_home(buf, m3 + 1, hd));
+  // kStall carries its comparison: counts per step (16.16) and the threshold, both > 0;
+  // kEncoderIndex is a source byte like kNow.
+  h.source = protocol::EndstopSource::kStall;
+  h.flags = protocol::kEndstopReportEncoder;
+  h.stall_counts_per_step_q16 = 1418103;
+  h.stall_threshold_counts = 1020;
+  const size_t ms = protocol::encode_endstop_home(h, buf, sizeof buf);
+  ASSERT_GT(ms, m3);
+  ASSERT_TRUE(protocol::decode_endstop_home(buf, ms, hd));
+  EXPECT_EQ(hd.source, protocol::EndstopSource::kStall);
+  EXPECT_EQ(hd.stall_counts_per_step_q16, 1418103u);
+  EXPECT_EQ(hd.stall_threshold_counts, 1020u);
+  EXPECT_FALSE(protocol::decode_endstop_home(buf, ms - 1, hd));  // truncated
+  h.stall_threshold_counts = 0;
+  const size_t ms0 = protocol::encode_endstop_home(h, buf, sizeof buf);
+  EXPECT_FALSE(protocol::decode_endstop_home(buf, ms0, hd));  // a zero threshold
+  h.source = protocol::EndstopSource::kEncoderIndex;
+  h.flags = 0;
+  const size_t mi = protocol::encode_endstop_home(h, buf, sizeof buf);
+  ASSERT_TRUE(protocol::decode_endstop_home(buf, mi, hd));
+  EXPECT_EQ(hd.source, protocol::EndstopSource::kEncoderIndex);
+  buf[mi - 1] = 4;  // a source this device does not know
+  EXPECT_FALSE(protocol::decode_endstop_home(buf, mi, hd));
   // ENDSTOP_TRIGGER: the encoder count trails only when asked for.
   protocol::EndstopTriggerMsg te{3, 1000, -52, 1200, -55, true, -123456789};
   const size_t mt = protocol::encode_endstop_trigger(te, buf, sizeof buf);
