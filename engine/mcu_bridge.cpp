@@ -249,16 +249,18 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
                         encoder_mm_per_count_[js] > 0.0 &&
                         cfg.kinematics != config::Kinematics::corexy;
     // Encoder-index homing: the next mark lies within one period of the switch.
-    if ((h.index || h.stall) && cfg.kinematics != config::Kinematics::cartesian)
-      return Error{
-          "axes." + names[js] +
-          ".homing: encoder-index and stall homing are for Cartesian axes (this printer is " +
-          std::string(cfg.kinematics == config::Kinematics::delta ? "a delta" : "a corexy") + ")"};
+    if ((h.index || h.stall) && cfg.kinematics == config::Kinematics::corexy)
+      return Error{"axes." + names[js] +
+                   ".homing: encoder-index and stall homing are for Cartesian axes and delta "
+                   "towers (this printer is " +
+                   "a corexy)"};
     hp.index_search = h.index && hp.report_encoder && a->encoder;
+    if (hp.report_encoder) hp.encoder_mm_per_count = encoder_mm_per_count_[js];
     if (h.stall) {
       if (!hp.report_encoder)
         return Error{"axes." + names[js] +
-                     ".homing.stall: stall homing needs the encoder on a Cartesian axis"};
+                     ".homing.stall: stall homing needs the carriage's encoder (a Cartesian axis "
+                     "or a delta tower)"};
       hp.stall = true;
       hp.second_touch = false;
       hp.stall_threshold_mm = h.stall_threshold_mm;

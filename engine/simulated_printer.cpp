@@ -59,6 +59,7 @@ class DeltaEndstopPort final : public device::MotorPort {
   void set_enabled(double t_s, bool enabled) override { port_->set_enabled(t_s, enabled); }
   void set_step_fraction(double t_s, float f) override { port_->set_step_fraction(t_s, f); }
   int64_t read_encoder_counts(double t_s) override { return port_->read_encoder_counts(t_s); }
+  bool read_encoder_index(double t_s) override { return port_->read_encoder_index(t_s); }
   bool read_endstop(double t_s) override {
     plant_->advance_to(t_s);
     return sw_->sample(plant_->carriage_mm(carriage_));
@@ -359,6 +360,13 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
     dp.seed = cfg.simulator.seed;
     dp.encoder.noise_um = cfg.simulator.encoder_noise_um;
     dp.encoder.sampling_delay_s = cfg.simulator.sample_delay_us * 1e-6;
+    for (int j = 0; j < 3; ++j) {
+      const config::AxisConfig* a = cfg.axis(names[static_cast<size_t>(j)]);
+      if (a && a->encoder && a->encoder->index_period_mm > 0.0)
+        dp.encoder.index_period_mm = a->encoder->index_period_mm;
+      if (a && a->homing && a->homing->stall && a->homing->direction == config::EndstopSide::max)
+        dp.hard_stop_max_mm[static_cast<size_t>(j)] = a->homing->position_endstop_mm;
+    }
     auto d = sim::DeltaPlant::create(dp);
     if (!d.ok()) return Error{"simulated delta: " + d.error().message};
     out->delta_ = std::move(d.value());

@@ -221,6 +221,9 @@ void DeltaPlant::derive_(const double* x, const double* qd_m, double* d) const {
     const double z = x[4 * i], zd = x[4 * i + 1], qi = x[4 * i + 2], qdi = x[4 * i + 3];
     const double zdd = k.d0 * (qd_m[i] - z) - k.d2 * zd;
     double f_carriage = -k.b * qdi - k.m * k.g - fz[2 * i] - fz[2 * i + 1];
+    // The hard stop at the tower's top (stall homing): a stiff contact above it.
+    if (const double stop_m = p_.hard_stop_max_mm[static_cast<size_t>(i)] * 1e-3; qi > stop_m)
+      f_carriage -= p_.hard_stop_n_m * (qi - stop_m) + std::sqrt(p_.hard_stop_n_m * k.m) * qdi;
     if (enabled_[static_cast<size_t>(i)]) {
       const double e = z + k.d1_over_d0 * zd;
       const double edot = zd + k.d1_over_d0 * zdd;
@@ -357,6 +360,21 @@ void DeltaPlant::Port::step(double t_s, int direction) {
 void DeltaPlant::Port::set_enabled(double t_s, bool enabled) {
   plant_->sync_(t_s);
   plant_->enabled_[static_cast<size_t>(i_)] = enabled;
+}
+
+bool DeltaPlant::Port::read_encoder_index(double t_s) {
+  const double period_mm = plant_->p_.encoder.index_period_mm;
+  if (!(period_mm > 0.0)) return false;
+  plant_->sync_(t_s);
+  const auto i = static_cast<size_t>(i_);
+  const double q =
+      plant_->p_.encoder.sampling_delay_s > 0.0
+          ? plant_->history_[i].value_at(plant_->t_s_ - plant_->p_.encoder.sampling_delay_s)
+          : plant_->x_[4 * i_ + 2];
+  // The marks at odd multiples of half a period of the carriage's absolute height (encoder.hpp).
+  const double from_mark_mm = q * 1e3 - 0.5 * period_mm;
+  return from_mark_mm - std::floor(from_mark_mm / period_mm) * period_mm <
+         plant_->encoders_[i].mm_per_count();
 }
 
 int64_t DeltaPlant::Port::read_encoder_counts(double t_s) {

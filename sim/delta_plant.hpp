@@ -26,6 +26,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 
 #include <Eigen/Dense>
@@ -48,6 +49,12 @@ struct DeltaPlantParams {
   double mm_per_step = 0.0125;            // 80 steps/mm (GT2 belt, 20-tooth pulley, 16 microsteps)
   Eigen::Vector3d initial_nozzle_mm{0.0, 0.0, 30.0};  // power-on position; steps and encoders zero here
   EncoderParams encoder;
+  // Hard stops at the towers' tops (stall homing's reference), absolute carriage heights, mm; a
+  // stiff contact (hard_stop_n_m, damped at zeta 0.5) above them. Infinite: none.
+  std::array<double, 3> hard_stop_max_mm{std::numeric_limits<double>::infinity(),
+                                         std::numeric_limits<double>::infinity(),
+                                         std::numeric_limits<double>::infinity()};
+  double hard_stop_n_m = 2.0e5;
   // Fixed RK4 step rate (step events split a substep at their exact time). 0: from the plant's
   // fastest mode (DeltaPlant::fastest_mode_rad_s, kRk4HOmegaMax in sim/linearize.hpp).
   double substep_hz = 0.0;
@@ -103,6 +110,7 @@ class DeltaPlant {
     void step(double t_s, int direction) override;
     void set_enabled(double t_s, bool enabled) override;
     int64_t read_encoder_counts(double t_s) override;
+    bool read_encoder_index(double t_s) override;
 
    private:
     DeltaPlant* plant_ = nullptr;

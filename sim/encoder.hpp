@@ -19,8 +19,9 @@ struct EncoderParams {
   double noise_um = 0.3;          // standard deviation of the Gaussian reading noise (0 = none)
   double sampling_delay_s = 0.0;  // the reading at t shows the position at t - delay
   // Index marks (the AS5311's index: once per 2 mm pole pair): the index line is high while the
-  // true position (from the zero) lies within one count above a multiple of the period, with no
-  // reading noise (a decoder latches the mark's edge). 0: no index.
+  // true position lies within one count above a mark, with no reading noise (a decoder latches the
+  // mark's edge). The plants put the marks at odd multiples of half a period in machine
+  // coordinates: a switch at a whole millimetre sits mid-way between two. 0: no index.
   double index_period_mm = 0.0;
 };
 

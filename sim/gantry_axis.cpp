@@ -278,8 +278,9 @@ bool GantryAxis::read_encoder_index(double t_s) {
   advance_to(t_s);
   const double pos_m =
       read_delay_s_ > 0.0 ? history_.value_at(t_s_ - read_delay_s_) : x_[kCarriage];
-  const double from_zero_mm = (pos_m - p_.initial_pos_mm * 1e-3) * 1e3;
-  const double in_period_mm = from_zero_mm - std::floor(from_zero_mm / period_mm) * period_mm;
+  // The marks at odd multiples of half a period in machine coordinates (encoder.hpp).
+  const double from_mark_mm = pos_m * 1e3 - 0.5 * period_mm;
+  const double in_period_mm = from_mark_mm - std::floor(from_mark_mm / period_mm) * period_mm;
   return in_period_mm < encoder_.mm_per_count();
 }
 

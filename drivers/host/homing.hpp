@@ -70,7 +70,7 @@ struct HomingParams {
   bool stall = false;
   double stall_threshold_mm = 0.5;
   double stall_backoff_mm = 1.0;
-  double encoder_mm_per_count = 0.0;  // for the MCU's comparison of steps and counts
+  double encoder_mm_per_count = 0.0;  // the stall's comparison; the index search's speed limit
 };
 
 Status check_homing_params(const HomingParams& p);
