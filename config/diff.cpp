@@ -21,6 +21,9 @@ std::vector<std::string> changed_sections(const MachineConfig& a, const MachineC
   check(a.model == b.model, "model");
   check(a.stepgen == b.stepgen, "stepgen");
   check(a.mcus == b.mcus, "mcus");
+  check(a.heater_mcus == b.heater_mcus, "heater_mcus");
+  check(a.heaters == b.heaters, "heaters");
+  check(a.fans == b.fans, "fans");
   check(a.simulator == b.simulator, "simulator");
   check(a.sockets == b.sockets, "sockets");
   check(a.web == b.web, "web");

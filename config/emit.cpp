@@ -266,19 +266,15 @@ void write_model(Writer& w, const MachineConfig& c) {
   w.end();
 }
 
-void write_hardware(Writer& w, const MachineConfig& c) {
-  w.begin("stepgen");
-  w.num("max_step_error_us", c.stepgen.max_step_error_us);
-  w.integer("mcu_clock_hz", c.stepgen.mcu_clock_hz);
-  w.num("queue_ahead_ms", c.stepgen.queue_ahead_ms);
-  w.end();
-  if (c.drive == Drive::dc_servo) return;  // no MCUs
+// One list of MCU entries (mcus with their axes; heater_mcus without).
+void write_mcu_list(Writer& w, const char* key, const std::vector<McuConfig>& list,
+                    bool with_axes) {
   YAML::Emitter& out = w.raw();
-  out << YAML::Key << "mcus" << YAML::Value << YAML::BeginSeq;
-  for (const McuConfig& m : c.mcus) {
+  out << YAML::Key << key << YAML::Value << YAML::BeginSeq;
+  for (const McuConfig& m : list) {
     out << YAML::BeginMap;
     w.str("name", m.name);
-    w.list("axes", m.axes);
+    if (with_axes) w.list("axes", m.axes);
     w.word("transport", enum_name(transport_names(), m.transport));
     if (m.transport == TransportType::serial) {
       w.begin("serial");
@@ -300,6 +296,16 @@ void write_hardware(Writer& w, const MachineConfig& c) {
     out << YAML::EndMap;
   }
   out << YAML::EndSeq;
+}
+
+void write_hardware(Writer& w, const MachineConfig& c) {
+  w.begin("stepgen");
+  w.num("max_step_error_us", c.stepgen.max_step_error_us);
+  w.integer("mcu_clock_hz", c.stepgen.mcu_clock_hz);
+  w.num("queue_ahead_ms", c.stepgen.queue_ahead_ms);
+  w.end();
+  if (c.drive == Drive::dc_servo) return;  // no MCUs
+  write_mcu_list(w, "mcus", c.mcus, true);
 }
 
 template <class T, class WriteParams>
@@ -404,6 +410,7 @@ void write_runtime(Writer& w, const MachineConfig& c) {
 }
 
 void write_thermal(Writer& w, const MachineConfig& c) {
+  if (!c.heater_mcus.empty()) write_mcu_list(w, "heater_mcus", c.heater_mcus, false);
   if (!c.heaters.empty()) {
     w.begin("heaters");
     for (const HeaterConfig& h : c.heaters) {
@@ -457,6 +464,7 @@ void write_thermal(Writer& w, const MachineConfig& c) {
       w.num("sensor_tau_s", h.plant.sensor_tau_s);
       w.num("ambient_c", h.plant.ambient_c);
       w.end();
+      if (!h.mcu.empty()) w.str("mcu", h.mcu);
       w.end();
     }
     w.end();
@@ -473,6 +481,7 @@ void write_thermal(Writer& w, const MachineConfig& c) {
       w.num("kick_start_s", f.kick_start_s);
       w.num("off_below", f.off_below);
       w.num("max_power", f.max_power);
+      if (!f.mcu.empty()) w.str("mcu", f.mcu);
       w.end();
     }
     w.end();

@@ -575,6 +575,7 @@ struct HeaterConfig {
   double pid_kp = 22.2, pid_ki = 1.08, pid_kd = 114.0;  // Marlin/Klipper units (per 255 of power)
   HeaterProtectionConfig protection;
   HeaterPlantConfig plant;
+  std::string mcu;  // the heater_mcus entry that drives it; "" = the simulated printer's board
   bool operator==(const HeaterConfig&) const = default;
 };
 
@@ -588,6 +589,7 @@ struct FanConfig {
   double kick_start_s = 0.1;
   double off_below = 0.0;
   double max_power = 1.0;
+  std::string mcu;  // the heater_mcus entry that drives it; "" = the simulated printer's board
   bool operator==(const FanConfig&) const = default;
 };
 
@@ -610,6 +612,9 @@ struct MachineConfig {
   SimulatorConfig simulator;
   std::vector<HeaterConfig> heaters;  // in file order
   std::vector<FanConfig> fans;
+  // The boards that drive the heaters and fans (axes empty). None: the simulated printer's heater
+  // board, which needs the motion MCUs simulated too (docs/heaters.md).
+  std::vector<McuConfig> heater_mcus;
   SocketsConfig sockets;
   WebConfig web;
   RecorderConfig recorder;

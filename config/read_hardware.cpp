@@ -12,6 +12,8 @@ struct Driven {
   int line;
 };
 
+}  // namespace
+
 void read_transport(MapReader& m, McuConfig& mcu, Diagnostics& diag) {
   m.choice("transport", mcu.transport, transport_names(), Need::required);
   const bool serial = mcu.transport == TransportType::serial;
@@ -36,8 +38,6 @@ void read_transport(MapReader& m, McuConfig& mcu, Diagnostics& diag) {
   }
   u.finish();
 }
-
-}  // namespace
 
 void read_axis_refs(MapReader& m, const char* key, const MachineConfig& cfg,
                     std::vector<std::string>& out, Diagnostics& diag) {

@@ -145,7 +145,56 @@ void read_heater(MapReader& m, HeaterConfig& h, Diagnostics& diag) {
 
 }  // namespace
 
+namespace {
+
+// heater_mcus: the boards that drive heaters and fans (name, transport, clock_hz; no axes).
+void read_heater_mcus(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
+  if (!root.has("heater_mcus")) {
+    root.get("heater_mcus");
+    return;
+  }
+  const YAML::Node list = root.get("heater_mcus");
+  if (!list.IsSequence() || list.size() == 0) {
+    diag.add(list.Mark(), "heater_mcus must be a non-empty list of boards, got " + node_kind(list));
+    return;
+  }
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    MapReader m(list[i], "heater_mcus[" + std::to_string(i) + "]", diag, list[i].Mark());
+    if (!m.present()) continue;
+    McuConfig mcu;
+    mcu.clock_hz = cfg.stepgen.mcu_clock_hz;
+    if (m.string("name", mcu.name, Need::required)) {
+      bool taken = mcu.name.empty();
+      for (const McuConfig& o : cfg.heater_mcus) taken = taken || o.name == mcu.name;
+      for (const McuConfig& o : cfg.mcus) taken = taken || o.name == mcu.name;
+      if (taken)
+        diag.add(m.key_mark("name"), m.key_path("name") + ": '" + mcu.name +
+                                         "' is empty or already names an mcu (names are unique "
+                                         "across mcus and heater_mcus)");
+    }
+    read_transport(m, mcu, diag);
+    m.integer("clock_hz", mcu.clock_hz, 1000000, 2000000000);
+    m.finish();
+    cfg.heater_mcus.push_back(mcu);
+  }
+}
+
+// A heater's or fan's `mcu:` names a heater_mcus entry; with heater_mcus given, each needs one.
+void read_board_ref(MapReader& m, const MachineConfig& cfg, std::string& mcu, Diagnostics& diag) {
+  if (!m.string("mcu", mcu, cfg.heater_mcus.empty() ? Need::optional : Need::required)) return;
+  bool found = false;
+  for (const McuConfig& b : cfg.heater_mcus) found = found || b.name == mcu;
+  if (!found)
+    diag.add(
+        m.get("mcu").Mark(),
+        m.key_path("mcu") + ": no heater_mcus entry named '" + mcu + "'" +
+            (cfg.heater_mcus.empty() ? " (heater_mcus lists the boards that drive heaters)" : ""));
+}
+
+}  // namespace
+
 void read_thermal(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
+  read_heater_mcus(root, cfg, diag);
   MapReader heaters = root.sub("heaters");
   for (const std::string& name : heaters.keys()) {
     MapReader m = heaters.sub(name);
@@ -154,6 +203,7 @@ void read_thermal(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
     if (name.size() > 15)
       diag.add(heaters.key_mark(name), "heater name '" + name + "' is longer than 15 characters");
     read_heater(m, h, diag);
+    read_board_ref(m, cfg, h.mcu, diag);
     m.finish();
     cfg.heaters.push_back(h);
   }
@@ -181,6 +231,7 @@ void read_thermal(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
     m.number("kick_start_s", f.kick_start_s, Range::closed(0.0, 5.0));
     m.number("off_below", f.off_below, Range::closed(0.0, 1.0));
     m.number("max_power", f.max_power, Range::open_closed(0.0, 1.0));
+    read_board_ref(m, cfg, f.mcu, diag);
     m.finish();
     cfg.fans.push_back(f);
   }

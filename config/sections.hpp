@@ -47,6 +47,9 @@ void check_machine(const MachineConfig& cfg, const Marks& marks, Diagnostics& di
 const std::vector<std::string>& required_axes(Kinematics k);
 const std::vector<std::string>& allowed_axes(Kinematics k);
 
+// An MCU entry's transport, serial and usb keys (mcus[], heater_mcus[]).
+void read_transport(MapReader& m, McuConfig& mcu, Diagnostics& diag);
+
 // Reads an optional list of axis names (`key`) and checks each names an existing axis.
 void read_axis_refs(MapReader& m, const char* key, const MachineConfig& cfg,
                     std::vector<std::string>& out, Diagnostics& diag);

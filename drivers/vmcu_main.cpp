@@ -4,7 +4,7 @@
 //   feedloop-vmcu --pty [--link PATH] [--name NAME] [--axis N] [--clock-hz HZ] [--drift-ppm PPM]
 //                 [--offset-s S] [--steps-per-mm X] [--protocol-version N]
 //                 [--drop P] [--corrupt P] [--duplicate P] [--delay P] [--reorder P]
-//                 [--delay-ms MS] [--reorder-ms MS] [--seed N]
+//                 [--delay-ms MS] [--reorder-ms MS] [--seed N] [--heater-board CONFIG]
 //
 // The fault options exercise the pty path, per frame in both directions (the bytes read from the
 // pty are split into frames first; protocol::FaultyFrameLine): each frame is dropped / has one
@@ -15,8 +15,12 @@
 // Prints "PTY <slave path>" on stdout once ready (and makes PATH a symlink to it with --link),
 // then runs in real time until SIGTERM/SIGINT, and prints what it executed and the faults it
 // injected on stderr. The ideal motor's encoder reads the commanded position with AS5311
-// resolution (0.49 um counts). Killing it (SIGKILL) is a device that loses power: the host sees
-// the pty hang up; a new feedloop-vmcu on the same --link is the device coming back, rebooted.
+// resolution (0.49 um counts). With --heater-board CONFIG it is instead a heater board without
+// motors: the config's heaters and fans that name --name as their mcu (heater_mcus; every one when
+// none does), each heater with its simulated thermal plant (the heater's plant: section,
+// sim/thermal_plant.hpp), at that heater_mcus entry's clock_hz. Killing it (SIGKILL) is a device
+// that loses power: the host sees the pty hang up; a new feedloop-vmcu on the same --link is the
+// device coming back, rebooted.
 #include <fcntl.h>   // posix_openpt, O_RDWR
 #include <poll.h>    // ppoll
 #include <signal.h>  // sigaction
@@ -32,10 +36,13 @@
 #include <algorithm>
 #include <string>
 
+#include "config/config.hpp"
 #include "core/clock.hpp"
+#include "drivers/device/heater_board.hpp"
 #include "drivers/device/virtual_mcu.hpp"
 #include "drivers/protocol/frame.hpp"
 #include "drivers/protocol/frame_faults.hpp"
+#include "engine/simulated_printer.hpp"
 
 namespace {
 
@@ -53,12 +60,13 @@ struct IdealMotor final : feedloop::device::MotorPort {
 };
 
 int usage(const char* argv0) {
-  std::fprintf(stderr,
-               "usage: %s --pty [--link PATH] [--name NAME] [--axis N] [--clock-hz HZ] [--drift-ppm PPM]\n"
-               "          [--offset-s S] [--steps-per-mm X] [--protocol-version N]\n"
-               "          [--drop P] [--corrupt P] [--duplicate P] [--delay P] [--reorder P]\n"
-               "          [--delay-ms MS] [--reorder-ms MS] [--seed N]\n",
-               argv0);
+  std::fprintf(
+      stderr,
+      "usage: %s --pty [--link PATH] [--name NAME] [--axis N] [--clock-hz HZ] [--drift-ppm PPM]\n"
+      "          [--offset-s S] [--steps-per-mm X] [--protocol-version N]\n"
+      "          [--drop P] [--corrupt P] [--duplicate P] [--delay P] [--reorder P]\n"
+      "          [--delay-ms MS] [--reorder-ms MS] [--seed N] [--heater-board CONFIG]\n",
+      argv0);
   return 2;
 }
 
@@ -73,6 +81,7 @@ int main(int argc, char** argv) {
   std::string link;
   feedloop::protocol::FrameFaults faults;  // no added latency: the pty and scheduler are the link
   unsigned long long seed = 1;
+  std::string heater_config;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
@@ -94,6 +103,8 @@ int main(int argc, char** argv) {
     else if (a == "--delay-ms" && (v = next())) faults.delay_extra_s = std::atof(v) * 1e-3;
     else if (a == "--reorder-ms" && (v = next())) faults.reorder_extra_s = std::atof(v) * 1e-3;
     else if (a == "--seed" && (v = next())) seed = std::strtoull(v, nullptr, 10);
+    else if (a == "--heater-board" && (v = next()))
+      heater_config = v;
     else return usage(argv[0]);
   }
   if (!pty) return usage(argv[0]);
@@ -128,7 +139,36 @@ int main(int argc, char** argv) {
   ::sigaction(SIGTERM, &sa, nullptr);
   ::sigaction(SIGINT, &sa, nullptr);
 
-  auto mcu = std::make_unique<VirtualMcu>(params, &motor);
+  std::unique_ptr<feedloop::engine::SimulatedHeaterDevice> board;
+  std::unique_ptr<VirtualMcu> own;
+  if (!heater_config.empty()) {
+    auto cfg = feedloop::config::load_config_file(heater_config);
+    if (!cfg.ok()) {
+      std::fprintf(stderr, "feedloop-vmcu: %s\n", cfg.error().to_string().c_str());
+      return 2;
+    }
+    const std::string name = params.name;
+    std::vector<int> heaters, fans;
+    bool named = false;
+    for (const auto& h : cfg->heaters) named = named || h.mcu == name;
+    for (const auto& f : cfg->fans) named = named || f.mcu == name;
+    for (size_t i = 0; i < cfg->heaters.size(); ++i)
+      if (!named || cfg->heaters[i].mcu == name) heaters.push_back(static_cast<int>(i));
+    for (size_t i = 0; i < cfg->fans.size(); ++i)
+      if (!named || cfg->fans[i].mcu == name) fans.push_back(static_cast<int>(i));
+    if (heaters.empty() && fans.empty()) {
+      std::fprintf(stderr, "feedloop-vmcu: %s has no heaters or fans for '%s'\n",
+                   heater_config.c_str(), name.c_str());
+      return 2;
+    }
+    double clock_hz = static_cast<double>(cfg->stepgen.mcu_clock_hz);
+    for (const auto& b : cfg->heater_mcus)
+      if (b.name == name) clock_hz = static_cast<double>(b.clock_hz);
+    board = feedloop::engine::make_simulated_heater_device(*cfg, heaters, fans, clock_hz, name);
+  } else {
+    own = std::make_unique<VirtualMcu>(params, &motor);
+  }
+  VirtualMcu* mcu = board ? &board->vmcu() : own.get();
   feedloop::MonotonicClock clock;
   const int64_t t0_ns = clock.now_ns();
   auto now_s = [&] { return feedloop::seconds_from_ns(clock.now_ns() - t0_ns); };
@@ -187,6 +227,13 @@ int main(int argc, char** argv) {
                static_cast<long long>(st.position_steps), static_cast<unsigned long long>(st.errors),
                static_cast<unsigned long long>(ls.sent), static_cast<unsigned long long>(ls.retransmitted),
                static_cast<unsigned long long>(ls.delivered), static_cast<unsigned long long>(ls.duplicates_dropped));
+  if (board)
+    for (int i = 0; i < 4; ++i) {
+      const auto& h = board->board().heater(i);
+      if (!h.configured) continue;
+      std::fprintf(stderr, "feedloop-vmcu %s: heater %d duty %u/65535%s\n", params.name, i,
+                   static_cast<unsigned>(h.duty), h.faulted ? ", faulted" : "");
+    }
   for (const auto* line : {&to_device, &to_host}) {
     const auto& fs = line->stats();
     std::fprintf(stderr,

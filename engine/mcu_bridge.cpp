@@ -8,8 +8,7 @@
 #include "core/clock.hpp"  // ns_from_seconds
 #include "drivers/protocol/endstop_messages.hpp"
 #include "drivers/stepgen/run_codec.hpp"
-#include "drivers/transport/serial_transport.hpp"
-#include "drivers/transport/usb_transport.hpp"
+#include "engine/mcu_transport.hpp"
 #include "engine/simulated_printer.hpp"
 
 namespace feedloop::engine {
@@ -164,18 +163,8 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
       m->mock = t.get();
       simulated_ = true;
       m->transport = std::move(t);
-    } else if (mc.transport == config::TransportType::serial) {
-      drivers::QueuedTransportParams io = drivers::SerialTransport::serial_io_params();
-      io.rt_priority = io_priority;
-      m->transport =
-          std::make_unique<drivers::SerialTransport>(mc.serial.device, static_cast<unsigned>(mc.serial.baud), io);
     } else {
-      drivers::UsbParams up;
-      up.vendor_id = static_cast<uint16_t>(mc.usb.vid);
-      up.product_id = static_cast<uint16_t>(mc.usb.pid);
-      up.serial = mc.usb.serial;
-      up.io.rt_priority = io_priority;
-      m->transport = std::make_unique<drivers::UsbTransport>(up);
+      m->transport = make_hardware_transport(mc, io_priority);
     }
     drivers::McuSessionParams sp;
     sp.name = mc.name;

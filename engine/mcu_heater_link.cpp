@@ -11,6 +11,15 @@ namespace feedloop::engine {
 
 using protocol::MsgType;
 
+drivers::McuSessionParams heater_session_params(const std::string& name) {
+  drivers::McuSessionParams p;
+  p.name = name;
+  p.encoder_period_s = 0.0;
+  p.watchdog_s = 0.0;
+  p.clock_query_period_s = 1.0;
+  return p;
+}
+
 McuHeaterLink::McuHeaterLink(std::vector<HeaterMcu> mcus, std::vector<HeaterRoute> heaters,
                              std::vector<HeaterRoute> fans, double host_clock_hz, double io_slice_s)
     : heaters_(std::move(heaters)), fans_(std::move(fans)), host_hz_(host_clock_hz), io_slice_s_(io_slice_s) {
@@ -76,6 +85,7 @@ void McuHeaterLink::forward(Mcu& m, std::vector<uint8_t> msg) {
 
 void McuHeaterLink::poll(Mcu& m, double t_s) {
   if (!m.started) return;
+  const double host_t_s = t_s;
   // After run_devices_only() the devices are ahead: the host wakes up at their time (as a stalled
   // host does: the wire's time went on), then catches up with what they sent.
   t_s = std::max(t_s, devices_ran_to_s_);
@@ -108,6 +118,12 @@ void McuHeaterLink::poll(Mcu& m, double t_s) {
       m.held.pop_front();
     }
     m.session->poll(t_s);
+  }
+  const auto& ls = m.session->link_stats();
+  const uint64_t in = ls.delivered + ls.duplicates_dropped + ls.out_of_order_dropped;
+  if (in != m.frames_in) {
+    m.frames_in = in;
+    m.last_heard_s = host_t_s;
   }
   // The session's events (MCU errors, reconnects): the latest is kept for the fault message.
   for (std::string& e : m.session->take_events()) last_event_ = std::move(e);
@@ -164,6 +180,23 @@ void McuHeaterLink::advance_to(double t_s) {
     poll(mcus_[i], t_s);
     collect(static_cast<int>(i), t_s);
   }
+}
+
+std::string McuHeaterLink::heater_place(int heater) const {
+  if (heater < 0 || heater >= num_heaters()) return {};
+  const Mcu& m = mcus_[static_cast<size_t>(heaters_[static_cast<size_t>(heater)].mcu)];
+  std::string s = ": MCU '" + m.cfg.name + "'";
+  if (!last_event_.empty()) s += "; last event: " + last_event_;
+  return s;
+}
+
+double McuHeaterLink::last_heard_s(int heater) const {
+  if (heater < 0 || heater >= num_heaters()) return -1e300;
+  const Mcu& m = mcus_[static_cast<size_t>(heaters_[static_cast<size_t>(heater)].mcu)];
+  // A simulated MCU that run_devices_only() ran ahead of the host was alive to then: what it sent
+  // meanwhile reaches the host as the host's time catches up with it (a real host wakes at the
+  // wire's time and finds it all queued).
+  return m.cfg.mock != nullptr ? std::max(m.last_heard_s, devices_ran_to_s_) : m.last_heard_s;
 }
 
 bool McuHeaterLink::receive(uint8_t* out, size_t& n) {

@@ -49,6 +49,11 @@ struct HeaterMcu {
   drivers::McuSessionParams session;           // name, link; encoder and watchdog off
 };
 
+// A heater MCU's session: no motors (no encoder stream), no motion watchdog (the heaters have
+// their own 3 s rule); a clock query a second (as Klipper's clocksync): report times need
+// milliseconds, not the steps' microseconds (and the fit is most of a simulated link's cost).
+drivers::McuSessionParams heater_session_params(const std::string& name);
+
 struct HeaterRoute {
   int mcu = 0;        // index into the link's MCUs
   uint8_t local = 0;  // the heater's (fan's) index on that MCU
@@ -68,6 +73,9 @@ class McuHeaterLink final : public HeaterLink {
   void advance_to(double t_s) override;
   bool receive(uint8_t* out, size_t& n) override;
   std::optional<std::string> fault() const override { return fault_; }
+  // ": MCU 'board' (its last event)" for messages.
+  std::string heater_place(int heater) const override;
+  double last_heard_s(int heater) const override;
 
   int num_heaters() const { return static_cast<int>(heaters_.size()); }
   int num_fans() const { return static_cast<int>(fans_.size()); }
@@ -96,6 +104,8 @@ class McuHeaterLink final : public HeaterLink {
     std::deque<std::vector<uint8_t>> held;  // host messages waiting for the MCU to be ready
     bool started = false;
     double last_poll_s = 0.0;
+    uint64_t frames_in = 0;        // delivered + duplicates + out of order, as last seen
+    double last_heard_s = -1e300;  // host time frames_in last grew
   };
   void poll(Mcu& m, double t_s);
   void forward(Mcu& m, std::vector<uint8_t> msg);

@@ -184,7 +184,7 @@ class SimulatedPrinter final : public SimulatedPlant {
 class SimulatedHeaterMcu final : public SimulatedHeaterDevice {
  public:
   SimulatedHeaterMcu(const config::MachineConfig& cfg, const std::vector<int>& heaters,
-                     const std::vector<int>& fans, double clock_hz) {
+                     const std::vector<int>& fans, double clock_hz, const std::string& name) {
     for (size_t i = 0; i < heaters.size() && i < 4; ++i) {
       const config::HeaterConfig& h = cfg.heaters[static_cast<size_t>(heaters[i])];
       sim::ThermalPlantParams p;
@@ -212,7 +212,7 @@ class SimulatedHeaterMcu final : public SimulatedHeaterDevice {
                                                    static_cast<int>(fans_.size()), clock_hz);
     device::VirtualMcuParams vp;
     vp.clock_hz = clock_hz;  // no drift, no offset: the board's ports take clock / clock_hz as time
-    std::snprintf(vp.name, sizeof vp.name, "heaters");
+    std::snprintf(vp.name, sizeof vp.name, "%s", name.c_str());
     device::MotorPort* none = nullptr;
     vmcu_ = std::make_unique<device::VirtualMcu>(vp, &none, 1, board_.get());
   }
@@ -251,6 +251,27 @@ Result<std::unique_ptr<sim::EndstopSwitch>> simulated_switch(const config::Machi
 
 }  // namespace
 
+std::unique_ptr<SimulatedHeaterDevice> make_simulated_heater_device(
+    const config::MachineConfig& cfg, const std::vector<int>& heaters, const std::vector<int>& fans,
+    double clock_hz, const std::string& name) {
+  return std::make_unique<SimulatedHeaterMcu>(cfg, heaters, fans, clock_hz, name);
+}
+
+HeaterMcu simulated_heater_mcu(const config::MachineConfig& cfg, const std::vector<int>& heaters,
+                               const std::vector<int>& fans, double clock_hz,
+                               const std::string& name, uint64_t fault_seed) {
+  HeaterMcu m;
+  m.name = name;
+  m.sim = make_simulated_heater_device(cfg, heaters, fans, clock_hz, name);
+  drivers::MockFaults f;
+  f.seed = fault_seed;
+  auto t = std::make_unique<drivers::MockTransport>(m.sim->vmcu(), f, m.name);
+  m.mock = t.get();
+  m.transport = std::move(t);
+  m.session = heater_session_params(name);
+  return m;
+}
+
 std::unique_ptr<McuHeaterLink> make_simulated_heater_link(const config::MachineConfig& cfg,
                                                           double host_clock_hz) {
   // One heater MCU for every heater and fan (at most 4 of each, the board's limit), at the
@@ -265,26 +286,13 @@ std::unique_ptr<McuHeaterLink> make_simulated_heater_link(const config::MachineC
     fans.push_back(static_cast<int>(i));
     fr.push_back({0, static_cast<uint8_t>(i)});
   }
-  HeaterMcu m;
-  m.name = "heaters";
-  auto dev = std::make_unique<SimulatedHeaterMcu>(cfg, heaters, fans,
-                                                  static_cast<double>(cfg.stepgen.mcu_clock_hz));
-  drivers::MockFaults f;
-  f.seed = cfg.simulator.seed + 9500;
-  auto t = std::make_unique<drivers::MockTransport>(dev->vmcu(), f, m.name);
-  m.mock = t.get();
-  m.transport = std::move(t);
-  m.sim = std::move(dev);
-  m.session.name = m.name;
-  m.session.encoder_period_s = 0.0;  // no motors
-  m.session.watchdog_s = 0.0;        // the heaters have their own 3 s rule
-  // Report times need milliseconds, not the steps' microseconds: a clock query a second (as
-  // Klipper's clocksync) instead of ten (the fit is most of the simulated link's cost).
-  m.session.clock_query_period_s = 1.0;
   std::vector<HeaterMcu> mcus;
-  mcus.push_back(std::move(m));
+  mcus.push_back(simulated_heater_mcu(cfg, heaters, fans,
+                                      static_cast<double>(cfg.stepgen.mcu_clock_hz), "heaters",
+                                      cfg.simulator.seed + 9500));
   return std::make_unique<McuHeaterLink>(std::move(mcus), std::move(hr), std::move(fr), host_clock_hz);
 }
+
 sim::ThermalPlant* simulated_thermal_plant(HeaterLink& link, int heater) {
   auto* l = dynamic_cast<McuHeaterLink*>(&link);
   if (l == nullptr || heater < 0 || heater >= l->num_heaters()) return nullptr;

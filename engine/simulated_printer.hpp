@@ -45,6 +45,16 @@ sim::DeltaPlant* simulated_delta(SimulatedPlant& plant);
 // extruders' plants. host_clock_hz: the thermal loop's ticks per second.
 std::unique_ptr<McuHeaterLink> make_simulated_heater_link(const config::MachineConfig& cfg,
                                                           double host_clock_hz);
+// One simulated heater board named `name` (its VirtualMcu at clock_hz) driving the config's heaters
+// and fans of those indices (its channels 0, 1, .. in that order): in-process behind a mock
+// transport (simulated_heater_mcu, a heater_mcus entry with transport mock), or on a pty
+// (feedloop-vmcu --heater-board).
+std::unique_ptr<SimulatedHeaterDevice> make_simulated_heater_device(
+    const config::MachineConfig& cfg, const std::vector<int>& heaters, const std::vector<int>& fans,
+    double clock_hz, const std::string& name);
+HeaterMcu simulated_heater_mcu(const config::MachineConfig& cfg, const std::vector<int>& heaters,
+                               const std::vector<int>& fans, double clock_hz,
+                               const std::string& name, uint64_t fault_seed);
 // Its plants and part fans, for tests and benchmarks (include sim/thermal_plant.hpp); nullptr: none.
 sim::ThermalPlant* simulated_thermal_plant(HeaterLink& link, int heater);
 sim::PartFan* simulated_part_fan(HeaterLink& link, int fan);

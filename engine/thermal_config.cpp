@@ -1,5 +1,6 @@
 #include "engine/thermal_config.hpp"
 
+#include "engine/mcu_transport.hpp"
 #include "engine/simulated_printer.hpp"
 
 namespace feedloop::engine {
@@ -60,14 +61,68 @@ ThermalOptions thermal_options(const config::MachineConfig& cfg) {
   return o;
 }
 
+namespace {
+
+// heater_mcus: one McuHeaterLink MCU per board that drives a heater or a fan; its heaters and
+// fans take its channels in file order. Mock boards are simulated in-process.
+Result<std::unique_ptr<HeaterLink>> make_board_heater_link(const config::MachineConfig& cfg,
+                                                           double host_hz) {
+  std::vector<HeaterMcu> mcus;
+  std::vector<HeaterRoute> hr(cfg.heaters.size()), fr(cfg.fans.size());
+  for (size_t b = 0; b < cfg.heater_mcus.size(); ++b) {
+    const config::McuConfig& board = cfg.heater_mcus[b];
+    std::vector<int> heaters, fans;
+    for (size_t i = 0; i < cfg.heaters.size(); ++i)
+      if (cfg.heaters[i].mcu == board.name) heaters.push_back(static_cast<int>(i));
+    for (size_t i = 0; i < cfg.fans.size(); ++i)
+      if (cfg.fans[i].mcu == board.name) fans.push_back(static_cast<int>(i));
+    if (heaters.empty() && fans.empty()) continue;  // nothing on it: not opened
+    if (heaters.size() > 4 || fans.size() > 4)
+      return Error{"heater MCU '" + board.name + "': at most 4 heaters and 4 fans per board"};
+    const int index = static_cast<int>(mcus.size());
+    for (size_t k = 0; k < heaters.size(); ++k)
+      hr[static_cast<size_t>(heaters[k])] = {index, static_cast<uint8_t>(k)};
+    for (size_t k = 0; k < fans.size(); ++k)
+      fr[static_cast<size_t>(fans[k])] = {index, static_cast<uint8_t>(k)};
+    if (board.transport == config::TransportType::mock) {
+      mcus.push_back(simulated_heater_mcu(cfg, heaters, fans, static_cast<double>(board.clock_hz),
+                                          board.name, cfg.simulator.seed + 9500 + 7919 * b));
+      continue;
+    }
+    HeaterMcu m;
+    m.name = board.name;
+    m.transport = make_hardware_transport(board, 0);  // not real-time: the thermal thread's pace
+    m.session = heater_session_params(board.name);
+    mcus.push_back(std::move(m));
+  }
+  for (size_t i = 0; i < cfg.heaters.size(); ++i)
+    if (cfg.heaters[i].mcu.empty())
+      return Error{"heater '" + cfg.heaters[i].name + "' names no heater_mcus board (mcu:)"};
+  for (size_t i = 0; i < cfg.fans.size(); ++i)
+    if (cfg.fans[i].mcu.empty())
+      return Error{"fan '" + cfg.fans[i].name + "' names no heater_mcus board (mcu:)"};
+  return std::unique_ptr<HeaterLink>(
+      std::make_unique<McuHeaterLink>(std::move(mcus), std::move(hr), std::move(fr), host_hz));
+}
+
+}  // namespace
+
 Result<std::unique_ptr<ThermalLoop>> make_thermal_loop(const config::MachineConfig& cfg) {
   if (cfg.heaters.empty() && cfg.fans.empty()) return std::unique_ptr<ThermalLoop>();
+  const ThermalOptions o = thermal_options(cfg);
+  if (!cfg.heater_mcus.empty()) {
+    auto link = make_board_heater_link(cfg, o.mcu_clock_hz);
+    if (!link.ok()) return link.error();
+    return std::make_unique<ThermalLoop>(o, std::move(link.value()));
+  }
   for (const config::McuConfig& m : cfg.mcus)
     if (m.transport != config::TransportType::mock)
-      return Error{"heaters and fans run only on the simulated printer's heater MCU so far (mcu '" +
-                   m.name + "' is not mock, and heaters on a motion MCU's link are not wired: "
-                   "docs/heaters.md); remove the heaters: and fans: sections"};
-  const ThermalOptions o = thermal_options(cfg);
+      return Error{
+          "the heaters and fans have no board: without heater_mcus they run on the simulated "
+          "printer's heater board, which needs every MCU simulated (mcu '" +
+          m.name +
+          "' is not mock); list the board in heater_mcus and name it in each heater's and fan's "
+          "mcu: (config/README.md), or remove the heaters: and fans: sections"};
   return std::make_unique<ThermalLoop>(o, make_simulated_heater_link(cfg, o.mcu_clock_hz));
 }
 

@@ -13,10 +13,11 @@ namespace feedloop::engine {
 
 thermal::SensorParams heater_sensor(const config::HeaterConfig& h);
 ThermalOptions thermal_options(const config::MachineConfig& cfg);
-// The thermal loop of the config's machine; nullptr when it has no heaters and no fans. The
-// simulated printer's heaters (every MCU mock, or none) run on its heater MCU, reached through an
-// McuSession and frames (make_simulated_heater_link); a config with serial/usb MCUs is refused
-// (heaters on a motion MCU's link are not wired yet; docs/heaters.md).
+// The thermal loop of the config's machine; nullptr when it has no heaters and no fans. Heaters
+// and fans run on the boards of heater_mcus (each its own McuSession: serial, usb, or a simulated
+// board in-process); without heater_mcus, on the simulated printer's heater MCU
+// (make_simulated_heater_link), which needs every motion MCU mock (else refused with a message).
+// Heaters on a motion MCU's link are not wired (docs/heaters.md).
 Result<std::unique_ptr<ThermalLoop>> make_thermal_loop(const config::MachineConfig& cfg);
 
 }  // namespace feedloop::engine

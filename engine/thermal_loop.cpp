@@ -31,6 +31,9 @@ ThermalLoop::ThermalLoop(ThermalOptions options, std::unique_ptr<HeaterLink> lin
 void ThermalLoop::start(double now_s) {
   std::lock_guard lock(mu_);
   now_s_ = now_s;
+  double grace_s = 0.0;
+  for (const HeaterSpec& s : opt_.heaters) grace_s = std::max(grace_s, s.report_grace_s);
+  reports_due_from_s_ = now_s + grace_s;
   for (size_t i = 0; i < h_.size(); ++i) {
     const HeaterSpec& s = opt_.heaters[i];
     // The MCU's own range: the ADC values of min_temp and max_temp (an NTC reads lower when hotter,
@@ -218,6 +221,7 @@ void ThermalLoop::handle(const uint8_t* msg, size_t n, double now_s) {
     h.temp_c = thermal::temp_at_adc(s.sensor, h.adc);
     h.have_temp = true;
     h.last_report_s = t;
+    h.last_arrival_s = now_s;
     if (h.faulted) return;
     const thermal::ThermalFault f = h.protection.check(t, h.temp_c, h.target_c, h.adc, r.duty > 0);
     if (f) {
@@ -279,6 +283,29 @@ void ThermalLoop::handle(const uint8_t* msg, size_t n, double now_s) {
   }
 }
 
+// The reports stopped (the board lost power, its cable is out, its firmware hangs): its own 3 s
+// rule turns a heater off there, if it still runs; here the machine stops and says which heater.
+// The freshness is the later of the report's own time (the MCU's clock mapped to the host's) and
+// its arrival, or any frame from its MCU: a board still talking (retransmitting what it sent while
+// the host stalled) is not a board without power; its own fault then names the rule.
+void ThermalLoop::check_reports(double now_s) {
+  for (size_t i = 0; i < h_.size(); ++i) {
+    const HeaterSpec& s = opt_.heaters[i];
+    const double since_s = h_[i].have_temp ? std::max({h_[i].last_report_s, h_[i].last_arrival_s,
+                                                       link_->last_heard_s(static_cast<int>(i))})
+                                           : reports_due_from_s_;
+    if (now_s - since_s <= s.report_timeout_s) continue;
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "no temperature report for %.1f s (", now_s - since_s);
+    const std::string why =
+        buf +
+        std::string(h_[i].have_temp ? "its MCU stopped reporting" : "its MCU never reported") +
+        link_->heater_place(static_cast<int>(i)) + ")";
+    trip(static_cast<int>(i), why, now_s);
+    return;
+  }
+}
+
 std::optional<std::string> ThermalLoop::step_to(double t_s) {
   std::lock_guard lock(mu_);
   if (t_s < now_s_) t_s = now_s_;
@@ -306,6 +333,7 @@ std::optional<std::string> ThermalLoop::step_to(double t_s) {
           autotune_result_ = Error{"autotune stopped: " + *fault_};
       }
     }
+    if (!fault_) check_reports(t);
   }
   if (fault_ && !fault_reported_) {
     fault_reported_ = true;

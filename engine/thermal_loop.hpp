@@ -34,6 +34,10 @@ class HeaterLink {
   virtual bool receive(uint8_t* out, size_t& n) = 0;
   // Set when the link to the heaters is lost or unusable (which MCU, why): a thermal fault.
   virtual std::optional<std::string> fault() const { return std::nullopt; }
+  // Where heater i lives, for messages ("MCU 'board'"); "" when the link has one place only.
+  virtual std::string heater_place(int /*heater*/) const { return {}; }
+  // Host time anything last arrived from heater i's MCU (frames of any kind); -inf: unknown.
+  virtual double last_heard_s(int /*heater*/) const { return -1e300; }
 };
 
 struct HeaterSpec {
@@ -47,6 +51,10 @@ struct HeaterSpec {
   double report_period_s = 0.3;    // Klipper's REPORT_TIME
   int oversample = 8;              // ADC samples per report
   double confirm_timeout_s = 3.0;  // the MCU's own off switch (Klipper's MAX_HEAT_TIME)
+  // The host's side of it: no report for this long (a board without power, a cable out) is a
+  // thermal fault. The first report is due report_grace_s after start() plus this.
+  double report_timeout_s = 2.0;
+  double report_grace_s = 3.0;  // an MCU's identification and configuration
   // M109/M190 waits (Marlin TEMP_WINDOW, TEMP_HYSTERESIS, TEMP_RESIDENCY_TIME).
   double window_c = 1.0, hysteresis_c = 3.0, residency_s = 10.0;
 };
@@ -128,6 +136,7 @@ class ThermalLoop {
     thermal::ThermalProtection protection;
     std::optional<thermal::RelayAutotune> autotune;
     double target_c = 0.0, temp_c = 0.0, power = 0.0, adc = 0.0, last_report_s = 0.0;
+    double last_arrival_s = 0.0;  // host time the last report was handled
     bool have_temp = false, faulted = false;
     double in_window_since_s = -1.0;
   };
@@ -139,6 +148,7 @@ class ThermalLoop {
   void send_fan(int i, double speed, double now_s);
   void trip(int i, const std::string& why, double now_s);
   void update_heater_fans(double now_s);
+  void check_reports(double now_s);
   int64_t clock_of(double t_s) const { return static_cast<int64_t>(t_s * opt_.mcu_clock_hz); }
 
   ThermalOptions opt_;
@@ -147,6 +157,7 @@ class ThermalLoop {
   std::vector<Heater> h_;
   std::vector<Fan> f_;
   double now_s_ = 0.0;
+  double reports_due_from_s_ = 0.0;  // start() + the grace: until a heater's first report
   std::optional<std::string> fault_;
   bool fault_reported_ = false;
   int autotune_heater_ = -1;
