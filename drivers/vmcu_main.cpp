@@ -16,11 +16,11 @@
 // then runs in real time until SIGTERM/SIGINT, and prints what it executed and the faults it
 // injected on stderr. The ideal motor's encoder reads the commanded position with AS5311
 // resolution (0.49 um counts). With --heater-board CONFIG it is instead a heater board without
-// motors: the config's heaters and fans that name --name as their mcu (heater_mcus; every one when
-// none does), each heater with its simulated thermal plant (the heater's plant: section,
-// sim/thermal_plant.hpp), at that heater_mcus entry's clock_hz. Killing it (SIGKILL) is a device
-// that loses power: the host sees the pty hang up; a new feedloop-vmcu on the same --link is the
-// device coming back, rebooted.
+// motors: the config's heaters and fans that name --name as their mcu (heater_mcus; those that name
+// no board when none does), each heater with its simulated thermal plant (the heater's plant:
+// section, sim/thermal_plant.hpp), at that heater_mcus entry's clock_hz. Killing it (SIGKILL) is a
+// device that loses power: the host sees the pty hang up; a new feedloop-vmcu on the same --link is
+// the device coming back, rebooted.
 #include <fcntl.h>   // posix_openpt, O_RDWR
 #include <poll.h>    // ppoll
 #include <signal.h>  // sigaction
@@ -43,6 +43,7 @@
 #include "drivers/protocol/frame.hpp"
 #include "drivers/protocol/frame_faults.hpp"
 #include "engine/simulated_printer.hpp"
+#include "engine/thermal_config.hpp"
 
 namespace {
 
@@ -148,15 +149,9 @@ int main(int argc, char** argv) {
       return 2;
     }
     const std::string name = params.name;
-    std::vector<int> heaters, fans;
-    bool named = false;
-    for (const auto& h : cfg->heaters) named = named || h.mcu == name;
-    for (const auto& f : cfg->fans) named = named || f.mcu == name;
-    for (size_t i = 0; i < cfg->heaters.size(); ++i)
-      if (!named || cfg->heaters[i].mcu == name) heaters.push_back(static_cast<int>(i));
-    for (size_t i = 0; i < cfg->fans.size(); ++i)
-      if (!named || cfg->fans[i].mcu == name) fans.push_back(static_cast<int>(i));
-    if (heaters.empty() && fans.empty()) {
+    feedloop::engine::BoardChannels ch = feedloop::engine::board_channels(*cfg, name);
+    if (ch.empty()) ch = feedloop::engine::board_channels(*cfg, "");  // a config without boards
+    if (ch.empty()) {
       std::fprintf(stderr, "feedloop-vmcu: %s has no heaters or fans for '%s'\n",
                    heater_config.c_str(), name.c_str());
       return 2;
@@ -164,7 +159,8 @@ int main(int argc, char** argv) {
     double clock_hz = static_cast<double>(cfg->stepgen.mcu_clock_hz);
     for (const auto& b : cfg->heater_mcus)
       if (b.name == name) clock_hz = static_cast<double>(b.clock_hz);
-    board = feedloop::engine::make_simulated_heater_device(*cfg, heaters, fans, clock_hz, name);
+    board =
+        feedloop::engine::make_simulated_heater_device(*cfg, ch.heaters, ch.fans, clock_hz, name);
   } else {
     own = std::make_unique<VirtualMcu>(params, &motor);
   }

@@ -61,21 +61,31 @@ ThermalOptions thermal_options(const config::MachineConfig& cfg) {
   return o;
 }
 
+BoardChannels board_channels(const config::MachineConfig& cfg, const std::string& board) {
+  BoardChannels c;
+  for (size_t i = 0; i < cfg.heaters.size(); ++i)
+    if (cfg.heaters[i].mcu == board) c.heaters.push_back(static_cast<int>(i));
+  for (size_t i = 0; i < cfg.fans.size(); ++i)
+    if (cfg.fans[i].mcu == board) c.fans.push_back(static_cast<int>(i));
+  return c;
+}
+
 namespace {
 
 // heater_mcus: one McuHeaterLink MCU per board that drives a heater or a fan; its heaters and
 // fans take its channels in file order. Mock boards are simulated in-process.
 Result<std::unique_ptr<HeaterLink>> make_board_heater_link(const config::MachineConfig& cfg,
                                                            double host_hz) {
+  // (The loader refuses a heater or fan without a board; hand-built configs get the same.)
+  for (const config::HeaterConfig& h : cfg.heaters)
+    if (h.mcu.empty()) return Error{"heater '" + h.name + "' names no heater_mcus board (mcu:)"};
+  for (const config::FanConfig& f : cfg.fans)
+    if (f.mcu.empty()) return Error{"fan '" + f.name + "' names no heater_mcus board (mcu:)"};
   std::vector<HeaterMcu> mcus;
   std::vector<HeaterRoute> hr(cfg.heaters.size()), fr(cfg.fans.size());
   for (size_t b = 0; b < cfg.heater_mcus.size(); ++b) {
     const config::McuConfig& board = cfg.heater_mcus[b];
-    std::vector<int> heaters, fans;
-    for (size_t i = 0; i < cfg.heaters.size(); ++i)
-      if (cfg.heaters[i].mcu == board.name) heaters.push_back(static_cast<int>(i));
-    for (size_t i = 0; i < cfg.fans.size(); ++i)
-      if (cfg.fans[i].mcu == board.name) fans.push_back(static_cast<int>(i));
+    const auto [heaters, fans] = board_channels(cfg, board.name);
     if (heaters.empty() && fans.empty()) continue;  // nothing on it: not opened
     if (heaters.size() > 4 || fans.size() > 4)
       return Error{"heater MCU '" + board.name + "': at most 4 heaters and 4 fans per board"};
@@ -95,12 +105,6 @@ Result<std::unique_ptr<HeaterLink>> make_board_heater_link(const config::Machine
     m.session = heater_session_params(board.name);
     mcus.push_back(std::move(m));
   }
-  for (size_t i = 0; i < cfg.heaters.size(); ++i)
-    if (cfg.heaters[i].mcu.empty())
-      return Error{"heater '" + cfg.heaters[i].name + "' names no heater_mcus board (mcu:)"};
-  for (size_t i = 0; i < cfg.fans.size(); ++i)
-    if (cfg.fans[i].mcu.empty())
-      return Error{"fan '" + cfg.fans[i].name + "' names no heater_mcus board (mcu:)"};
   return std::unique_ptr<HeaterLink>(
       std::make_unique<McuHeaterLink>(std::move(mcus), std::move(hr), std::move(fr), host_hz));
 }

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "config/machine_config.hpp"
 #include "core/result.hpp"
@@ -13,6 +15,13 @@ namespace feedloop::engine {
 
 thermal::SensorParams heater_sensor(const config::HeaterConfig& h);
 ThermalOptions thermal_options(const config::MachineConfig& cfg);
+// The config's heaters and fans (their indices) whose `mcu:` is `board`, in file order: the
+// board's channels 0, 1, .. ("" gives those that name no board).
+struct BoardChannels {
+  std::vector<int> heaters, fans;
+  bool empty() const { return heaters.empty() && fans.empty(); }
+};
+BoardChannels board_channels(const config::MachineConfig& cfg, const std::string& board);
 // The thermal loop of the config's machine; nullptr when it has no heaters and no fans. Heaters
 // and fans run on the boards of heater_mcus (each its own McuSession: serial, usb, or a simulated
 // board in-process); without heater_mcus, on the simulated printer's heater MCU
