@@ -179,22 +179,37 @@ void read_heater_mcus(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   }
 }
 
-// A heater's or fan's `mcu:` names a heater_mcus entry; with heater_mcus given, each needs one.
+// A heater's or fan's `mcu:` names its board: a heater_mcus entry, or a motion MCU of mcus (one
+// board for motion and heaters). With heater_mcus given, each needs one; so it does when another
+// heater or fan names a board (checked once all are read: board_refs_complete).
 void read_board_ref(MapReader& m, const MachineConfig& cfg, std::string& mcu, Diagnostics& diag) {
   if (!m.string("mcu", mcu, cfg.heater_mcus.empty() ? Need::optional : Need::required)) return;
   bool found = false;
   for (const McuConfig& b : cfg.heater_mcus) found = found || b.name == mcu;
-  if (!found)
-    diag.add(
-        m.get("mcu").Mark(),
-        m.key_path("mcu") + ": no heater_mcus entry named '" + mcu + "'" +
-            (cfg.heater_mcus.empty() ? " (heater_mcus lists the boards that drive heaters)" : ""));
+  for (const McuConfig& b : cfg.mcus) found = found || b.name == mcu;
+  if (found) return;
+  diag.add(m.get("mcu").Mark(), m.key_path("mcu") + ": no MCU named '" + mcu +
+                                    "' (a heater's board is a motion MCU of mcus or a board of "
+                                    "heater_mcus)");
+  mcu.clear();  // one error, not one more for each heater without a board
+}
+
+// Without heater_mcus a board is optional, but all or none: a heater on a motion MCU beside one
+// on the simulated printer's heater board is no machine.
+void board_refs_complete(const std::vector<std::pair<std::string, YAML::Mark>>& missing,
+                         bool any_named, Diagnostics& diag) {
+  if (!any_named) return;
+  for (const auto& [what, mark] : missing)
+    diag.add(mark, what +
+                       ": names no board (mcu:) while others do: give every heater and fan its "
+                       "board");
 }
 
 }  // namespace
 
 void read_thermal(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
   read_heater_mcus(root, cfg, diag);
+  std::vector<std::pair<std::string, YAML::Mark>> missing;  // heaters and fans without mcu:
   MapReader heaters = root.sub("heaters");
   for (const std::string& name : heaters.keys()) {
     MapReader m = heaters.sub(name);
@@ -204,6 +219,7 @@ void read_thermal(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
       diag.add(heaters.key_mark(name), "heater name '" + name + "' is longer than 15 characters");
     read_heater(m, h, diag);
     read_board_ref(m, cfg, h.mcu, diag);
+    if (h.mcu.empty()) missing.emplace_back("heaters." + name, heaters.key_mark(name));
     m.finish();
     cfg.heaters.push_back(h);
   }
@@ -232,11 +248,16 @@ void read_thermal(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
     m.number("off_below", f.off_below, Range::closed(0.0, 1.0));
     m.number("max_power", f.max_power, Range::open_closed(0.0, 1.0));
     read_board_ref(m, cfg, f.mcu, diag);
+    if (f.mcu.empty()) missing.emplace_back("fans." + name, fans.key_mark(name));
     m.finish();
     cfg.fans.push_back(f);
   }
   if (cfg.fans.size() > 4) diag.add(fans.mark(), "at most 4 fans are supported");
   fans.finish();
+  bool any_named = false;
+  for (const HeaterConfig& h : cfg.heaters) any_named = any_named || !h.mcu.empty();
+  for (const FanConfig& f : cfg.fans) any_named = any_named || !f.mcu.empty();
+  board_refs_complete(missing, any_named && cfg.heater_mcus.empty(), diag);
 }
 
 }  // namespace feedloop::config::detail

@@ -245,9 +245,11 @@ void Daemon::close_channels() {
 
 Status Daemon::start_machine(std::unique_ptr<engine::CommandExecutor> executor,
                              std::string* warnings) {
+  // Heaters named on a motion MCU go through that MCU's session in the executor's bridge.
+  const engine::SharedHeaterPorts* heater_ports = executor->heater_ports();
   machine_ = std::make_unique<engine::Machine>(engine::machine_options(cfg_), *machine_clock_,
                                                std::move(executor));
-  auto thermal = engine::make_thermal_loop(cfg_);
+  auto thermal = engine::make_thermal_loop(cfg_, heater_ports);
   if (!thermal) return thermal.error();
   machine_->set_thermal(std::move(thermal.value()));
   machine_->set_done_callback([this](engine::CommandDone d) {

@@ -20,7 +20,9 @@
 // no board when none does), each heater with its simulated thermal plant (the heater's plant:
 // section, sim/thermal_plant.hpp), at that heater_mcus entry's clock_hz. Killing it (SIGKILL) is a
 // device that loses power: the host sees the pty hang up; a new feedloop-vmcu on the same --link is
-// the device coming back, rebooted.
+// the device coming back, rebooted. When --name is a motion MCU of the config's mcus, it is that
+// board with both: its ideal motor and the heaters and fans named on it (one board for motion and
+// heaters; the host's bridge carries both on one session).
 #include <fcntl.h>   // posix_openpt, O_RDWR
 #include <poll.h>    // ppoll
 #include <signal.h>  // sigaction
@@ -141,6 +143,7 @@ int main(int argc, char** argv) {
   ::sigaction(SIGINT, &sa, nullptr);
 
   std::unique_ptr<feedloop::engine::SimulatedHeaterDevice> board;
+  std::unique_ptr<feedloop::engine::SimulatedHeaterBoard> motion_board_heaters;
   std::unique_ptr<VirtualMcu> own;
   if (!heater_config.empty()) {
     auto cfg = feedloop::config::load_config_file(heater_config);
@@ -159,8 +162,17 @@ int main(int argc, char** argv) {
     double clock_hz = static_cast<double>(cfg->stepgen.mcu_clock_hz);
     for (const auto& b : cfg->heater_mcus)
       if (b.name == name) clock_hz = static_cast<double>(b.clock_hz);
-    board =
-        feedloop::engine::make_simulated_heater_device(*cfg, ch.heaters, ch.fans, clock_hz, name);
+    bool motion_mcu = false;
+    for (const auto& b : cfg->mcus) motion_mcu = motion_mcu || b.name == name;
+    if (motion_mcu) {  // the motor and the heaters on one MCU, at --clock-hz
+      motion_board_heaters =
+          feedloop::engine::make_simulated_heater_board(*cfg, ch.heaters, ch.fans, params.clock_hz);
+      feedloop::device::MotorPort* ports[1] = {&motor};
+      own = std::make_unique<VirtualMcu>(params, ports, 1, &motion_board_heaters->board());
+    } else {
+      board =
+          feedloop::engine::make_simulated_heater_device(*cfg, ch.heaters, ch.fans, clock_hz, name);
+    }
   } else {
     own = std::make_unique<VirtualMcu>(params, &motor);
   }

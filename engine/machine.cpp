@@ -37,6 +37,8 @@ Machine::Machine(MachineOptions options, Clock& clock, std::unique_ptr<CommandEx
 
 void Machine::set_thermal(std::unique_ptr<ThermalLoop> thermal) {
   thermal_ = std::move(thermal);
+  const SharedHeaterPorts* ports = executor_ ? executor_->heater_ports() : nullptr;
+  servo_carries_heaters_ = thermal_ && ports != nullptr && !ports->empty();
   if (thermal_) thermal_->start(seconds_from_ns(clock_.now_ns()));
   publish_status();
 }
@@ -291,7 +293,16 @@ Status Machine::wait_for(const std::function<bool(double now_s)>& done, const ch
       // Virtual time is the wait's own while nothing moves (the servo thread advances it only for
       // motion): 20 ms per step, the heaters following the clock.
       if (!executor_->motion_pending() && !executor_->settling()) {
-        clock_.sleep_until_ns(clock_.now_ns() + static_cast<int64_t>(std::ceil(step_s * 1e9)));
+        const int64_t until_ns = clock_.now_ns() + static_cast<int64_t>(std::ceil(step_s * 1e9));
+        if (servo_carries_heaters_ && started_) {
+          // The heaters' messages ride on the motion MCUs' sessions: the servo thread runs this
+          // time, its cycles servicing them (servo_main).
+          virtual_wait_until_ns_.store(until_ns, std::memory_order_release);
+          while (clock_.now_ns() < until_ns && !interrupt_.load() && !stopping_.load())
+            std::this_thread::sleep_for(std::chrono::microseconds(50));
+        } else {
+          clock_.sleep_until_ns(until_ns);
+        }
         thermal_step();
       } else {
         std::this_thread::sleep_for(std::chrono::microseconds(200));
@@ -469,6 +480,16 @@ void Machine::servo_main() {
       // Virtual time moves only while there is motion to simulate; otherwise wait for work. A
       // heater wait may advance the clock meanwhile (Machine::wait_for): the next cycle is due one
       // period after the present, not at a deadline the idle time left behind (no false misses).
+      // When the heaters' messages ride on the motion MCUs' sessions, the wait's time is this
+      // thread's to run instead, period by period (each cycle services the sessions).
+      if (const int64_t now = clock_.now_ns();
+          now < virtual_wait_until_ns_.load(std::memory_order_acquire)) {
+        clock_.sleep_until_ns(now + period_ns);
+        servo_tick(st, clock_.now_ns(), 0, period_ns);
+        servo_last_cycle_ns_.store(clock_.now_ns(), std::memory_order_release);
+        deadline = clock_.now_ns() + period_ns;
+        continue;
+      }
       std::this_thread::sleep_for(std::chrono::microseconds(200));
       servo_last_cycle_ns_.store(clock_.now_ns(), std::memory_order_release);
       deadline = clock_.now_ns() + period_ns;

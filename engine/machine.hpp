@@ -28,6 +28,7 @@
 #include "engine/latency_histogram.hpp"
 #include "engine/link_telemetry.hpp"
 #include "engine/seqlock.hpp"
+#include "engine/shared_heater_port.hpp"
 #include "engine/thermal_loop.hpp"
 #include "gcode/command.hpp"
 
@@ -136,6 +137,9 @@ class CommandExecutor {
   }
   // Fills the motion fields of a status snapshot. Any thread.
   virtual void motion_status(MachineStatus& /*s*/) const {}
+  // The heater ports of the motion MCUs that drive heaters too (make_thermal_loop's `ports`;
+  // engine/shared_heater_port.hpp); nullptr: none. Fixed at construction.
+  virtual const SharedHeaterPorts* heater_ports() const { return nullptr; }
   // Planner thread, after execute(): the time of a dwell (G4) the executor could not put into its
   // motion (the machine was at rest, or homing), which the machine then waits on its own clock;
   // 0 when none. Taking it clears it.
@@ -262,6 +266,11 @@ class Machine {
   std::condition_variable wake_cv_;
 
   std::atomic<bool> stopping_{false};
+  // Virtual time, a heater wait while the heaters' messages travel on the motion MCUs' sessions
+  // (the executor's heater_ports()): the servo thread, which alone services those sessions, runs
+  // the wait's time period by period up to here (ns); 0: no such wait.
+  std::atomic<int64_t> virtual_wait_until_ns_{0};
+  bool servo_carries_heaters_ = false;  // set_thermal(): the thermal loop uses heater ports
   std::atomic<int64_t> planner_stall_ns_{0}, servo_stall_ns_{0};  // inject_stall, not yet taken
   std::atomic<bool> cancel_{false};     // latched: emergency stop, stop()
   std::atomic<bool> interrupt_{false};  // the command executing returns: cancel_ or a flush

@@ -4,12 +4,14 @@
 #include <algorithm>  // std::min, std::max
 #include <cmath>      // std::fabs, NAN
 #include <cstdio>     // snprintf
+#include <cstring>    // memcpy
 
 #include "core/clock.hpp"  // ns_from_seconds
 #include "drivers/protocol/endstop_messages.hpp"
 #include "drivers/stepgen/run_codec.hpp"
 #include "engine/mcu_transport.hpp"
 #include "engine/simulated_printer.hpp"
+#include "engine/thermal_config.hpp"  // board_channels
 
 namespace feedloop::engine {
 namespace {
@@ -26,12 +28,17 @@ struct IdealMotor final : device::MotorPort {
 
 struct McuBridge::Mcu {
   std::string name;
+  std::unique_ptr<SimulatedHeaterBoard> heaters;  // mock: the heaters it drives (outlives vmcu)
   std::unique_ptr<device::VirtualMcu> vmcu;
   std::unique_ptr<drivers::Transport> transport;
   drivers::MockTransport* mock = nullptr;
   std::unique_ptr<drivers::McuSession> session;
   std::vector<IdealMotor> ideal;  // motors without a plant model (sized before ports point at it)
   bool estop_sent = false;
+  // Heaters and fans named on this MCU (config mcu:): their messages to and from the thermal loop.
+  std::shared_ptr<SharedHeaterPort> heater_port;
+  uint64_t frames_in = 0;        // frames from the MCU, as last seen
+  double last_heard_s = -1e300;  // host time frames_in last grew
 };
 
 // Between a virtual MCU and its plant: checks each executed step against what was sent.
@@ -138,6 +145,18 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
       joint_motor_[static_cast<size_t>(j)] = static_cast<int>(joints.size());
       joints.push_back(j);
     }
+    // Heaters and fans named on this MCU (one board for motion and heaters): their port, and on a
+    // simulated MCU the thermal plants its VirtualMcu drives.
+    const BoardChannels heaters = board_channels(cfg, mc.name);
+    if (!heaters.empty()) {
+      if (heaters.heaters.size() > 4 || heaters.fans.size() > 4)
+        return Error{"MCU '" + mc.name + "': at most 4 heaters and 4 fans per board"};
+      m->heater_port = std::make_shared<SharedHeaterPort>(mc.name);
+      heater_ports_.push_back(m->heater_port);
+      if (mc.transport == config::TransportType::mock)
+        m->heaters = make_simulated_heater_board(cfg, heaters.heaters, heaters.fans,
+                                                 static_cast<double>(mc.clock_hz));
+    }
     if (mc.transport == config::TransportType::mock) {
       m->ideal.resize(joints.size());
       std::array<device::MotorPort*, device::VirtualMcu::kMaxAxes> ports{};
@@ -155,8 +174,11 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
       vp.offset_s = (index + 1) * options_.clock_offset_s;
       vp.axis = static_cast<uint8_t>(joints.empty() ? 0 : joints[0]);
       std::snprintf(vp.name, sizeof vp.name, "%s", mc.name.c_str());
-      m->vmcu = joints.size() > 1 ? std::make_unique<device::VirtualMcu>(vp, ports.data(), static_cast<int>(joints.size()))
-                                  : std::make_unique<device::VirtualMcu>(vp, ports[0]);
+      m->vmcu = joints.size() > 1 || m->heaters
+                    ? std::make_unique<device::VirtualMcu>(
+                          vp, ports.data(), static_cast<int>(std::max<size_t>(joints.size(), 1)),
+                          m->heaters ? &m->heaters->board() : nullptr)
+                    : std::make_unique<device::VirtualMcu>(vp, ports[0]);
       drivers::MockFaults f = options_.faults;
       f.seed += static_cast<uint64_t>(index) * 7919;
       auto t = std::make_unique<drivers::MockTransport>(*m->vmcu, f, mc.name);
@@ -646,7 +668,14 @@ void McuBridge::latch_fault(const std::string& message) {
   phase_ = Phase::kFaulted;
   ++faults_total_;
   log("fault: " + message);
-  // Everything else stops now; the MCU that is gone stops on its own watchdog.
+  // Everything else stops now; the MCU that is gone stops on its own watchdog. A stopped MCU
+  // turns its heaters off: the thermal loop learns it through their port (a thermal fault).
+  for (auto& m : mcus_)
+    if (m->heater_port)
+      m->heater_port->fail(("the motion side stopped every MCU (" + message +
+                            "); a stopped MCU turns its heaters off (one that is gone: by its own "
+                            "3 s rule)")
+                               .c_str());
   for (auto& m : mcus_)
     if (m->session->ready()) {
       m->session->emergency_stop();
@@ -660,6 +689,46 @@ void McuBridge::fault_message(char* out, size_t cap) const {
   if (cap == 0) return;
   const FaultText t = fault_text_.load();
   std::snprintf(out, cap, "%s", fault_.load() ? t.text : "");
+}
+
+// The motion MCUs' heaters (servo thread, RT-safe): the link's state published, the thermal
+// loop's messages queued once the MCU is identified, its reports handed back with the clock map
+// in host time (the sessions run on simulation time: host = simulation + epoch).
+void McuBridge::service_heater_ports(double host_s) {
+  for (auto& m : mcus_) {
+    if (!m->heater_port) continue;
+    SharedHeaterPort& port = *m->heater_port;
+    drivers::McuSession& s = *m->session;
+    const protocol::LinkStats& ls = s.link_stats();
+    const uint64_t in = ls.delivered + ls.duplicates_dropped + ls.out_of_order_dropped;
+    if (in != m->frames_in) {
+      m->frames_in = in;
+      m->last_heard_s = host_s;
+    }
+    port.publish(s.ready(), s.negotiated_version(), s.mcu_clock_hz(), m->last_heard_s);
+    SharedHeaterPort::Message msg;
+    if (s.ready())
+      while (port.take_to_mcu(msg)) s.queue_message(msg.bytes, msg.n);
+    const stepgen::TickMap tm = s.tick_map();
+    drivers::HeaterPayload buf[8];
+    for (size_t k; (k = s.take_heater_messages(buf, 8)) > 0;) {
+      for (size_t i = 0; i < k; ++i) {
+        msg.n = buf[i].n;
+        std::memcpy(msg.bytes, buf[i].bytes, std::min<size_t>(buf[i].n, sizeof msg.bytes));
+        msg.clock_ready = s.clock().ready();
+        msg.offset_ticks = tm.offset_ticks - tm.ticks_per_s * epoch_s_;
+        msg.ticks_per_s = tm.ticks_per_s;
+        msg.arrival_s = host_s;
+        port.deliver_from_mcu(msg);
+      }
+      if (k < 8) break;
+    }
+  }
+}
+
+SimulatedHeaterBoard* McuBridge::simulated_heater_board(int mcu) {
+  if (mcu < 0 || mcu >= mcu_count()) return nullptr;
+  return mcus_[static_cast<size_t>(mcu)]->heaters.get();
 }
 
 void McuBridge::poll_all(double now_s) {
@@ -903,6 +972,7 @@ void McuBridge::service(double host_s) {
     }
   }
   collect(now_s);
+  service_heater_ports(host_s);
   publish_links(now_s);
 
   auto describe_down = [&]() -> std::string {

@@ -42,9 +42,12 @@
 #include "engine/config_mapping.hpp"
 #include "engine/device_loop_link.hpp"
 #include "engine/servo_backend.hpp"
+#include "engine/shared_heater_port.hpp"
 #include "engine/simulated_plant.hpp"
 
 namespace feedloop::engine {
+
+class SimulatedHeaterBoard;  // engine/simulated_printer.hpp
 
 struct McuBridgeOptions {
   double drift_ppm = 50.0;        // virtual MCU i runs fast (even i) or slow (odd i) by this much
@@ -141,6 +144,12 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   // G28 returned).
   HomingReport homing_report(int joint) const;
 
+  // Heaters and fans on the motion MCUs' links (ServoBackend): the messages of the MCUs that
+  // drive some cross from the thermal thread through these ports (service() moves them).
+  const SharedHeaterPorts* heater_ports() const override { return &heater_ports_; }
+  // The simulated heater board a mock motion MCU hosts (nullptr: none; tests inject its faults).
+  SimulatedHeaterBoard* simulated_heater_board(int mcu);
+
   // stepgen::BatchSink (servo thread): StepBatch::axis is the joint index.
   void on_batch(const stepgen::StepBatch& batch) override;
 
@@ -177,6 +186,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   void publish_links(double now_s);
   void latch_fault(const std::string& message);
   void log(std::string message);
+  void service_heater_ports(double host_s);
 
   McuBridgeOptions options_;
   std::vector<std::unique_ptr<Mcu>> mcus_;
@@ -188,6 +198,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   std::array<double, kJoints> encoder_mm_per_count_{};
   std::array<std::unique_ptr<JointPort>, kJoints> ports_;
   std::unique_ptr<SimulatedPlant> plant_;
+  SharedHeaterPorts heater_ports_;  // the motion MCUs' with heaters (Mcu::heater_port)
   bool simulated_ = false;  // some MCU is a virtual one (mock transport)
   Seqlock<LinkTelemetrySet> links_;
   LinkTelemetrySet links_scratch_;  // servo thread: filled, then published

@@ -6,6 +6,8 @@
 // in its own clock (ThermalOptions::mcu_clock_hz ticks per host second).
 //   ThermalLoop --SET_HEATER--> McuHeaterLink --> McuSession --frames--> Transport --> MCU
 //   (simulation: MockTransport --> VirtualMcu --> HeaterBoard --> ThermalPlant)
+// A heater on a motion MCU (one board for both) goes through that MCU's session on the servo
+// thread instead: HeaterMcu::shared, engine/shared_heater_port.hpp.
 // Messages wait until their MCU is identified; an MCU that speaks protocol v1/v2 (no heaters) or
 // whose session fails is the link's fault() (the thermal loop turns it into a thermal fault).
 // Owner: the thermal loop (its mutex); not real-time (the thermal thread).
@@ -20,6 +22,7 @@
 
 #include "drivers/host/mcu_session.hpp"
 #include "drivers/transport.hpp"
+#include "engine/shared_heater_port.hpp"
 #include "engine/thermal_loop.hpp"
 
 namespace feedloop::drivers {
@@ -47,6 +50,9 @@ struct HeaterMcu {
   std::unique_ptr<drivers::Transport> transport;
   drivers::MockTransport* mock = nullptr;      // simulation only
   drivers::McuSessionParams session;           // name, link; encoder and watchdog off
+  // A motion MCU's own link instead (no transport, no session here): its session is the servo
+  // thread's (McuBridge), the messages cross through this port (shared_heater_port.hpp).
+  std::shared_ptr<SharedHeaterPort> shared;
 };
 
 // A heater MCU's session: no motors (no encoder stream), no motion watchdog (the heaters have
@@ -80,7 +86,9 @@ class McuHeaterLink final : public HeaterLink {
   int num_heaters() const { return static_cast<int>(heaters_.size()); }
   int num_fans() const { return static_cast<int>(fans_.size()); }
   int mcu_count() const { return static_cast<int>(mcus_.size()); }
+  // The MCU's own session; not for a motion MCU's (shared(i)), whose session the bridge owns.
   drivers::McuSession& session(int i) { return *mcus_[static_cast<size_t>(i)].session; }
+  SharedHeaterPort* shared(int i) { return mcus_[static_cast<size_t>(i)].cfg.shared.get(); }
   drivers::MockTransport* mock(int i) { return mcus_[static_cast<size_t>(i)].cfg.mock; }
   SimulatedHeaterDevice* sim(int i) { return mcus_[static_cast<size_t>(i)].cfg.sim.get(); }
   const HeaterRoute& heater_route(int heater) const { return heaters_[static_cast<size_t>(heater)]; }
@@ -110,6 +118,13 @@ class McuHeaterLink final : public HeaterLink {
   void poll(Mcu& m, double t_s);
   void forward(Mcu& m, std::vector<uint8_t> msg);
   void collect(int mcu_index, double t_s);
+  // One HEATER_REPORT / HEATER_FAULT from MCU mcu_index: its clock mapped to the loop's ticks by
+  // to_host_s, its local heater index to the loop's; into the inbox.
+  template <class ToHostS>
+  void deliver(int mcu_index, const uint8_t* bytes, size_t n, ToHostS to_host_s);
+  void poll_shared(Mcu& m, double t_s);
+  void release_held(Mcu& m, uint16_t version);
+  bool mcu_ready(const Mcu& m) const;
 
   std::vector<Mcu> mcus_;
   std::vector<HeaterRoute> heaters_, fans_;

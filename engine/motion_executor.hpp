@@ -118,6 +118,9 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   // Each servo cycle then services it first, takes its clock estimates for step timing, waits
   // for ready() before motion starts from rest, and stops motion on fault().
   void set_backend(ServoBackend* backend) { backend_ = backend; }
+  const SharedHeaterPorts* heater_ports() const override {
+    return backend_ != nullptr ? backend_->heater_ports() : nullptr;
+  }
   // The control law: with one set, the servo cycle takes the sampled path. Before start.
   void set_control(std::unique_ptr<ServoControl> control);
   // An observer of planned moves, servo samples and events (the recorder; benchmarks). Before start.

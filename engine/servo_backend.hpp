@@ -11,6 +11,7 @@
 #include "drivers/stepgen/step_generator.hpp"
 #include "engine/device_loop_telemetry.hpp"
 #include "engine/link_telemetry.hpp"
+#include "engine/shared_heater_port.hpp"
 #include "engine/telemetry_tap.hpp"
 
 namespace feedloop::engine {
@@ -94,6 +95,10 @@ class ServoBackend {
   // whether it sits at the max end. Any thread.
   virtual int endstop_state(int /*joint*/) const { return -1; }
   virtual bool endstop_at_max(int /*joint*/) const { return false; }
+
+  // Heaters on the motion MCUs' own links (engine/shared_heater_port.hpp): one port per motion
+  // MCU that drives heaters or fans, for make_thermal_loop. nullptr: none. Fixed at construction.
+  virtual const SharedHeaterPorts* heater_ports() const { return nullptr; }
 };
 
 }  // namespace feedloop::engine

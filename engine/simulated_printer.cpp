@@ -181,10 +181,13 @@ class SimulatedPrinter final : public SimulatedPlant {
 // The simulated printer's heater MCU: the device code (a VirtualMcu without motors hosting a
 // HeaterBoard) driving a thermal plant per heater and the part fans, behind a mock transport. The
 // thermal loop reaches it only through its McuSession and frames (McuHeaterLink).
-class SimulatedHeaterMcu final : public SimulatedHeaterDevice {
+// The thermal plants and fans one simulated heater board drives (its channels 0, 1, ..: the
+// config's heaters and fans of those indices), and the board. Hosted by a heater-only VirtualMcu
+// (SimulatedHeaterMcu) or by a motion MCU's (McuBridge, heaters named on a motion MCU).
+class SimulatedHeaterRig final : public SimulatedHeaterBoard {
  public:
-  SimulatedHeaterMcu(const config::MachineConfig& cfg, const std::vector<int>& heaters,
-                     const std::vector<int>& fans, double clock_hz, const std::string& name) {
+  SimulatedHeaterRig(const config::MachineConfig& cfg, const std::vector<int>& heaters,
+                     const std::vector<int>& fans, double clock_hz) {
     for (size_t i = 0; i < heaters.size() && i < 4; ++i) {
       const config::HeaterConfig& h = cfg.heaters[static_cast<size_t>(heaters[i])];
       sim::ThermalPlantParams p;
@@ -208,22 +211,18 @@ class SimulatedHeaterMcu final : public SimulatedHeaterDevice {
             fans_.back()->attach(plants_[k].get());
       fan_ports_[i] = fans_.back().get();
     }
-    board_ = std::make_unique<device::HeaterBoard>(heater_ports_, static_cast<int>(plants_.size()), fan_ports_,
-                                                   static_cast<int>(fans_.size()), clock_hz);
-    device::VirtualMcuParams vp;
-    vp.clock_hz = clock_hz;  // no drift, no offset: the board's ports take clock / clock_hz as time
-    std::snprintf(vp.name, sizeof vp.name, "%s", name.c_str());
-    device::MotorPort* none = nullptr;
-    vmcu_ = std::make_unique<device::VirtualMcu>(vp, &none, 1, board_.get());
+    // The board's ports take clock / clock_hz as time.
+    board_ =
+        std::make_unique<device::HeaterBoard>(heater_ports_, static_cast<int>(plants_.size()),
+                                              fan_ports_, static_cast<int>(fans_.size()), clock_hz);
   }
-  sim::ThermalPlant* plant(int i) {
+  device::HeaterBoard& board() override { return *board_; }
+  sim::ThermalPlant* plant(int i) override {
     return i >= 0 && i < static_cast<int>(plants_.size()) ? plants_[static_cast<size_t>(i)].get() : nullptr;
   }
-  sim::PartFan* fan(int i) {
+  sim::PartFan* fan(int i) override {
     return i >= 0 && i < static_cast<int>(fans_.size()) ? fans_[static_cast<size_t>(i)].get() : nullptr;
   }
-  device::VirtualMcu& vmcu() override { return *vmcu_; }
-  const device::HeaterBoard& board() const override { return *board_; }
 
  private:
   std::vector<std::unique_ptr<sim::ThermalPlant>> plants_;
@@ -231,6 +230,29 @@ class SimulatedHeaterMcu final : public SimulatedHeaterDevice {
   device::HeaterPort* heater_ports_[4] = {};
   device::FanPort* fan_ports_[4] = {};
   std::unique_ptr<device::HeaterBoard> board_;
+};
+
+// A heater-only MCU: the rig on a VirtualMcu without motors.
+class SimulatedHeaterMcu final : public SimulatedHeaterDevice {
+ public:
+  SimulatedHeaterMcu(const config::MachineConfig& cfg, const std::vector<int>& heaters,
+                     const std::vector<int>& fans, double clock_hz, const std::string& name)
+      : rig_(cfg, heaters, fans, clock_hz) {
+    device::VirtualMcuParams vp;
+    vp.clock_hz = clock_hz;  // no drift, no offset
+    std::snprintf(vp.name, sizeof vp.name, "%s", name.c_str());
+    device::MotorPort* none = nullptr;
+    vmcu_ = std::make_unique<device::VirtualMcu>(vp, &none, 1, &rig_.board());
+  }
+  sim::ThermalPlant* plant(int i) { return rig_.plant(i); }
+  sim::PartFan* fan(int i) { return rig_.fan(i); }
+  device::VirtualMcu& vmcu() override { return *vmcu_; }
+  const device::HeaterBoard& board() const override {
+    return const_cast<SimulatedHeaterRig&>(rig_).board();
+  }
+
+ private:
+  SimulatedHeaterRig rig_;
   std::unique_ptr<device::VirtualMcu> vmcu_;
 };
 
@@ -250,6 +272,13 @@ Result<std::unique_ptr<sim::EndstopSwitch>> simulated_switch(const config::Machi
 }
 
 }  // namespace
+
+std::unique_ptr<SimulatedHeaterBoard> make_simulated_heater_board(const config::MachineConfig& cfg,
+                                                                  const std::vector<int>& heaters,
+                                                                  const std::vector<int>& fans,
+                                                                  double clock_hz) {
+  return std::make_unique<SimulatedHeaterRig>(cfg, heaters, fans, clock_hz);
+}
 
 std::unique_ptr<SimulatedHeaterDevice> make_simulated_heater_device(
     const config::MachineConfig& cfg, const std::vector<int>& heaters, const std::vector<int>& fans,

@@ -52,6 +52,21 @@ std::unique_ptr<McuHeaterLink> make_simulated_heater_link(const config::MachineC
 std::unique_ptr<SimulatedHeaterDevice> make_simulated_heater_device(
     const config::MachineConfig& cfg, const std::vector<int>& heaters, const std::vector<int>& fans,
     double clock_hz, const std::string& name);
+// The device side of a simulated heater board without its MCU: the HeaterBoard and the thermal
+// plants and fans it drives (channels 0, 1, ..: the config's heaters and fans of those indices;
+// its ports take clock / clock_hz as time). A motion MCU's VirtualMcu hosts it when heaters name
+// that MCU (McuBridge; one board for motion and heaters).
+class SimulatedHeaterBoard {
+ public:
+  virtual ~SimulatedHeaterBoard() = default;
+  virtual device::HeaterBoard& board() = 0;
+  virtual sim::ThermalPlant* plant(int channel) = 0;  // nullptr: none
+  virtual sim::PartFan* fan(int channel) = 0;
+};
+std::unique_ptr<SimulatedHeaterBoard> make_simulated_heater_board(const config::MachineConfig& cfg,
+                                                                  const std::vector<int>& heaters,
+                                                                  const std::vector<int>& fans,
+                                                                  double clock_hz);
 HeaterMcu simulated_heater_mcu(const config::MachineConfig& cfg, const std::vector<int>& heaters,
                                const std::vector<int>& fans, double clock_hz,
                                const std::string& name, uint64_t fault_seed);

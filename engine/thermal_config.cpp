@@ -75,16 +75,22 @@ namespace {
 // heater_mcus: one McuHeaterLink MCU per board that drives a heater or a fan; its heaters and
 // fans take its channels in file order. Mock boards are simulated in-process.
 Result<std::unique_ptr<HeaterLink>> make_board_heater_link(const config::MachineConfig& cfg,
-                                                           double host_hz) {
+                                                           double host_hz,
+                                                           const SharedHeaterPorts* ports) {
   // (The loader refuses a heater or fan without a board; hand-built configs get the same.)
   for (const config::HeaterConfig& h : cfg.heaters)
-    if (h.mcu.empty()) return Error{"heater '" + h.name + "' names no heater_mcus board (mcu:)"};
+    if (h.mcu.empty()) return Error{"heater '" + h.name + "' names no board (mcu:)"};
   for (const config::FanConfig& f : cfg.fans)
-    if (f.mcu.empty()) return Error{"fan '" + f.name + "' names no heater_mcus board (mcu:)"};
+    if (f.mcu.empty()) return Error{"fan '" + f.name + "' names no board (mcu:)"};
   std::vector<HeaterMcu> mcus;
   std::vector<HeaterRoute> hr(cfg.heaters.size()), fr(cfg.fans.size());
-  for (size_t b = 0; b < cfg.heater_mcus.size(); ++b) {
-    const config::McuConfig& board = cfg.heater_mcus[b];
+  // The boards: heater_mcus first, then the motion MCUs that drive heaters too.
+  std::vector<const config::McuConfig*> boards;
+  for (const config::McuConfig& b : cfg.heater_mcus) boards.push_back(&b);
+  for (const config::McuConfig& b : cfg.mcus) boards.push_back(&b);
+  for (size_t b = 0; b < boards.size(); ++b) {
+    const config::McuConfig& board = *boards[b];
+    const bool motion_mcu = b >= cfg.heater_mcus.size();
     const auto [heaters, fans] = board_channels(cfg, board.name);
     if (heaters.empty() && fans.empty()) continue;  // nothing on it: not opened
     if (heaters.size() > 4 || fans.size() > 4)
@@ -94,6 +100,19 @@ Result<std::unique_ptr<HeaterLink>> make_board_heater_link(const config::Machine
       hr[static_cast<size_t>(heaters[k])] = {index, static_cast<uint8_t>(k)};
     for (size_t k = 0; k < fans.size(); ++k)
       fr[static_cast<size_t>(fans[k])] = {index, static_cast<uint8_t>(k)};
+    if (motion_mcu) {  // its session is the motion bridge's (servo thread): through its port
+      HeaterMcu m;
+      m.name = board.name;
+      if (ports != nullptr)
+        for (const auto& p : *ports)
+          if (p && p->mcu_name() == board.name) m.shared = p;
+      if (!m.shared)
+        return Error{"heaters on motion MCU '" + board.name +
+                     "' go through its session in the motion bridge: build the thermal loop with "
+                     "the executor's heater_ports()"};
+      mcus.push_back(std::move(m));
+      continue;
+    }
     if (board.transport == config::TransportType::mock) {
       mcus.push_back(simulated_heater_mcu(cfg, heaters, fans, static_cast<double>(board.clock_hz),
                                           board.name, cfg.simulator.seed + 9500 + 7919 * b));
@@ -111,11 +130,19 @@ Result<std::unique_ptr<HeaterLink>> make_board_heater_link(const config::Machine
 
 }  // namespace
 
-Result<std::unique_ptr<ThermalLoop>> make_thermal_loop(const config::MachineConfig& cfg) {
+bool heaters_on_boards(const config::MachineConfig& cfg) {
+  if (!cfg.heater_mcus.empty()) return true;
+  for (const config::McuConfig& m : cfg.mcus)
+    if (!board_channels(cfg, m.name).empty()) return true;
+  return false;
+}
+
+Result<std::unique_ptr<ThermalLoop>> make_thermal_loop(const config::MachineConfig& cfg,
+                                                       const SharedHeaterPorts* ports) {
   if (cfg.heaters.empty() && cfg.fans.empty()) return std::unique_ptr<ThermalLoop>();
   const ThermalOptions o = thermal_options(cfg);
-  if (!cfg.heater_mcus.empty()) {
-    auto link = make_board_heater_link(cfg, o.mcu_clock_hz);
+  if (heaters_on_boards(cfg)) {
+    auto link = make_board_heater_link(cfg, o.mcu_clock_hz, ports);
     if (!link.ok()) return link.error();
     return std::make_unique<ThermalLoop>(o, std::move(link.value()));
   }
@@ -125,8 +152,8 @@ Result<std::unique_ptr<ThermalLoop>> make_thermal_loop(const config::MachineConf
           "the heaters and fans have no board: without heater_mcus they run on the simulated "
           "printer's heater board, which needs every MCU simulated (mcu '" +
           m.name +
-          "' is not mock); list the board in heater_mcus and name it in each heater's and fan's "
-          "mcu: (config/README.md), or remove the heaters: and fans: sections"};
+          "' is not mock); name the board in each heater's and fan's mcu: (a motion MCU, or a "
+          "board of heater_mcus; config/README.md), or remove the heaters: and fans: sections"};
   return std::make_unique<ThermalLoop>(o, make_simulated_heater_link(cfg, o.mcu_clock_hz));
 }
 

@@ -8,6 +8,7 @@
 
 #include "config/machine_config.hpp"
 #include "core/result.hpp"
+#include "engine/shared_heater_port.hpp"
 #include "engine/thermal_loop.hpp"
 #include "thermal/sensor.hpp"
 
@@ -22,11 +23,15 @@ struct BoardChannels {
   bool empty() const { return heaters.empty() && fans.empty(); }
 };
 BoardChannels board_channels(const config::MachineConfig& cfg, const std::string& board);
+// True when the heaters and fans name their boards (heater_mcus, or motion MCUs by mcu:).
+bool heaters_on_boards(const config::MachineConfig& cfg);
 // The thermal loop of the config's machine; nullptr when it has no heaters and no fans. Heaters
-// and fans run on the boards of heater_mcus (each its own McuSession: serial, usb, or a simulated
-// board in-process); without heater_mcus, on the simulated printer's heater MCU
+// and fans run on the boards their `mcu:` names: a board of heater_mcus (its own McuSession:
+// serial, usb, or a simulated board in-process) or a motion MCU of mcus (its session is the motion
+// bridge's: `ports`, the executor's heater_ports(), carry the messages; without them such a config
+// is refused). With no board named, on the simulated printer's heater MCU
 // (make_simulated_heater_link), which needs every motion MCU mock (else refused with a message).
-// Heaters on a motion MCU's link are not wired (docs/heaters.md).
-Result<std::unique_ptr<ThermalLoop>> make_thermal_loop(const config::MachineConfig& cfg);
+Result<std::unique_ptr<ThermalLoop>> make_thermal_loop(const config::MachineConfig& cfg,
+                                                       const SharedHeaterPorts* ports = nullptr);
 
 }  // namespace feedloop::engine

@@ -3,7 +3,9 @@
 // thermal plants on a pseudo-terminal; the daemon's thermal loop reaches it through
 // heater_mcus (transport: serial) -> SerialTransport -> McuSession -> frames. The board heats,
 // applies Klipper's 3 s re-confirmation rule by itself, and a board that loses power is a
-// thermal fault that names it (its reports stop: ThermalLoop's report timeout, 2 s).
+// thermal fault that names it (its reports stop: ThermalLoop's report timeout, 2 s). And one
+// board for motion and heaters: the toolhead's motion MCU on the pty drives the heaters too, its
+// one session the bridge's (heater messages through engine/shared_heater_port.hpp).
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -14,6 +16,7 @@
 
 #include "config/config.hpp"
 #include "core/clock.hpp"
+#include "engine/mcu_bridge.hpp"
 #include "engine/mcu_heater_link.hpp"
 #include "engine/thermal_config.hpp"
 #include "tests/drivers/vmcu_process.hpp"
@@ -121,6 +124,102 @@ TEST(HeaterBoardPty, ABoardThatLosesPowerIsAThermalFaultNamingIt) {
   EXPECT_GE(rig.now_s() - t_kill, 2.0 - 0.3);
   EXPECT_LE(rig.now_s() - t_kill, 2.0 + 0.3);
   std::printf("board killed: thermal fault after %.2f s: %s\n", rig.now_s() - t_kill, f->c_str());
+}
+
+// The embedded printer with its toolhead MCU (mcu_e: the extruder's motor) on a serial line,
+// driving every heater and fan too; x, y, z stay simulated in-process. The test's thread plays
+// the servo thread (the bridge every 1 ms) and the thermal thread (the loop every 20 ms).
+struct MotionBoardRig {
+  std::filesystem::path dir;
+  config::MachineConfig cfg;
+  feedloop::testing::VmcuProcess vmcu;
+  std::unique_ptr<McuBridge> bridge;
+  std::unique_ptr<ThermalLoop> loop;
+  MonotonicClock clock;
+
+  MotionBoardRig() {
+    dir = std::filesystem::temp_directory_path() /
+          ("feedloop-motion-board-" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir);
+    cfg = config::default_config();
+    config::McuConfig& e = cfg.mcus.back();
+    EXPECT_EQ(e.name, "mcu_e");
+    e.transport = config::TransportType::serial;
+    e.serial.device = (dir / "tty").string();
+    for (auto& h : cfg.heaters) h.mcu = "mcu_e";
+    for (auto& f : cfg.fans) f.mcu = "mcu_e";
+    const std::string path = (dir / "printer.yaml").string();
+    std::ofstream(path) << config::to_yaml(cfg);
+    EXPECT_TRUE(vmcu.start(
+        kVmcu,
+        {"--link", e.serial.device, "--name", "mcu_e", "--axis", "3", "--heater-board", path},
+        (dir / "vmcu.log").string()))
+        << vmcu.error();
+    auto b = McuBridge::create(cfg);
+    EXPECT_TRUE(b.ok()) << (b.ok() ? "" : b.error().message);
+    if (!b.ok()) return;
+    bridge = std::move(b.value());
+    auto l = make_thermal_loop(cfg, bridge->heater_ports());
+    EXPECT_TRUE(l.ok()) << (l.ok() ? "" : l.error().message);
+    if (l.ok()) loop = std::move(l.value());
+    EXPECT_TRUE(bridge->start(now_s()).ok());
+    if (loop) loop->start(now_s());
+  }
+  ~MotionBoardRig() {
+    loop.reset();
+    bridge.reset();
+    vmcu.stop();
+    std::error_code ec;
+    std::filesystem::remove_all(dir, ec);
+  }
+  double now_s() const { return seconds_from_ns(clock.now_ns()); }
+  std::optional<std::string> run_for(double seconds) {
+    const double end = now_s() + seconds;
+    double next_thermal_s = now_s();
+    while (now_s() < end) {
+      bridge->service(now_s());
+      if (now_s() >= next_thermal_s) {
+        next_thermal_s += 0.02;
+        if (auto f = loop->step_to(now_s())) return f;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    return std::nullopt;
+  }
+};
+
+TEST(MotionBoardPty, TheToolheadMcuDrivesItsMotorAndItsHeatersOnOneSession) {
+  MotionBoardRig rig;
+  ASSERT_TRUE(rig.loop);
+  const int extruder = rig.loop->find_heater('T');
+  ASSERT_TRUE(rig.loop->set_target(extruder, 100.0).ok());
+  ASSERT_FALSE(rig.run_for(1.5)) << "a fault";
+  const double start_c = rig.loop->temp_c(extruder);
+  const auto f0 = rig.run_for(5.0);
+  ASSERT_FALSE(f0) << *f0;
+  const double rise_c = rig.loop->temp_c(extruder) - start_c;
+  const int e = rig.bridge->mcu_of_joint(3);
+  ASSERT_GE(e, 0);
+  EXPECT_TRUE(rig.bridge->session(e).ready());
+  EXPECT_FALSE(rig.bridge->fault());
+  EXPECT_TRUE(rig.bridge->ready());  // the motion side is up on the same session
+  auto& link = dynamic_cast<McuHeaterLink&>(rig.loop->link());
+  ASSERT_EQ(link.mcu_count(), 1);
+  ASSERT_NE(link.shared(0), nullptr);
+  EXPECT_GT(rise_c, 4.0) << "the heater did not heat: " << rig.loop->marlin_report();
+  std::printf("motion MCU on the pty: %s (+%.1f C in 5 s); its session: %llu frames in\n",
+              rig.loop->marlin_report().c_str(), rise_c,
+              static_cast<unsigned long long>(rig.bridge->session(e).link_stats().delivered));
+  // The board loses power: the bridge's session fails, every MCU is stopped, and the thermal loop
+  // says which board and why.
+  rig.vmcu.stop(SIGKILL);
+  const double t_kill = rig.now_s();
+  const auto f = rig.run_for(5.0);
+  ASSERT_TRUE(f) << "no fault";
+  std::printf("toolhead board killed: thermal fault after %.2f s: %s\n", rig.now_s() - t_kill,
+              f->c_str());
+  EXPECT_NE(f->find("mcu_e"), std::string::npos) << *f;
+  EXPECT_LE(rig.now_s() - t_kill, 2.0 + 0.3);
 }
 
 }  // namespace

@@ -97,7 +97,7 @@ TEST(HeaterBoards, ConfigErrorsNameTheKeyAndTheLine) {
   y.replace(y.find(at), at.size(), at + "    mcu: nowhere\n");
   auto errors = config::check_config_text(y, "c.yaml");
   ASSERT_EQ(errors.size(), 1u);
-  EXPECT_NE(errors[0].message.find("heaters.bed.mcu: no heater_mcus entry named 'nowhere'"), std::string::npos)
+  EXPECT_NE(errors[0].message.find("heaters.bed.mcu: no MCU named 'nowhere'"), std::string::npos)
       << errors[0].message;
   EXPECT_GT(errors[0].where.line, 0);
   // heater_mcus given: every heater and fan must name its board.

@@ -12,6 +12,7 @@
 #include "core/clock.hpp"
 #include "engine/executor_factory.hpp"
 #include "engine/machine.hpp"
+#include "engine/mcu_heater_link.hpp"
 #include "engine/simulated_printer.hpp"
 #include "engine/thermal_config.hpp"
 #include "gcode/parser.hpp"
@@ -27,12 +28,13 @@ struct MachineRig {
   std::string last_failure;
   std::mutex mu;
   uint64_t ticket = 0;
-  MachineRig() {
-    config::MachineConfig cfg = config::default_config();
+  explicit MachineRig(config::MachineConfig cfg = config::default_config()) {
     cfg.planner.allow_moves_before_homing = true;  // moves without G28 (docs/homing.md)
     auto ex = make_executor(cfg);
+    // Heaters named on a motion MCU: through its session in the executor's bridge (as the daemon).
+    const SharedHeaterPorts* ports = ex.value()->heater_ports();
     m = std::make_unique<Machine>(machine_options(cfg), clock, std::move(ex.value()));
-    m->set_thermal(std::move(make_thermal_loop(cfg).value()));
+    m->set_thermal(std::move(make_thermal_loop(cfg, ports).value()));
     m->set_done_callback([this](CommandDone d) {
       if (!d.status.ok()) {
         std::lock_guard lock(mu);
@@ -86,6 +88,38 @@ TEST(ThermalMachine, M190AndM109WaitOnTheMachineClockAndSettle) {
   EXPECT_NEAR(s.fans[0].speed, 128.0 / 255.0, 1e-9);  // the kick-start (0.1 s) is over
   EXPECT_EQ(s.fans[1].speed, 1.0);                    // the hotend fan: the extruder is above 50 C
   EXPECT_EQ(std::string(s.temp_report).rfind("T:", 0), 0u) << s.temp_report;
+}
+
+// One board for motion and heaters (the extruder and the fans on the toolhead's mcu_e, the bed on
+// mcu_z): the servo thread carries the heater messages on those MCUs' sessions, the thermal thread
+// runs the loop, the waits and the move as on heater boards of their own.
+TEST(ThermalMachine, HeatersOnTheMotionMcusHeatWaitAndMoveOnTheMachinesThreads) {
+  config::MachineConfig cfg = config::default_config();
+  for (config::HeaterConfig& h : cfg.heaters)
+    h.mcu = h.kind == config::HeaterKind::bed ? "mcu_z" : "mcu_e";
+  for (config::FanConfig& f : cfg.fans) f.mcu = "mcu_e";
+  MachineRig r(cfg);
+  ASSERT_TRUE(r.m->start().ok());
+  r.run(
+      {"M140 S50", "M104 S180", "M190 S50", "M109 S180", "M106 S128", "G1 X10 Y10 F3000", "M400"});
+  const double virt_s = seconds_from_ns(r.clock.now_ns()) - 1.0;
+  const MachineStatus s = r.m->status();
+  r.m->stop();
+  std::printf("heaters on the motion MCUs: %.1f s of machine time; T %.2f B %.2f\n", virt_s,
+              s.hotend_c, s.bed_c);
+  EXPECT_EQ(r.done.load(), r.ticket);
+  EXPECT_EQ(r.failed.load(), 0u) << r.last_failure;
+  EXPECT_NEAR(s.bed_c, 50.0, 2.0);
+  EXPECT_NEAR(s.hotend_c, 180.0, 4.0);
+  EXPECT_NE(s.state, MachineState::kEmergencyStopped);
+  ASSERT_EQ(s.num_fans, 2);
+  EXPECT_NEAR(s.fans[0].speed, 128.0 / 255.0, 1e-9);
+  auto* link = dynamic_cast<McuHeaterLink*>(&r.m->thermal()->link());
+  ASSERT_NE(link, nullptr);
+  ASSERT_EQ(link->mcu_count(), 2);
+  EXPECT_NE(link->shared(0), nullptr);  // no session of its own: the bridge's
+  EXPECT_GT(link->shared(1)->last_heard_s(),
+            virt_s);  // the toolhead board heard lately (host time)
 }
 
 TEST(ThermalMachine, AFaultDuringAWaitStopsTheMachineWithTheHeatersMessage) {
