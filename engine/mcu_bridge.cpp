@@ -4,6 +4,7 @@
 #include <algorithm>  // std::min, std::max
 #include <cmath>      // std::fabs, NAN
 #include <cstdio>     // snprintf
+#include <cstdlib>
 #include <cstring>    // memcpy
 
 #include "core/clock.hpp"  // ns_from_seconds
@@ -259,25 +260,31 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
     hp.report_encoder = (a->encoder.has_value() || cfg.kinematics == config::Kinematics::delta) &&
                         encoder_mm_per_count_[js] > 0.0 &&
                         cfg.kinematics != config::Kinematics::corexy;
+    // A CoreXY carriage's index and stall homing use the belts' encoders (A's for X, B's for Y:
+    // the primary motor's; the follower's too for the result, McuBridge::poll_homing).
+    if ((h.index || h.stall) && corexy_ && j < 2) {
+      const size_t os = static_cast<size_t>(1 - j);
+      if (!(encoder_mm_per_count_[js] > 0.0) || !(encoder_mm_per_count_[os] > 0.0))
+        return Error{"axes." + names[js] +
+                     ".homing: encoder-index and stall homing of a corexy carriage read both "
+                     "belts' encoders: give x and y an encoder"};
+      hp.report_encoder = true;
+    }
     // Encoder-index homing: the next mark lies within one period of the switch.
-    if ((h.index || h.stall) && cfg.kinematics == config::Kinematics::corexy)
-      return Error{"axes." + names[js] +
-                   ".homing: encoder-index and stall homing are for Cartesian axes and delta "
-                   "towers (this printer is " +
-                   "a corexy)"};
     hp.index_search = h.index && hp.report_encoder && a->encoder;
     if (hp.report_encoder) hp.encoder_mm_per_count = encoder_mm_per_count_[js];
     if (h.stall) {
       if (!hp.report_encoder)
         return Error{"axes." + names[js] +
-                     ".homing.stall: stall homing needs the carriage's encoder (a Cartesian axis "
-                     "or a delta tower)"};
+                     ".homing.stall: stall homing needs the carriage's encoder (axes." + names[js] +
+                     ".encoder)"};
       hp.stall = true;
       hp.second_touch = false;
       hp.stall_threshold_mm = h.stall_threshold_mm;
       hp.encoder_mm_per_count = encoder_mm_per_count_[js];
     }
     if (hp.index_search) hp.index_search_mm = a->encoder->index_period_mm * 1.05;
+    index_period_mm_[js] = hp.index_search ? a->encoder->index_period_mm : 0.0;
     index_position_mm_[js] = h.index_position_mm ? *h.index_position_mm : NAN;
     drivers::McuSession* follower_session = nullptr;
     homing_joints_[js] = {j, -1};
@@ -446,12 +453,22 @@ void McuBridge::poll_homing(double now_s) {
   constexpr double kSettle_s = 0.15;  // the carriage rings out after the last stop
   if (homing_settle_until_s_ < 0.0) homing_settle_until_s_ = now_s + kSettle_s;
   if (now_s < homing_settle_until_s_) return;
+  const std::array<double, 2> corexy_index_mm = corexy_index_homed_mm();
   for (int j = 0; j < kJoints; ++j) {
     const size_t js = static_cast<size_t>(j);
     if ((homing_mask_ >> j & 1u) == 0) continue;
     const drivers::HomingResult& r = homing_[js]->result();
     const bool cartesian_carriage = corexy_ && j < 2;
     const double steps_mm = cartesian_carriage ? homing_result_mm_[js] : r.position_mm;
+    if (cartesian_carriage) {  // by the belts' encoders (index, stall) or by the steps
+      const double by_index_mm = corexy_index_mm[js];
+      const double by_stall_mm = corexy_stall_homed_mm(j, steps_mm);
+      const double homed = std::isfinite(by_index_mm)   ? by_index_mm
+                           : std::isfinite(by_stall_mm) ? by_stall_mm
+                                                        : steps_mm;
+      publish_homed(j, homed, steps_mm, std::isfinite(by_index_mm) || std::isfinite(by_stall_mm));
+      continue;
+    }
     // Carriage-referenced: at the trigger the carriage was at the endstop (the encoder's count
     // then, latched on the MCU); at rest now it is the encoder's travel since away from it, and the
     // steps at rest sit where the carriage does. The steps alone would put the carriage's lag
@@ -491,23 +508,111 @@ void McuBridge::poll_homing(double now_s) {
     const double homed = std::isfinite(by_index_mm) ? by_index_mm
                          : by_encoder               ? by_encoder_mm
                                                     : steps_mm;
-    homed_mm_[js].store(homed, std::memory_order_relaxed);
-    steps_homed_mm_[js].store(steps_mm, std::memory_order_relaxed);
-    encoder_referenced_[js].store(by_encoder, std::memory_order_relaxed);
-    first_touch_mm_[js].store(r.first_trigger_mm + (homed - steps_mm), std::memory_order_relaxed);
-    relay_lag_steps_[js].store(r.relay_lag_steps, std::memory_order_relaxed);
-    double truth = NAN;
-    if (plant_ && mcus_[static_cast<size_t>(joint_mcu_[js])]->vmcu) {
-      // CoreXY: the carriage from the belts' ends, x = (A + B) / 2, y = (A - B) / 2.
-      truth = !cartesian_carriage ? plant_->carriage_mm(j)
-              : j == 0            ? 0.5 * (plant_->carriage_mm(0) + plant_->carriage_mm(1))
-                                  : 0.5 * (plant_->carriage_mm(0) - plant_->carriage_mm(1));
-    }
-    homed_truth_mm_[js].store(truth, std::memory_order_relaxed);
-    homing_count_[js].fetch_add(1, std::memory_order_relaxed);
-    endstop_state_[js].store(1, std::memory_order_relaxed);  // it stopped on its switch
+    publish_homed(j, homed, steps_mm, by_encoder);
   }
   end_homing(HomingState::kDone);
+}
+
+// One joint's homing result for the planner (homed_position_mm) and the reports.
+void McuBridge::publish_homed(int j, double homed, double steps_mm, bool by_encoder) {
+  const size_t js = static_cast<size_t>(j);
+  const drivers::HomingResult& r = homing_[js]->result();
+  const bool cartesian_carriage = corexy_ && j < 2;
+  homed_mm_[js].store(homed, std::memory_order_relaxed);
+  steps_homed_mm_[js].store(steps_mm, std::memory_order_relaxed);
+  encoder_referenced_[js].store(by_encoder, std::memory_order_relaxed);
+  first_touch_mm_[js].store(r.first_trigger_mm + (homed - steps_mm), std::memory_order_relaxed);
+  relay_lag_steps_[js].store(r.relay_lag_steps, std::memory_order_relaxed);
+  double truth = NAN;
+  if (plant_ && mcus_[static_cast<size_t>(joint_mcu_[js])]->vmcu) {
+    // CoreXY: the carriage from the belts' ends, x = (A + B) / 2, y = (A - B) / 2.
+    truth = !cartesian_carriage ? plant_->carriage_mm(j)
+            : j == 0            ? 0.5 * (plant_->carriage_mm(0) + plant_->carriage_mm(1))
+                                : 0.5 * (plant_->carriage_mm(0) - plant_->carriage_mm(1));
+  }
+  homed_truth_mm_[js].store(truth, std::memory_order_relaxed);
+  homing_count_[js].fetch_add(1, std::memory_order_relaxed);
+  endstop_state_[js].store(1, std::memory_order_relaxed);  // it stopped on its switch
+}
+
+// CoreXY stall homing of carriage axis j (X: motor A primary, B following; Y: B primary, A
+// following): at the trip the frame held the carriage at position_endstop, and it held both belts
+// until the follower's relayed stop; the axis's travel since is the belts' encoders' (x = (A + B)
+// / 2, y = (A - B) / 2: half the primary's travel times its sign plus the follower's). NaN when
+// not a stall homing or a count is missing; the steps' value when the encoders disagree with
+// them by more than 1 mm (a broken encoder: logged).
+double McuBridge::corexy_stall_homed_mm(int j, double steps_mm) {
+  const drivers::HomingSequence& h = *homing_[static_cast<size_t>(j)];
+  const drivers::HomingResult& r = h.result();
+  const drivers::HomingParams& p = h.params();
+  if (!p.stall || !r.has_trigger_encoder || !r.has_follower_encoder) return NAN;
+  const size_t ps = static_cast<size_t>(j), fs = static_cast<size_t>(1 - j);
+  const double d_primary_mm =
+      encoder_mm_[ps].load(std::memory_order_relaxed) -
+      static_cast<double>(r.trigger_encoder_counts) * encoder_mm_per_count_[ps];
+  const double d_follower_mm =
+      encoder_mm_[fs].load(std::memory_order_relaxed) -
+      static_cast<double>(r.follower_stop_encoder_counts) * encoder_mm_per_count_[fs];
+  const double homed =
+      p.position_endstop_mm + 0.5 * (p.motor_sign * d_primary_mm + p.follower_sign * d_follower_mm);
+  if (!std::isfinite(homed) || std::fabs(homed - steps_mm) > 1.0) {
+    log("stall homing of " + joint_names_[ps] + ": the belts' encoders put the carriage " +
+        std::to_string(homed - steps_mm) + " mm from the steps; homed by the steps");  // rare
+    return NAN;
+  }
+  return homed;
+}
+
+// CoreXY encoder-index homing, X and Y in one G28: each belt's next index mark after its axis's
+// switch is that belt's reference (A's for X, B's for Y, in the belts' coordinates A = x + y,
+// B = x - y), and the carriage is x = (A + B) / 2, y = (A - B) / 2 from both. A mark's belt
+// position (one of them: they repeat every index period) comes from
+// axes.<x|y>.homing.index_position_mm or, at the first homing, from the switches (logged, to be
+// kept in the config). NaN for both when not X and Y together with their marks (one axis alone:
+// its switch is the reference).
+std::array<double, 2> McuBridge::corexy_index_homed_mm() {
+  std::array<double, 2> out{NAN, NAN};
+  if (!corexy_ || (homing_mask_ & 3u) != 3u || !homing_[0] || !homing_[1]) return out;
+  const drivers::HomingResult& rx = homing_[0]->result();
+  const drivers::HomingResult& ry = homing_[1]->result();
+  if (!rx.has_index || !ry.has_index) {
+    if (rx.has_index || ry.has_index) log("corexy index homing needs X and Y homed together");
+    return out;
+  }
+  // Each belt's travel since its mark (mm of belt), and where the switches put it now.
+  const double a_since_mm = encoder_mm_[0].load(std::memory_order_relaxed) -
+                            static_cast<double>(rx.index_encoder_counts) * encoder_mm_per_count_[0];
+  const double b_since_mm = encoder_mm_[1].load(std::memory_order_relaxed) -
+                            static_cast<double>(ry.index_encoder_counts) * encoder_mm_per_count_[1];
+  const double a_by_switch_mm = homing_result_mm_[0] + homing_result_mm_[1];
+  const double b_by_switch_mm = homing_result_mm_[0] - homing_result_mm_[1];
+  const char* belt[2] = {"A (x + y)", "B (x - y)"};
+  const double since[2] = {a_since_mm, b_since_mm};
+  const double by_switch[2] = {a_by_switch_mm, b_by_switch_mm};
+  double belt_mm[2];
+  for (size_t i = 0; i < 2; ++i) {
+    if (!std::isfinite(index_position_mm_[i])) {
+      index_position_mm_[i] = by_switch[i] - since[i];
+      log("homing of " + joint_names_[i] + ": belt " + belt[i] + "'s encoder index mark is at " +
+          std::to_string(index_position_mm_[i]) + " mm by the switches; set axes." +
+          joint_names_[i] + ".homing.index_position_mm to keep it");  // once: allocates
+    }
+    // The marks repeat every index period along the belt, and which one the search found depends
+    // on the other axis (A = x + y at the X switch): the switches pick it, as the switch picks the
+    // mark on a Cartesian axis (their error must stay within half a period).
+    belt_mm[i] = index_position_mm_[i] + since[i];
+    if (const double period = index_period_mm_[i]; period > 0.0)
+      belt_mm[i] += period * std::round((by_switch[i] - belt_mm[i]) / period);
+    if (!std::isfinite(belt_mm[i]) || std::fabs(belt_mm[i] - by_switch[i]) > 1.0) {
+      log("corexy index homing: belt " + std::string(belt[i]) + " is " +
+          std::to_string(belt_mm[i] - by_switch[i]) +
+          " mm from where the switches put it; homed by the switches");  // rare
+      return out;
+    }
+  }
+  out[0] = 0.5 * (belt_mm[0] + belt_mm[1]);
+  out[1] = 0.5 * (belt_mm[0] - belt_mm[1]);
+  return out;
 }
 
 // The switches' states for M119: ENDSTOP_QUERY to every joint with an endstop every 100 ms while

@@ -187,12 +187,16 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   void latch_fault(const std::string& message);
   void log(std::string message);
   void service_heater_ports(double host_s);
+  void publish_homed(int joint, double homed_mm, double steps_mm, bool by_encoder);
+  double corexy_stall_homed_mm(int axis, double steps_mm);
+  std::array<double, 2> corexy_index_homed_mm();
 
   McuBridgeOptions options_;
   std::vector<std::unique_ptr<Mcu>> mcus_;
   std::array<int, kJoints> joint_mcu_{{-1, -1, -1, -1}};
   std::array<double, kJoints> index_position_mm_{
       {NAN, NAN, NAN, NAN}};  // encoder-index homing's marks
+  std::array<double, kJoints> index_period_mm_{};  // their spacing (CoreXY: along the belts)
   std::array<int, kJoints> joint_motor_{{0, 0, 0, 0}};
   std::array<std::string, kJoints> joint_names_;
   std::array<double, kJoints> encoder_mm_per_count_{};

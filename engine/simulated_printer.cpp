@@ -4,6 +4,7 @@
 
 #include <cmath>    // NAN
 #include <cstdio>   // snprintf
+#include <limits>
 #include <numbers>  // pi
 #include <string>
 #include <vector>
@@ -84,6 +85,7 @@ class CoreXyEndstopPort final : public device::MotorPort {
   void set_enabled(double t_s, bool enabled) override { own_->set_enabled(t_s, enabled); }
   void set_step_fraction(double t_s, float f) override { own_->set_step_fraction(t_s, f); }
   int64_t read_encoder_counts(double t_s) override { return own_->read_encoder_counts(t_s); }
+  bool read_encoder_index(double t_s) override { return own_->read_encoder_index(t_s); }
   bool read_endstop(double t_s) override {
     a_->advance_to(t_s);
     b_->advance_to(t_s);
@@ -450,6 +452,8 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
         p.value().initial_pos_mm =
             h.position_endstop_mm + (h.direction == config::EndstopSide::min ? d : -d);
       }
+      if (corexy_switches && j < 2 && (cx->homing->stall || cy->homing->stall))
+        p.value().coupled_stops = true;       // the carriage's hard stops act on both belts (below)
       if (has_switch && ac->homing->stall) {  // stall homing: the frame's hard stop there
         const config::HomingConfig& h = *ac->homing;
         (h.direction == config::EndstopSide::min ? p.value().hard_stop_min_mm
@@ -467,6 +471,18 @@ Result<std::unique_ptr<SimulatedPlant>> make_simulated_printer(const config::Mac
         out->endstop_ports_[js] =
             std::make_unique<sim::EndstopAxis>(*out->gantries_[js], *out->switches_[js]);
       }
+    }
+    // CoreXY stall homing: the frame's hard stop on the carriage's x (or y) at the endstop,
+    // x = (A + B) / 2 and y = (A - B) / 2 of the belts' ends, felt by both belts.
+    for (int i = 0; corexy_switches && i < 2; ++i) {
+      const config::HomingConfig& h = *(i == 0 ? cx : cy)->homing;
+      if (!h.stall) continue;
+      const bool at_min = h.direction == config::EndstopSide::min;
+      const double lo = at_min ? h.position_endstop_mm : -std::numeric_limits<double>::infinity();
+      const double hi = at_min ? std::numeric_limits<double>::infinity() : h.position_endstop_mm;
+      const double b = i == 0 ? 0.5 : -0.5;  // B's coefficient in x or y
+      out->gantries_[0]->add_coupled_stop(*out->gantries_[1], 0.5, b, lo, hi);
+      out->gantries_[1]->add_coupled_stop(*out->gantries_[0], b, 0.5, lo, hi);
     }
     for (int j = 0; corexy_switches && j < 2; ++j) {
       const size_t js = static_cast<size_t>(j);

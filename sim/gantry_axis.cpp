@@ -66,7 +66,7 @@ double GantryAxis::fastest_mode_rad_s(const GantryAxisParams& p) {
   q.belt_stiffness_n_m /= kMinActiveSpan;  // K2 = k_hat / (0.05 L) = 20 k2 at x2 = 0
   w = std::max(w, sim::fastest_mode_rad_s(GantryAxis(q).linearize().a));
   if (p.effects.coulomb_friction.enabled) w = std::max(w, kBristleSlide_m_s / kBristle_m);
-  if (std::isfinite(p.hard_stop_min_mm) || std::isfinite(p.hard_stop_max_mm))
+  if (std::isfinite(p.hard_stop_min_mm) || std::isfinite(p.hard_stop_max_mm) || p.coupled_stops)
     w = std::max(w, 2.0 * std::sqrt(p.hard_stop_n_m / p.carriage_mass_kg));  // the contact's mode
   return w;
 }
@@ -119,6 +119,13 @@ GantryAxis::GantryAxis(const GantryAxisParams& p)
   history_.clear(0.0, x0_m);
 }
 
+void GantryAxis::add_coupled_stop(const GantryAxis& other, double own_coef, double other_coef,
+                                  double min_mm, double max_mm) {
+  if (num_coupled_ >= static_cast<int>(coupled_.size())) return;
+  coupled_[static_cast<size_t>(num_coupled_++)] = {&other, own_coef, other_coef, min_mm * 1e-3,
+                                                   max_mm * 1e-3};
+}
+
 double GantryAxis::commanded_mm() const {
   return p_.initial_pos_mm + static_cast<double>(steps_) * mm_per_step_nominal_;
 }
@@ -167,6 +174,18 @@ GantryAxis::State GantryAxis::derivative_(const State& x, double u_m, double sin
   // The hard stops: a stiff contact while the carriage is past one.
   if (y2 < stop_min_m_) f_rail += p_.hard_stop_n_m * (stop_min_m_ - y2) - stop_c_ * v2;
   if (y2 > stop_max_m_) f_rail -= p_.hard_stop_n_m * (y2 - stop_max_m_) + stop_c_ * v2;
+
+  // Stops on a coordinate shared with another belt (CoreXY), its force times own_coef here.
+  for (int i = 0; i < num_coupled_; ++i) {
+    const CoupledStop& cs = coupled_[static_cast<size_t>(i)];
+    const State& o = cs.other->xc_;
+    const double c = cs.own * y2 + cs.other_coef * o[kCarriage];
+    const double vc = cs.own * v2 + cs.other_coef * o[kCarriageVel];
+    double f = 0.0;
+    if (c < cs.min_m) f = p_.hard_stop_n_m * (cs.min_m - c) - stop_c_ * vc;
+    if (c > cs.max_m) f = -p_.hard_stop_n_m * (c - cs.max_m) - stop_c_ * vc;
+    f_rail += cs.own * f;
+  }
 
   // Extra mass on its mount (extra_resonance): a spring-damper to the carriage.
   const double f_mount = inv_m3_ > 0.0 ? extra_k_ * (x3 - y2) + extra_c_ * (v3 - v2) : 0.0;

@@ -24,6 +24,7 @@
 // time is applied at the current time and counted in late_events().
 #pragma once
 
+#include <array>
 #include <cstdint>
 
 #include <Eigen/Dense>
@@ -91,7 +92,21 @@ class GantryAxis final : public device::MotorPort {
   // their local slope.
   LinearModel linearize() const;
 
+  // A hard stop on a coordinate this belt shares with another gantry (CoreXY: the carriage's
+  // x = (A + B) / 2 and y = (A - B) / 2 of the belts' ends A and B): a contact on
+  // c = own_coef * own + other_coef * other (carriage positions) below min_mm or above max_mm,
+  // stiff and damped as the hard stops above, of which this belt takes own_coef times the force
+  // (virtual work). The other gantry's committed state is read as it stands (the two are advanced
+  // in turns, a step interval apart at most). At most two; `other` must outlive this gantry.
+  // params.coupled_stops must have been set (the substep rate).
+  void add_coupled_stop(const GantryAxis& other, double own_coef, double other_coef, double min_mm,
+                        double max_mm);
+
  private:
+  struct CoupledStop {
+    const GantryAxis* other = nullptr;
+    double own = 0.0, other_coef = 0.0, min_m = 0.0, max_m = 0.0;
+  };
   explicit GantryAxis(const GantryAxisParams& p);
   // derivative() with the sine law's value sin(2 pi (u_f - x1) / lambda) given: RK4 evaluates it
   // once per substep and carries it to the stages by angle addition (integrate_).
@@ -115,6 +130,8 @@ class GantryAxis final : public device::MotorPort {
   double step_fraction_ = 0.0;  // set_step_fraction
   bool enabled_ = true;
   double stop_min_m_ = 0.0, stop_max_m_ = 0.0, stop_c_ = 0.0;  // the hard stops (gantry_params.hpp)
+  std::array<CoupledStop, 2> coupled_{};
+  int num_coupled_ = 0;
   int64_t slip_periods_ = 0;
   int64_t slip_events_ = 0;
   int64_t late_events_ = 0;

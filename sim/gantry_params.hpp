@@ -79,6 +79,9 @@ struct GantryAxisParams {
   double hard_stop_min_mm = -std::numeric_limits<double>::infinity();
   double hard_stop_max_mm = std::numeric_limits<double>::infinity();
   double hard_stop_n_m = 2.0e5;
+  // The belt will get hard stops on a coordinate it shares with another belt (a CoreXY carriage:
+  // GantryAxis::add_coupled_stop): the substep rate allows for the contact's mode.
+  bool coupled_stops = false;
   double initial_pos_mm = 0.0;           // carriage position x2 at power-on (encoder and steps zero here)
 
   EncoderParams encoder;

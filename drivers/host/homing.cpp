@@ -42,14 +42,12 @@ Status check_homing_params(const HomingParams& p) {
   if (p.motor_sign != 1 && p.motor_sign != -1) return bad("motor_sign must be -1 or +1");
   if (p.has_follower && p.follower_sign != 1 && p.follower_sign != -1)
     return bad("follower_sign must be -1 or +1");
-  if (p.stall && (!p.report_encoder || p.has_follower || p.second_touch ||
-                  !positive(p.encoder_mm_per_count) || !positive(p.stall_threshold_mm) ||
-                  p.stall_backoff_mm < 0.0 || p.mm_per_step / p.encoder_mm_per_count > 60000.0))
-    return bad(
-        "stall homing needs the encoder's count, one motor, no second touch and a threshold > 0");
-  if (p.index_search && (!positive(p.index_search_mm) || !p.report_encoder || p.has_follower))
-    return bad(
-        "encoder-index homing needs the encoder's count and a search distance > 0 (one motor)");
+  if (p.stall && (!p.report_encoder || p.second_touch || !positive(p.encoder_mm_per_count) ||
+                  !positive(p.stall_threshold_mm) || p.stall_backoff_mm < 0.0 ||
+                  p.mm_per_step / p.encoder_mm_per_count > 60000.0))
+    return bad("stall homing needs the encoder's count, no second touch and a threshold > 0");
+  if (p.index_search && (!positive(p.index_search_mm) || !p.report_encoder))
+    return bad("encoder-index homing needs the encoder's count and a search distance > 0");
   return {};
 }
 
@@ -306,12 +304,15 @@ void HomingSequence::on_primary_trigger(const protocol::EndstopTriggerMsg& t, do
     }
     result_.has_index = true;
     result_.index_encoder_counts = t.trigger_encoder_counts;
-    result_.stop_steps = t.stop_steps;
-    result_.position_mm =
-        p_.position_endstop_mm +
-        static_cast<double>(p_.motor_sign * (t.stop_steps - result_.trigger_steps)) *
-            p_.mm_per_step;
-    phase_ = HomingPhase::kDone;
+    if (p_.has_follower) {  // the follower stops on the relay too, then the result
+      primary_trigger_ = t;
+      stopped_in_ = HomingPhase::kIndexSearch;
+      phase_ = HomingPhase::kFollowerStop;
+      wait_since_s_ = now_s;
+      arm_motor(fsession_, p_.follower_motor, true, protocol::EndstopSource::kNow);
+      return;
+    }
+    finish_at(t.stop_steps);
     return;
   }
   if (phase_ != HomingPhase::kApproach && phase_ != HomingPhase::kSecondTouch) return;  // stale
@@ -321,13 +322,39 @@ void HomingSequence::on_primary_trigger(const protocol::EndstopTriggerMsg& t, do
   stopped_in_ = phase_;
   if (p_.has_follower) {
     // Relay the stop to the follower at once; it goes on until the message arrives.
+    // With the encoders' counts, the follower's at its stop too (CoreXY stall homing: both belts
+    // are held by the hard stop until the back-off).
     primary_trigger_ = t;
     phase_ = HomingPhase::kFollowerStop;
     wait_since_s_ = now_s;
-    arm_motor(fsession_, p_.follower_motor, true, protocol::EndstopSource::kNow);
+    arm_motor(fsession_, p_.follower_motor, true, protocol::EndstopSource::kNow,
+              p_.report_encoder && fsession_.negotiated_version() >= 4
+                  ? protocol::kEndstopReportEncoder
+                  : 0);
     return;
   }
   after_stop(t, now_s);
+}
+
+// Where the motors stopped (the primary at primary_stop_steps, the follower where the host has it)
+// and the axis's position there: the trigger's plus the travel since, with a follower the mean of
+// both motors' (CoreXY: x = (A + B) / 2, y = (A - B) / 2).
+void HomingSequence::set_result_at(int64_t primary_stop_steps) {
+  result_.stop_steps = primary_stop_steps;
+  double moved_steps =
+      static_cast<double>(p_.motor_sign * (primary_stop_steps - result_.trigger_steps));
+  if (p_.has_follower) {
+    result_.follower_stop_steps = f_pos_steps_;
+    moved_steps = 0.5 * (moved_steps +
+                         static_cast<double>(p_.follower_sign * (result_.follower_stop_steps -
+                                                                 result_.follower_trigger_steps)));
+  }
+  result_.position_mm = p_.position_endstop_mm + moved_steps * p_.mm_per_step;
+}
+
+void HomingSequence::finish_at(int64_t primary_stop_steps) {
+  set_result_at(primary_stop_steps);
+  phase_ = HomingPhase::kDone;
 }
 
 void HomingSequence::on_follower_trigger(const protocol::EndstopTriggerMsg& t, double now_s) {
@@ -345,6 +372,12 @@ void HomingSequence::on_follower_trigger(const protocol::EndstopTriggerMsg& t, d
                                 (primary_trigger_.stop_steps - move_start_steps_);
   const int64_t lag = f_pos_steps_ - f_at_primary_stop;
   result_.relay_lag_steps = std::max(result_.relay_lag_steps, lag < 0 ? -lag : lag);
+  if (stopped_in_ == HomingPhase::kIndexSearch) {
+    finish_at(primary_trigger_.stop_steps);
+    return;
+  }
+  result_.has_follower_encoder = t.has_encoder;
+  result_.follower_stop_encoder_counts = t.trigger_encoder_counts;
   after_stop(primary_trigger_, now_s);
 }
 
@@ -360,22 +393,13 @@ void HomingSequence::after_stop(const protocol::EndstopTriggerMsg& t, double now
     }
   }
   result_.trigger_steps = t.trigger_steps;
-  result_.stop_steps = t.stop_steps;
   result_.has_trigger_encoder = p_.report_encoder && t.has_encoder;  // only when asked for
   result_.trigger_encoder_counts = t.trigger_encoder_counts;
-  double moved_steps = static_cast<double>(p_.motor_sign * (t.stop_steps - t.trigger_steps));
-  if (p_.has_follower) {
-    // Where the follower was when the primary's switch tripped (the lockstep), and the axis's
-    // travel since: the mean of both motors' (CoreXY: x = (A + B) / 2, y = (A - B) / 2).
+  if (p_.has_follower)  // where the follower was when the primary's switch tripped (the lockstep)
     result_.follower_trigger_steps =
         f_move_start_steps_ +
         p_.follower_sign * p_.motor_sign * (t.trigger_steps - move_start_steps_);
-    result_.follower_stop_steps = f_pos_steps_;
-    moved_steps = 0.5 * (moved_steps + static_cast<double>(p_.follower_sign *
-                                                           (result_.follower_stop_steps -
-                                                            result_.follower_trigger_steps)));
-  }
-  result_.position_mm = p_.position_endstop_mm + moved_steps * p_.mm_per_step;
+  set_result_at(t.stop_steps);
   result_.first_trigger_mm =
       p_.position_endstop_mm +
       static_cast<double>(p_.motor_sign * (first_trigger_steps_ - result_.trigger_steps)) *
@@ -386,7 +410,7 @@ void HomingSequence::after_stop(const protocol::EndstopTriggerMsg& t, double now
     begin_move(-p_.direction * p_.stall_backoff_mm, p_.second_homing_speed_mm_s, now_s);
     return;
   }
-  if (p_.index_search && !p_.has_follower) {
+  if (p_.index_search) {
     // Away from the switch to the encoder's next index mark (its count is the reference).
     phase_ = HomingPhase::kIndexSearch;
     arm_motor(session_, p_.motor, true, protocol::EndstopSource::kEncoderIndex,
@@ -445,14 +469,8 @@ HomingPhase HomingSequence::poll(double now_s) {
       }
       break;
     case HomingPhase::kBackoff:
-      if (move_done(now_s, 0.02)) {
-        result_.stop_steps = pos_steps_;
-        result_.position_mm =
-            p_.position_endstop_mm +
-            static_cast<double>(p_.motor_sign * (pos_steps_ - result_.trigger_steps)) *
-                p_.mm_per_step;
-        phase_ = HomingPhase::kDone;
-      }
+      // The belt rings out before the result (and before a next sequence arms on these motors).
+      if (move_done(now_s, 0.15)) finish_at(pos_steps_);
       break;
     case HomingPhase::kIndexSearch:
       if (move_done(now_s, 0.1)) {

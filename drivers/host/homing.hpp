@@ -58,7 +58,8 @@ struct HomingParams {
   // to the steps (docs/homing.md "Carriage-referenced homing"). An older MCU: the steps only.
   bool report_encoder = false;
   // Encoder-index homing (docs/homing.md "Encoder-index homing"; needs report_encoder and an MCU
-  // with protocol v4): after the last touch the motor moves away from the switch at
+  // with protocol v4; with a follower, it moves too and stops on the relay): after the last
+  // touch the motor moves away from the switch at
   // second_homing_speed until the encoder's index line triggers (ENDSTOP_HOME source
   // kEncoderIndex), at most index_search_mm. The switch picks the mark; the mark is the reference.
   bool index_search = false;
@@ -67,6 +68,7 @@ struct HomingParams {
   // homing"; needs report_encoder): the approach is armed with ENDSTOP_HOME source kStall: the MCU
   // trips when the encoder falls stall_threshold_mm behind the steps. No second touch; then the
   // motor backs off stall_backoff_mm at second_homing_speed (off the stop, the belt relaxed).
+  // With a follower (CoreXY): the primary's encoder trips, the follower stops on the relay.
   bool stall = false;
   double stall_threshold_mm = 0.5;
   double stall_backoff_mm = 1.0;
@@ -113,6 +115,10 @@ struct HomingResult {
   // index search's steps (position_mm is then where the motor stopped after the mark).
   bool has_index = false;
   int64_t index_encoder_counts = 0;
+  // With a follower and report_encoder: the follower's encoder count at its relayed stop after the
+  // final touch (CoreXY stall homing: the hard stop holds both belts from the trip to the stop).
+  bool has_follower_encoder = false;
+  int64_t follower_stop_encoder_counts = 0;
 };
 
 class HomingSequence {
@@ -162,6 +168,8 @@ class HomingSequence {
   void on_primary_trigger(const protocol::EndstopTriggerMsg& t, double now_s);
   void on_follower_trigger(const protocol::EndstopTriggerMsg& t, double now_s);
   void after_stop(const protocol::EndstopTriggerMsg& t, double now_s);
+  void set_result_at(int64_t primary_stop_steps);
+  void finish_at(int64_t primary_stop_steps);
   void take_triggers(double now_s);
   void fail(std::string message);
   double mcu_s(double host_s) const;

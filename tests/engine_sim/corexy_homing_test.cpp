@@ -234,3 +234,102 @@ TEST(CoreXyHoming, G28XG28YAndG28RepeatWithinTheSwitchSigmaFromRandomPositions) 
 
 }  // namespace
 }  // namespace feedloop::engine
+
+namespace feedloop::engine {
+namespace {
+
+// G28 from random positions `n` times: each time the carriage's (true - homed) for x and y, and
+// that the planner continues from the homed position (true - planner the same right after it).
+void home_xy_repeatedly(CoreXyRig& rig, int n, uint64_t seed, std::vector<double>& ex,
+                        std::vector<double>& ey) {
+  Rng rng(seed);
+  for (int k = 0; k < n; ++k) {
+    char line[64];
+    std::snprintf(line, sizeof line, "G1 X%.3f Y%.3f F6000", 5.0 + 35.0 * rng.uniform(),
+                  5.0 + 35.0 * rng.uniform());
+    ASSERT_EQ(rig.run(line), "");
+    ASSERT_EQ(rig.run("G28"), "");
+    const HomingReport rx = rig.bridge->homing_report(0), ry = rig.bridge->homing_report(1);
+    ASSERT_TRUE(rx.encoder_referenced && ry.encoder_referenced) << "homed by the steps";
+    ex.push_back(rx.true_carriage_mm - rx.homed_mm);
+    ey.push_back(ry.true_carriage_mm - ry.homed_mm);
+    const MachineStatus s = rig.machine->status();
+    EXPECT_NEAR(rig.true_x() - s.pos_mm[0], ex.back(), 0.002);
+    EXPECT_NEAR(rig.true_y() - s.pos_mm[1], ey.back(), 0.002);
+  }
+}
+
+// Issue 16 on CoreXY: stall homing. No switches: the frame's hard stops at x = 0 and y = 0 act
+// on the carriage, so on both belts (the simulator couples them: x = (A + B) / 2, y = (A - B) /
+// 2). Motor A's encoder trips X (B follows and stops on the relay), B's trips Y; the carriage is
+// referred to by both belts' encoders from the trip (the stop held both until the follower
+// stopped). It repeats within microns.
+TEST(CoreXyHoming, StallHomingAgainstTheFramesStopsRepeatsWithinMicrons) {
+  FEEDLOOP_GCC_STAGE_ONLY("statistics over 8 homings");
+  config::MachineConfig cfg = corexy_config(false);
+  for (auto& a : cfg.axes)
+    if (a.name == "x" || a.name == "y") {
+      ASSERT_TRUE(a.encoder && a.homing);
+      a.homing->stall = true;
+      a.homing->retract_dist_mm = 0.0;
+    }
+  CoreXyRig rig(cfg);
+  ASSERT_TRUE(rig.machine);
+  ASSERT_EQ(rig.run("G28"), "");
+  std::vector<double> ex, ey;
+  home_xy_repeatedly(rig, 8, 31, ex, ey);
+  const Spread sx = spread_um(ex), sy = spread_um(ey);
+  std::printf(
+      "corexy stall homing, 8 x G28: x spread %.2f um (mean offset %.2f um), y spread %.2f "
+      "um (mean %.2f um)\n",
+      sx.sd_um, sx.mean_um, sy.sd_um, sy.mean_um);
+  // X's follower (B) stops on the relay a few steps after the trip, still held by the stop; Y's
+  // follower (A) pushes on the softer direction: its spread is larger.
+  EXPECT_LT(sx.sd_um, 3.0);
+  EXPECT_LT(sy.sd_um, 8.0);
+  // The mean: the carriage pressed into the stop at the trip (both belts push on the simulated
+  // 2e5 N/m contact: 110-170 um), a constant that position_endstop_mm calibrates out.
+  EXPECT_LT(sx.mean_um, -50.0);
+  EXPECT_GT(sx.mean_um, -250.0);
+  EXPECT_LT(sy.mean_um, -50.0);
+  EXPECT_GT(sy.mean_um, -250.0);
+  EXPECT_EQ(rig.machine->status().lost_step_events, 0u);
+}
+
+// Issue 16 on CoreXY: encoder-index homing. The switches (sigma 20 um here) pick each belt's mark
+// (every 2 mm on A's and B's encoders); the marks are the reference, in the belts' coordinates
+// (A = x + y, B = x - y), so X and Y home together. The first G28 measures the marks by the
+// switches; every later one repeats within the encoders' reading, not the switches' scatter.
+TEST(CoreXyHoming, EncoderIndexHomingRepeatsWithinTheEncodersNotTheSwitches) {
+  FEEDLOOP_GCC_STAGE_ONLY("statistics over 8 homings");
+  config::MachineConfig cfg = corexy_config(false);
+  cfg.simulator.endstops.sigma_um = 20.0;
+  for (auto& a : cfg.axes)
+    if (a.name == "x" || a.name == "y") {
+      ASSERT_TRUE(a.encoder && a.homing);
+      a.encoder->index_period_mm = 2.0;
+      a.homing->index = true;
+    }
+  CoreXyRig rig(cfg);
+  ASSERT_TRUE(rig.machine);
+  ASSERT_EQ(rig.run("G28"), "");
+  std::vector<double> ex, ey;
+  home_xy_repeatedly(rig, 8, 37, ex, ey);
+  const Spread sx = spread_um(ex), sy = spread_um(ey);
+  std::printf(
+      "corexy index homing (switch sigma 20 um, marks every 2 mm), 8 x G28: x spread %.2f "
+      "um (mean %.2f um), y spread %.2f um (mean %.2f um)\n",
+      sx.sd_um, sx.mean_um, sy.sd_um, sy.mean_um);
+  EXPECT_LT(sx.sd_um, 1.0);  // the switches alone: ~20 um
+  EXPECT_LT(sy.sd_um, 1.0);
+  // The first G28's switch error (and the belts' lag at the second touch) stays in the mean.
+  EXPECT_LT(std::abs(sx.mean_um), 3.0 * 20.0 + 110.0);
+  EXPECT_LT(std::abs(sy.mean_um), 3.0 * 20.0 + 110.0);
+  // One axis alone has no mark on the other belt: its switch is the reference, and it works.
+  ASSERT_EQ(rig.run("G28 X"), "");
+  EXPECT_FALSE(rig.bridge->homing_report(0).encoder_referenced);
+  EXPECT_STREQ(rig.machine->status().homed_axes, "xyz");
+}
+
+}  // namespace
+}  // namespace feedloop::engine
