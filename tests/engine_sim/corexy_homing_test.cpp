@@ -294,6 +294,20 @@ TEST(CoreXyHoming, StallHomingAgainstTheFramesStopsRepeatsWithinMicrons) {
   EXPECT_LT(sy.mean_um, -50.0);
   EXPECT_GT(sy.mean_um, -250.0);
   EXPECT_EQ(rig.machine->status().lost_step_events, 0u);
+  // A move after it lands where it was sent in the homed frame (the homing's offset kept). The
+  // dwell is part of the motion's timeline, so the device loops run their end-of-move tail out
+  // (after an M400 nothing runs them in virtual time: belt A, which moved 49 mm, would be caught
+  // 0.2-0.4 mm past, its integral's tail frozen).
+  const HomingReport rx = rig.bridge->homing_report(0), ry = rig.bridge->homing_report(1);
+  ASSERT_EQ(rig.run("G1 X30 Y20 F6000"), "");
+  ASSERT_EQ(rig.run("G4 P2000"), "");
+  ASSERT_EQ(rig.run("M400"), "");
+  const double land_x_um = (rig.true_x() - 30.0 - (rx.true_carriage_mm - rx.homed_mm)) * 1e3;
+  const double land_y_um = (rig.true_y() - 20.0 - (ry.true_carriage_mm - ry.homed_mm)) * 1e3;
+  std::printf("G1 X30 Y20 after it: lands %.1f, %.1f um from the target in the homed frame\n",
+              land_x_um, land_y_um);
+  EXPECT_LT(std::abs(land_x_um), 5.0);
+  EXPECT_LT(std::abs(land_y_um), 5.0);
 }
 
 // Issue 16 on CoreXY: encoder-index homing. The switches (sigma 20 um here) pick each belt's mark
