@@ -39,12 +39,15 @@ int mcu_index(const McuBridge& b, const std::string& name) {
 }
 
 struct MotionBoardRig {
-  config::MachineConfig cfg = motion_board_config();
+  explicit MotionBoardRig(config::MachineConfig c = motion_board_config()) : cfg(std::move(c)) {
+    init();
+  }
+  config::MachineConfig cfg;
   std::unique_ptr<McuBridge> bridge;
   std::unique_ptr<ThermalLoop> loop;
   double t = 0.0, t_fault = -1.0;
 
-  MotionBoardRig() {
+  void init() {
     auto b = McuBridge::create(cfg);
     EXPECT_TRUE(b.ok()) << (b.ok() ? "" : b.error().message);
     bridge = std::move(b.value());
@@ -180,6 +183,30 @@ TEST(MotionMcuHeaters, TheMotionMcuTurnsItsHeaterOffWhenTheHostsConfirmationsSto
   EXPECT_LT(rig.t_fault - t_drop, 4.0);
   EXPECT_EQ(rig.plant("mcu_e", 0).duty(), 0.0);
   EXPECT_FALSE(rig.bridge->fault());  // the motion side never noticed
+}
+
+// Mixed: the extruder on the toolhead's motion MCU, the bed on a board of its own (heater_mcus).
+TEST(MotionMcuHeaters, AMotionMcuAndABoardOfItsOwnHeatSideBySide) {
+  config::MachineConfig cfg = motion_board_config();
+  config::McuConfig bedboard;
+  bedboard.name = "bedboard";
+  bedboard.transport = config::TransportType::mock;
+  cfg.heater_mcus = {bedboard};
+  for (config::HeaterConfig& h : cfg.heaters)
+    if (h.kind == config::HeaterKind::bed) h.mcu = "bedboard";
+  MotionBoardRig rig(cfg);
+  McuHeaterLink& link = rig.link();
+  ASSERT_EQ(link.mcu_count(), 2);
+  EXPECT_EQ(link.shared(0), nullptr);  // heater_mcus first: its own session
+  ASSERT_NE(link.shared(1), nullptr);  // then the motion MCU's port
+  const int extruder = rig.loop->find_heater('T'), bed = rig.loop->find_heater('B');
+  ASSERT_TRUE(rig.loop->set_target(extruder, 120.0).ok());
+  ASSERT_TRUE(rig.loop->set_target(bed, 40.0).ok());
+  const auto f = rig.run_until(30.0);
+  ASSERT_FALSE(f) << *f;
+  EXPECT_GT(rig.loop->temp_c(extruder), 100.0);
+  EXPECT_GT(rig.loop->temp_c(bed), 30.0);
+  EXPECT_TRUE(link.session(0).ready());
 }
 
 TEST(MotionMcuHeaters, WithoutTheBridgesPortsTheThermalLoopIsRefused) {
