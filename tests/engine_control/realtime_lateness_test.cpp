@@ -267,7 +267,17 @@ TEST(RealtimeLateness, StallsShorterThanTheLeadChangeNothing) {
   EXPECT_GT(reports, 2000u);
   int identical = 0;
   for (double stall_ms : {5.0, 20.0, 50.0, 90.0}) {
-    const RunResult run = print_with_stalls(stall_ms, 100);
+    // A stall is the injected sleep plus whatever the scheduler adds to it; on a loaded machine
+    // (CI builds the sanitizer tests beside this stage) 90 ms became 128 ms once, longer than the
+    // 100 ms lead: that run ended, rightly, in the controlled stop of the next test. Such a run
+    // says nothing of stalls shorter than the lead: it is run again (at most twice), and said.
+    RunResult run = print_with_stalls(stall_ms, 100);
+    for (int attempt = 1;
+         attempt < 3 && std::string(run.status.last_error).find("host stalled") == 0; ++attempt) {
+      std::printf("stalls of %.0f ms: %s (the scheduler lengthened a stall past the lead): again\n",
+                  stall_ms, run.status.last_error);
+      run = print_with_stalls(stall_ms, 100);
+    }
     EXPECT_STREQ(run.status.last_error, "") << stall_ms << " ms";
     EXPECT_EQ(run.stalls, 100);
     EXPECT_EQ(run.motion_starts, 1u) << "the motion stopped and restarted";
