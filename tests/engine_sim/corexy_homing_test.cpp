@@ -268,6 +268,19 @@ void home_xy_repeatedly(CoreXyRig& rig, int n, uint64_t seed, std::vector<double
   }
 }
 
+// A first G28, then 8 more from random positions (seed): the x and y spreads, printed as `what`.
+void xy_spreads(CoreXyRig& rig, uint64_t seed, const char* what, Spread& sx, Spread& sy) {
+  ASSERT_TRUE(rig.machine);
+  ASSERT_EQ(rig.run("G28"), "");
+  std::vector<double> ex, ey;
+  home_xy_repeatedly(rig, 8, seed, ex, ey);
+  sx = spread_um(ex);
+  sy = spread_um(ey);
+  std::printf(
+      "corexy %s, 8 x G28: x spread %.2f um (mean %.2f um), y spread %.2f um (mean %.2f um)\n",
+      what, sx.sd_um, sx.mean_um, sy.sd_um, sy.mean_um);
+}
+
 // Issue 16 on CoreXY: stall homing. No switches: the frame's hard stops at x = 0 and y = 0 act
 // on the carriage, so on both belts (the simulator couples them: x = (A + B) / 2, y = (A - B) /
 // 2). Motor A's encoder trips X (B follows and stops on the relay), B's trips Y; the carriage is
@@ -283,15 +296,9 @@ TEST(CoreXyHoming, StallHomingAgainstTheFramesStopsRepeatsWithinMicrons) {
       a.homing->retract_dist_mm = 0.0;
     }
   CoreXyRig rig(cfg);
-  ASSERT_TRUE(rig.machine);
-  ASSERT_EQ(rig.run("G28"), "");
-  std::vector<double> ex, ey;
-  home_xy_repeatedly(rig, 8, 31, ex, ey);
-  const Spread sx = spread_um(ex), sy = spread_um(ey);
-  std::printf(
-      "corexy stall homing, 8 x G28: x spread %.2f um (mean offset %.2f um), y spread %.2f "
-      "um (mean %.2f um)\n",
-      sx.sd_um, sx.mean_um, sy.sd_um, sy.mean_um);
+  Spread sx, sy;
+  xy_spreads(rig, 31, "stall homing", sx, sy);
+  if (HasFatalFailure()) return;
   // X's follower (B) stops on the relay a few steps after the trip, still held by the stop; Y's
   // follower (A) pushes on the softer direction: its spread is larger.
   EXPECT_LT(sx.sd_um, 3.0);
@@ -334,15 +341,9 @@ TEST(CoreXyHoming, EncoderIndexHomingRepeatsWithinTheEncodersNotTheSwitches) {
       a.homing->index = true;
     }
   CoreXyRig rig(cfg);
-  ASSERT_TRUE(rig.machine);
-  ASSERT_EQ(rig.run("G28"), "");
-  std::vector<double> ex, ey;
-  home_xy_repeatedly(rig, 8, 37, ex, ey);
-  const Spread sx = spread_um(ex), sy = spread_um(ey);
-  std::printf(
-      "corexy index homing (switch sigma 20 um, marks every 2 mm), 8 x G28: x spread %.2f "
-      "um (mean %.2f um), y spread %.2f um (mean %.2f um)\n",
-      sx.sd_um, sx.mean_um, sy.sd_um, sy.mean_um);
+  Spread sx, sy;
+  xy_spreads(rig, 37, "index homing (switch sigma 20 um, marks every 2 mm)", sx, sy);
+  if (HasFatalFailure()) return;
   EXPECT_LT(sx.sd_um, 1.0);  // the switches alone: ~20 um
   EXPECT_LT(sy.sd_um, 1.0);
   // The first G28's switch error (and the belts' lag at the second touch) stays in the mean.
