@@ -450,6 +450,106 @@ int gap_table(const StudyOptions& o, const std::vector<Vec3>& layer, json& out) 
   return 0;
 }
 
+// Table E: one corner at a time on the controller's own model (Table I/II, continuous). The
+// closed loop with the exact model is linear in z (Eq. 55), so a corner's error is its turn's
+// velocity jump times one response: the largest error any corner can cause at m_s, and how long
+// it lasts, bound what a layer can show; the paper's figures are then read as counts of corners.
+struct CornerFigures {
+  bool ok = false;
+  std::string error;
+  double max_cross_m = 0.0, max_z1_m = 0.0, iae_cross_m_s = 0.0, settle_s = 0.0;
+};
+
+CornerFigures one_corner(double turn_deg, SpeedProfile prof, const SpeedParams& sp) {
+  CornerFigures f;
+  constexpr double kLegM = 0.03;  // 30 mm before and after: the start and the end are far away
+  const double r = turn_deg * M_PI / 180.0;
+  const std::vector<Vec3> wp = {Vec3{0, 0, 0}, Vec3{kLegM, 0, 0},
+                                Vec3{kLegM * (1.0 + std::cos(r)), kLegM * std::sin(r), 0}};
+  auto path = PiecewiseLinearPath::create(wp, Parameterization::unit);
+  if (!path) return f.error = path.error().to_string(), f;
+  auto speed = SpeedAssignment::create(*path, prof, sp);
+  if (!speed) return f.error = speed.error().to_string(), f;
+  const CartesianDcPlant plant;
+  const ManeuverController ctl(plant, ManeuverGains{});
+  SimOptions so;
+  so.record_every = 1;
+  so.max_time_s = 10.0 * 2.0 * kLegM / sp.m_s_m_s;
+  auto res = simulate(*path, *speed, ctl, plant, so);
+  if (!res) return f.error = res.error().to_string(), f;
+  if (!res->finished || res->segment_entry_s.size() < 3) return f.error = "did not finish", f;
+  const double t_corner = res->segment_entry_s[2];
+  double t_peak = t_corner;
+  for (const SimSample& s : res->samples) {
+    const double e = std::abs(s.cross_m);
+    f.iae_cross_m_s += e * so.dt_s;
+    f.max_z1_m = std::max(f.max_z1_m, std::hypot(s.cross_m, s.along_m));
+    if (e > f.max_cross_m) f.max_cross_m = e, t_peak = s.t_s;
+  }
+  // Settled: |e| below 1 % of its peak from here on.
+  for (const SimSample& s : res->samples)
+    if (s.t_s > t_peak && std::abs(s.cross_m) > 0.01 * f.max_cross_m) f.settle_s = s.t_s - t_corner;
+  f.ok = true;
+  return f;
+}
+
+int corner_table(json& out) {
+  SpeedParams sp;
+  std::printf(
+      "\nE. One corner at a time on the controller's own model (Table I/II, continuous, RK4 1e-4 "
+      "s, m_s %.1f m/s, 30 mm legs):\n"
+      "   the largest cross-track error e (Eq. 70), the largest |z_1| (along and cross, the start "
+      "from rest included), the IAE of e and the time from the corner until "
+      "|e| stays below 1 %% of its peak.\n",
+      sp.m_s_m_s);
+  std::printf("%-9s | %9s %9s %9s %8s | %9s %9s %9s %8s\n", "turn deg", "const e", "|z_1|", "IAE",
+              "settle", "sharp e", "|z_1|", "IAE", "settle");
+  out["corners"] = json::array();
+  CornerFigures worst_z1, c90;
+  for (double turn : {5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 90.0, 135.0, 175.0}) {
+    const CornerFigures c = one_corner(turn, SpeedProfile::constant, sp);
+    const CornerFigures s = one_corner(turn, SpeedProfile::sharp_corner, sp);
+    if (!c.ok || !s.ok) {
+      std::printf("E: %.0f deg: %s\n", turn, (!c.ok ? c.error : s.error).c_str());
+      return 1;
+    }
+    std::printf("%-9.0f | %9.2e %9.2e %9.2e %5.1f ms | %9.2e %9.2e %9.2e %5.1f ms\n", turn,
+                c.max_cross_m, c.max_z1_m, c.iae_cross_m_s, 1e3 * c.settle_s, s.max_cross_m,
+                s.max_z1_m, s.iae_cross_m_s, 1e3 * s.settle_s);
+    auto fig = [](const CornerFigures& x) {
+      return json{{"max_cross_m", x.max_cross_m},
+                  {"max_z1_m", x.max_z1_m},
+                  {"iae_cross_m_s", x.iae_cross_m_s},
+                  {"settle_s", x.settle_s}};
+    };
+    out["corners"].push_back({{"turn_deg", turn}, {"constant", fig(c)}, {"sharp_corner", fig(s)}});
+    if (c.max_z1_m > worst_z1.max_z1_m) worst_z1 = c;
+    if (turn == 90.0) c90 = c;
+  }
+  // What the paper's constant row means in corners, read in metres and in millimetres.
+  const double reach_mm = 1e3 * sp.m_s_m_s * worst_z1.settle_s;
+  const PaperRow& pc = kPaper[0];
+  std::printf(
+      "Any corner: |e| <= |z_1| <= %.2e m, gone within %.1f ms (%.2f mm of path at m_s). The "
+      "paper's constant row,\n"
+      "   in metres: max %.2e m = %.0f of the worst corners superposed within %.2f mm of path; IAE "
+      "%.2e m*s = %.0f 90-degree corners in one layer;\n"
+      "   in millimetres: max %.2e m = %.2f x one 90-degree corner's %.2e m; IAE %.2e m*s = %.1f "
+      "90-degree corners (or %.0f 5-degree chord turns).\n",
+      worst_z1.max_z1_m, 1e3 * worst_z1.settle_s, reach_mm, pc.max_m, pc.max_m / worst_z1.max_z1_m,
+      reach_mm, pc.iae_m_s, pc.iae_m_s / c90.iae_cross_m_s, 1e-3 * pc.max_m,
+      1e-3 * pc.max_m / c90.max_cross_m, c90.max_cross_m, 1e-3 * pc.iae_m_s,
+      1e-3 * pc.iae_m_s / c90.iae_cross_m_s,
+      1e-3 * pc.iae_m_s / out["corners"][0]["constant"]["iae_cross_m_s"].get<double>());
+  out["corner_reading"] = {{"worst_corner_z1_m", worst_z1.max_z1_m},
+                           {"settle_s", worst_z1.settle_s},
+                           {"metres_worst_corners_superposed", pc.max_m / worst_z1.max_z1_m},
+                           {"metres_90deg_corners_for_iae", pc.iae_m_s / c90.iae_cross_m_s},
+                           {"mm_max_over_90deg_corner", 1e-3 * pc.max_m / c90.max_cross_m},
+                           {"mm_90deg_corners_for_iae", 1e-3 * pc.iae_m_s / c90.iae_cross_m_s}};
+  return 0;
+}
+
 // Table C: the arc variant's a1/a2 tuned on generated parts, scored on the corpus.
 int held_out(const StudyOptions& o, json& out) {
   SpeedParams base;
@@ -646,7 +746,8 @@ int run_like_for_like(const StudyOptions& o, std::string& json_text) {
   out["paper_layer_mm"] = kPaperLayerMm;
   out["servo_period_s"] = o.servo_period_s;
   out["draws"] = o.draws;
-  if (table_iii(o, *layer, out) != 0 || gap_table(o, *layer, out) != 0 || held_out(o, out) != 0)
+  if (table_iii(o, *layer, out) != 0 || gap_table(o, *layer, out) != 0 || held_out(o, out) != 0 ||
+      corner_table(out) != 0)
     return 1;
   json_text += "\"like_for_like\": " + out.dump();
   return 0;
