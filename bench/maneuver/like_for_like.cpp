@@ -460,12 +460,22 @@ struct CornerFigures {
   double max_cross_m = 0.0, max_z1_m = 0.0, iae_cross_m_s = 0.0, settle_s = 0.0;
 };
 
-CornerFigures one_corner(double turn_deg, SpeedProfile prof, const SpeedParams& sp) {
+constexpr double kLegM = 0.03;  // 30 mm before and after a corner: the start and end are far
+
+// A 30 mm leg, a turn of turn_deg made of `chords` equal turns joined by chords of chord_m (one
+// turn: a sharp corner; more: the corner as a slicer rounds it), a 30 mm leg.
+std::vector<Vec3> corner_path(double turn_deg, int chords, double chord_m) {
+  std::vector<Vec3> wp = {Vec3{0, 0, 0}, Vec3{kLegM, 0, 0}};
+  const double step = turn_deg * M_PI / 180.0 / chords;
+  for (int i = 1; i <= chords; ++i) {
+    const double heading = i * step, len = i == chords ? kLegM : chord_m;
+    wp.push_back(wp.back() + Vec3{len * std::cos(heading), len * std::sin(heading), 0});
+  }
+  return wp;
+}
+
+CornerFigures one_corner(const std::vector<Vec3>& wp, SpeedProfile prof, const SpeedParams& sp) {
   CornerFigures f;
-  constexpr double kLegM = 0.03;  // 30 mm before and after: the start and the end are far away
-  const double r = turn_deg * M_PI / 180.0;
-  const std::vector<Vec3> wp = {Vec3{0, 0, 0}, Vec3{kLegM, 0, 0},
-                                Vec3{kLegM * (1.0 + std::cos(r)), kLegM * std::sin(r), 0}};
   auto path = PiecewiseLinearPath::create(wp, Parameterization::unit);
   if (!path) return f.error = path.error().to_string(), f;
   auto speed = SpeedAssignment::create(*path, prof, sp);
@@ -507,8 +517,8 @@ int corner_table(json& out) {
   out["corners"] = json::array();
   CornerFigures worst_z1, c90;
   for (double turn : {5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 90.0, 135.0, 175.0}) {
-    const CornerFigures c = one_corner(turn, SpeedProfile::constant, sp);
-    const CornerFigures s = one_corner(turn, SpeedProfile::sharp_corner, sp);
+    const CornerFigures c = one_corner(corner_path(turn, 1, 0.0), SpeedProfile::constant, sp);
+    const CornerFigures s = one_corner(corner_path(turn, 1, 0.0), SpeedProfile::sharp_corner, sp);
     if (!c.ok || !s.ok) {
       std::printf("E: %.0f deg: %s\n", turn, (!c.ok ? c.error : s.error).c_str());
       return 1;
@@ -541,6 +551,28 @@ int corner_table(json& out) {
       1e-3 * pc.max_m / c90.max_cross_m, c90.max_cross_m, 1e-3 * pc.iae_m_s,
       1e-3 * pc.iae_m_s / c90.iae_cross_m_s,
       1e-3 * pc.iae_m_s / out["corners"][0]["constant"]["iae_cross_m_s"].get<double>());
+  // The paper names its part's two 90-degree turns as the constant row's spikes; a slicer rounds
+  // such a turn into chords.
+  std::printf("A 90-degree turn rounded in chords (max e, constant / sharp-corner):\n");
+  out["rounded_90"] = json::array();
+  for (int chords : {2, 3, 4}) {
+    std::printf("  %d turns of %4.1f deg:", chords, 90.0 / chords);
+    for (double chord_mm : {0.1, 0.2, 0.4, 0.8}) {
+      const auto wp = corner_path(90.0, chords, 1e-3 * chord_mm);
+      const CornerFigures c = one_corner(wp, SpeedProfile::constant, sp);
+      const CornerFigures s = one_corner(wp, SpeedProfile::sharp_corner, sp);
+      if (!c.ok || !s.ok) {
+        std::printf("\nE: rounded 90: %s\n", (!c.ok ? c.error : s.error).c_str());
+        return 1;
+      }
+      std::printf("  %.1f mm chords %.2e / %.2e", chord_mm, c.max_cross_m, s.max_cross_m);
+      out["rounded_90"].push_back({{"turns", chords},
+                                   {"chord_mm", chord_mm},
+                                   {"constant_max_cross_m", c.max_cross_m},
+                                   {"sharp_corner_max_cross_m", s.max_cross_m}});
+    }
+    std::printf("\n");
+  }
   out["corner_reading"] = {{"worst_corner_z1_m", worst_z1.max_z1_m},
                            {"settle_s", worst_z1.settle_s},
                            {"metres_worst_corners_superposed", pc.max_m / worst_z1.max_z1_m},
