@@ -63,33 +63,44 @@ void StepGenerator::add_segment(const JointSegment& seg) {
 // Monotonic quadratic piece on [tau_a, tau_b]. Re-expanded about tau_a:
 // s = a1 + b1 u + c u^2, u = tau - tau_a; the threshold x is reached at
 // u = 2D / (b1 + d sqrt(b1^2 + 4cD)), D = x - a1 (no cancellation because sign(b1) = d or b1 = 0).
+// The thresholds are x0 + d i: their count is known before the loop, and each step's time depends
+// on its threshold only, so the loop over a chunk has no branch and no call (a vector loop:
+// the file is compiled without errno for sqrt, docs/decisions.md).
 void StepGenerator::quadratic_piece(double t0_s, double a, double b, double c, double tau_a,
                                     double tau_b) {
   const double a1 = a + tau_a * (b + tau_a * c);
   const double b1 = b + 2.0 * c * tau_a;
   const double du = tau_b - tau_a;
   const double s_end = a1 + du * (b1 + du * c);
-  const double t_base = t0_s + tau_a;
-  if (s_end > a1) {
-    double x = static_cast<double>(n_) + 0.5;
-    for (; x <= s_end; x += 1.0) {
-      const double D = x - a1;
-      const double den = b1 + std::sqrt(std::max(0.0, b1 * b1 + 4.0 * c * D));
-      double u = den > 0.0 ? 2.0 * D / den : 0.0;
-      u = std::clamp(u, 0.0, du);
-      ++n_;
-      emit(t_base + u, 1);
+  if (s_end == a1) return;
+  const int8_t d = s_end > a1 ? 1 : -1;
+  const double dd = d;
+  // Thresholds x0 + d i, i = 0 .. count - 1, while d (x - s_end) <= 0.
+  const double x0 = static_cast<double>(n_) + 0.5 * dd;
+  auto inside = [&](int64_t i) { return dd * (x0 + dd * static_cast<double>(i) - s_end) <= 0.0; };
+  int64_t count = std::max<int64_t>(0, static_cast<int64_t>(std::floor(dd * (s_end - x0))) + 1);
+  while (count > 0 && !inside(count - 1)) --count;  // the floor's rounding, either way
+  while (inside(count)) ++count;
+  const double t_base = t0_s + tau_a, c4 = 4.0 * c, b1b1 = b1 * b1;
+  const double off = map_.offset_ticks, tps = map_.ticks_per_s;
+  for (int64_t i = 0; i < count;) {
+    const auto m =
+        static_cast<size_t>(std::min<int64_t>(static_cast<int64_t>(kChunk - count_), count - i));
+    double* out = ticks_ + count_;
+    const double xi = x0 + dd * static_cast<double>(i);
+    for (int j = 0; j < static_cast<int>(m); ++j) {  // int: converts to double in a vector
+      const double D = (xi + dd * static_cast<double>(j)) - a1;
+      const double den = b1 + dd * std::sqrt(std::max(0.0, b1b1 + c4 * D));
+      const double q = 2.0 * D / den;  // den 0 (b1 = 0 at the start): discarded below
+      double u = dd * den > 0.0 ? q : 0.0;
+      u = std::min(std::max(u, 0.0), du);
+      out[j] = off + tps * (t_base + u);
     }
-  } else if (s_end < a1) {
-    double x = static_cast<double>(n_) - 0.5;
-    for (; x >= s_end; x -= 1.0) {
-      const double D = x - a1;  // negative
-      const double den = b1 - std::sqrt(std::max(0.0, b1 * b1 + 4.0 * c * D));
-      double u = den < 0.0 ? 2.0 * D / den : 0.0;
-      u = std::clamp(u, 0.0, du);
-      --n_;
-      emit(t_base + u, -1);
-    }
+    std::fill_n(dirs_ + count_, m, d);
+    count_ += m;
+    n_ += d * static_cast<int64_t>(m);
+    i += static_cast<int64_t>(m);
+    if (count_ == kChunk) flush();
   }
 }
 
