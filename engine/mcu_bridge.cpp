@@ -848,6 +848,26 @@ stepgen::TickMap McuBridge::tick_map(int joint) const {
 }
 
 void McuBridge::set_motors_enabled(unsigned joint_mask, bool on) {
+  joint_mask &= (1u << kJoints) - 1u;
+  if (!on) {
+    // A driver switched off holds nothing: a delta's carriages slide under the effector's weight,
+    // and a loop still running reads that as a following error (or, falling fast, as an
+    // implausible encoder) and stops the MCU. The loops go off first (one session, in order: before
+    // the drivers), as for homing, and get no targets while their drivers are off.
+    for (int j = 0; j < kJoints; ++j) {
+      if (!((joint_mask >> j) & 1u) || !loop_link_.enabled(j)) continue;
+      drivers::McuSession& s =
+          *mcus_[static_cast<size_t>(joint_mcu_[static_cast<size_t>(j)])]->session;
+      loop_link_.disable(
+          j, s, static_cast<int64_t>(std::llround(tick_map(j).ticks(last_service_s_ + epoch_s_))));
+    }
+    motors_off_ |= joint_mask;
+  } else if ((motors_off_ & joint_mask) != 0) {
+    // On again before a motion or a homing: the loops start with the next target (after M84
+    // that is a G28's, which re-bases the frame).
+    motors_off_ &= ~joint_mask;
+    loops_configured_ = false;
+  }
   for (size_t i = 0; i < mcus_.size(); ++i) {
     bool drives = false;
     for (size_t j = 0; j < kJoints; ++j)
@@ -954,7 +974,7 @@ void McuBridge::collect(double) {
 // (after every (re)identification: the MCU forgot its loop).
 void McuBridge::configure_device_loops(double host_s) {
   for (int j = 0; j < kJoints; ++j) {
-    if (!loop_link_.enabled(j)) continue;
+    if (!loop_link_.enabled(j) || ((motors_off_ >> j) & 1u) != 0) continue;
     drivers::McuSession& s = *mcus_[static_cast<size_t>(joint_mcu_[static_cast<size_t>(j)])]->session;
     const auto clock = static_cast<int64_t>(std::llround(tick_map(j).ticks(host_s + 0.01)));
     loop_link_.configure(j, s, clock);
@@ -962,7 +982,8 @@ void McuBridge::configure_device_loops(double host_s) {
 }
 
 void McuBridge::queue_target(int joint, int64_t mcu_clock, double r_mm) {
-  if (phase_ != Phase::kRunning || !loop_link_.enabled(joint)) return;
+  if (phase_ != Phase::kRunning || !loop_link_.enabled(joint) || ((motors_off_ >> joint) & 1u) != 0)
+    return;
   if (!loops_configured_) {  // the loops start with the first motion that streams r(t)
     configure_device_loops(last_service_s_ + epoch_s_);
     loops_configured_ = true;

@@ -234,6 +234,9 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   std::atomic<unsigned long long> device_slips_{0};
   void configure_device_loops(double host_s);
   bool loops_configured_ = false;
+  // Joints whose drivers M18/M84 switched off: no targets, their loops stay off until a motion or
+  // a homing switches them on again (set_motors_enabled).
+  unsigned motors_off_ = 0;
   std::array<ServoEvent, 32> device_events_{};  // since the last take_device_events()
   size_t device_event_count_ = 0;
   // LOOP_REPORTs since the last take_device_reports() (100 Hz per joint: a few per servo cycle).
