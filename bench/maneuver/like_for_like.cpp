@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "maneuver/controller.hpp"
+#include "maneuver/corner_response.hpp"
 #include "maneuver/gcode_path.hpp"
 #include "maneuver/offnominal_plant.hpp"
 #include "maneuver/simulation.hpp"
@@ -454,55 +455,6 @@ int gap_table(const StudyOptions& o, const std::vector<Vec3>& layer, json& out) 
 // closed loop with the exact model is linear in z (Eq. 55), so a corner's error is its turn's
 // velocity jump times one response: the largest error any corner can cause at m_s, and how long
 // it lasts, bound what a layer can show; the paper's figures are then read as counts of corners.
-struct CornerFigures {
-  bool ok = false;
-  std::string error;
-  double max_cross_m = 0.0, max_z1_m = 0.0, iae_cross_m_s = 0.0, settle_s = 0.0;
-};
-
-constexpr double kLegM = 0.03;  // 30 mm before and after a corner: the start and end are far
-
-// A 30 mm leg, a turn of turn_deg made of `chords` equal turns joined by chords of chord_m (one
-// turn: a sharp corner; more: the corner as a slicer rounds it), a 30 mm leg.
-std::vector<Vec3> corner_path(double turn_deg, int chords, double chord_m) {
-  std::vector<Vec3> wp = {Vec3{0, 0, 0}, Vec3{kLegM, 0, 0}};
-  const double step = turn_deg * M_PI / 180.0 / chords;
-  for (int i = 1; i <= chords; ++i) {
-    const double heading = i * step, len = i == chords ? kLegM : chord_m;
-    wp.push_back(wp.back() + Vec3{len * std::cos(heading), len * std::sin(heading), 0});
-  }
-  return wp;
-}
-
-CornerFigures one_corner(const std::vector<Vec3>& wp, SpeedProfile prof, const SpeedParams& sp) {
-  CornerFigures f;
-  auto path = PiecewiseLinearPath::create(wp, Parameterization::unit);
-  if (!path) return f.error = path.error().to_string(), f;
-  auto speed = SpeedAssignment::create(*path, prof, sp);
-  if (!speed) return f.error = speed.error().to_string(), f;
-  const CartesianDcPlant plant;
-  const ManeuverController ctl(plant, ManeuverGains{});
-  SimOptions so;
-  so.record_every = 1;
-  so.max_time_s = 10.0 * 2.0 * kLegM / sp.m_s_m_s;
-  auto res = simulate(*path, *speed, ctl, plant, so);
-  if (!res) return f.error = res.error().to_string(), f;
-  if (!res->finished || res->segment_entry_s.size() < 3) return f.error = "did not finish", f;
-  const double t_corner = res->segment_entry_s[2];
-  double t_peak = t_corner;
-  for (const SimSample& s : res->samples) {
-    const double e = std::abs(s.cross_m);
-    f.iae_cross_m_s += e * so.dt_s;
-    f.max_z1_m = std::max(f.max_z1_m, std::hypot(s.cross_m, s.along_m));
-    if (e > f.max_cross_m) f.max_cross_m = e, t_peak = s.t_s;
-  }
-  // Settled: |e| below 1 % of its peak from here on.
-  for (const SimSample& s : res->samples)
-    if (s.t_s > t_peak && std::abs(s.cross_m) > 0.01 * f.max_cross_m) f.settle_s = s.t_s - t_corner;
-  f.ok = true;
-  return f;
-}
-
 int corner_table(json& out) {
   SpeedParams sp;
   std::printf(
@@ -515,18 +467,19 @@ int corner_table(json& out) {
   std::printf("%-9s | %9s %9s %9s %8s | %9s %9s %9s %8s\n", "turn deg", "const e", "|z_1|", "IAE",
               "settle", "sharp e", "|z_1|", "IAE", "settle");
   out["corners"] = json::array();
-  CornerFigures worst_z1, c90;
+  CornerResponse worst_z1, c90;
   for (double turn : {5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 90.0, 135.0, 175.0}) {
-    const CornerFigures c = one_corner(corner_path(turn, 1, 0.0), SpeedProfile::constant, sp);
-    const CornerFigures s = one_corner(corner_path(turn, 1, 0.0), SpeedProfile::sharp_corner, sp);
-    if (!c.ok || !s.ok) {
-      std::printf("E: %.0f deg: %s\n", turn, (!c.ok ? c.error : s.error).c_str());
+    const auto cr = corner_response(corner_path(turn, 1, 0.0), SpeedProfile::constant, sp);
+    const auto sr = corner_response(corner_path(turn, 1, 0.0), SpeedProfile::sharp_corner, sp);
+    if (!cr || !sr) {
+      std::printf("E: %.0f deg: %s\n", turn, (!cr ? cr.error() : sr.error()).to_string().c_str());
       return 1;
     }
+    const CornerResponse &c = *cr, &s = *sr;
     std::printf("%-9.0f | %9.2e %9.2e %9.2e %5.1f ms | %9.2e %9.2e %9.2e %5.1f ms\n", turn,
                 c.max_cross_m, c.max_z1_m, c.iae_cross_m_s, 1e3 * c.settle_s, s.max_cross_m,
                 s.max_z1_m, s.iae_cross_m_s, 1e3 * s.settle_s);
-    auto fig = [](const CornerFigures& x) {
+    auto fig = [](const CornerResponse& x) {
       return json{{"max_cross_m", x.max_cross_m},
                   {"max_z1_m", x.max_z1_m},
                   {"iae_cross_m_s", x.iae_cross_m_s},
@@ -559,12 +512,13 @@ int corner_table(json& out) {
     std::printf("  %d turns of %4.1f deg:", chords, 90.0 / chords);
     for (double chord_mm : {0.1, 0.2, 0.4, 0.8}) {
       const auto wp = corner_path(90.0, chords, 1e-3 * chord_mm);
-      const CornerFigures c = one_corner(wp, SpeedProfile::constant, sp);
-      const CornerFigures s = one_corner(wp, SpeedProfile::sharp_corner, sp);
-      if (!c.ok || !s.ok) {
-        std::printf("\nE: rounded 90: %s\n", (!c.ok ? c.error : s.error).c_str());
+      const auto cr = corner_response(wp, SpeedProfile::constant, sp);
+      const auto sr = corner_response(wp, SpeedProfile::sharp_corner, sp);
+      if (!cr || !sr) {
+        std::printf("\nE: rounded 90: %s\n", (!cr ? cr.error() : sr.error()).to_string().c_str());
         return 1;
       }
+      const CornerResponse &c = *cr, &s = *sr;
       std::printf("  %.1f mm chords %.2e / %.2e", chord_mm, c.max_cross_m, s.max_cross_m);
       out["rounded_90"].push_back({{"turns", chords},
                                    {"chord_mm", chord_mm},
