@@ -14,6 +14,7 @@ constexpr int64_t kMaxAdd = INT32_MAX;  // add_ticks is 32-bit on the wire
 constexpr int kNewtonSteps = 8;         // pieces of F crossed on the way to a feasible slope
 constexpr int kTrials = 8;              // integer adds tried after the first
 constexpr double kGapTol = 1e-7;        // ticks: F(s) this small counts as touching (doubles)
+constexpr double kRootSlack = 1e-6;     // adds: a tangent's root, widened for rounding
 using detail::ceil_i;
 using detail::floor_i;
 using detail::round_i;
@@ -99,6 +100,8 @@ void StepCompressor::start_run_with_first_point() {
   iv_ = I + A_;
   n_ = 1;
   hulls_.clear();
+  add_lo_ = -kMaxAdd;
+  add_hi_ = kMaxAdd;
 }
 
 StepCompressor::Trial StepCompressor::gap_at(double a, uint32_t n) {
@@ -133,6 +136,7 @@ StepCompressor::Trial StepCompressor::trial(int64_t a, uint32_t n) {
 
 bool StepCompressor::find_candidate(uint32_t n) {
   ++stats_.searches;
+  if (add_lo_ > add_hi_) return false;  // an earlier search left no add for this run
   const double p = static_cast<double>(P_);
   hulls_.extend(n, [&](uint32_t k) {
     const double r = 1.0 / static_cast<double>(k);
@@ -146,20 +150,41 @@ bool StepCompressor::find_candidate(uint32_t n) {
     A_ = a;
     return true;
   };
+  // F is convex and only grows as steps join the run, so its tangent at any trial bounds the
+  // adds that can still work, now and for the rest of the run: none lies past the tangent's root
+  // on the side where it rises. The bounds make later searches short (the one that ends the run
+  // mostly finds no add left after one trial). False when no add is left.
+  auto bound = [&](double x, const Trial& g) {
+    if (g.gap_slope != 0.0) {
+      const double root = std::clamp(x - g.gap / g.gap_slope, -2.0 * kMaxAdd, 2.0 * kMaxAdd);
+      if (g.gap_slope > 0.0)
+        add_hi_ = std::min(add_hi_, floor_i(root + kRootSlack));
+      else
+        add_lo_ = std::max(add_lo_, ceil_i(root - kRootSlack));
+    } else if (g.gap > kGapTol) {
+      add_hi_ = add_lo_ - 1;  // F is flat and above zero: its minimum
+    }
+    return add_lo_ <= add_hi_;
+  };
   // First trial: the add from the curvature of the newest exact times (their second
   // difference): the run the steps are about to follow.
   const double a_pref = d_n - (T_[n - 1] - T_[n - 2]);
-  int64_t a =
-      round_i(std::clamp(a_pref, -static_cast<double>(kMaxAdd), static_cast<double>(kMaxAdd)));
+  int64_t a = std::clamp(
+      round_i(std::clamp(a_pref, -static_cast<double>(kMaxAdd), static_cast<double>(kMaxAdd))),
+      add_lo_, add_hi_);
   ++stats_.trials;
   Trial t = trial(a, n);
-  if (t.i_lo <= t.i_hi) return accept(a, t);
+  if (t.i_lo <= t.i_hi) {
+    bound(static_cast<double>(a), t);
+    return accept(a, t);
+  }
+  if (!bound(static_cast<double>(a), t)) return false;
   int step;
   if (t.gap > 0.0) {
     // No real I at this add: Newton on the convex, piecewise linear F to the near end of the
     // feasible adds. Each step lands on the root of F's current piece; F is above every piece,
-    // so no add passed over is feasible. A derivative that changes sign means min F > 0.
-    if (t.gap_slope == 0.0) return false;
+    // so no add passed over is feasible (bound() says so). A derivative that changes sign means
+    // min F > 0.
     step = t.gap_slope > 0.0 ? -1 : 1;
     double x = static_cast<double>(a);
     Trial g = t;
@@ -168,8 +193,11 @@ bool StepCompressor::find_candidate(uint32_t n) {
       x -= g.gap / g.gap_slope;
       if (!(x > -static_cast<double>(kMaxAdd) && x < static_cast<double>(kMaxAdd))) return false;
       const Trial h = gap_at(x, n);
-      if (h.gap > kGapTol && (h.gap_slope == 0.0 || (h.gap_slope > 0.0) != (g.gap_slope > 0.0)))
+      if (h.gap > kGapTol && (h.gap_slope == 0.0 || (h.gap_slope > 0.0) != (g.gap_slope > 0.0))) {
+        add_hi_ = add_lo_ - 1;
         return false;
+      }
+      if (!bound(x, h)) return false;
       g = h;
     }
     a = step > 0 ? ceil_i(x - 1e-9) : floor_i(x + 1e-9);
@@ -178,10 +206,19 @@ bool StepCompressor::find_candidate(uint32_t n) {
     step = t.gap_slope > 0.0 ? -1 : 1;
     a += step;
   }
-  for (int i = 0; i <= kTrials && a >= -kMaxAdd && a <= kMaxAdd; ++i, a += step) {
+  for (int i = 0; i <= kTrials && a >= add_lo_ && a <= add_hi_; ++i, a += step) {
     ++stats_.trials;
     t = trial(a, n);
-    if (t.i_lo <= t.i_hi) return accept(a, t);
+    if (t.i_lo <= t.i_hi) {
+      bound(static_cast<double>(a), t);
+      return accept(a, t);
+    }
+    // An add that fails now fails for the rest of the run.
+    if (a == add_lo_)
+      ++add_lo_;
+    else if (a == add_hi_)
+      --add_hi_;
+    if (!bound(static_cast<double>(a), t)) return false;
     if (i > 0 && t.gap > kGapTol) break;  // past the far end
   }
   return false;

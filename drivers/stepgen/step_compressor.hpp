@@ -15,7 +15,9 @@
 //    first the add from the curvature of the newest exact times (their second difference),
 //    then, if that leaves no integer I, Newton steps on the convex F of run_hulls.hpp to the
 //    nearest adds that do; I continues the newest interval, within the range the hulls give.
-//    Each trial add costs two hull look-ups; no step is looked at again;
+//    Each trial add costs two hull look-ups; no step is looked at again. F only grows as steps
+//    join, so every trial's tangent of F bounds the adds left for the rest of the run (add_lo_,
+//    add_hi_): the search that ends a run mostly stops after its first trial;
 //  - when there is none, the run is emitted and the next one starts from its last step. Its first
 //    candidate, when on_steps() has the next steps at hand, is the line through the mean
 //    intervals at half and at all of the previous run's length (a run about as long as the last
@@ -187,6 +189,8 @@ class StepCompressor final : public StepSink {
   int64_t I_ = 0, A_ = 0;      // candidate
   int64_t pos_ = 0, iv_ = 0;   // candidate's clock of step n_ and its next interval
   int64_t last_add_ = 0;
+  // Integer adds not yet ruled out for the current run (find_candidate narrows them).
+  int64_t add_lo_ = 0, add_hi_ = -1;
   uint32_t last_count_ = 0;  // steps of the last run
   // Steps after the one being pushed, when on_steps() has them: a new run's first candidate
   // aims at where the run will likely end.

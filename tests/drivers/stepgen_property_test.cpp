@@ -204,6 +204,113 @@ TEST(StepCompressorProperty, EveryRunReproducesEveryStepWithinTheBound) {
   EXPECT_LE(worst_frac, 1.0);
 }
 
+// Compresses the given exact times (in the generator's chunks, or one push() at a time) and
+// checks every decoded step against its window, in order, with the same directions.
+void check_stream(const std::vector<double>& t, const std::vector<int8_t>& d, double E,
+                  uint32_t limit, bool one_at_a_time, double start) {
+  Bodies sink;
+  StepBatcher batcher;
+  batcher.configure(0, 200, &sink);
+  StepCompressor comp;
+  comp.configure({E, limit}, &batcher);
+  comp.reset(static_cast<int64_t>(start), start);
+  if (one_at_a_time) {
+    for (size_t i = 0; i < t.size(); ++i) comp.push(t[i], d[i]);
+  } else {
+    for (size_t i = 0; i < t.size(); i += 256)
+      comp.on_steps(&t[i], &d[i], std::min<size_t>(256, t.size() - i));
+  }
+  comp.flush();
+  batcher.flush();
+  EXPECT_EQ(comp.stats().check_failures, 0u);
+  EXPECT_EQ(comp.stats().window_violations, 0u);
+  EXPECT_EQ(comp.stats().steps, t.size());
+  size_t i = 0;
+  double prev_t = start, prev_clock = start;
+  for (const auto& body : sink.bodies) {
+    RunDecoder dec;
+    ASSERT_TRUE(dec.begin(body.data(), body.size()));
+    int64_t p = dec.first_clock();
+    while (!dec.done()) {
+      StepRun r;
+      ASSERT_TRUE(dec.next(r));
+      ASSERT_TRUE(run_is_valid(p, r));
+      for (uint32_t k = 1; k <= r.count; ++k, ++i) {
+        ASSERT_LT(i, t.size());
+        const double c = static_cast<double>(run_step_clock(p, r, k));
+        ASSERT_GE(c, t[i] - std::min(E, 0.5 * (t[i] - prev_t))) << "step " << i;
+        ASSERT_LE(c, t[i] + E) << "step " << i;
+        ASSERT_GT(c, prev_clock) << "step " << i;
+        ASSERT_EQ(r.direction, d[i]) << "step " << i;
+        prev_t = t[i];
+        prev_clock = c;
+      }
+      p = run_end_clock(p, r);
+    }
+  }
+  EXPECT_EQ(i, t.size());
+}
+
+// Streams no generator makes: random intervals over six decades, exact quadratics (one run each
+// until the limit), quadratics with jitter of +-E (every window's edge touched), runs of 2-tick
+// steps, near-half-integer times, sudden jumps, direction flips. Tiny and large error bounds.
+TEST(StepCompressorProperty, RandomAndAdversarialStreamsKeepTheBound) {
+  std::mt19937_64 rng(987654321);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const double errs[] = {1.0, 1.5, 3.0, 10.0, 100.0, 2000.0};
+  const uint32_t limits[] = {2, 17, 255, 65535};
+  for (int draw = 0; draw < 160; ++draw) {
+    const double E = errs[draw % 6];
+    const uint32_t limit = limits[(draw / 6) % 4];
+    const double start = 1e6 * u01(rng);
+    std::vector<double> t;
+    std::vector<int8_t> d;
+    double now = start;
+    int8_t dir = 1;
+    auto add = [&](double interval) {
+      now += std::max(2.0, interval);
+      t.push_back(now);
+      d.push_back(dir);
+    };
+    while (t.size() < 20000) {
+      const int kind = static_cast<int>(u01(rng) * 7);
+      const int len = 1 + static_cast<int>(u01(rng) * 400);
+      if (u01(rng) < 0.2) dir = static_cast<int8_t>(-dir);
+      const double i0 = std::exp(std::log(2.0) + u01(rng) * std::log(1e6));
+      const double a = (u01(rng) - 0.5) * 0.02 * i0;
+      switch (kind) {
+        case 0:  // random intervals
+          for (int k = 0; k < len; ++k) add(std::exp(std::log(2.0) + u01(rng) * std::log(1e6)));
+          break;
+        case 1:  // an exact integer quadratic
+          for (int k = 0; k < len; ++k) add(std::round(i0) + std::round(a) * k);
+          break;
+        case 2:  // a quadratic with jitter up to the bound
+          for (int k = 0; k < len; ++k) add(i0 + a * k + E * (2.0 * u01(rng) - 1.0));
+          break;
+        case 3:  // 2-3 tick steps
+          for (int k = 0; k < len; ++k) add(2.0 + u01(rng));
+          break;
+        case 4:  // times just off half-integers
+          for (int k = 0; k < len; ++k) {
+            add(i0);
+            now = std::floor(now) + 0.5 + (u01(rng) - 0.5) * 1e-9;
+            t.back() = now;
+          }
+          break;
+        case 5:  // one jump
+          add(1e7 * u01(rng));
+          break;
+        default:  // alternating long and short intervals
+          for (int k = 0; k < len; ++k) add(k % 2 ? i0 : 2.0 + 0.1 * i0 * u01(rng));
+          break;
+      }
+    }
+    SCOPED_TRACE(::testing::Message() << "draw " << draw << " E " << E << " limit " << limit);
+    check_stream(t, d, E, limit, draw % 5 == 0, start);
+  }
+}
+
 // Long runs: a constant integer interval fits one (I, 0) for ever; runs stop at the count limit.
 TEST(StepCompressorProperty, LongRunsStopAtTheCountLimit) {
   for (uint32_t limit : {1u, 1000u, 65535u}) {
