@@ -59,6 +59,7 @@ void StepCompressor::push_slow(double target, double prev, int8_t direction) {
     pos_ = P_ + kk * I_ + A_ * tri(kk);
     iv_ = I_ + kk * A_;
     n_ = k;
+    searched_to_ = k;
     return;
   }
   emit();
@@ -99,6 +100,7 @@ void StepCompressor::start_run_with_first_point() {
   pos_ = P_ + I;
   iv_ = I + A_;
   n_ = 1;
+  searched_to_ = 1;
   hulls_.clear();
   add_lo_ = -kMaxAdd;
   add_hi_ = kMaxAdd;
@@ -112,7 +114,7 @@ StepCompressor::Trial StepCompressor::gap_at(double a, uint32_t n) {
   if (lower < 1.0) lower = 1.0, d_lower = 0.0;
   const double nm1 = n - 1.0, last = 1.0 - nm1 * a;
   if (last > lower) lower = last, d_lower = -nm1;
-  return {0, -1, lower - ub.value, d_lower - 0.5 * ub.slope, lb.k, ub.k};
+  return {0, -1, lower - ub.value, d_lower - 0.5 * ub.slope, lb.k, ub.k, lb.value, ub.value};
 }
 
 StepCompressor::Trial StepCompressor::trial(int64_t a, uint32_t n) {
@@ -121,12 +123,12 @@ StepCompressor::Trial StepCompressor::trial(int64_t a, uint32_t n) {
   // uses: the integer clock P + k I + t_k a against the window's real bound.
   auto clock = [&](int64_t k, int64_t i) { return static_cast<double>(P_ + k * i + tri(k) * a); };
   const int64_t ku = t.k_lo, kl = t.k_hi;
-  const double p = static_cast<double>(P_);
   const double lo = window_lo(t.k_lo), hi = window_hi(t.k_hi);
-  int64_t i_lo = ceil_i((lo - p - static_cast<double>(tri(ku) * a)) / static_cast<double>(ku));
+  // The hulls' real bounds are within rounding of the exact ones: the loops settle them.
+  int64_t i_lo = ceil_i(std::clamp(t.lo_value, -4e18, 4e18));
   while (clock(ku, i_lo - 1) >= lo) --i_lo;
   while (clock(ku, i_lo) < lo) ++i_lo;
-  int64_t i_hi = floor_i((hi - p - static_cast<double>(tri(kl) * a)) / static_cast<double>(kl));
+  int64_t i_hi = floor_i(std::clamp(t.hi_value, -4e18, 4e18));
   while (clock(kl, i_hi + 1) <= hi) ++i_hi;
   while (clock(kl, i_hi) > hi) --i_hi;
   t.i_lo = std::max({i_lo, int64_t{1}, 1 - static_cast<int64_t>(n - 1) * a});
@@ -243,8 +245,9 @@ void StepCompressor::emit() {
   run.add_ticks = static_cast<int32_t>(A_);
   run.count = n_;
   run.direction = dir_;
-  // check_line: expand the run with the MCU step law before it leaves.
-  if (first_violation(I_, A_, n_) != 0 || run_end_clock(P_, run) != pos_) {
+  // check_line: expand the run with the MCU step law before it leaves. Steps after the last
+  // search were each checked by the fast path with this very (I, A), by the same test.
+  if (first_violation(I_, A_, searched_to_) != 0 || run_end_clock(P_, run) != pos_) {
     ++stats_.check_failures;
     emit_single_steps();
     return;

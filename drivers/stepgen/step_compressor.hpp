@@ -24,8 +24,9 @@
 //    one), clamped to the first step's window; otherwise the previous run's add.
 // Every step enters each hull once and leaves it at most once: O(1) amortised per step. Before a
 // run is handed to the sink it is expanded with the MCU step law and checked against every
-// window (as Klipper's check_line does); a run that fails is counted in check_failures (never
-// expected; tests assert zero) and sent as one-step runs that keep the bound instead.
+// window up to its last search (as Klipper's check_line does; the fast path checked each later
+// step with the same (I, A) by the same test); a run that fails is counted in check_failures
+// (never expected; tests assert zero) and sent as one-step runs that keep the bound instead.
 #pragma once
 
 #include <algorithm>  // std::min
@@ -130,6 +131,7 @@ class StepCompressor final : public StepSink {
     int64_t i_lo, i_hi;
     double gap, gap_slope;  // I_min - I_max (> 0: no real I) and its derivative in a
     uint32_t k_lo, k_hi;    // the hull vertices that bound I
+    double lo_value, hi_value;  // the real bounds on I at those vertices
   };
   Trial trial(int64_t a, uint32_t n);
   // Same, real-valued only (no integer rounding): for the search over a.
@@ -185,6 +187,7 @@ class StepCompressor final : public StepSink {
   double prev_target_ = 0.0;   // exact time of the newest step pushed
   int64_t P_ = 0;              // clock of the last emitted step (run reference)
   uint32_t n_ = 0;             // accepted steps in the current run
+  uint32_t searched_to_ = 0;   // steps 1..this took (I, A) from the hulls or the first window
   int8_t dir_ = 1;
   int64_t I_ = 0, A_ = 0;      // candidate
   int64_t pos_ = 0, iv_ = 0;   // candidate's clock of step n_ and its next interval
