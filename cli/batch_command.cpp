@@ -13,6 +13,7 @@
 
 #include "cli/progress.hpp"
 #include "config/config.hpp"
+#include "config/config_source.hpp"
 #include "engine/batch.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/maneuver_executor.hpp"
@@ -27,6 +28,8 @@ void usage() {
       "1|2]\n"
       "       feedloop batch FILE.gcode [--config CFG.yaml] --simulate [--json OUT.json]\n"
       "       feedloop batch FILE.gcode [--config CFG.yaml] --export-trace TRACE.csv\n"
+      "  (each also takes --calibration OVERLAY.yaml: a calibration overlay laid over the config,\n"
+      "  as feedloopd does; docs/calibration.md)\n"
       "  Translates FILE through the whole pipeline in virtual time (no hardware) and prints a\n"
       "  summary. Without --config the embedded simulated Cartesian printer is used. --threads 2\n"
       "  (default) steps half the joints on a second thread; the output is the same with 1.\n"
@@ -229,11 +232,13 @@ int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bo
 }  // namespace
 
 int batch_command(const std::vector<std::string>& args) {
-  std::string file, config_path, json_path, trace_path;
+  std::string file, config_path, json_path, trace_path, calibration_path;
   bool quiet = false, sim = false;
   int threads = 2;
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--config" && i + 1 < args.size()) config_path = args[++i];
+    else if (args[i] == "--calibration" && i + 1 < args.size())
+      calibration_path = args[++i];
     else if (args[i] == "--threads" && i + 1 < args.size()) {
       const std::string& v = args[++i];
       if (v != "1" && v != "2") {
@@ -251,12 +256,16 @@ int batch_command(const std::vector<std::string>& args) {
     else { std::fprintf(stderr, "feedloop batch: unexpected argument '%s'\n", args[i].c_str()); usage(); return 2; }
   }
   if (file.empty()) { usage(); return 2; }
-  auto cfg = config_path.empty() ? Result<config::MachineConfig>(config::default_config())
-                                 : config::load_config_file(config_path);
-  if (!cfg) {
-    std::fprintf(stderr, "feedloop batch: invalid config:\n%s\n", cfg.error().to_string().c_str());
+  auto loaded = config::load_machine_config({config_path, calibration_path, true});
+  if (!loaded) {
+    std::fprintf(stderr, "feedloop batch: invalid config:\n%s\n",
+                 loaded.error().to_string().c_str());
     return 1;
   }
+  if (!quiet)
+    for (const std::string& c : loaded.value().changes)
+      std::fprintf(stderr, "calibration %s: %s\n", calibration_path.c_str(), c.c_str());
+  const config::MachineConfig* cfg = &loaded.value().config;
   if (cfg->drive == config::Drive::dc_servo) return maneuver_batch(file, *cfg, quiet, json_path);
   if (!trace_path.empty()) return export_trace(file, *cfg, trace_path, quiet);
   if (sim) return simulate(file, *cfg, config_path.empty() ? "embedded default" : config_path, json_path, quiet);

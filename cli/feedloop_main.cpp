@@ -11,9 +11,10 @@
 #include <vector>
 
 #include "cli/batch_command.hpp"
+#include "cli/calibrate_command.hpp"
 #include "cli/ident_command.hpp"
-#include "cli/model_command.hpp"
 #include "cli/log_command.hpp"
+#include "cli/model_command.hpp"
 #include "cli/print_command.hpp"
 #include "cli/replay_command.hpp"
 
@@ -27,10 +28,13 @@ void usage(std::FILE* out) {
       "  batch FILE [--config CFG] [--json OUT]    whole pipeline in virtual time, no hardware\n"
       "  log info LOG...                           summarise flight-recorder logs\n"
       "  log export LOG... --csv FILE [--rate-hz N]  recorder logs -> trace CSV v1\n"
-      "  replay LOG... [--config F] [--keep-log DIR]  re-run a recorded print in virtual time, compare\n"
+      "  replay LOG... [--config F] [--keep-log DIR]  re-run a recorded print in virtual time, "
+      "compare\n"
       "  record FILE --dir DIR [--config F]         record a simulated print in virtual time\n"
       "  ident fit --trace F.csv --out DIR         identify an axis: baseline, effects, report\n"
       "  ident excite --axis x|y --out F.csv       simulated excitation trace (tests, demos)\n"
+      "  calibrate [--axes x,y] [--out DIR]        calibrate a running feedloopd's machine from "
+      "its data\n"
       "  model frf [--config F] --pos X,Y,Z --out F.csv [--virtual-work]   delta FRFs (Eq. 29)\n"
       "run 'feedloop COMMAND --help' for a command's options\n",
       out);
@@ -51,6 +55,7 @@ int main(int argc, char** argv) {
   if (cmd == "replay") return feedloop::cli::replay_command(args);
   if (cmd == "record") return feedloop::cli::record_command(args);
   if (cmd == "ident") return feedloop::cli::ident_command(args);
+  if (cmd == "calibrate") return feedloop::cli::calibrate_command(args);
   if (cmd == "model") return feedloop::cli::model_command(args);
   if (cmd == "help" || cmd == "--help" || cmd == "-h") {
     usage(stdout);

@@ -3,12 +3,18 @@
 
 #include <unistd.h>  // isatty
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
 #include <string>
 
+#include "calibration/overlay_from_ident.hpp"
 #include "cli/progress.hpp"
+#include "config/config.hpp"
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
 #include "ident/frf.hpp"
@@ -23,6 +29,10 @@ void usage(std::FILE* out) {
   std::fputs(
       "usage: feedloop ident fit --trace FILE.csv --out DIR [--axis NAME] [--max-effects N] "
       "[--no-plots]\n"
+      "                          [--overlay CAL.yaml [--config CFG.yaml]]\n"
+      "                          (--overlay: write the fitted model into a calibration overlay "
+      "for\n"
+      "                          feedloopd --calibration; other axes already in it are kept)\n"
       "       feedloop ident frf --trace FILE.csv --out FRF.csv [--axis NAME] [--segment S] "
       "[--overlap F]\n"
       "                          [--window hann|rect]   (H1 and coherence, 2-125 Hz in 0.5 Hz "
@@ -199,8 +209,35 @@ int excite(const std::vector<std::string>& args) {
   return 0;
 }
 
+// The fitted axis into the overlay at `path` (kept: the other axes already in it), written to a
+// temporary file and renamed over it, so a reader never sees half of it.
+Status write_overlay(const std::string& path, const std::string& config_path,
+                     const ident::IdentResult& r, double mean_position_mm,
+                     const std::string& source) {
+  auto base = config_path.empty() ? Result<config::MachineConfig>(config::default_config())
+                                  : config::load_config_file(config_path);
+  if (!base) return base.error();
+  std::string existing;
+  if (std::ifstream in(path, std::ios::binary); in) {
+    std::ostringstream text;
+    text << in.rdbuf();
+    existing = text.str();
+  }
+  auto yaml = calibration::merge_overlay(base.value(), existing, path, r, mean_position_mm, source);
+  if (!yaml) return yaml.error();
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out << yaml.value();
+    if (!out.flush()) return Error{"cannot write " + tmp + ": " + std::strerror(errno), {}};
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0)
+    return Error{"cannot rename " + tmp + " to " + path + ": " + std::strerror(errno), {}};
+  return Status{};
+}
+
 int fit(const std::vector<std::string>& args) {
-  std::string trace_path, out_dir, axis_name;
+  std::string trace_path, out_dir, axis_name, overlay_path, config_path;
   ident::ReportOptions report_options;
   ident::FitOptions o;
   for (size_t i = 0; i < args.size(); ++i) {
@@ -217,6 +254,10 @@ int fit(const std::vector<std::string>& args) {
       out_dir = args[++i];
     } else if (a == "--axis" && has_value) {
       axis_name = args[++i];
+    } else if (a == "--overlay" && has_value) {
+      overlay_path = args[++i];
+    } else if (a == "--config" && has_value) {
+      config_path = args[++i];
     } else if (a == "--no-plots") {
       report_options.plots = false;
     } else if (a == "--help" || a == "-h") {
@@ -278,6 +319,18 @@ int fit(const std::vector<std::string>& args) {
   std::printf("\nwrote %s/report.json, report.md, residual.csv, frf.csv and %zu plots (%.1f s)\n", out_dir.c_str(),
               extras.plots.size(), secs);
   if (!extras.plot_note.empty()) std::printf("note: %s\n", extras.plot_note.c_str());
+  if (!overlay_path.empty()) {
+    double mean_mm = 0.0;
+    for (double u : axis->cmd_mm) mean_mm += u / static_cast<double>(axis->cmd_mm.size());
+    if (auto w = write_overlay(overlay_path, config_path, res, mean_mm,
+                               "feedloop ident fit of " + trace_path);
+        !w) {
+      std::fprintf(stderr, "feedloop ident fit: %s\n", w.error().to_string().c_str());
+      return 1;
+    }
+    std::printf("wrote the calibration overlay %s (axis %s)\n", overlay_path.c_str(),
+                res.axis.c_str());
+  }
   return 0;
 }
 

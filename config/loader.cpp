@@ -16,6 +16,37 @@
 namespace feedloop::config {
 namespace {
 
+// The first byte that is not UTF-8 (YAML text is Unicode, YAML 1.2 Sect. 5.2); npos when none.
+// yaml-cpp does not check: an invalid name or path would reach the status JSON, M115 and the
+// recording header, and to_yaml() would write it back changed.
+size_t first_invalid_utf8(std::string_view s) {
+  size_t bad = 0;
+  for (size_t i = 0; i < s.size();) {
+    const size_t n = utf8_sequence_length(s, i, &bad);
+    if (n == 0) return i;
+    i += n;
+  }
+  return std::string_view::npos;
+}
+
+}  // namespace
+
+bool detail::utf8_or_report(std::string_view yaml, Diagnostics& diag) {
+  const size_t at = first_invalid_utf8(yaml);
+  if (at == std::string_view::npos) return true;
+  const size_t line_start =
+      yaml.rfind('\n', at) == std::string_view::npos ? 0 : yaml.rfind('\n', at) + 1;
+  const int line = 1 + static_cast<int>(std::count(
+                           yaml.begin(), yaml.begin() + static_cast<std::ptrdiff_t>(at), '\n'));
+  char hex[8];
+  std::snprintf(hex, sizeof hex, "0x%02X", static_cast<unsigned>(static_cast<uint8_t>(yaml[at])));
+  diag.add(line, static_cast<int>(at - line_start) + 1,
+           std::string("the file is not valid UTF-8 (byte ") + hex + "); save it as UTF-8");
+  return false;
+}
+
+namespace {
+
 constexpr int kSchemaVersion = 1;
 
 void read_document(const YAML::Node& doc, MachineConfig& cfg, Diagnostics& diag) {
@@ -57,33 +88,10 @@ void read_document(const YAML::Node& doc, MachineConfig& cfg, Diagnostics& diag)
 }
 
 // Parses and validates; fills `out` only when there is no problem.
-// The first byte that is not UTF-8 (YAML text is Unicode, YAML 1.2 Sect. 5.2); npos when none.
-// yaml-cpp does not check: an invalid name or path would reach the status JSON, M115 and the
-// recording header, and to_yaml() would write it back changed.
-size_t first_invalid_utf8(std::string_view s) {
-  size_t bad = 0;
-  for (size_t i = 0; i < s.size();) {
-    const size_t n = utf8_sequence_length(s, i, &bad);
-    if (n == 0) return i;
-    i += n;
-  }
-  return std::string_view::npos;
-}
-
 std::vector<Error> load(std::string_view yaml, const std::string& source, MachineConfig* out) {
   Diagnostics diag(source);
   MachineConfig cfg;
-  if (const size_t at = first_invalid_utf8(yaml); at != std::string_view::npos) {
-    const size_t line_start =
-        yaml.rfind('\n', at) == std::string_view::npos ? 0 : yaml.rfind('\n', at) + 1;
-    const int line = 1 + static_cast<int>(std::count(
-                             yaml.begin(), yaml.begin() + static_cast<std::ptrdiff_t>(at), '\n'));
-    char hex[8];
-    std::snprintf(hex, sizeof hex, "0x%02X", static_cast<unsigned>(static_cast<uint8_t>(yaml[at])));
-    diag.add(line, static_cast<int>(at - line_start) + 1,
-             std::string("the config is not valid UTF-8 (byte ") + hex + "); save it as UTF-8");
-    return diag.errors();
-  }
+  if (!detail::utf8_or_report(yaml, diag)) return diag.errors();
   try {
     const YAML::Node doc = YAML::Load(std::string(yaml));
     if (!doc.IsDefined() || doc.IsNull()) {

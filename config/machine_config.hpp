@@ -278,6 +278,8 @@ struct GantryModelConfig {
   double coulomb_friction_n = 0.0;  // sliding friction on the carriage (not in Eq. 13: what
                                     // `feedloop ident fit` reports as coulomb_friction force_n);
                                     // the LPV feedforward supplies it (docs/feedforward.md)
+  double friction_bristle_mm = 0.02;  // Dahl presliding deflection at full friction (what
+                                      // `feedloop ident fit` reports as presliding_um)
   StepperConfig stepper;
   bool operator==(const GantryModelConfig&) const = default;
 };

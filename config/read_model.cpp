@@ -25,36 +25,53 @@ void read_stepper(MapReader& g, StepperConfig& st, Diagnostics& diag) {
   s.finish();
 }
 
+}  // namespace
+
+void read_gantry_axis(MapReader& g, GantryModelConfig& m, Need six, Diagnostics& diag) {
+  g.number("m1_kg", m.m1_kg, Range::positive(), six);
+  g.number("m2_kg", m.m2_kg, Range::positive(), six);
+  g.number("k1_n_per_m", m.k1_n_per_m, Range::positive(), six);
+  g.number("k2_n_per_m", m.k2_n_per_m, Range::positive(), six);
+  g.number("c1_ns_per_m", m.c1_ns_per_m, Range::non_negative(), six);
+  g.number("c2_ns_per_m", m.c2_ns_per_m, Range::non_negative(), six);
+  g.number("coulomb_friction_n", m.coulomb_friction_n, Range::closed(0.0, 1000.0));
+  // 0.5 um - 1 mm: the identification fits 1-300 um.
+  g.number("friction_bristle_mm", m.friction_bristle_mm, Range::closed(0.0005, 1.0));
+  read_stepper(g, m.stepper, diag);
+}
+
+bool gantry_axis_known(const MachineConfig& cfg, const std::string& name, const YAML::Mark& where,
+                       Diagnostics& diag) {
+  if (cfg.kinematics == Kinematics::delta) {
+    diag.add(where,
+             "model.gantry is for cartesian and corexy machines; a delta uses "
+             "model.delta_lpv");
+    return false;
+  }
+  if (cfg.axis(name) == nullptr) {
+    std::vector<std::string> names;
+    for (const AxisConfig& a : cfg.axes) names.push_back(a.name);
+    std::string msg = "model.gantry: '" + name + "' is not an axis in axes";
+    if (const std::string s = closest_match(name, names); !s.empty())
+      msg += " (did you mean '" + s + "'?)";
+    diag.add(where, msg);
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
 void read_gantry(MapReader& model, MachineConfig& cfg, Diagnostics& diag) {
   MapReader gantry = model.sub("gantry");
   for (const std::string& name : gantry.keys()) {
     const YAML::Mark where = gantry.key_mark(name);
     MapReader g(gantry.get(name), gantry.key_path(name), diag, where);
-    if (cfg.kinematics == Kinematics::delta) {
-      diag.add(where, "model.gantry is for cartesian and corexy machines; a delta uses "
-                      "model.delta_lpv");
-      continue;
-    }
-    if (cfg.axis(name) == nullptr) {
-      std::vector<std::string> names;
-      for (const AxisConfig& a : cfg.axes) names.push_back(a.name);
-      std::string msg = "model.gantry: '" + name + "' is not an axis in axes";
-      if (const std::string s = closest_match(name, names); !s.empty())
-        msg += " (did you mean '" + s + "'?)";
-      diag.add(where, msg);
-      continue;
-    }
+    if (!gantry_axis_known(cfg, name, where, diag)) continue;
     GantryModelConfig m;
     m.axis = name;
     // Eq. 13: the six parameters differ per axis, so none defaults silently.
-    g.number("m1_kg", m.m1_kg, Range::positive(), Need::required);
-    g.number("m2_kg", m.m2_kg, Range::positive(), Need::required);
-    g.number("k1_n_per_m", m.k1_n_per_m, Range::positive(), Need::required);
-    g.number("k2_n_per_m", m.k2_n_per_m, Range::positive(), Need::required);
-    g.number("c1_ns_per_m", m.c1_ns_per_m, Range::non_negative(), Need::required);
-    g.number("c2_ns_per_m", m.c2_ns_per_m, Range::non_negative(), Need::required);
-    g.number("coulomb_friction_n", m.coulomb_friction_n, Range::closed(0.0, 1000.0));
-    read_stepper(g, m.stepper, diag);
+    read_gantry_axis(g, m, Need::required, diag);
     g.finish();
     cfg.model.gantry.push_back(m);
   }

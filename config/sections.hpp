@@ -5,6 +5,7 @@
 
 #include <map>
 #include <string>
+#include <string_view>
 
 #include <yaml-cpp/yaml.h>
 
@@ -35,10 +36,22 @@ void read_planner(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 void read_extruder(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 void read_servo_control(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 void read_model(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
+// One axis's entry of model.gantry: the six Eq. 13 parameters (`six`: required in a config,
+// optional in a calibration overlay, which changes only what it names), friction and the stepper
+// section.
+void read_gantry_axis(MapReader& g, GantryModelConfig& m, Need six, Diagnostics& diag);
+// Whether model.gantry may have an entry `name` (a Cartesian or CoreXY machine's axis); reports why
+// not.
+bool gantry_axis_known(const MachineConfig& cfg, const std::string& name, const YAML::Mark& where,
+                       Diagnostics& diag);
 void read_stepgen_mcus(MapReader& root, MachineConfig& cfg, Marks& marks, Diagnostics& diag);
 void read_simulator(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 void read_io(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
 void read_thermal(MapReader& root, MachineConfig& cfg, Diagnostics& diag);
+
+// False, with the first byte that is not UTF-8 reported at its line and column, when `yaml` is not
+// valid UTF-8 (YAML text is Unicode; yaml-cpp does not check).
+bool utf8_or_report(std::string_view yaml, Diagnostics& diag);
 
 // Checks that need the whole machine: every axis driven by exactly one MCU, delta reachability.
 void check_machine(const MachineConfig& cfg, const Marks& marks, Diagnostics& diag);

@@ -9,6 +9,8 @@
 #include <utility>
 
 #include "config/config.hpp"
+#include "config/config_source.hpp"
+#include "config/enum_names.hpp"
 #include "daemon/runtime_dir.hpp"
 #include "engine/executor_factory.hpp"
 #include "engine/thermal_config.hpp"
@@ -154,6 +156,7 @@ void Daemon::end_print() {
   if (!err.empty()) spdlog::warn("flight recorder: {}", err);
   if (!last.empty()) {
     for (std::string& p : recorder::print_log_parts(last)) recorded_logs_.push_back(std::move(p));
+    last_print_log_ = last;
     spdlog::info("print recorded: {}", last);
   }
 }
@@ -722,7 +725,12 @@ json Daemon::info() const {
           {"simulated", cfg_.uses_simulator()},
           {"virtual_time", options_.virtual_time},
           {"servo_rate_hz", cfg_.servo.rate_hz},
-          {"config", options_.config_path.empty() ? "(embedded default)" : options_.config_path}};
+          {"config", options_.config_path.empty() ? "(embedded default)" : options_.config_path},
+          {"calibration", calibration_applied_},
+          {"calibration_path", options_.calibration_path},
+          {"open_loop_override", open_loop_override_},
+          {"control", config::enum_name(config::control_mode_names(), cfg_.control.mode)},
+          {"feedforward", config::enum_name(config::feedforward_names(), cfg_.feedforward.type)}};
 }
 
 namespace {
@@ -818,7 +826,10 @@ json Daemon::status() const {
           {"heaters", heaters_json(s)},
           {"fans", fans_json(s)},
           {"queue", {{"depth", s.queue_depth}, {"capacity", s.queue_capacity}}},
-          {"commands", {{"executed", s.commands_executed}, {"rejected", s.commands_rejected}, {"flushed", s.commands_flushed}}},
+          {"commands",
+           {{"executed", s.commands_executed},
+            {"rejected", s.commands_rejected},
+            {"flushed", s.commands_flushed}}},
           {"servo",
            {{"cycles", v.cycles},
             {"deadline_misses", v.deadline_misses},
@@ -852,6 +863,7 @@ json Daemon::status() const {
           {"progress_percent", progress_percent_},
           {"message", display_message_},
           {"config_reloads", reloads_},
+          {"recorder", {{"recording", print_open_}, {"last_print", last_print_log_}}},
           {"last_error", s.last_error}};
 }
 
@@ -998,10 +1010,23 @@ void Daemon::reload_config() {
       if (w) w(st);
   };
   notifier_.reloading();
-  auto next = !reread ? Result<config::MachineConfig>(cfg_)
-              : options_.config_path.empty()
-                  ? Result<config::MachineConfig>(config::default_config())
-                  : config::load_config_file(options_.config_path);
+  Result<config::MachineConfig> next = cfg_;
+  if (reread) {
+    auto loaded = config::load_machine_config(
+        {options_.config_path, options_.calibration_path, options_.calibration_required});
+    if (!loaded)
+      next = loaded.error();
+    else {
+      for (const std::string& c : loaded.value().changes)
+        spdlog::info("calibration {}: {}", loaded.value().calibration, c);
+      calibration_applied_ = loaded.value().calibration;
+      next = std::move(loaded.value().config);
+      if (open_loop_override_) {
+        next.value().control.mode = config::ControlMode::open_loop;
+        spdlog::info("config reload: control open loop until the next config.reload (calibration)");
+      }
+    }
+  }
   if (!next) {
     spdlog::error("config reload failed, keeping the running config:\n{}",
                   next.error().to_string());

@@ -63,6 +63,10 @@ struct DaemonOptions {
   InputLimits marlin_limits{1000.0, 1000.0, 5.0, 16};
   // `status` replies and notifications come from a snapshot at most this old (ms).
   int status_period_ms = 10;
+  // The calibration overlay laid over the config (daemon/config_source.hpp) at every reload;
+  // empty: none. Not required: a missing file is no calibration (the default path).
+  std::string calibration_path;
+  bool calibration_required = false;
 };
 
 // Print jobs (daemon/print_job.hpp, docs/jobs.md): the daemon reads a file of the job folder into
@@ -72,6 +76,8 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
  public:
   Daemon(config::MachineConfig cfg, DaemonOptions options);
   ~Daemon() override;
+  // The calibration overlay `cfg` carries (config_source.hpp), for `info`; before start.
+  void set_calibration_applied(std::string path) { calibration_applied_ = std::move(path); }
 
   // Starts the machine and opens every channel. On error nothing is left running.
   Status start();
@@ -233,6 +239,8 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
 
   config::MachineConfig cfg_;
   DaemonOptions options_;
+  std::string calibration_applied_;  // the overlay in cfg_ ("" when none)
+  bool open_loop_override_ = false;  // config.reload {open_loop: true}: control.mode open_loop
   boost::asio::io_context io_;
   boost::asio::signal_set signals_;
   boost::asio::steady_timer timer_;
@@ -243,6 +251,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   std::unique_ptr<recorder::EngineRecording> recording_;
   bool print_open_ = false;
   std::vector<std::string> recorded_logs_;
+  std::string last_print_log_;  // the last print's log (its first part), for `status`
   std::unique_ptr<engine::Machine> machine_;
   SystemdNotifier notifier_;
 

@@ -257,12 +257,25 @@ json Daemon::job_status_json() const {
 
 std::optional<MethodResult> Daemon::call_method(ClientSession& client, const std::string& method,
                                                 const json& params) {
-  if (method.rfind("files.", 0) != 0 && method.rfind("job.", 0) != 0) return std::nullopt;
+  if (method.rfind("files.", 0) != 0 && method.rfind("job.", 0) != 0 && method != "config.reload")
+    return std::nullopt;
   uint64_t requester = 0;
   for (const auto& [id, c] : clients_)
     if (c.session.get() == &client) requester = id;
   auto invalid = [](std::string why) { return MethodResult{nullptr, -32602, std::move(why)}; };
   auto machine_error = [](const Error& e) { return MethodResult{nullptr, -32000, e.to_string()}; };
+  if (method == "config.reload") {  // as SIGHUP: the config and its calibration, once idle
+    // open_loop: true runs the rebuilt machine open loop whatever the config says (feedloop
+    // calibrate's excitation: the steps are then the whole motor command); false ends that.
+    if (params.contains("open_loop")) {
+      if (!params["open_loop"].is_boolean()) return invalid("'open_loop' must be true or false");
+      open_loop_override_ = params["open_loop"].get<bool>();
+    }
+    restart();
+    return MethodResult{{{"reload", "requested"},
+                         {"config_reloads", reloads_},
+                         {"open_loop", open_loop_override_}}};
+  }
   auto filename = [&params](std::string* out) -> bool {
     if (!params.contains("filename") || !params["filename"].is_string()) return false;
     *out = params["filename"].get<std::string>();

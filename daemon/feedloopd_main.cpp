@@ -1,6 +1,7 @@
 // feedloopd: the feedloop motion daemon.
 //
-//   feedloopd [--config FILE] [--check-config] [--log-level LEVEL] [--version]
+//   feedloopd [--config FILE] [--calibration FILE | --no-calibration] [--check-config] [--log-level
+//   LEVEL] [--version]
 //
 // Without --config it runs the embedded default: the simulated Cartesian printer.
 #include <spdlog/sinks/basic_file_sink.h>
@@ -13,15 +14,21 @@
 #include <string>
 
 #include "config/config.hpp"
+#include "config/config_source.hpp"
 #include "daemon/daemon.hpp"
 
 namespace {
 
 void usage(std::FILE* out) {
   std::fputs(
-      "usage: feedloopd [--config FILE] [--check-config] [--log-level LEVEL] [--virtual-time]\n"
+      "usage: feedloopd [--config FILE] [--calibration FILE | --no-calibration] [--check-config] "
+      "[--log-level LEVEL] [--virtual-time]\n"
       "  --config FILE      printer config (YAML); default: the embedded simulated printer\n"
-      "  --check-config     validate the config, print every problem, and exit\n"
+      "  --check-config     validate the config (and the calibration), print every problem, exit\n"
+      "  --calibration FILE the calibration overlay to lay over the config (feedloop calibrate,\n"
+      "                     feedloop ident fit --overlay); default: ${STATE_DIR}/calibration.yaml\n"
+      "                     when it exists\n"
+      "  --no-calibration   the config alone\n"
       "  --log-level LEVEL  trace|debug|info|warn|error (overrides logging.level)\n"
       "  --virtual-time     simulated printers: run the machine in virtual time, as fast as\n"
       "                     the CPU allows (tests, demos)\n"
@@ -57,12 +64,19 @@ void setup_logging(const feedloop::config::LoggingConfig& cfg, const std::string
 
 int main(int argc, char** argv) {
   std::string config_path, log_level;
+  feedloop::config::ConfigSource source;
+  source.calibration_path = feedloop::config::default_calibration_path();
   bool check_only = false;
   bool virtual_time = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--config" && i + 1 < argc) {
       config_path = argv[++i];
+    } else if (a == "--calibration" && i + 1 < argc) {
+      source.calibration_path = argv[++i];
+      source.calibration_required = true;
+    } else if (a == "--no-calibration") {
+      source.calibration_path.clear();
     } else if (a == "--log-level" && i + 1 < argc) {
       log_level = argv[++i];
     } else if (a == "--virtual-time") {
@@ -81,20 +95,29 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  auto cfg = config_path.empty()
-                 ? feedloop::Result<feedloop::config::MachineConfig>(feedloop::config::default_config())
-                 : feedloop::config::load_config_file(config_path);
-  if (!cfg) {
-    std::fprintf(stderr, "feedloopd: invalid config:\n%s\n", cfg.error().to_string().c_str());
+  source.config_path = config_path;
+  auto loaded = feedloop::config::load_machine_config(source);
+  if (!loaded) {
+    std::fprintf(stderr, "feedloopd: invalid config:\n%s\n", loaded.error().to_string().c_str());
     return 1;
   }
+  feedloop::config::MachineConfig* cfg = &loaded.value().config;
   if (check_only) {
     std::printf("%s: ok ('%s')\n", config_path.empty() ? "(embedded default)" : config_path.c_str(),
                 cfg->name.c_str());
+    if (!loaded.value().calibration.empty())
+      std::printf("%s: ok (%zu changes)\n", loaded.value().calibration.c_str(),
+                  loaded.value().changes.size());
     return 0;
   }
   setup_logging(cfg->logging, log_level);
-  feedloop::daemon::Daemon daemon(std::move(*cfg), {config_path, 5.0, virtual_time});
+  for (const std::string& c : loaded.value().changes)
+    spdlog::info("calibration {}: {}", loaded.value().calibration, c);
+  feedloop::daemon::DaemonOptions options{config_path, 5.0, virtual_time};
+  options.calibration_path = source.calibration_path;
+  options.calibration_required = source.calibration_required;
+  feedloop::daemon::Daemon daemon(std::move(*cfg), options);
+  daemon.set_calibration_applied(loaded.value().calibration);
   if (feedloop::Status s = daemon.start(); !s) {
     spdlog::critical("cannot start: {}", s.error().to_string());
     return 1;

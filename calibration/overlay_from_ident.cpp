@@ -1,0 +1,67 @@
+// ident::IdentResult -> the calibration overlay (overlay_from_ident.hpp).
+#include "calibration/overlay_from_ident.hpp"
+
+#include "control/feedforward/gantry_lpv.hpp"
+#include "ident/report.hpp"
+
+namespace feedloop::calibration {
+
+config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r, const config::GantryModelConfig* current,
+                                                  double mean_position_mm) {
+  config::GantryModelConfig g = current != nullptr ? *current : config::GantryModelConfig{};
+  g.axis = r.axis;
+  const ident::AxisModel& m = r.augmented;
+  g.m1_kg = m.m1_kg;
+  g.m2_kg = m.m2_kg;
+  g.k1_n_per_m = m.k1_n_m;
+  g.k2_n_per_m = m.k2_n_m;
+  g.c1_ns_per_m = m.c1_n_s_m;
+  g.c2_ns_per_m = m.c2_n_s_m;
+  if (g.stepper.belt_unit_stiffness_n > 0.0 && g.stepper.pulley_distance_mm > 0.0) {
+    // Eq. 6 direction-averaged: K2(x) = k_hat L / (L^2 - x^2); k_hat so that K2(x_mean) = k2.
+    control::GantryAxisLpvModel unit;
+    unit.belt_unit_stiffness_n = 1.0;
+    unit.pulley_distance_mm = g.stepper.pulley_distance_mm;
+    const double per_unit = control::belt_stiffness_n_m(unit, mean_position_mm, 0);
+    if (per_unit > 0.0) g.stepper.belt_unit_stiffness_n = m.k2_n_m / per_unit;
+  }
+  const bool friction = m.has(ident::Effect::kCoulombFriction);
+  g.coulomb_friction_n = friction ? m.friction_force_n : 0.0;
+  if (friction) g.friction_bristle_mm = m.presliding_um * 1e-3;
+  return g;
+}
+
+std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r) {
+  std::vector<config::CalibrationEffect> out;
+  for (ident::Effect e : r.effects) {
+    config::CalibrationEffect c;
+    c.axis = r.axis;
+    c.name = ident::effect_name(e);
+    for (const auto& [k, v] : ident::effect_params_report(r.augmented, e)) c.params[k] = v;
+    c.in_model = e == ident::Effect::kCoulombFriction;
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
+Result<std::string> merge_overlay(const config::MachineConfig& base, const std::string& existing_yaml,
+                                  const std::string& existing_name, const ident::IdentResult& r,
+                                  double mean_position_mm, const std::string& source) {
+  config::Calibration c;
+  c.source = source;
+  if (!existing_yaml.empty()) {
+    auto old = config::apply_calibration_text(base, existing_yaml, existing_name);
+    if (!old) return old.error();
+    for (const std::string& axis : old.value().axes)
+      if (axis != r.axis)
+        if (const config::GantryModelConfig* g = old.value().config.model.gantry_for(axis)) c.gantry.push_back(*g);
+    for (const config::CalibrationEffect& e : old.value().effects)
+      if (e.axis != r.axis) c.effects.push_back(e);
+    if (!old.value().source.empty() && old.value().source != source) c.source = old.value().source + "; " + source;
+  }
+  c.gantry.push_back(gantry_model_from_ident(r, base.model.gantry_for(r.axis), mean_position_mm));
+  for (config::CalibrationEffect& e : effects_from_ident(r)) c.effects.push_back(std::move(e));
+  return config::calibration_yaml(c);
+}
+
+}  // namespace feedloop::calibration

@@ -1,0 +1,485 @@
+// `feedloop calibrate` (calibrate_command.hpp).
+#include "cli/calibrate_command.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "calibration/excitation_gcode.hpp"
+#include "calibration/overlay_from_ident.hpp"
+#include "cli/line_connection.hpp"
+#include "config/calibration.hpp"
+#include "config/config.hpp"
+#include "ident/fit.hpp"
+#include "ident/report.hpp"
+#include "recorder/replay.hpp"
+#include "recorder/trace_export.hpp"
+
+namespace feedloop::cli {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+void usage(std::FILE* out) {
+  std::fputs(
+      "usage: feedloop calibrate [--axes x,y] [--out DIR] [--api PATH] [--no-install] [--seed N]\n"
+      "       feedloop calibrate --write-gcode DIR [--config CFG.yaml] [--axes x,y] [--seed N]\n"
+      "  Runs the calibration program on each axis of the machine a running feedloopd drives (as\n"
+      "  print jobs), identifies each axis from the recordings, writes the calibration overlay and\n"
+      "  a before/after report (e_t of a check pattern, residual RMS, named effects, plots) into\n"
+      "  DIR (default: calibration), installs the overlay where the daemon reads it and reloads.\n"
+      "  --no-install: write it only. --write-gcode: only write the programs (no daemon).\n"
+      "  Default API socket: ${RUNTIME_DIR}/api.sock. docs/calibration.md.\n",
+      out);
+}
+
+// JSON-RPC 2.0 calls on the daemon's API socket, one at a time.
+class Api {
+ public:
+  bool open(const std::string& path) {
+    path_ = path;
+    return c_.open(path);
+  }
+  void reopen() {
+    c_.close();
+    (void)c_.open(path_);
+  }
+  Result<json> call(const std::string& method, const json& params = json::object(), int timeout_ms = 30000) {
+    const int id = ++id_;
+    if (!c_.send(json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump() + "\n"))
+      return Error{"the daemon closed the API socket (" + method + ")"};
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+    while (std::chrono::steady_clock::now() < deadline) {
+      auto line = c_.read_line(1000);
+      if (!line) continue;
+      json r = json::parse(*line, nullptr, false);
+      if (!r.is_object() || r.value("id", -1) != id) continue;  // a notification
+      if (r.contains("error")) return Error{method + ": " + r["error"].value("message", std::string("error"))};
+      return r["result"];
+    }
+    return Error{method + ": no answer within " + std::to_string(timeout_ms / 1000) + " s"};
+  }
+
+ private:
+  Connection c_;
+  std::string path_;
+  int id_ = 0;
+};
+
+// The machine's tracking error counters (cumulative since the machine was built).
+struct EtCounter {
+  double mean_mm = 0.0;
+  double samples = 0.0;
+};
+EtCounter et_counter(const json& status) {
+  const json& t = status["motion"]["tracking_error_mm"];
+  return {t.value("mean", 0.0), static_cast<double>(t.value("samples", 0ULL))};
+}
+// Mean e_t over the samples between two readings of the counters.
+double et_between(const EtCounter& a, const EtCounter& b) {
+  const double n = b.samples - a.samples;
+  return n > 0.0 ? (b.mean_mm * b.samples - a.mean_mm * a.samples) / n : NAN;
+}
+
+// The check pattern: thesis Sect. 5.2's circle (r 20 mm, 50 chords) and small star (r 5 / 2 mm),
+// at 90 mm/s around (cx, cy), each from rest after a 300 ms dwell.
+std::string check_pattern(double cx, double cy) {
+  std::ostringstream g;
+  char buf[96];
+  g << "; feedloop calibrate: check pattern\nG90\n";
+  std::snprintf(buf, sizeof buf, "G1 X%.4f Y%.4f F3000\nG4 P300\n", cx + 20.0, cy);
+  g << buf;
+  for (int i = 1; i <= 50; ++i) {
+    const double a = 2.0 * M_PI * i / 50.0;
+    std::snprintf(buf, sizeof buf, "G1 X%.4f Y%.4f F5400\n", cx + 20.0 * std::cos(a), cy + 20.0 * std::sin(a));
+    g << buf;
+  }
+  for (int i = 0; i <= 10; ++i) {
+    const double r = i % 2 == 0 ? 5.0 : 2.0, a = M_PI / 2.0 + M_PI * i / 5.0;
+    std::snprintf(buf, sizeof buf, "G1 X%.4f Y%.4f F%d\n%s", cx + r * std::cos(a), cy + r * std::sin(a),
+                  i == 0 ? 3000 : 5400, i == 0 ? "G4 P300\n" : "");
+    g << buf;
+  }
+  g << "M400\n";
+  return g.str();
+}
+
+struct Plan {
+  std::vector<std::string> axes{"x", "y"};
+  double cx = 0.0, cy = 0.0;
+  std::vector<std::string> programs;  // per axis
+  std::string check;
+};
+
+Result<Plan> make_plan(const config::MachineConfig& cfg, const std::vector<std::string>& axes, uint64_t seed) {
+  if (cfg.kinematics == config::Kinematics::delta)
+    return Error{"calibrate: a delta is calibrated from FRFs (feedloop ident delta; docs/ident_delta.md), not here"};
+  Plan p;
+  p.axes = axes;
+  const config::AxisConfig* ax[2] = {cfg.axis("x"), cfg.axis("y")};
+  for (const config::AxisConfig* a : ax)
+    if (a == nullptr || !std::isfinite(a->min_mm) || !std::isfinite(a->max_mm))
+      return Error{"calibrate: the config's x and y axes need min_mm and max_mm"};
+  p.cx = 0.5 * (ax[0]->min_mm + ax[0]->max_mm);
+  p.cy = 0.5 * (ax[1]->min_mm + ax[1]->max_mm);
+  p.check = check_pattern(p.cx, p.cy);
+  for (const std::string& name : axes) {
+    const config::AxisConfig* a = name == "x" ? ax[0] : name == "y" ? ax[1] : nullptr;
+    if (a == nullptr) return Error{"calibrate: --axes takes x and y (not '" + name + "')"};
+    calibration::ExcitationGcodeOptions o;
+    o.axis = name == "x" ? 'X' : 'Y';
+    o.travel_mm = std::min(80.0, 0.6 * (a->max_mm - a->min_mm));
+    o.start_mm = 0.5 * (a->min_mm + a->max_mm) - 0.5 * o.travel_mm;
+    o.accel_mm_s2 = std::min(a->max_accel_mm_s2, 6000.0);
+    o.max_speed_mm_s = std::min(a->max_velocity_mm_s, 150.0);
+    o.seed = seed;
+    const double other = name == "x" ? p.cy : p.cx;
+    char head[64];
+    std::snprintf(head, sizeof head, "G90\nG1 %c%.4f F3000\n", name == "x" ? 'Y' : 'X', other);
+    p.programs.push_back(head + calibration::excitation_gcode(o));
+  }
+  return p;
+}
+
+Status write_text(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+  if (!out.flush()) return Error{"cannot write " + path};
+  return Status{};
+}
+
+// Runs `gcode` as the print job `name` and waits for it to end; returns the recording's last part.
+Result<std::string> run_job(Api& api, const std::string& name, const std::string& gcode, const std::string& what) {
+  auto st = api.call("status");
+  if (!st) return st.error();
+  const std::string before = st.value()["recorder"].value("last_print", "");
+  if (auto u = api.call("files.upload", {{"filename", name}, {"content", gcode}}); !u) return u.error();
+  if (auto s = api.call("job.start", {{"filename", name}}); !s) return s.error();
+  std::fprintf(stderr, "calibrate: %s ...", what.c_str());
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 0;; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    auto j = api.call("job.status");
+    if (!j) return j.error();
+    const std::string state = j.value().value("state", "");
+    if (i % 20 == 0) std::fprintf(stderr, ".");
+    if (state == "complete") break;
+    if (state == "cancelled" || state == "error" || state == "off")
+      return Error{"calibrate: the job " + name + " ended " + state + ": " + j.value().value("message", "")};
+    if (std::chrono::steady_clock::now() - t0 > std::chrono::minutes(30))
+      return Error{"calibrate: the job " + name + " did not end within 30 min"};
+  }
+  // The recording closes when the machine is idle and nobody owns it.
+  for (int i = 0; i < 600; ++i) {
+    auto s = api.call("status");
+    if (!s) return s.error();
+    const json& rec = s.value()["recorder"];
+    if (!rec.value("recording", false) && rec.value("last_print", "") != before && !rec.value("last_print", "").empty()) {
+      std::fprintf(stderr, " %.1f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      if (!s.value().value("last_error", "").empty())
+        return Error{"calibrate: the machine reported a fault: " + s.value()["last_error"].get<std::string>()};
+      return rec["last_print"].get<std::string>();
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return Error{"calibrate: the daemon did not close the recording of " + name +
+               " (is the recorder on? recorder.enabled in the config)"};
+}
+
+// Homes X and Y when the machine has not (a job of its own, so the programs' recordings hold
+// only their own moves).
+Status home_if_needed(Api& api) {
+  auto st = api.call("status");
+  if (!st) return st.error();
+  const std::string homed = st.value().value("homed_axes", "");
+  if (homed.find('x') != std::string::npos && homed.find('y') != std::string::npos) return Status{};
+  auto r = run_job(api, "feedloop_calibrate_home.gcode", "G28\n", "homing");
+  if (!r) return r.error();
+  return Status{};
+}
+
+// e_t of the check pattern: the counters read around its job.
+Result<double> check_et(Api& api, const Plan& plan, const std::string& what) {
+  if (Status h = home_if_needed(api); !h) return h.error();
+  auto a = api.call("status");
+  if (!a) return a.error();
+  auto r = run_job(api, "feedloop_calibrate_check.gcode", plan.check, what);
+  if (!r) return r.error();
+  auto b = api.call("status");
+  if (!b) return b.error();
+  return et_between(et_counter(a.value()), et_counter(b.value()));
+}
+
+// Asks the daemon to rebuild its machine from its config (and calibration), open loop or as
+// configured, and waits until it has.
+Status reload(Api& api, bool open_loop) {
+  auto st0 = api.call("status");
+  if (!st0) return st0.error();
+  const auto reloads = st0.value().value("config_reloads", 0ULL);
+  if (auto r = api.call("config.reload", {{"open_loop", open_loop}}); !r) return r.error();
+  for (int i = 0; i < 300; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    auto st = api.call("status");
+    if (!st) {
+      api.reopen();  // a reload may drop the machine's clients
+      continue;
+    }
+    if (st.value().value("config_reloads", 0ULL) > reloads) return Status{};
+  }
+  return Error{"the daemon did not reload its config within 30 s"};
+}
+
+struct AxisOutcome {
+  std::string axis, recording;
+  ident::IdentResult fit;
+  double mean_mm = 0.0;
+};
+
+Result<AxisOutcome> identify_recording(const std::string& axis, const std::string& last_part, const std::string& dir) {
+  auto trace = recorder::build_trace(recorder::print_log_parts(last_part), recorder::ExportOptions{});
+  if (!trace) return trace.error();
+  const recorder::TraceColumns& t = trace.value();
+  size_t j = t.joints.size();
+  for (size_t i = 0; i < t.joints.size(); ++i)
+    if (t.joints[i] == axis) j = i;
+  if (j == t.joints.size()) return Error{"calibrate: the recording " + last_part + " has no joint " + axis};
+  // The encoder counts from wherever it powered on: its reading is put in the steps' frame at the
+  // recording's first sample, where the machine stands still (a job starts from rest).
+  std::vector<double>& meas = trace.value().meas_mm[j];
+  const double offset_mm = meas.empty() ? 0.0 : meas.front() - t.cmd_mm[j].front();
+  for (double& y : meas) y -= offset_mm;
+  const std::string csv = dir + "/trace.csv";
+  if (Status s = recorder::write_trace_csv(t, csv); !s) return s.error();
+  ident::FitOptions o;
+  auto r = ident::identify_axis(axis, t.cmd_mm[j], t.meas_mm[j], 1.0 / t.rate_hz, o);
+  if (!r) return r.error();
+  if (Status s = ident::write_report(dir, r.value(), t.time_s, t.cmd_mm[j], t.meas_mm[j], 1.0 / t.rate_hz, csv); !s)
+    return s.error();
+  AxisOutcome out;
+  out.axis = axis;
+  out.recording = last_part;
+  out.fit = std::move(r.value());
+  for (double u : t.cmd_mm[j]) out.mean_mm += u / static_cast<double>(t.cmd_mm[j].size());
+  return out;
+}
+
+json effects_json(const ident::IdentResult& r) {
+  json list = json::array();
+  for (ident::Effect e : r.effects) {
+    json params = json::object();
+    for (const auto& [k, v] : ident::effect_params_report(r.augmented, e)) params[k] = v;
+    list.push_back({{"name", ident::effect_name(e)}, {"params", params},
+                    {"in_model", e == ident::Effect::kCoulombFriction}});
+  }
+  return list;
+}
+
+std::string report_markdown(const json& j) {
+  std::ostringstream m;
+  char buf[256];
+  m << "# feedloop calibrate\n\n";
+  m << "Machine: " << j["machine"].get<std::string>() << "; overlay: `" << j["overlay"].get<std::string>() << "`";
+  if (!j["installed"].get<std::string>().empty()) m << ", installed as `" << j["installed"].get<std::string>() << "`";
+  m << ".\n\n## Tracking error of the check pattern (circle r 20 mm and star r 5 mm at 90 mm/s)\n\n";
+  m << "| | e_t mean, mm |\n|---|---|\n";
+  for (const char* k : {"before", "after"}) {
+    if (j["e_t_mm"][k].is_number()) std::snprintf(buf, sizeof buf, "| %s | %.4f |\n", k, j["e_t_mm"][k].get<double>());
+    else std::snprintf(buf, sizeof buf, "| %s | not measured |\n", k);
+    m << buf;
+  }
+  m << "\n## Identification per axis (held-out part: the last 30 % of each recording)\n\n";
+  m << "| axis | baseline RMS, um | augmented RMS, um | held-out before, um | held-out after, um | effects |\n";
+  m << "|---|---|---|---|---|---|\n";
+  for (const json& a : j["axes"]) {
+    std::string eff;
+    for (const json& e : a["effects"]) {
+      eff += (eff.empty() ? "" : "; ") + e["name"].get<std::string>() + " (";
+      bool first = true;
+      for (const auto& [k, v] : e["params"].items()) {
+        std::snprintf(buf, sizeof buf, "%s%s %.4g", first ? "" : ", ", k.c_str(), v.get<double>());
+        eff += buf;
+        first = false;
+      }
+      eff += e["in_model"].get<bool>() ? ", in the model)" : ", recorded only)";
+    }
+    std::snprintf(buf, sizeof buf, "| %s | %.2f | %.2f | %.2f | %.2f | %s |\n", a["axis"].get<std::string>().c_str(),
+                  a["baseline_rms_um"].get<double>(), a["augmented_rms_um"].get<double>(),
+                  a["held_out_before_um"].get<double>(), a["held_out_after_um"].get<double>(),
+                  eff.empty() ? "none" : eff.c_str());
+    m << buf;
+  }
+  m << "\nEach axis's report, data files and plots (PNG when gnuplot is installed): `<axis>/report.md`.\n";
+  return m.str();
+}
+
+}  // namespace
+
+int calibrate_command(const std::vector<std::string>& args) {
+  std::string out_dir = "calibration", api_path, gcode_dir, config_path;
+  std::vector<std::string> axes{"x", "y"};
+  bool install = true;
+  uint64_t seed = 1;
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    const bool has = i + 1 < args.size();
+    if (a == "--out" && has) out_dir = args[++i];
+    else if (a == "--api" && has) api_path = args[++i];
+    else if (a == "--write-gcode" && has) gcode_dir = args[++i];
+    else if (a == "--config" && has) config_path = args[++i];
+    else if (a == "--no-install") install = false;
+    else if (a == "--seed" && has) {
+      char* end = nullptr;
+      seed = std::strtoull(args[++i].c_str(), &end, 10);
+      if (end == nullptr || *end != '\0') {
+        std::fprintf(stderr, "feedloop calibrate: --seed takes a whole number\n");
+        return 2;
+      }
+    } else if (a == "--axes" && has) {
+      axes.clear();
+      std::stringstream ss(args[++i]);
+      for (std::string s; std::getline(ss, s, ',');) axes.push_back(s);
+    } else if (a == "--help" || a == "-h") {
+      usage(stdout);
+      return 0;
+    } else {
+      std::fprintf(stderr, "feedloop calibrate: bad argument '%s'\n", a.c_str());
+      usage(stderr);
+      return 2;
+    }
+  }
+  const auto fail = [](const Error& e) {
+    std::fprintf(stderr, "\nfeedloop calibrate: %s\n", e.to_string().c_str());
+    return 1;
+  };
+  if (!gcode_dir.empty()) {  // only the programs
+    auto cfg = config_path.empty() ? Result<config::MachineConfig>(config::default_config())
+                                   : config::load_config_file(config_path);
+    if (!cfg) return fail(cfg.error());
+    auto plan = make_plan(cfg.value(), axes, seed);
+    if (!plan) return fail(plan.error());
+    std::error_code ec;
+    fs::create_directories(gcode_dir, ec);
+    for (size_t i = 0; i < axes.size(); ++i)
+      if (Status s = write_text(gcode_dir + "/calibrate_" + axes[i] + ".gcode", plan.value().programs[i]); !s)
+        return fail(s.error());
+    if (Status s = write_text(gcode_dir + "/calibrate_check.gcode", plan.value().check); !s) return fail(s.error());
+    std::printf("wrote the calibration programs and the check pattern into %s\n", gcode_dir.c_str());
+    return 0;
+  }
+  if (api_path.empty()) {
+    auto p = config::expand_path("${RUNTIME_DIR}/api.sock", config::path_vars_from_environment());
+    if (p) api_path = p.value();
+  }
+  Api api;
+  if (!api.open(api_path)) return fail(Error{"cannot connect to the daemon's API socket " + api_path});
+  auto info = api.call("info");
+  if (!info) return fail(info.error());
+  const std::string cfg_name = info.value().value("config", "(embedded default)");
+  auto cfg = cfg_name == "(embedded default)" ? Result<config::MachineConfig>(config::default_config())
+                                              : config::load_config_file(cfg_name);
+  if (!cfg) return fail(cfg.error());
+  // The model the daemon runs now (its calibration included): what the overlay starts from.
+  config::MachineConfig running = cfg.value();
+  if (const std::string cal = info.value().value("calibration", ""); !cal.empty()) {
+    auto applied = config::apply_calibration_file(cfg.value(), cal);
+    if (applied) running = applied.value().config;
+  }
+  auto plan = make_plan(running, axes, seed);
+  if (!plan) return fail(plan.error());
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) return fail(Error{"cannot create " + out_dir + ": " + ec.message()});
+
+  json report{{"machine", info.value().value("name", "")}, {"axes", json::array()}};
+  auto before = check_et(api, plan.value(), "check pattern (before)");
+  if (!before) return fail(before.error());
+  report["e_t_mm"]["before"] = before.value();
+  // The excitation runs open loop: the steps are then the whole motor command (with the loops on,
+  // the device adds corrections the recording has only every 10 ms).
+  if (Status s = reload(api, true); !s) return fail(s.error());
+  std::string overlay;
+  Status excited = Status{};
+  for (size_t i = 0; i < axes.size() && excited; ++i) {
+    if (Status h = home_if_needed(api); !h) {
+      excited = h;
+      break;
+    }
+    auto rec = run_job(api, "feedloop_calibrate_" + axes[i] + ".gcode", plan.value().programs[i],
+                       "calibration program, axis " + axes[i]);
+    if (!rec) {
+      excited = rec.error();
+      break;
+    }
+    const std::string dir = out_dir + "/" + axes[i];
+    fs::create_directories(dir, ec);
+    std::fprintf(stderr, "calibrate: identifying axis %s ...\n", axes[i].c_str());
+    auto got = identify_recording(axes[i], rec.value(), dir);
+    if (!got) {
+      excited = got.error();
+      break;
+    }
+    const ident::IdentResult& r = got.value().fit;
+    auto merged = calibration::merge_overlay(cfg.value(), overlay, out_dir + "/calibration.yaml", r,
+                                             got.value().mean_mm, "feedloop calibrate, recording " + rec.value());
+    if (!merged) {
+      excited = merged.error();
+      break;
+    }
+    overlay = merged.value();
+    report["axes"].push_back({{"axis", axes[i]},
+                              {"recording", rec.value()},
+                              {"baseline_rms_um", r.baseline_rms_um},
+                              {"augmented_rms_um", r.augmented_rms_um},
+                              {"held_out_before_um", r.baseline_validation_rms_um},
+                              {"held_out_after_um", r.augmented_validation_rms_um},
+                              {"effects", effects_json(r)}});
+    std::printf("axis %s: residual RMS %.2f -> %.2f um (held out %.2f -> %.2f um), effects: %zu\n", axes[i].c_str(),
+                r.baseline_rms_um, r.augmented_rms_um, r.baseline_validation_rms_um, r.augmented_validation_rms_um,
+                r.effects.size());
+  }
+  const std::string overlay_path = out_dir + "/calibration.yaml";
+  const std::string target = info.value().value("calibration_path", "");
+  report["overlay"] = overlay_path;
+  report["installed"] = "";
+  report["e_t_mm"]["after"] = nullptr;
+  if (excited) {
+    if (Status s = write_text(overlay_path, overlay); !s) excited = s;
+  }
+  if (excited && install && target.empty())
+    std::fprintf(stderr, "calibrate: the daemon reads no calibration (--no-calibration): not installed\n");
+  if (excited && install && !target.empty()) {
+    if (Status s = write_text(target + ".tmp", overlay); !s) excited = s;
+    fs::rename(target + ".tmp", target, ec);
+    if (ec) excited = Error{"cannot install " + target + ": " + ec.message()};
+    else report["installed"] = target;
+  }
+  // Back to the configured control (with the new calibration when installed), also after a failure.
+  if (Status s = reload(api, false); !s) return fail(s.error());
+  if (!excited) return fail(excited.error());
+  if (!report["installed"].get<std::string>().empty()) {
+    auto after = check_et(api, plan.value(), "check pattern (after)");
+    if (!after) return fail(after.error());
+    report["e_t_mm"]["after"] = after.value();
+  }
+  if (const std::string ff = info.value().value("feedforward", ""); ff == "none")
+    report["note"] = "the config's feedforward is none: prints do not use the calibrated model "
+                     "(feedforward.type: lpv uses it)";
+  if (Status s = write_text(out_dir + "/report.json", report.dump(2) + "\n"); !s) return fail(s.error());
+  if (Status s = write_text(out_dir + "/report.md", report_markdown(report)); !s) return fail(s.error());
+  std::printf("e_t of the check pattern: before %.4f mm", report["e_t_mm"]["before"].get<double>());
+  if (report["e_t_mm"]["after"].is_number())
+    std::printf(", after %.4f mm (%+.1f %%)", report["e_t_mm"]["after"].get<double>(),
+                100.0 * (report["e_t_mm"]["after"].get<double>() / report["e_t_mm"]["before"].get<double>() - 1.0));
+  std::printf("\nwrote %s, %s/report.md and report.json%s\n", overlay_path.c_str(), out_dir.c_str(),
+              report["installed"].get<std::string>().empty() ? "" : "; installed and loaded");
+  return 0;
+}
+
+}  // namespace feedloop::cli

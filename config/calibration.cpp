@@ -1,0 +1,177 @@
+// Calibration overlays (calibration.hpp): read and validated with the config's own readers
+// (detail::read_gantry_axis), so a key means the same in both files.
+#include "config/calibration.hpp"
+
+#include <cerrno>   // errno
+#include <cstring>  // strerror
+#include <fstream>
+#include <sstream>
+
+#include <yaml-cpp/yaml.h>
+
+#include "config/diagnostics.hpp"
+#include "config/map_reader.hpp"
+#include "config/sections.hpp"
+
+namespace feedloop::config {
+namespace {
+
+constexpr int kCalibrationVersion = 1;
+
+// The keys an overlay may change, for the list of changes (the stepper's are the LPV model's).
+struct NumericKey {
+  const char* name;
+  double (*get)(const GantryModelConfig&);
+};
+constexpr NumericKey kKeys[] = {
+    {"m1_kg", [](const GantryModelConfig& g) { return g.m1_kg; }},
+    {"m2_kg", [](const GantryModelConfig& g) { return g.m2_kg; }},
+    {"k1_n_per_m", [](const GantryModelConfig& g) { return g.k1_n_per_m; }},
+    {"k2_n_per_m", [](const GantryModelConfig& g) { return g.k2_n_per_m; }},
+    {"c1_ns_per_m", [](const GantryModelConfig& g) { return g.c1_ns_per_m; }},
+    {"c2_ns_per_m", [](const GantryModelConfig& g) { return g.c2_ns_per_m; }},
+    {"coulomb_friction_n", [](const GantryModelConfig& g) { return g.coulomb_friction_n; }},
+    {"friction_bristle_mm", [](const GantryModelConfig& g) { return g.friction_bristle_mm; }},
+    {"stepper.belt_unit_stiffness_n", [](const GantryModelConfig& g) { return g.stepper.belt_unit_stiffness_n; }},
+    {"stepper.pulley_distance_mm", [](const GantryModelConfig& g) { return g.stepper.pulley_distance_mm; }},
+};
+
+void note_changes(const GantryModelConfig* before, const GantryModelConfig& after, std::vector<std::string>& out) {
+  for (const NumericKey& k : kKeys) {
+    const double b = before != nullptr ? k.get(*before) : 0.0;
+    const double a = k.get(after);
+    if (before != nullptr && a == b) continue;
+    out.push_back("model.gantry." + after.axis + "." + k.name + ": " + (before ? format_number(b) : "(none)") +
+                  " -> " + format_number(a));
+  }
+}
+
+void read_effects(MapReader& root, const MachineConfig& cfg, std::vector<CalibrationEffect>& out, Diagnostics& diag) {
+  const YAML::Node list = root.get("effects");
+  if (!list.IsDefined() || list.IsNull()) return;
+  if (!list.IsSequence()) {
+    diag.add(list.Mark(), "effects: expected a list, got " + node_kind(list));
+    return;
+  }
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const YAML::Node item = list[i];
+    MapReader m(item, "effects[" + std::to_string(i) + "]", diag, item.Mark());
+    CalibrationEffect e;
+    if (m.string("axis", e.axis, Need::required) && cfg.axis(e.axis) == nullptr)
+      diag.add(m.key_mark("axis"), m.path() + ": '" + e.axis + "' is not an axis of the config");
+    m.string("name", e.name, Need::required);
+    MapReader p = m.sub("params");
+    for (const std::string& key : p.keys()) {
+      double v = 0.0;
+      if (p.number(key, v, Range::any())) e.params[key] = v;
+    }
+    p.finish();
+    m.boolean("in_model", e.in_model);
+    m.finish();
+    out.push_back(std::move(e));
+  }
+}
+
+void read_overlay(const YAML::Node& doc, const MachineConfig& base, AppliedCalibration& out, Diagnostics& diag) {
+  MapReader root(doc, "", diag, YAML::Mark());
+  if (!root.present()) return;  // reported by MapReader
+  int version = 0;
+  if (root.integer_as("calibration_version", version, 1, 1000, Need::required) && version != kCalibrationVersion)
+    diag.add(root.get("calibration_version").Mark(),
+             "calibration_version " + std::to_string(version) + " is not supported (this feedloop reads " +
+                 std::to_string(kCalibrationVersion) + ")");
+  root.string("source", out.source);
+  MapReader model = root.sub("model");
+  MapReader gantry = model.sub("gantry");
+  for (const std::string& name : gantry.keys()) {
+    const YAML::Mark where = gantry.key_mark(name);
+    MapReader g(gantry.get(name), gantry.key_path(name), diag, where);
+    if (!detail::gantry_axis_known(base, name, where, diag)) continue;
+    const GantryModelConfig* before = base.model.gantry_for(name);
+    GantryModelConfig m = before != nullptr ? *before : GantryModelConfig{};
+    m.axis = name;
+    // Only what the overlay names changes; without the config's entry all six are needed.
+    detail::read_gantry_axis(g, m, before != nullptr ? Need::optional : Need::required, diag);
+    g.finish();
+    note_changes(before, m, out.changes);
+    out.axes.push_back(name);
+    bool replaced = false;
+    for (GantryModelConfig& existing : out.config.model.gantry)
+      if (existing.axis == name) {
+        existing = m;
+        replaced = true;
+      }
+    if (!replaced) out.config.model.gantry.push_back(m);
+  }
+  gantry.finish();
+  model.finish();
+  read_effects(root, base, out.effects, diag);
+  root.finish();
+  diag.resolve_unknown_keys();
+}
+
+}  // namespace
+
+Result<AppliedCalibration> apply_calibration_text(const MachineConfig& base, std::string_view yaml,
+                                                  const std::string& source_name) {
+  Diagnostics diag(source_name);
+  AppliedCalibration out;
+  out.config = base;
+  if (!detail::utf8_or_report(yaml, diag)) return diag.combined();
+  try {
+    const YAML::Node doc = YAML::Load(std::string(yaml));
+    if (!doc.IsDefined() || doc.IsNull())
+      diag.add(1, 1, "the calibration file is empty (expected calibration_version and model.gantry)");
+    else
+      read_overlay(doc, base, out, diag);
+  } catch (const YAML::Exception& e) {
+    diag.add(e.mark, "YAML syntax error: " + e.msg);
+  } catch (const std::exception& e) {
+    diag.add(0, 0, std::string("internal error while reading the calibration: ") + e.what());
+  }
+  if (!diag.empty()) return diag.combined();
+  return out;
+}
+
+Result<AppliedCalibration> apply_calibration_file(const MachineConfig& base, const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  if (in) text << in.rdbuf();
+  if (!in || in.bad())
+    return Error{"cannot read calibration file: " + std::string(std::strerror(errno)), SourceLocation{path, 0, 0}};
+  return apply_calibration_text(base, text.str(), path);
+}
+
+std::string calibration_yaml(const Calibration& c) {
+  YAML::Emitter y;
+  y << YAML::BeginMap;
+  y << YAML::Key << "calibration_version" << YAML::Value << kCalibrationVersion;
+  y << YAML::Key << "source" << YAML::Value << YAML::DoubleQuoted << c.source;
+  y << YAML::Key << "model" << YAML::Value << YAML::BeginMap << YAML::Key << "gantry" << YAML::Value << YAML::BeginMap;
+  for (const GantryModelConfig& g : c.gantry) {
+    y << YAML::Key << g.axis << YAML::Value << YAML::BeginMap;
+    for (const NumericKey& k : kKeys) {
+      if (std::string_view(k.name).starts_with("stepper.")) continue;
+      y << YAML::Key << k.name << YAML::Value << format_number(k.get(g));
+    }
+    y << YAML::Key << "stepper" << YAML::Value << YAML::BeginMap;
+    y << YAML::Key << "belt_unit_stiffness_n" << YAML::Value << format_number(g.stepper.belt_unit_stiffness_n);
+    y << YAML::Key << "pulley_distance_mm" << YAML::Value << format_number(g.stepper.pulley_distance_mm);
+    y << YAML::EndMap << YAML::EndMap;
+  }
+  y << YAML::EndMap << YAML::EndMap;
+  y << YAML::Key << "effects" << YAML::Value << YAML::BeginSeq;
+  for (const CalibrationEffect& e : c.effects) {
+    y << YAML::Flow << YAML::BeginMap;
+    y << YAML::Key << "axis" << YAML::Value << e.axis << YAML::Key << "name" << YAML::Value << e.name;
+    y << YAML::Key << "params" << YAML::Value << YAML::Flow << YAML::BeginMap;
+    for (const auto& [k, v] : e.params) y << YAML::Key << k << YAML::Value << format_number(v);
+    y << YAML::EndMap;
+    y << YAML::Key << "in_model" << YAML::Value << (e.in_model ? "true" : "false");
+    y << YAML::EndMap;
+  }
+  y << YAML::EndSeq << YAML::EndMap;
+  return std::string(y.c_str()) + "\n";
+}
+
+}  // namespace feedloop::config
