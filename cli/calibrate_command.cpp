@@ -3,6 +3,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -250,6 +251,28 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
   for (size_t i = 0; i < t.joints.size(); ++i)
     if (t.joints[i] == axis) j = i;
   if (j == t.joints.size()) return Error{"calibrate: the recording " + last_part + " has no joint " + axis};
+  // Only the rows the encoder measured (the last report of a print may close after it; the
+  // export holds the last reading there).
+  recorder::TraceColumns& tw = trace.value();
+  const auto [first_s, last_s] = tw.meas_span_s[j];
+  if (!(last_s - first_s > 10.0))
+    return Error{"calibrate: the recording " + last_part +
+                 " has under 10 s of encoder samples of " + axis};
+  const auto row = [&](double s) {
+    return static_cast<size_t>(
+        std::clamp(s * tw.rate_hz, 0.0, static_cast<double>(tw.time_s.size())));
+  };
+  const size_t r0 = row(std::ceil(first_s * tw.rate_hz) / tw.rate_hz), r1 = row(last_s) + 1;
+  const auto crop = [&](std::vector<double>& v) {
+    v = std::vector<double>(v.begin() + static_cast<std::ptrdiff_t>(r0),
+                            v.begin() + static_cast<std::ptrdiff_t>(std::min(r1, v.size())));
+  };
+  for (size_t k = 0; k < tw.joints.size(); ++k) {
+    crop(tw.cmd_mm[k]);
+    crop(tw.meas_mm[k]);
+  }
+  crop(tw.time_s);
+  for (double& ts : tw.time_s) ts -= static_cast<double>(r0) / tw.rate_hz;
   // The encoder counts from wherever it powered on: its reading is put in the steps' frame at the
   // recording's first sample, where the machine stands still (a job starts from rest).
   std::vector<double>& meas = trace.value().meas_mm[j];

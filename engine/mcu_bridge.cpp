@@ -908,6 +908,16 @@ void McuBridge::collect(double) {
     if (!samples.empty()) {
       for (size_t j = 0; j < kJoints; ++j) {
         if (joint_mcu_[j] < 0 || mcus_[static_cast<size_t>(joint_mcu_[j])].get() != m.get()) continue;
+        for (const drivers::EncoderSample& e : samples) {
+          if (e.axis != joint_motor_[j]) continue;
+          if (encoder_reading_count_ == encoder_readings_.size()) {
+            ++encoder_readings_dropped_;
+            continue;
+          }
+          encoder_readings_[encoder_reading_count_++] = {
+              static_cast<int>(j), e.clock,
+              static_cast<double>(e.counts) * encoder_mm_per_count_[j]};
+        }
         for (auto it = samples.rbegin(); it != samples.rend(); ++it)
           if (it->axis == joint_motor_[j]) {
             encoder_mm_[j].store(static_cast<double>(it->counts) * encoder_mm_per_count_[j], std::memory_order_relaxed);
@@ -998,6 +1008,15 @@ size_t McuBridge::take_device_reports(DeviceLoopReport* out, size_t cap) {
   // Whatever did not fit stays for the next call, in order.
   for (size_t i = n; i < device_report_count_; ++i) device_reports_[i - n] = device_reports_[i];
   device_report_count_ -= n;
+  return n;
+}
+
+size_t McuBridge::take_encoder_samples(EncoderReading* out, size_t cap) {
+  const size_t n = std::min(cap, encoder_reading_count_);
+  for (size_t i = 0; i < n; ++i) out[i] = encoder_readings_[i];
+  for (size_t i = n; i < encoder_reading_count_; ++i)
+    encoder_readings_[i - n] = encoder_readings_[i];
+  encoder_reading_count_ -= n;
   return n;
 }
 

@@ -121,6 +121,9 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   }
   void device_loops(DeviceLoopTelemetrySet& out) const override { out = loop_telemetry_.load(); }
   size_t take_device_reports(DeviceLoopReport* out, size_t cap) override;
+  size_t take_encoder_samples(EncoderReading* out, size_t cap) override;
+  // Encoder samples that arrived while the buffer for take_encoder_samples() was full.
+  uint64_t encoder_samples_dropped() const { return encoder_readings_dropped_; }
   // The device loop's last report of `joint` (servo thread's data: read when it is not running).
   const DeviceLoopTelemetry& device_loop_telemetry(int joint) const { return loop_link_.telemetry(joint); }
   // Reports that arrived while the buffer for take_device_reports() was full (not taken in time).
@@ -241,6 +244,11 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   size_t device_event_count_ = 0;
   // LOOP_REPORTs since the last take_device_reports() (100 Hz per joint: a few per servo cycle).
   std::array<DeviceLoopReport, 64> device_reports_{};
+  // Encoder samples since the last take_encoder_samples() (10 per report per joint: a few
+  // reports per servo cycle).
+  std::array<EncoderReading, 256> encoder_readings_{};
+  size_t encoder_reading_count_ = 0;
+  uint64_t encoder_readings_dropped_ = 0;
   size_t device_report_count_ = 0;
   void publish_loop_telemetry();
   Seqlock<DeviceLoopTelemetrySet> loop_telemetry_;  // published when reports arrive

@@ -430,6 +430,14 @@ void MotionExecutor::servo_cycle(int64_t now_ns, bool cancel) {
     DeviceLoopReport reports[16];
     for (size_t n; (n = backend_->take_device_reports(reports, 16)) > 0;)
       for (size_t k = 0; k < n && tap_ != nullptr; ++k) tap_->on_device_loop_report(reports[k]);
+    EncoderReading readings[64];
+    for (size_t n; (n = backend_->take_encoder_samples(readings, 64)) > 0;)
+      for (size_t k = 0; k < n && tap_ != nullptr; ++k) {
+        EncoderReading r = readings[k];
+        if (r.joint < 0 || r.joint >= kJoints) continue;
+        r.mm += encoder_offset_mm_[static_cast<size_t>(r.joint)];  // the steps' frame
+        tap_->on_encoder_sample(r);
+      }
   }
   publish_step_counts();
 }

@@ -60,6 +60,9 @@ class ServoBackend {
   virtual void device_loops(DeviceLoopTelemetrySet& out) const { out = DeviceLoopTelemetrySet{}; }
   // The device loops' reports (LOOP_REPORT) since the last call, in arrival order. Servo thread.
   virtual size_t take_device_reports(DeviceLoopReport* /*out*/, size_t /*cap*/) { return 0; }
+  // The encoder samples since the last call, each on its MCU's clock, in mm from the encoder's
+  // zero (no offset). Servo thread.
+  virtual size_t take_encoder_samples(EncoderReading* /*out*/, size_t /*cap*/) { return 0; }
 
   // Homing through the endstops (docs/homing.md; drivers/host/homing.hpp on each joint's MCU).
   enum class HomingState { kIdle, kRunning, kDone, kFailed };

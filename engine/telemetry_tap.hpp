@@ -39,6 +39,14 @@ struct ServoEvent {
   double size_mm = 0.0;
 };
 
+// One encoder sample as the MCU took it: on the joint's MCU clock (the step runs' time line), in
+// the executor's frame (the steps' position, as ServoSample::encoder_mm).
+struct EncoderReading {
+  int joint = 0;
+  int64_t clock = 0;
+  double mm = 0.0;
+};
+
 class TelemetryTap {
  public:
   virtual ~TelemetryTap() = default;
@@ -47,6 +55,9 @@ class TelemetryTap {
   virtual void on_servo_event(const ServoEvent& /*e*/) {}             // servo thread, RT-safe
   // Each device loop's LOOP_REPORT (control.loop: device; 100 Hz per joint), as it arrives.
   virtual void on_device_loop_report(const DeviceLoopReport& /*r*/) {}  // servo thread, RT-safe
+  // Every encoder sample the MCUs reported (the servo period's rate), in arrival order; a joint
+  // that has them is recorded from them, not from the cycles' latest reading.
+  virtual void on_encoder_sample(const EncoderReading& /*r*/) {}  // servo thread, RT-safe
 };
 
 inline const char* to_string(ServoEventKind k) {

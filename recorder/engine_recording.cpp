@@ -43,6 +43,7 @@ void EngineRecording::on_servo_sample(const engine::ServoSample& s) {
   if (!options_.record_encoders) return;
   for (int j = 0; j < joints_; ++j) {
     const auto js = static_cast<size_t>(j);
+    if (mcu_samples_[js]) continue;
     const double mm = s.encoder_mm[js];
     const double res = encoder_mm_per_count_[js];
     if (!(res > 0.0) || !std::isfinite(mm)) continue;
@@ -55,6 +56,22 @@ void EngineRecording::on_servo_sample(const engine::ServoSample& s) {
     rec_.writer(Stream::servo).encoder_sample(j, clock, counts);
     ++encoder_samples_;
   }
+}
+
+// Every sample at the MCU's clock of its taking: the trace export interpolates between samples
+// one servo period apart (a cycle's latest reading was up to a report, 10 periods, old, and
+// stamped with the cycle's time: the exported carriage lagged its steps by 5-8 ms).
+void EngineRecording::on_encoder_sample(const engine::EncoderReading& r) {
+  if (!options_.record_encoders || r.joint < 0 || r.joint >= joints_) return;
+  const auto js = static_cast<size_t>(r.joint);
+  const double res = encoder_mm_per_count_[js];
+  if (!(res > 0.0) || !std::isfinite(r.mm)) return;
+  mcu_samples_[js] = true;
+  const auto counts = static_cast<int64_t>(std::llround(r.mm / res));
+  have_counts_[js] = true;
+  last_counts_[js] = counts;
+  rec_.writer(Stream::servo).encoder_sample(r.joint, r.clock, counts);
+  ++encoder_samples_;
 }
 
 void EngineRecording::on_servo_event(const engine::ServoEvent& e) {

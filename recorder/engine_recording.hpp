@@ -47,6 +47,7 @@ class EngineRecording final : public engine::StepObserver, public engine::Teleme
   void on_servo_sample(const engine::ServoSample& s) override;   // servo thread
   void on_servo_event(const engine::ServoEvent& e) override;     // servo thread
   void on_device_loop_report(const engine::DeviceLoopReport& r) override;  // servo thread
+  void on_encoder_sample(const engine::EncoderReading& r) override;        // servo thread
 
   uint64_t encoder_samples() const { return encoder_samples_; }
   uint64_t anchors() const { return anchors_; }
@@ -62,6 +63,9 @@ class EngineRecording final : public engine::StepObserver, public engine::Teleme
   std::array<stepgen::TickMap, engine::kJoints> maps_{};
   std::array<int64_t, engine::kJoints> last_counts_{};
   std::array<bool, engine::kJoints> have_counts_{};
+  // The joint's samples come from the MCUs with their own clocks (on_encoder_sample): the
+  // cycles' latest reading is not recorded for it.
+  std::array<bool, engine::kJoints> mcu_samples_{};
   uint64_t encoder_samples_ = 0;
   uint64_t anchors_ = 0;
   uint64_t loop_reports_ = 0;

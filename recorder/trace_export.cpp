@@ -168,6 +168,9 @@ Result<TraceColumns> build_trace(const std::vector<std::string>& logs, const Exp
     }
     out.cmd_mm.push_back(std::move(cmd));
     out.meas_mm.push_back(std::move(meas));
+    out.meas_span_s.emplace_back(
+        measured ? static_cast<double>(jd.encoder.front().first) / hz - t_first : NAN,
+        measured ? static_cast<double>(jd.encoder.back().first) / hz - t_first : NAN);
     if (!measured)
       out.comments.push_back("joint " + ji.name + ": no encoder samples, " + ji.name + "_meas_mm = " + ji.name + "_cmd_mm");
   }

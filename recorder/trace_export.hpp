@@ -22,6 +22,9 @@ struct TraceColumns {
   std::vector<double> time_s;
   std::vector<std::string> joints;         // names of the exported joints
   std::vector<std::vector<double>> cmd_mm, meas_mm;  // [joint][row]
+  // [joint]: time_s of its first and last encoder sample (NaN without any); outside them the
+  // reading is held, not measured.
+  std::vector<std::pair<double, double>> meas_span_s;
   std::vector<std::string> comments;       // '#' lines (without the '# ')
 };
 

@@ -14,6 +14,7 @@
 #include "recorder/log_reader.hpp"
 #include "recorder/replay.hpp"
 #include "recorder/step_stream.hpp"
+#include "recorder/trace_export.hpp"
 #include "recorder_test_util.hpp"
 
 namespace feedloop::recorder {
@@ -79,7 +80,7 @@ TEST(ReplayTest, RecordsEveryKindOfRecordOfASimulatedPrint) {
   EXPECT_EQ(p->header.config_yaml, r.config_yaml);
   // Encoders on x and y (0.49 um AS5311), none on z and e.
   ASSERT_EQ(p->encoders.size(), 4u);
-  // Recorded when the reading changes (the mock MCUs report every few ms): hundreds each.
+  // Every sample the MCUs took (one per servo period): thousands each.
   EXPECT_GT(p->encoders[0].size(), 200u);
   EXPECT_GT(p->encoders[1].size(), 200u);
   EXPECT_EQ(p->encoders[2].size(), 0u);
@@ -94,6 +95,33 @@ TEST(ReplayTest, RecordsEveryKindOfRecordOfASimulatedPrint) {
   // still lags its deceleration then (measured 0.17 mm).
   const double x_end_mm = static_cast<double>(p->encoders[0].back().counts) * 0.00049;
   EXPECT_NEAR(x_end_mm, 10.0, 0.3);
+}
+
+// Every encoder sample is recorded at the MCU clock of its taking (EngineRecording::
+// on_encoder_sample): one per servo period, evenly spaced on the steps' time line. Before, each
+// servo cycle recorded its latest reading (up to a report, 10 periods, old) stamped with the
+// cycle's time, and only when it changed: ~100 Hz, and the exported carriage lagged its steps by
+// 5-8 ms, which the identification read as dynamics.
+TEST(ReplayTest, EncoderSamplesAreRecordedAtTheirMcuClockEveryServoPeriod) {
+  Recorded r;
+  record(r, open_loop_config());
+  auto p = read_recorded_print(r.run.logs);
+  ASSERT_TRUE(p.ok()) << p.error().to_string();
+  const auto& x = p->encoders[0];
+  ASSERT_GT(x.size(), 100u);
+  const double clock_hz = static_cast<double>(p->header.joints[0].clock_hz);
+  const double span_s = static_cast<double>(x.back().clock - x.front().clock) / clock_hz;
+  // One sample per 1 ms servo period over the span (the mock MCUs' +-50 ppm clocks).
+  EXPECT_NEAR(static_cast<double>(x.size() - 1), span_s * 1000.0, 2.0);
+  for (size_t i = 1; i < x.size(); ++i) {
+    const double gap_ms = static_cast<double>(x[i].clock - x[i - 1].clock) / clock_hz * 1e3;
+    ASSERT_NEAR(gap_ms, 1.0, 0.01) << "sample " << i;
+  }
+  // The export: the joint's measured span, and at rest at the end the carriage on its steps.
+  auto t = build_trace(r.run.logs, ExportOptions{});
+  ASSERT_TRUE(t.ok()) << t.error().to_string();
+  ASSERT_EQ(t->meas_span_s.size(), t->joints.size());
+  EXPECT_NEAR(t->meas_span_s[0].second - t->meas_span_s[0].first, span_s, 1e-6);
 }
 
 TEST(ReplayTest, SameConfigGivesABitIdenticalStepStreamAndZeroResidual) {
