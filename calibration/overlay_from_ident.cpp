@@ -1,13 +1,28 @@
 // ident::IdentResult -> the calibration overlay (overlay_from_ident.hpp).
 #include "calibration/overlay_from_ident.hpp"
 
+#include <cmath>
+
 #include "control/feedforward/gantry_lpv.hpp"
 #include "ident/report.hpp"
 
 namespace feedloop::calibration {
 
-config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r, const config::GantryModelConfig* current,
-                                                  double mean_position_mm) {
+double belt_length_from_direction_ratio(double ratio, double mean_position_mm,
+                                        double max_abs_position_mm) {
+  // K2(+) / K2(-) = (L + x) / (L - x) (Eq. 6, x0 = 0) at the trace's mean position x.
+  if (!(std::abs(ratio - 1.0) > 0.02) || !std::isfinite(ratio) || !std::isfinite(mean_position_mm))
+    return 0.0;
+  const double l_mm = mean_position_mm * (ratio + 1.0) / (ratio - 1.0);
+  // The LPV grid covers |x| <= 0.8 L: the travel must fit (and a belt is not kilometres long).
+  if (!(l_mm >= 1.25 * max_abs_position_mm) || l_mm > 20000.0) return 0.0;
+  return l_mm;
+}
+
+config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
+                                                  const config::GantryModelConfig* current,
+                                                  double mean_position_mm,
+                                                  double max_abs_position_mm) {
   config::GantryModelConfig g = current != nullptr ? *current : config::GantryModelConfig{};
   g.axis = r.axis;
   const ident::AxisModel& m = r.augmented;
@@ -17,8 +32,17 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r, c
   g.k2_n_per_m = m.k2_n_m;
   g.c1_ns_per_m = m.c1_n_s_m;
   g.c2_ns_per_m = m.c2_n_s_m;
+  if (m.has(ident::Effect::kDirectionStiffness))
+    if (const double l_mm = belt_length_from_direction_ratio(m.stiffness_ratio, mean_position_mm,
+                                                             max_abs_position_mm);
+        l_mm > 0.0) {
+      g.stepper.pulley_distance_mm = l_mm;
+      if (!(g.stepper.belt_unit_stiffness_n > 0.0))
+        g.stepper.belt_unit_stiffness_n = 1.0;  // set below
+    }
   if (g.stepper.belt_unit_stiffness_n > 0.0 && g.stepper.pulley_distance_mm > 0.0) {
-    // Eq. 6 direction-averaged: K2(x) = k_hat L / (L^2 - x^2); k_hat so that K2(x_mean) = k2.
+    // Eq. 6 direction-averaged: K2(x) = k_hat L / (L^2 - x^2); k_hat so that K2(x_mean) = k2 (the
+    // fit's k2 is the mean of its two directions' stiffnesses).
     control::GantryAxisLpvModel unit;
     unit.belt_unit_stiffness_n = 1.0;
     unit.pulley_distance_mm = g.stepper.pulley_distance_mm;
@@ -31,14 +55,19 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r, c
   return g;
 }
 
-std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r) {
+std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r,
+                                                          double mean_position_mm,
+                                                          double max_abs_position_mm) {
   std::vector<config::CalibrationEffect> out;
   for (ident::Effect e : r.effects) {
     config::CalibrationEffect c;
     c.axis = r.axis;
     c.name = ident::effect_name(e);
     for (const auto& [k, v] : ident::effect_params_report(r.augmented, e)) c.params[k] = v;
-    c.in_model = e == ident::Effect::kCoulombFriction;
+    c.in_model = e == ident::Effect::kCoulombFriction ||
+                 (e == ident::Effect::kDirectionStiffness &&
+                  belt_length_from_direction_ratio(r.augmented.stiffness_ratio, mean_position_mm,
+                                                   max_abs_position_mm) > 0.0);
     out.push_back(std::move(c));
   }
   return out;
@@ -59,8 +88,14 @@ Result<std::string> merge_overlay(const config::MachineConfig& base, const std::
       if (e.axis != r.axis) c.effects.push_back(e);
     if (!old.value().source.empty() && old.value().source != source) c.source = old.value().source + "; " + source;
   }
-  c.gantry.push_back(gantry_model_from_ident(r, base.model.gantry_for(r.axis), mean_position_mm));
-  for (config::CalibrationEffect& e : effects_from_ident(r)) c.effects.push_back(std::move(e));
+  double max_abs_mm = 0.0;
+  if (const config::AxisConfig* a = base.axis(r.axis))
+    max_abs_mm = std::max(std::isfinite(a->min_mm) ? std::abs(a->min_mm) : 0.0,
+                          std::isfinite(a->max_mm) ? std::abs(a->max_mm) : 0.0);
+  c.gantry.push_back(
+      gantry_model_from_ident(r, base.model.gantry_for(r.axis), mean_position_mm, max_abs_mm));
+  for (config::CalibrationEffect& e : effects_from_ident(r, mean_position_mm, max_abs_mm))
+    c.effects.push_back(std::move(e));
   return config::calibration_yaml(c);
 }
 

@@ -3,8 +3,9 @@
 //
 // What flows into the model (docs/calibration.md):
 // - the fitted baseline (Eq. 13: m1, m2 as the fit fixed them, k1, k2, c1, c2);
-// - the belt's position dependence kept from the config (Eq. 6: pulley distance L) but scaled so
-//   that the direction-averaged K2 at the trace's mean carriage position is the fitted k2;
+// - the belt's position dependence (Eq. 6): its length L from direction_dependent_stiffness when
+//   named (K2(+) / K2(-) = (L + x) / (L - x) at the trace's mean position x), else the config's;
+//   k_hat scaled so that the direction-averaged K2 there is the fitted k2;
 // - coulomb_friction: force and presliding deflection (the LPV feedforward's Dahl model).
 // Every other named effect is recorded with its parameters and in_model: false.
 #pragma once
@@ -17,13 +18,23 @@
 
 namespace feedloop::calibration {
 
-// `current`: the config's model of that axis (its pulley distance is kept; nullptr: the thesis's
-// 350 mm); `mean_position_mm`: the mean commanded position of the trace the fit used.
-config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r, const config::GantryModelConfig* current,
-                                                  double mean_position_mm);
+// L (mm) from a direction ratio measured at mean_position_mm, or 0 when the model cannot use it
+// (no ratio, or L inside 1.25 x the travel's largest |x|: the LPV grid covers |x| <= 0.8 L).
+double belt_length_from_direction_ratio(double ratio, double mean_position_mm,
+                                        double max_abs_position_mm);
+
+// `current`: the config's model of that axis (what the fit does not give is kept; nullptr: the
+// defaults); `mean_position_mm`: the mean commanded position of the trace the fit used;
+// `max_abs_position_mm`: the axis's travel, the largest |x|.
+config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
+                                                  const config::GantryModelConfig* current,
+                                                  double mean_position_mm,
+                                                  double max_abs_position_mm);
 
 // Every named effect of r, with in_model set as above.
-std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r);
+std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r,
+                                                          double mean_position_mm,
+                                                          double max_abs_position_mm);
 
 // The overlay `existing` (an overlay file's text, "" for none) with r's axis replaced: what
 // `feedloop ident fit --overlay` writes, so that fitting x then y leaves both in one file.

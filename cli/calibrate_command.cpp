@@ -305,14 +305,12 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
   return out;
 }
 
-json effects_json(const ident::IdentResult& r) {
+// The overlay's effects of `axis` (what the model carries: calibration/overlay_from_ident.hpp).
+json effects_json(const std::vector<config::CalibrationEffect>& effects, const std::string& axis) {
   json list = json::array();
-  for (ident::Effect e : r.effects) {
-    json params = json::object();
-    for (const auto& [k, v] : ident::effect_params_report(r.augmented, e)) params[k] = v;
-    list.push_back({{"name", ident::effect_name(e)}, {"params", params},
-                    {"in_model", e == ident::Effect::kCoulombFriction}});
-  }
+  for (const config::CalibrationEffect& e : effects)
+    if (e.axis == axis)
+      list.push_back({{"name", e.name}, {"params", e.params}, {"in_model", e.in_model}});
   return list;
 }
 
@@ -474,10 +472,19 @@ int calibrate_command(const std::vector<std::string>& args) {
                               {"augmented_rms_um", r.augmented_rms_um},
                               {"held_out_before_um", r.baseline_validation_rms_um},
                               {"held_out_after_um", r.augmented_validation_rms_um},
-                              {"effects", effects_json(r)}});
+                              {"effects", json::array()}});
     std::printf("axis %s: residual RMS %.2f -> %.2f um (held out %.2f -> %.2f um), effects: %zu\n", axes[i].c_str(),
                 r.baseline_rms_um, r.augmented_rms_um, r.baseline_validation_rms_um, r.augmented_validation_rms_um,
                 r.effects.size());
+  }
+  if (excited) {  // the effects as the overlay has them
+    auto applied =
+        config::apply_calibration_text(cfg.value(), overlay, out_dir + "/calibration.yaml");
+    if (!applied)
+      excited = applied.error();
+    else
+      for (json& a : report["axes"])
+        a["effects"] = effects_json(applied.value().effects, a["axis"].get<std::string>());
   }
   const std::string overlay_path = out_dir + "/calibration.yaml";
   const std::string target = info.value().value("calibration_path", "");

@@ -1,0 +1,180 @@
+// `feedloop calibrate` against a running feedloopd in virtual time (issue 15): the calibration
+// program runs as print jobs, each axis is identified from its recording, the overlay is
+// installed and loaded, and the check pattern's e_t is measured before and after; on the
+// project's simulator and on the second simulator (plant2/) as an external plant, with the LPV
+// feedforward + PI the machines print with.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "config/calibration.hpp"
+#include "config/config.hpp"
+#include "tests/daemon/daemon_fixture.hpp"
+#include "tests/daemon/line_client.hpp"
+#include "tests/daemon/subprocess.hpp"
+
+namespace feedloop::testing {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::string read_text(const std::string& path) {
+  std::ifstream f(path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+// The embedded simulated printer with the LPV feedforward (the model the calibration changes is
+// the one it inverts); `plant2_seed` >= 0: its X and Y on the second simulator, without switches.
+std::string printer_yaml(int plant2_seed) {
+  std::string y(config::default_config_yaml());
+  y = std::regex_replace(y, std::regex("feedforward:\n  type: none"), "feedforward:\n  type: lpv");
+  if (plant2_seed >= 0) {
+    y = std::regex_replace(y, std::regex("simulator:\n  seed: 1"),
+                           std::string("simulator:\n  seed: 1\n  external_plant: {command: \"") + FEEDLOOP_PLANT2_PATH +
+                               " --seed " + std::to_string(plant2_seed) + "\", axes: [x, y], period_us: 100}");
+    // An external plant's carriages have no simulated switches: G28 is a move (docs/homing.md).
+    y = std::regex_replace(y, std::regex("\n    homing: \\{direction: min[^\n]*"), "");
+  }
+  return y;
+}
+
+class Calibrate : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = make_temp_dir("calibrate");
+    ASSERT_FALSE(dir_.empty());
+  }
+  void TearDown() override {
+    if (daemon_) {
+      daemon_->signal(SIGTERM);
+      EXPECT_EQ(daemon_->wait(20), 0);
+    }
+    daemon_.reset();
+    fs::remove_all(dir_);
+  }
+  std::vector<std::string> env() { return {"RUNTIME_DIRECTORY=" + dir_, "STATE_DIRECTORY=" + dir_}; }
+  void start_daemon(const std::string& yaml) {
+    std::ofstream(dir_ + "/printer.yaml") << yaml;
+    daemon_ = std::make_unique<Subprocess>(
+        std::vector<std::string>{FEEDLOOPD_PATH, "--virtual-time", "--config", dir_ + "/printer.yaml"}, env(),
+        dir_ + "/daemon.log");
+    ASSERT_TRUE(daemon_->wait_for_output("ready", 20)) << daemon_->output();
+  }
+  int calibrate(std::vector<std::string> extra, std::string* out, double timeout_s = 600) {
+    std::vector<std::string> argv{FEEDLOOP_PATH, "calibrate"};
+    for (auto& a : extra) argv.push_back(a);
+    Subprocess p(argv, env(), dir_ + "/calibrate.log");
+    const int rc = p.wait(timeout_s);
+    *out = p.output();
+    return rc;
+  }
+  json api(const std::string& method) {
+    LineClient c;
+    if (!c.connect_unix(dir_ + "/api.sock", 200)) return json();
+    c.send_line(json{{"jsonrpc", "2.0"}, {"id", 1}, {"method", method}}.dump());
+    auto line = c.read_line(5000);
+    return line ? json::parse(*line)["result"] : json();
+  }
+  // Runs the whole calibration; the report.
+  json run(int plant2_seed) {
+    start_daemon(printer_yaml(plant2_seed));
+    std::string out;
+    const int rc = calibrate({"--out", dir_ + "/out"}, &out);
+    EXPECT_EQ(rc, 0) << out << "\n--- daemon:\n" << daemon_->output();
+    return json::parse(read_text(dir_ + "/out/report.json"), nullptr, false);
+  }
+  std::string dir_;
+  std::unique_ptr<Subprocess> daemon_;
+};
+
+TEST_F(Calibrate, TheFirstSimulatorsAxesAreFoundAndTheOverlayIsLoaded) {
+#ifdef FEEDLOOP_SANITIZED
+  GTEST_SKIP() << "two minutes of simulated motion and four fits: optimized build only";
+#endif
+  const json report = run(-1);
+  ASSERT_TRUE(report.is_object());
+  ASSERT_EQ(report["axes"].size(), 2u);
+  for (const json& a : report["axes"]) {
+    // The held-out part is predicted at least as well as by the baseline, and to a few um.
+    EXPECT_LE(a["held_out_after_um"].get<double>(), a["held_out_before_um"].get<double>() + 1e-9) << a.dump();
+    EXPECT_LT(a["held_out_after_um"].get<double>(), 15.0) << a.dump();
+  }
+  // The overlay: installed where the daemon reads it, loaded by the reload.
+  const std::string installed = dir_ + "/calibration.yaml";
+  EXPECT_EQ(report["installed"], installed);
+  EXPECT_EQ(read_text(installed), read_text(dir_ + "/out/calibration.yaml"));
+  const json info = api("info");
+  EXPECT_EQ(info["calibration"], installed);
+  EXPECT_EQ(info["control"], "pi");  // the excitation's open loop is over
+  auto cfg = config::load_config_file(dir_ + "/printer.yaml");
+  ASSERT_TRUE(cfg.ok());
+  auto applied = config::apply_calibration_file(cfg.value(), installed);
+  ASSERT_TRUE(applied.ok()) << applied.error().to_string();
+  // The simulator's belt (Eq. 6, L = 350 mm, k_hat = 38424 N on X) comes out of the data: its
+  // length from the direction-dependent stiffness the identification names (measured 360 mm),
+  // k_hat from the fitted k2 there (measured 37684 N).
+  const config::GantryModelConfig* x = applied.value().config.model.gantry_for("x");
+  EXPECT_NEAR(x->stepper.pulley_distance_mm, 350.0, 0.15 * 350.0);
+  EXPECT_NEAR(x->stepper.belt_unit_stiffness_n, 38424.0, 0.15 * 38424.0);
+  bool direction_in_model = false;
+  for (const json& e : report["axes"][0]["effects"])
+    direction_in_model |= e["name"] == "direction_dependent_stiffness" && e["in_model"].get<bool>();
+  EXPECT_TRUE(direction_in_model) << report["axes"][0].dump();
+  // The model was right before: the calibrated one prints no worse (the check pattern's e_t).
+  const double before = report["e_t_mm"]["before"].get<double>(), after = report["e_t_mm"]["after"].get<double>();
+  std::printf("first simulator: check pattern e_t %.4f -> %.4f mm\n", before, after);
+  EXPECT_LT(after, 1.15 * before);
+  EXPECT_NE(read_text(dir_ + "/out/report.md").find("| before |"), std::string::npos);
+}
+
+TEST_F(Calibrate, OnTheSecondSimulatorTheCalibratedModelCutsTheTrackingError) {
+#ifdef FEEDLOOP_SANITIZED
+  GTEST_SKIP() << "the external plant in lock-step for two minutes of motion: optimized build only";
+#endif
+  const json report = run(7);
+  ASSERT_TRUE(report.is_object());
+  ASSERT_EQ(report["axes"].size(), 2u);
+  const double before = report["e_t_mm"]["before"].get<double>(), after = report["e_t_mm"]["after"].get<double>();
+  std::printf("second simulator (seed 7): check pattern e_t %.4f -> %.4f mm\n", before, after);
+  // Measured 0.1658 -> 0.0243 mm: the config's thesis model against a machine it does not describe.
+  EXPECT_LT(after, 0.3 * before);
+}
+
+TEST_F(Calibrate, WithoutADaemonOrWithBadArgumentsItSaysWhy) {
+  std::string out;
+  EXPECT_EQ(calibrate({"--out", dir_ + "/out"}, &out, 30), 1);
+  EXPECT_NE(out.find("cannot connect to the daemon's API socket " + dir_ + "/api.sock"), std::string::npos) << out;
+  EXPECT_EQ(calibrate({"--seed", "x1"}, &out, 30), 2);
+  EXPECT_NE(out.find("--seed takes a whole number"), std::string::npos) << out;
+  EXPECT_EQ(calibrate({"--write-gcode", dir_ + "/g", "--axes", "x,z"}, &out, 30), 1);
+  EXPECT_NE(out.find("--axes takes x and y (not 'z')"), std::string::npos) << out;
+  // The programs alone: every line a move, a dwell or a comment, within the travel.
+  EXPECT_EQ(calibrate({"--write-gcode", dir_ + "/g"}, &out, 30), 0) << out;
+  const std::string x = read_text(dir_ + "/g/calibrate_x.gcode");
+  std::istringstream lines(x);
+  int moves = 0;
+  for (std::string l; std::getline(lines, l);) {
+    ASSERT_TRUE(l.rfind("G1 ", 0) == 0 || l.rfind("G4 P", 0) == 0 || l.rfind(";", 0) == 0 || l == "G90" ||
+                l == "M400")
+        << l;
+    std::smatch m;
+    if (std::regex_search(l, m, std::regex("X([-0-9.]+)"))) {
+      const double pos = std::stod(m[1]);
+      EXPECT_GE(pos, 0.0);
+      EXPECT_LE(pos, 250.0);
+      ++moves;
+    }
+  }
+  EXPECT_GT(moves, 500);
+  EXPECT_TRUE(fs::exists(dir_ + "/g/calibrate_check.gcode"));
+}
+
+}  // namespace
+}  // namespace feedloop::testing
