@@ -31,9 +31,11 @@ namespace fs = std::filesystem;
 void usage(std::FILE* out) {
   std::fputs(
       "usage: feedloop calibrate [--axes x,y] [--out DIR] [--api PATH] [--no-install] [--seed N]\n"
+      "       feedloop calibrate --check-only [--api PATH]   (the check pattern's e_t alone)\n"
       "       feedloop calibrate --write-gcode DIR [--config CFG.yaml] [--axes x,y] [--seed N]\n"
       "  Runs the calibration program on each axis of the machine a running feedloopd drives (as\n"
-      "  print jobs), identifies each axis from the recordings, writes the calibration overlay and\n"
+      "  print jobs), identifies each axis from the recordings, writes the calibration overlay "
+      "and\n"
       "  a before/after report (e_t of a check pattern, residual RMS, named effects, plots) into\n"
       "  DIR (default: calibration), installs the overlay where the daemon reads it and reloads.\n"
       "  --no-install: write it only. --write-gcode: only write the programs (no daemon).\n"
@@ -94,9 +96,9 @@ double et_between(const EtCounter& a, const EtCounter& b) {
 std::string check_pattern(double cx, double cy) {
   std::ostringstream g;
   char buf[96];
-  g << "; feedloop calibrate: check pattern\nG90\n";
-  std::snprintf(buf, sizeof buf, "G1 X%.4f Y%.4f F3000\nG4 P300\n", cx + 20.0, cy);
-  g << buf;
+  // From rest at (cx + 20, cy), where check_start() brought the machine: every run of it then
+  // covers the same motion, wherever the machine was before.
+  g << "; feedloop calibrate: check pattern\nG90\nG4 P300\n";
   for (int i = 1; i <= 50; ++i) {
     const double a = 2.0 * M_PI * i / 50.0;
     std::snprintf(buf, sizeof buf, "G1 X%.4f Y%.4f F5400\n", cx + 20.0 * std::cos(a), cy + 20.0 * std::sin(a));
@@ -112,11 +114,20 @@ std::string check_pattern(double cx, double cy) {
   return g.str();
 }
 
+// The travel to the check pattern's start, its last leg always the same (the belts' stretch and
+// the loops' state at the start then do not depend on where the machine came from).
+std::string check_start(double cx, double cy) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, "G90\nG1 X%.4f Y%.4f F3000\nG1 X%.4f Y%.4f F3000\nG4 P500\nM400\n",
+                cx, cy - 30.0, cx + 20.0, cy);
+  return buf;
+}
+
 struct Plan {
   std::vector<std::string> axes{"x", "y"};
   double cx = 0.0, cy = 0.0;
   std::vector<std::string> programs;  // per axis
-  std::string check;
+  std::string check_start, check;
 };
 
 Result<Plan> make_plan(const config::MachineConfig& cfg, const std::vector<std::string>& axes, uint64_t seed) {
@@ -130,6 +141,7 @@ Result<Plan> make_plan(const config::MachineConfig& cfg, const std::vector<std::
       return Error{"calibrate: the config's x and y axes need min_mm and max_mm"};
   p.cx = 0.5 * (ax[0]->min_mm + ax[0]->max_mm);
   p.cy = 0.5 * (ax[1]->min_mm + ax[1]->max_mm);
+  p.check_start = check_start(p.cx, p.cy);
   p.check = check_pattern(p.cx, p.cy);
   for (const std::string& name : axes) {
     const config::AxisConfig* a = name == "x" ? ax[0] : name == "y" ? ax[1] : nullptr;
@@ -209,6 +221,10 @@ Status home_if_needed(Api& api) {
 // e_t of the check pattern: the counters read around its job.
 Result<double> check_et(Api& api, const Plan& plan, const std::string& what) {
   if (Status h = home_if_needed(api); !h) return h.error();
+  if (auto t = run_job(api, "feedloop_calibrate_check_start.gcode", plan.check_start,
+                       "to the check pattern");
+      !t)
+    return t.error();
   auto a = api.call("status");
   if (!a) return a.error();
   auto r = run_job(api, "feedloop_calibrate_check.gcode", plan.check, what);
@@ -349,6 +365,7 @@ std::string report_markdown(const json& j) {
     m << buf;
   }
   m << "\nEach axis's report, data files and plots (PNG when gnuplot is installed): `<axis>/report.md`.\n";
+  if (j.contains("note")) m << "\nNote: " << j["note"].get<std::string>() << ".\n";
   return m.str();
 }
 
@@ -357,7 +374,7 @@ std::string report_markdown(const json& j) {
 int calibrate_command(const std::vector<std::string>& args) {
   std::string out_dir = "calibration", api_path, gcode_dir, config_path;
   std::vector<std::string> axes{"x", "y"};
-  bool install = true;
+  bool install = true, check_only = false;
   uint64_t seed = 1;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
@@ -367,6 +384,8 @@ int calibrate_command(const std::vector<std::string>& args) {
     else if (a == "--write-gcode" && has) gcode_dir = args[++i];
     else if (a == "--config" && has) config_path = args[++i];
     else if (a == "--no-install") install = false;
+    else if (a == "--check-only")
+      check_only = true;
     else if (a == "--seed" && has) {
       char* end = nullptr;
       seed = std::strtoull(args[++i].c_str(), &end, 10);
@@ -402,7 +421,10 @@ int calibrate_command(const std::vector<std::string>& args) {
     for (size_t i = 0; i < axes.size(); ++i)
       if (Status s = write_text(gcode_dir + "/calibrate_" + axes[i] + ".gcode", plan.value().programs[i]); !s)
         return fail(s.error());
-    if (Status s = write_text(gcode_dir + "/calibrate_check.gcode", plan.value().check); !s) return fail(s.error());
+    if (Status s = write_text(gcode_dir + "/calibrate_check.gcode",
+                              plan.value().check_start + plan.value().check);
+        !s)
+      return fail(s.error());
     std::printf("wrote the calibration programs and the check pattern into %s\n", gcode_dir.c_str());
     return 0;
   }
@@ -431,8 +453,22 @@ int calibrate_command(const std::vector<std::string>& args) {
   if (ec) return fail(Error{"cannot create " + out_dir + ": " + ec.message()});
 
   json report{{"machine", info.value().value("name", "")}, {"axes", json::array()}};
-  auto before = check_et(api, plan.value(), "check pattern (before)");
+  auto before =
+      check_et(api, plan.value(), check_only ? "check pattern" : "check pattern (before)");
   if (!before) return fail(before.error());
+  if (check_only) {
+    if (!std::isfinite(before.value()))
+      return fail(Error{
+          "the machine measured no e_t (it does with control.mode pi or maneuver, not open loop)"});
+    std::printf("e_t of the check pattern: %.4f mm (control %s, feedforward %s)\n", before.value(),
+                info.value().value("control", "?").c_str(),
+                info.value().value("feedforward", "?").c_str());
+    return 0;
+  }
+  if (!std::isfinite(before.value()))
+    std::fprintf(stderr,
+                 "calibrate: the machine measures no e_t with control.mode open_loop: the report "
+                 "has none\n");
   report["e_t_mm"]["before"] = before.value();
   // The excitation runs open loop: the steps are then the whole motor command (with the loops on,
   // the device adds corrections the recording has only every 10 ms).
@@ -515,12 +551,17 @@ int calibrate_command(const std::vector<std::string>& args) {
                      "(feedforward.type: lpv uses it)";
   if (Status s = write_text(out_dir + "/report.json", report.dump(2) + "\n"); !s) return fail(s.error());
   if (Status s = write_text(out_dir + "/report.md", report_markdown(report)); !s) return fail(s.error());
-  std::printf("e_t of the check pattern: before %.4f mm", report["e_t_mm"]["before"].get<double>());
-  if (report["e_t_mm"]["after"].is_number())
+  if (report["e_t_mm"]["before"].is_number() &&
+      std::isfinite(report["e_t_mm"]["before"].get<double>()))
+    std::printf("e_t of the check pattern: before %.4f mm",
+                report["e_t_mm"]["before"].get<double>());
+  if (report["e_t_mm"]["after"].is_number() &&
+      std::isfinite(report["e_t_mm"]["after"].get<double>()))
     std::printf(", after %.4f mm (%+.1f %%)", report["e_t_mm"]["after"].get<double>(),
                 100.0 * (report["e_t_mm"]["after"].get<double>() / report["e_t_mm"]["before"].get<double>() - 1.0));
   std::printf("\nwrote %s, %s/report.md and report.json%s\n", overlay_path.c_str(), out_dir.c_str(),
               report["installed"].get<std::string>().empty() ? "" : "; installed and loaded");
+  if (report.contains("note")) std::printf("note: %s\n", report["note"].get<std::string>().c_str());
   return 0;
 }
 

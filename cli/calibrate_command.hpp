@@ -11,6 +11,7 @@
 //   5. the check pattern again: e_t after; OUT/report.md and OUT/report.json say before and after.
 //
 //   feedloop calibrate [--axes x,y] [--out DIR] [--api PATH] [--no-install] [--seed N]
+//   feedloop calibrate --check-only [--api PATH]   (the check pattern's e_t alone)
 //   feedloop calibrate --write-gcode DIR [--config CFG.yaml] [--axes x,y] [--seed N]
 //       (only the programs, to run through any host)
 #pragma once
