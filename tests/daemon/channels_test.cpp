@@ -144,6 +144,44 @@ TEST_F(Channels, PtyLooksLikeAMarlinSerialPort) {
   EXPECT_EQ(pos->rfind("X:4.00 Y:4.00", 0), 0u) << *pos;
 }
 
+// config.reload: as SIGHUP, and {open_loop: true} rebuilds the machine open loop until the next
+// reload without it (feedloop calibrate's excitation); a wrong parameter is refused, nothing done.
+TEST_F(Channels, ConfigReloadRebuildsTheMachineOpenLoopOnRequest) {
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  auto info = [&] {
+    return call(api, {{"jsonrpc", "2.0"}, {"id", 1}, {"method", "info"}})["result"];
+  };
+  auto reloads = [&] {
+    return call(api,
+                {{"jsonrpc", "2.0"}, {"id", 2}, {"method", "status"}})["result"]["config_reloads"]
+        .get<uint64_t>();
+  };
+  EXPECT_EQ(info()["control"], "pi");
+  json bad = call(api, {{"jsonrpc", "2.0"},
+                        {"id", 3},
+                        {"method", "config.reload"},
+                        {"params", {{"open_loop", "yes"}}}});
+  ASSERT_TRUE(bad.contains("error")) << bad.dump();
+  EXPECT_EQ(bad["error"]["code"], -32602);
+  EXPECT_EQ(bad["error"]["message"], "'open_loop' must be true or false");
+  const uint64_t before = reloads();
+  for (const bool open_loop : {true, false}) {
+    json r = call(api, {{"jsonrpc", "2.0"},
+                        {"id", 4},
+                        {"method", "config.reload"},
+                        {"params", {{"open_loop", open_loop}}}});
+    ASSERT_TRUE(r.contains("result")) << r.dump();
+    EXPECT_EQ(r["result"]["open_loop"], open_loop);
+    const uint64_t want = before + (open_loop ? 1 : 2);
+    for (int i = 0; i < 500 && reloads() < want; ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    EXPECT_EQ(reloads(), want);
+    EXPECT_EQ(info()["control"], open_loop ? "open_loop" : "pi");
+    EXPECT_EQ(info()["open_loop_override"], open_loop);
+  }
+}
+
 TEST_F(Channels, JsonApiAnswersStatusRunsGcodeAndStreamsSubscriptions) {
   LineClient api;
   ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
