@@ -398,6 +398,15 @@ void PrintJob::send_sequence() {
 void PrintJob::pump() {
   if (!active()) return;
   if (state_ == JobState::kPrinting) {
+    // A machine that faulted (following error, encoder, MCU) or was stopped runs nothing more: the
+    // job ends in error with the machine's reason, instead of printing forever.
+    if (const engine::MachineStatus m = sink_.machine_status();
+        m.state == engine::MachineState::kError ||
+        m.state == engine::MachineState::kEmergencyStopped) {
+      fail(std::string("the machine stopped: ") +
+           (m.last_error[0] != '\0' ? m.last_error : "emergency stop"));
+      return;
+    }
     feed();
     if (state_ == JobState::kPrinting && eof_ && !held_ && in_flight_ == 0 &&
         sink_.machine_status().state == engine::MachineState::kIdle)

@@ -597,6 +597,7 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
     control::FeedforwardInput r;
     reference(print_now_s, r);
     publish_sample(now_s, print_now_s, r.r_mm, r.r_mm, r.nozzle_mm);
+    measure_open_loop_e_t();
   }
   // Done when nothing is queued and the last segment's time has passed on the machine.
   if (queue_.empty() && print_now_s > executed_end_s_ && planner_queued_.load() == 0) {
@@ -605,6 +606,41 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
     publish_step_counts();  // the counts a waiter reads once the motion has ended
   }
   telemetry_.anchored.store(anchored);
+}
+
+// Open loop (F = 1), with the plan on the timeline (a telemetry tap: the daemon's recorder): e_t
+// as the sampled path measures it, each joint's fresh encoder reading against the plan at the
+// instant it was sampled. So the machine reports what its loop would start from.
+void MotionExecutor::measure_open_loop_e_t() {
+  if (backend_ == nullptr) return;
+  bool any = false;
+  for (int j = 0; j < 3; ++j) {
+    const size_t i = static_cast<size_t>(j);
+    const unsigned long long reports = backend_->encoder_reports(j);
+    const bool fresh = reports != encoder_reports_seen_[i];
+    encoder_reports_seen_[i] = reports;
+    const double enc = backend_->encoder_mm(j) + encoder_offset_mm_[i];
+    const double t_s = backend_->encoder_time_s(j);
+    if (!fresh || !std::isfinite(enc) || !std::isfinite(t_s)) continue;
+    control::FeedforwardInput r;
+    if (!reference(t_s - offset_s_, r)) continue;  // the sample's instant in print time
+    last_e_mm_[i] = r.r_mm[i] - enc;
+    has_e_[i] = true;
+    any = true;
+  }
+  if (any) add_e_t_sample();
+}
+
+// e_t = |r - y| over the joints' latest errors (thesis Sect. 5.2), into the status counters.
+void MotionExecutor::add_e_t_sample() {
+  double sq = 0.0;
+  for (size_t i = 0; i < 3; ++i)
+    if (has_e_[i]) sq += last_e_mm_[i] * last_e_mm_[i];
+  const double e_t = std::sqrt(sq);
+  e_t_sum_mm_.store(e_t_sum_mm_.load(std::memory_order_relaxed) + e_t, std::memory_order_relaxed);
+  if (e_t > e_t_max_mm_.load(std::memory_order_relaxed))
+    e_t_max_mm_.store(e_t, std::memory_order_relaxed);
+  e_t_samples_.fetch_add(1, std::memory_order_relaxed);
 }
 
 // Planner thread (Machine::flush): the stop requested, the lookahead released (each of its motions
@@ -1065,15 +1101,7 @@ void MotionExecutor::sampled_cycle(double now_s) {
       has_e_[i] = true;
       any = true;
     }
-    if (any && sample_no_ > 0) {
-      double sq = 0.0;
-      for (size_t i = 0; i < 3; ++i)
-        if (has_e_[i]) sq += last_e_mm_[i] * last_e_mm_[i];
-      const double e_t = std::sqrt(sq);
-      e_t_sum_mm_.store(e_t_sum_mm_.load(std::memory_order_relaxed) + e_t, std::memory_order_relaxed);
-      if (e_t > e_t_max_mm_.load(std::memory_order_relaxed)) e_t_max_mm_.store(e_t, std::memory_order_relaxed);
-      e_t_samples_.fetch_add(1, std::memory_order_relaxed);
-    }
+    if (any && sample_no_ > 0) add_e_t_sample();
   }
   if (control_->closed_loop() &&
       !host_feedback(now_s, n_enc, std::isfinite(print_enc_s) ? print_enc_s : at_enc.t_s, enc, fresh))

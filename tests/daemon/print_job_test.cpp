@@ -75,9 +75,14 @@ struct FakeMachine final : JobSink {
     while (max_steps-- > 0 && step()) {
     }
   }
+  std::string fault;  // non-empty: the machine faulted with this reason (MachineState::kError)
   engine::MachineStatus machine_status() const override {
     engine::MachineStatus s;
     s.state = queue.empty() ? engine::MachineState::kIdle : engine::MachineState::kBusy;
+    if (!fault.empty()) {
+      s.state = engine::MachineState::kError;
+      std::snprintf(s.last_error, sizeof s.last_error, "%s", fault.c_str());
+    }
     for (int i = 0; i < 4; ++i) {
       s.pos_mm[i] = rig.interp.state().logical_mm[static_cast<size_t>(i)];
       s.step_count[i] = std::llround(rig.interp.state().machine_mm[static_cast<size_t>(i)] * 80.0);
@@ -230,6 +235,33 @@ TEST_F(PrintJobTest, RunsAFileFromStartToEndPacedByTheQueue) {
   EXPECT_DOUBLE_EQ(s.progress_bytes, 1.0);
   EXPECT_NEAR(s.print_time_s, m.print_time_s, 1e-9);
   EXPECT_EQ(m.heaters_off, 0);
+}
+
+// A machine that faults mid-print (an encoder fault, a following error) runs nothing more: the
+// job ends in error with its reason and the heaters off, instead of "printing" forever.
+TEST_F(PrintJobTest, AMachineFaultEndsTheJobInError) {
+  ASSERT_TRUE(files_->write("part.gcode", part(60)).ok());
+  FakeMachine m;
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  for (int i = 0; i < 10; ++i) {
+    m.step();
+    job.pump();
+  }
+  EXPECT_EQ(job.state(), JobState::kPrinting);
+  const size_t executed = m.executed.size();
+  m.fault = "MCU 'mcu_x' reports device loop: implausible encoder readings";
+  job.pump();
+  EXPECT_EQ(job.state(), JobState::kError);
+  EXPECT_EQ(job.status().message,
+            "the machine stopped: MCU 'mcu_x' reports device loop: implausible encoder readings");
+  EXPECT_EQ(m.heaters_off, 1);
+  job.pump();
+  EXPECT_EQ(m.executed.size(), executed);  // nothing more offered
+  // A job started on a faulted machine ends at once, saying why.
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  job.pump();
+  EXPECT_EQ(job.state(), JobState::kError);
 }
 
 TEST_F(PrintJobTest, ProgressAndEstimateComeFromThePlannedTime) {
