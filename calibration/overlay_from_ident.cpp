@@ -14,8 +14,9 @@ double belt_length_from_direction_ratio(double ratio, double mean_position_mm,
   if (!(std::abs(ratio - 1.0) > 0.02) || !std::isfinite(ratio) || !std::isfinite(mean_position_mm))
     return 0.0;
   const double l_mm = mean_position_mm * (ratio + 1.0) / (ratio - 1.0);
-  // The LPV grid covers |x| <= 0.8 L: the travel must fit (and a belt is not kilometres long).
-  if (!(l_mm >= 1.25 * max_abs_position_mm) || l_mm > 20000.0) return 0.0;
+  // The belt spans the travel (the LPV grid covers |x| <= 0.8 L and holds its edge designs
+  // beyond), and is not kilometres long.
+  if (!(l_mm > 1.05 * max_abs_position_mm) || l_mm > 20000.0) return 0.0;
   return l_mm;
 }
 

@@ -19,7 +19,7 @@
 namespace feedloop::calibration {
 
 // L (mm) from a direction ratio measured at mean_position_mm, or 0 when the model cannot use it
-// (no ratio, or L inside 1.25 x the travel's largest |x|: the LPV grid covers |x| <= 0.8 L).
+// (no ratio, or L not beyond the travel's largest |x| by 5 %).
 double belt_length_from_direction_ratio(double ratio, double mean_position_mm,
                                         double max_abs_position_mm);
 

@@ -729,6 +729,7 @@ json Daemon::info() const {
           {"calibration", calibration_applied_},
           {"calibration_path", options_.calibration_path},
           {"open_loop_override", open_loop_override_},
+          {"no_feedforward_override", no_feedforward_override_},
           {"control", config::enum_name(config::control_mode_names(), cfg_.control.mode)},
           {"feedforward", config::enum_name(config::feedforward_names(), cfg_.feedforward.type)}};
 }
@@ -1023,7 +1024,11 @@ void Daemon::reload_config() {
       next = std::move(loaded.value().config);
       if (open_loop_override_) {
         next.value().control.mode = config::ControlMode::open_loop;
-        spdlog::info("config reload: control open loop until the next config.reload (calibration)");
+        spdlog::info("config reload: open loop until the next config.reload (calibration)");
+      }
+      if (no_feedforward_override_) {  // with open loop: the steps are the plan (F = 1)
+        next.value().feedforward.type = config::FeedforwardType::none;
+        spdlog::info("config reload: no feedforward until the next config.reload (calibration)");
       }
     }
   }

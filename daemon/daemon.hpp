@@ -241,6 +241,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   DaemonOptions options_;
   std::string calibration_applied_;  // the overlay in cfg_ ("" when none)
   bool open_loop_override_ = false;  // config.reload {open_loop: true}: control.mode open_loop
+  bool no_feedforward_override_ = false;  // config.reload {no_feedforward: true}: feedforward none
   boost::asio::io_context io_;
   boost::asio::signal_set signals_;
   boost::asio::steady_timer timer_;

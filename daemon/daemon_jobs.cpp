@@ -266,15 +266,19 @@ std::optional<MethodResult> Daemon::call_method(ClientSession& client, const std
   auto machine_error = [](const Error& e) { return MethodResult{nullptr, -32000, e.to_string()}; };
   if (method == "config.reload") {  // as SIGHUP: the config and its calibration, once idle
     // open_loop: true runs the rebuilt machine open loop whatever the config says (feedloop
-    // calibrate's excitation: the steps are then the whole motor command); false ends that.
-    if (params.contains("open_loop")) {
-      if (!params["open_loop"].is_boolean()) return invalid("'open_loop' must be true or false");
-      open_loop_override_ = params["open_loop"].get<bool>();
-    }
+    // calibrate's excitation: the steps are then the whole motor command); no_feedforward: true
+    // without its feedforward too (the open-loop check: the steps are the plan). false, or a
+    // reload without them, ends them.
+    for (const char* key : {"open_loop", "no_feedforward"})
+      if (params.contains(key) && !params[key].is_boolean())
+        return invalid(std::string("'") + key + "' must be true or false");
+    open_loop_override_ = params.value("open_loop", false);
+    no_feedforward_override_ = params.value("no_feedforward", false);
     restart();
     return MethodResult{{{"reload", "requested"},
                          {"config_reloads", reloads_},
-                         {"open_loop", open_loop_override_}}};
+                         {"open_loop", open_loop_override_},
+                         {"no_feedforward", no_feedforward_override_}}};
   }
   auto filename = [&params](std::string* out) -> bool {
     if (!params.contains("filename") || !params["filename"].is_string()) return false;

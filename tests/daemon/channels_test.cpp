@@ -163,6 +163,12 @@ TEST_F(Channels, ConfigReloadRebuildsTheMachineOpenLoopOnRequest) {
                         {"method", "config.reload"},
                         {"params", {{"open_loop", "yes"}}}});
   ASSERT_TRUE(bad.contains("error")) << bad.dump();
+  json bad2 = call(api, {{"jsonrpc", "2.0"},
+                         {"id", 3},
+                         {"method", "config.reload"},
+                         {"params", {{"no_feedforward", 1}}}});
+  ASSERT_TRUE(bad2.contains("error")) << bad2.dump();
+  EXPECT_EQ(bad2["error"]["message"], "'no_feedforward' must be true or false");
   EXPECT_EQ(bad["error"]["code"], -32602);
   EXPECT_EQ(bad["error"]["message"], "'open_loop' must be true or false");
   const uint64_t before = reloads();
