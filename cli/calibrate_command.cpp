@@ -16,8 +16,10 @@
 #include "calibration/excitation_gcode.hpp"
 #include "calibration/overlay_from_ident.hpp"
 #include "cli/line_connection.hpp"
+#include "cli/text_file.hpp"
 #include "config/calibration.hpp"
 #include "config/config.hpp"
+#include "config/config_source.hpp"
 #include "ident/fit.hpp"
 #include "ident/report.hpp"
 #include "recorder/replay.hpp"
@@ -160,20 +162,6 @@ Result<Plan> make_plan(const config::MachineConfig& cfg, const std::vector<std::
     p.programs.push_back(head + calibration::excitation_gcode(o));
   }
   return p;
-}
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-Status write_text(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out << text;
-  if (!out.flush()) return Error{"cannot write " + path};
-  return Status{};
 }
 
 // Runs `gcode` as the print job `name` and waits for it to end; returns the recording's last part.
@@ -437,18 +425,19 @@ int calibrate_command(const std::vector<std::string>& args) {
     return 1;
   };
   if (!gcode_dir.empty()) {  // only the programs
-    auto cfg = config_path.empty() ? Result<config::MachineConfig>(config::default_config())
-                                   : config::load_config_file(config_path);
-    if (!cfg) return fail(cfg.error());
-    auto plan = make_plan(cfg.value(), axes, seed);
+    auto loaded = config::load_machine_config({config_path, "", false});
+    if (!loaded) return fail(loaded.error());
+    auto plan = make_plan(loaded.value().config, axes, seed);
     if (!plan) return fail(plan.error());
     std::error_code ec;
     fs::create_directories(gcode_dir, ec);
     for (size_t i = 0; i < axes.size(); ++i)
-      if (Status s = write_text(gcode_dir + "/calibrate_" + axes[i] + ".gcode", plan.value().programs[i]); !s)
+      if (Status s = write_text_file(gcode_dir + "/calibrate_" + axes[i] + ".gcode",
+                                     plan.value().programs[i]);
+          !s)
         return fail(s.error());
-    if (Status s = write_text(gcode_dir + "/calibrate_check.gcode",
-                              plan.value().check_start + plan.value().check);
+    if (Status s = write_text_file(gcode_dir + "/calibrate_check.gcode",
+                                   plan.value().check_start + plan.value().check);
         !s)
       return fail(s.error());
     std::printf("wrote the calibration programs and the check pattern into %s\n", gcode_dir.c_str());
@@ -462,17 +451,16 @@ int calibrate_command(const std::vector<std::string>& args) {
   if (!api.open(api_path)) return fail(Error{"cannot connect to the daemon's API socket " + api_path});
   auto info = api.call("info");
   if (!info) return fail(info.error());
-  const std::string cfg_name = info.value().value("config", "(embedded default)");
-  auto cfg = cfg_name == "(embedded default)" ? Result<config::MachineConfig>(config::default_config())
-                                              : config::load_config_file(cfg_name);
-  if (!cfg) return fail(cfg.error());
-  // The model the daemon runs now (its calibration included): what the overlay starts from.
-  config::MachineConfig running = cfg.value();
-  if (const std::string cal = info.value().value("calibration", ""); !cal.empty()) {
-    auto applied = config::apply_calibration_file(cfg.value(), cal);
-    if (applied) running = applied.value().config;
-  }
-  auto plan = make_plan(running, axes, seed);
+  // The daemon's config (the overlay is laid over it) and the model it runs now (its calibration
+  // included), loaded as the daemon loads them.
+  std::string cfg_path = info.value().value("config", "(embedded default)");
+  if (cfg_path == "(embedded default)") cfg_path.clear();
+  auto base = config::load_machine_config({cfg_path, "", false});
+  if (!base) return fail(base.error());
+  const config::MachineConfig& cfg = base.value().config;
+  auto running =
+      config::load_machine_config({cfg_path, info.value().value("calibration", ""), false});
+  auto plan = make_plan(running ? running.value().config : cfg, axes, seed);
   if (!plan) return fail(plan.error());
   std::error_code ec;
   fs::create_directories(out_dir, ec);
@@ -534,8 +522,9 @@ int calibrate_command(const std::vector<std::string>& args) {
       break;
     }
     const ident::IdentResult& r = got.value().fit;
-    auto merged = calibration::merge_overlay(cfg.value(), overlay, out_dir + "/calibration.yaml", r,
-                                             got.value().mean_mm, "feedloop calibrate, recording " + rec.value());
+    auto merged = calibration::merge_overlay(cfg, overlay, out_dir + "/calibration.yaml", r,
+                                             got.value().mean_mm,
+                                             "feedloop calibrate, recording " + rec.value());
     if (!merged) {
       excited = merged.error();
       break;
@@ -553,8 +542,7 @@ int calibrate_command(const std::vector<std::string>& args) {
                 r.effects.size());
   }
   if (excited) {  // the effects as the overlay has them
-    auto applied =
-        config::apply_calibration_text(cfg.value(), overlay, out_dir + "/calibration.yaml");
+    auto applied = config::apply_calibration_text(cfg, overlay, out_dir + "/calibration.yaml");
     if (!applied)
       excited = applied.error();
     else
@@ -567,16 +555,15 @@ int calibrate_command(const std::vector<std::string>& args) {
   report["installed"] = "";
   report["e_t_mm"]["after"] = nullptr;
   if (excited) {
-    if (Status s = write_text(overlay_path, overlay); !s) excited = s;
+    if (Status s = write_text_file(overlay_path, overlay); !s) excited = s;
   }
   if (excited && install && target.empty())
     std::fprintf(stderr, "calibrate: the daemon reads no calibration (--no-calibration): not installed\n");
   std::optional<std::string> previous;  // the overlay the daemon had (nullopt: none)
   if (excited && install && !target.empty()) {
-    if (fs::exists(target)) previous = read_text(target);
-    if (Status s = write_text(target + ".tmp", overlay); !s) excited = s;
-    fs::rename(target + ".tmp", target, ec);
-    if (ec) excited = Error{"cannot install " + target + ": " + ec.message()};
+    if (fs::exists(target)) previous = read_text_file(target);
+    if (Status s = write_text_file(target, overlay); !s)
+      excited = s;
     else report["installed"] = target;
   }
   // Back to the configured control (with the new calibration when installed), also after a failure.
@@ -589,14 +576,14 @@ int calibrate_command(const std::vector<std::string>& args) {
       // back to what it had, and the report says so.
       std::error_code rm;
       if (previous)
-        (void)write_text(target, *previous);
+        (void)write_text_file(target, *previous);
       else
         fs::remove(target, rm);
       const Status back = reload(api, false);
       report["installed"] = "";
       report["rolled_back"] = after.error().to_string();
-      (void)write_text(out_dir + "/report.json", report.dump(2) + "\n");
-      (void)write_text(out_dir + "/report.md", report_markdown(report));
+      (void)write_text_file(out_dir + "/report.json", report.dump(2) + "\n");
+      (void)write_text_file(out_dir + "/report.md", report_markdown(report));
       return fail(Error{after.error().message + "\nthe calibrated model was not kept: " +
                         (previous ? "the previous calibration is back"
                                   : "the daemon runs without a calibration") +
@@ -608,8 +595,10 @@ int calibrate_command(const std::vector<std::string>& args) {
   if (const std::string ff = info.value().value("feedforward", ""); ff == "none")
     report["note"] = "the config's feedforward is none: prints do not use the calibrated model "
                      "(feedforward.type: lpv uses it)";
-  if (Status s = write_text(out_dir + "/report.json", report.dump(2) + "\n"); !s) return fail(s.error());
-  if (Status s = write_text(out_dir + "/report.md", report_markdown(report)); !s) return fail(s.error());
+  if (Status s = write_text_file(out_dir + "/report.json", report.dump(2) + "\n"); !s)
+    return fail(s.error());
+  if (Status s = write_text_file(out_dir + "/report.md", report_markdown(report)); !s)
+    return fail(s.error());
   if (report["e_t_mm"]["before"].is_number() &&
       std::isfinite(report["e_t_mm"]["before"].get<double>()))
     std::printf("e_t of the check pattern: before %.4f mm",

@@ -14,7 +14,8 @@
 
 #include "calibration/overlay_from_ident.hpp"
 #include "cli/progress.hpp"
-#include "config/config.hpp"
+#include "cli/text_file.hpp"
+#include "config/config_source.hpp"
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
 #include "ident/frf.hpp"
@@ -214,26 +215,12 @@ int excite(const std::vector<std::string>& args) {
 Status write_overlay(const std::string& path, const std::string& config_path,
                      const ident::IdentResult& r, double mean_position_mm,
                      const std::string& source) {
-  auto base = config_path.empty() ? Result<config::MachineConfig>(config::default_config())
-                                  : config::load_config_file(config_path);
+  auto base = config::load_machine_config({config_path, "", false});
   if (!base) return base.error();
-  std::string existing;
-  if (std::ifstream in(path, std::ios::binary); in) {
-    std::ostringstream text;
-    text << in.rdbuf();
-    existing = text.str();
-  }
-  auto yaml = calibration::merge_overlay(base.value(), existing, path, r, mean_position_mm, source);
+  auto yaml = calibration::merge_overlay(base.value().config, read_text_file(path), path, r,
+                                         mean_position_mm, source);
   if (!yaml) return yaml.error();
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out << yaml.value();
-    if (!out.flush()) return Error{"cannot write " + tmp + ": " + std::strerror(errno), {}};
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0)
-    return Error{"cannot rename " + tmp + " to " + path + ": " + std::strerror(errno), {}};
-  return Status{};
+  return write_text_file(path, yaml.value());
 }
 
 int fit(const std::vector<std::string>& args) {

@@ -908,8 +908,11 @@ void McuBridge::collect(double) {
     if (!samples.empty()) {
       for (size_t j = 0; j < kJoints; ++j) {
         if (joint_mcu_[j] < 0 || mcus_[static_cast<size_t>(joint_mcu_[j])].get() != m.get()) continue;
+        // Every sample to the recorder (take_encoder_samples); the latest is the joint's reading.
+        const drivers::EncoderSample* latest = nullptr;
         for (const drivers::EncoderSample& e : samples) {
           if (e.axis != joint_motor_[j]) continue;
+          latest = &e;
           if (encoder_reading_count_ == encoder_readings_.size()) {
             ++encoder_readings_dropped_;
             continue;
@@ -918,17 +921,16 @@ void McuBridge::collect(double) {
               static_cast<int>(j), e.clock,
               static_cast<double>(e.counts) * encoder_mm_per_count_[j]};
         }
-        for (auto it = samples.rbegin(); it != samples.rend(); ++it)
-          if (it->axis == joint_motor_[j]) {
-            encoder_mm_[j].store(static_cast<double>(it->counts) * encoder_mm_per_count_[j], std::memory_order_relaxed);
-            encoder_reports_[j].fetch_add(1, std::memory_order_relaxed);
-            // When it was sampled, on the host clock (the clock sync's map, inverted).
-            const stepgen::TickMap map = tick_map(static_cast<int>(j));
-            if (map.ticks_per_s > 0.0)
-              encoder_time_s_[j].store((static_cast<double>(it->clock) - map.offset_ticks) / map.ticks_per_s,
-                                       std::memory_order_relaxed);
-            break;
-          }
+        if (latest == nullptr) continue;
+        encoder_mm_[j].store(static_cast<double>(latest->counts) * encoder_mm_per_count_[j],
+                             std::memory_order_relaxed);
+        encoder_reports_[j].fetch_add(1, std::memory_order_relaxed);
+        // When it was sampled, on the host clock (the clock sync's map, inverted).
+        const stepgen::TickMap map = tick_map(static_cast<int>(j));
+        if (map.ticks_per_s > 0.0)
+          encoder_time_s_[j].store(
+              (static_cast<double>(latest->clock) - map.offset_ticks) / map.ticks_per_s,
+              std::memory_order_relaxed);
       }
       encoder_samples_.fetch_add(samples.size(), std::memory_order_relaxed);
     }

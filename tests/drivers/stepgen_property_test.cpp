@@ -40,6 +40,26 @@ struct Bodies final : BatchSink {
   }
 };
 
+// Every body's runs expanded with the MCU's step law (step_run.hpp), in order. False at the first
+// malformed body or invalid run (what was decoded before it stays in the vectors).
+bool decode_bodies(const Bodies& sink, std::vector<int64_t>& clocks, std::vector<int8_t>& dirs) {
+  for (const auto& body : sink.bodies) {
+    RunDecoder dec;
+    if (!dec.begin(body.data(), body.size())) return false;
+    int64_t p = dec.first_clock();
+    while (!dec.done()) {
+      StepRun r;
+      if (!dec.next(r) || !run_is_valid(p, r)) return false;
+      for (uint32_t k = 1; k <= r.count; ++k) {
+        clocks.push_back(run_step_clock(p, r, k));
+        dirs.push_back(r.direction);
+      }
+      p = run_end_clock(p, r);
+    }
+  }
+  return true;
+}
+
 struct Draw {
   int kind;  // 0 trapezoid, 1 reversals, 2 cubic, 3 all three in a row
   double err_us, clock_hz, steps_per_mm;
@@ -120,24 +140,7 @@ Outcome compress(const Recorder& exact, const std::vector<JointSegment>& segs, c
   Outcome o;
   o.stats = comp.stats();
   o.bytes = sink.bytes;
-  for (const auto& body : sink.bodies) {
-    RunDecoder dec;
-    EXPECT_TRUE(dec.begin(body.data(), body.size()));
-    int64_t p = dec.first_clock();
-    while (!dec.done()) {
-      StepRun r;
-      if (!dec.next(r)) {
-        ADD_FAILURE() << "malformed body";
-        return o;
-      }
-      EXPECT_TRUE(run_is_valid(p, r));
-      for (uint32_t k = 1; k <= r.count; ++k) {
-        o.clocks.push_back(run_step_clock(p, r, k));
-        o.dirs.push_back(r.direction);
-      }
-      p = run_end_clock(p, r);
-    }
-  }
+  if (!decode_bodies(sink, o.clocks, o.dirs)) ADD_FAILURE() << "malformed body or invalid run";
   return o;
 }
 
@@ -225,30 +228,20 @@ void check_stream(const std::vector<double>& t, const std::vector<int8_t>& d, do
   EXPECT_EQ(comp.stats().check_failures, 0u);
   EXPECT_EQ(comp.stats().window_violations, 0u);
   EXPECT_EQ(comp.stats().steps, t.size());
-  size_t i = 0;
+  std::vector<int64_t> clocks;
+  std::vector<int8_t> dirs;
+  ASSERT_TRUE(decode_bodies(sink, clocks, dirs)) << "malformed body or invalid run";
+  ASSERT_EQ(clocks.size(), t.size());
   double prev_t = start, prev_clock = start;
-  for (const auto& body : sink.bodies) {
-    RunDecoder dec;
-    ASSERT_TRUE(dec.begin(body.data(), body.size()));
-    int64_t p = dec.first_clock();
-    while (!dec.done()) {
-      StepRun r;
-      ASSERT_TRUE(dec.next(r));
-      ASSERT_TRUE(run_is_valid(p, r));
-      for (uint32_t k = 1; k <= r.count; ++k, ++i) {
-        ASSERT_LT(i, t.size());
-        const double c = static_cast<double>(run_step_clock(p, r, k));
-        ASSERT_GE(c, t[i] - std::min(E, 0.5 * (t[i] - prev_t))) << "step " << i;
-        ASSERT_LE(c, t[i] + E) << "step " << i;
-        ASSERT_GT(c, prev_clock) << "step " << i;
-        ASSERT_EQ(r.direction, d[i]) << "step " << i;
-        prev_t = t[i];
-        prev_clock = c;
-      }
-      p = run_end_clock(p, r);
-    }
+  for (size_t i = 0; i < t.size(); ++i) {
+    const double c = static_cast<double>(clocks[i]);
+    ASSERT_GE(c, t[i] - std::min(E, 0.5 * (t[i] - prev_t))) << "step " << i;
+    ASSERT_LE(c, t[i] + E) << "step " << i;
+    ASSERT_GT(c, prev_clock) << "step " << i;
+    ASSERT_EQ(dirs[i], d[i]) << "step " << i;
+    prev_t = t[i];
+    prev_clock = c;
   }
-  EXPECT_EQ(i, t.size());
 }
 
 // Streams no generator makes: random intervals over six decades, exact quadratics (one run each
