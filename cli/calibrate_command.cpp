@@ -385,7 +385,9 @@ std::string report_markdown(const json& j) {
 
 }  // namespace
 
-int calibrate_command(const std::vector<std::string>& args) {
+namespace {
+
+int calibrate(const std::vector<std::string>& args) {
   std::string out_dir = "calibration", api_path, gcode_dir, config_path;
   std::vector<std::string> axes{"x", "y"};
   bool install = true, check_only = false;
@@ -618,6 +620,22 @@ int calibrate_command(const std::vector<std::string>& args) {
               report["installed"].get<std::string>().empty() ? "" : "; installed and loaded");
   if (report.contains("note")) std::printf("note: %s\n", report["note"].get<std::string>().c_str());
   return 0;
+}
+
+}  // namespace
+
+// An answer of another shape than this feedloop's daemon gives (an older daemon, a broken reply)
+// is a clear error, not an abort.
+int calibrate_command(const std::vector<std::string>& args) {
+  try {
+    return calibrate(args);
+  } catch (const nlohmann::json::exception& e) {
+    std::fprintf(
+        stderr,
+        "\nfeedloop calibrate: the daemon's answer is not what this feedloop expects (%s)\n",
+        e.what());
+    return 1;
+  }
 }
 
 }  // namespace feedloop::cli

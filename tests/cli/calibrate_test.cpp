@@ -6,10 +6,15 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
+
 #include <filesystem>
 #include <fstream>
 #include <regex>
 #include <sstream>
+#include <thread>
 
 #include "config/calibration.hpp"
 #include "config/config.hpp"
@@ -157,6 +162,44 @@ TEST_F(Calibrate, OnTheSecondSimulatorTheCalibratedModelCutsTheTrackingError) {
   // (0.0123).
   EXPECT_LT(after, 0.3 * before);
   EXPECT_LT(after, 0.35 * open_loop);
+}
+
+// A daemon whose answers have another shape (an older feedloopd, a broken reply): every request
+// gets an empty result. calibrate says so and exits 1; it does not abort.
+TEST_F(Calibrate, AnAnswerOfAnotherShapeIsAClearError) {
+  const std::string path = dir_ + "/fake.sock";
+  const int listener = ::socket(AF_UNIX, SOCK_STREAM, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path.c_str());
+  ASSERT_EQ(::bind(listener, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  ASSERT_EQ(::listen(listener, 1), 0);
+  std::thread fake([listener] {
+    const int c = ::accept(listener, nullptr, nullptr);
+    if (c < 0) return;
+    std::string buf;
+    char tmp[4096];
+    for (ssize_t n; (n = ::read(c, tmp, sizeof tmp)) > 0;) {
+      buf.append(tmp, static_cast<size_t>(n));
+      for (size_t nl; (nl = buf.find('\n')) != std::string::npos; buf.erase(0, nl + 1)) {
+        const json req = json::parse(buf.substr(0, nl), nullptr, false);
+        const std::string reply = json{{"jsonrpc", "2.0"},
+                                       {"id", req.is_object() ? req.value("id", 0) : 0},
+                                       {"result", json::object()}}
+                                      .dump() +
+                                  "\n";
+        if (::write(c, reply.data(), reply.size()) < 0) break;
+      }
+    }
+    ::close(c);
+  });
+  std::string out;
+  EXPECT_EQ(calibrate({"--api", path, "--out", dir_ + "/out"}, &out, 30), 1);
+  EXPECT_NE(out.find("the daemon's answer is not what this feedloop expects"), std::string::npos)
+      << out;
+  ::shutdown(listener, SHUT_RDWR);
+  ::close(listener);
+  fake.join();
 }
 
 TEST_F(Calibrate, WithoutADaemonOrWithBadArgumentsItSaysWhy) {
