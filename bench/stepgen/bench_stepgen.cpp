@@ -48,7 +48,7 @@ constexpr double kFrameOverheadBytes = 9.0;
 struct Row {
   std::string workload;
   double err_us, steps, gen_ns, comp_ns, total_ns, msteps_s, run_bps, wire_bps, steps_per_run;
-  double searches_per_step, trials_per_search;
+  double searches_per_step, trials_per_search, scanned_per_step;
 };
 
 // Thread CPU time: robust against other processes on a shared machine (this is single-threaded
@@ -69,7 +69,7 @@ void compress(const StoreSteps& st, StepCompressor& c) {
 Row run(const std::string& name, const std::vector<JointSegment>& segs, double spm, double err_us,
         double clock_hz = 20e6) {
   const TickMap map{0.0, clock_hz};
-  Row r{name, err_us, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+  Row r{name, err_us, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
   StoreSteps st;
   {
     // Generation alone (into a vector reserved beforehand: the stores are part of the cost).
@@ -123,6 +123,7 @@ Row run(const std::string& name, const std::vector<JointSegment>& segs, double s
   r.wire_bps = (cb.bytes + kFrameOverheadBytes * cb.batches) / r.steps;
   r.steps_per_run = r.steps / static_cast<double>(c.stats().runs);
   r.searches_per_step = static_cast<double>(c.stats().searches) / r.steps;
+  r.scanned_per_step = static_cast<double>(c.stats().scanned) / r.steps;
   r.trials_per_search = static_cast<double>(c.stats().trials) /
                         std::max<double>(1.0, static_cast<double>(c.stats().searches));
   return r;
@@ -192,15 +193,15 @@ int main(int argc, char** argv) {
     rows.push_back(run("cubic_1ms", cubic, 160.0, e));
   }
   if (!gcode.empty() && !gcode_rows(gcode, config_path, rows)) return 1;
-  std::printf("%-20s %6s %10s %8s %8s %10s %9s %8s %8s %9s %10s %9s %9s\n", "workload", "err_us",
-              "steps", "gen_ns", "comp_ns", "comp_Mst/s", "total_ns", "Msteps/s", "run_B/st",
-              "wire_B/st", "steps/run", "search/st", "trial/sr");
+  std::printf("%-20s %6s %10s %8s %8s %10s %9s %8s %8s %9s %10s %9s %9s %8s\n", "workload",
+              "err_us", "steps", "gen_ns", "comp_ns", "comp_Mst/s", "total_ns", "Msteps/s",
+              "run_B/st", "wire_B/st", "steps/run", "search/st", "trial/sr", "scan/st");
   for (const auto& r : rows)
     std::printf(
-        "%-20s %6.0f %10.0f %8.2f %8.2f %10.1f %9.2f %8.1f %8.3f %9.3f %10.1f %9.3f %9.2f\n",
+        "%-20s %6.0f %10.0f %8.2f %8.2f %10.1f %9.2f %8.1f %8.3f %9.3f %10.1f %9.3f %9.2f %8.2f\n",
         r.workload.c_str(), r.err_us, r.steps, r.gen_ns, r.comp_ns, 1e3 / r.comp_ns, r.total_ns,
         r.msteps_s, r.run_bps, r.wire_bps, r.steps_per_run, r.searches_per_step,
-        r.trials_per_search);
+        r.trials_per_search, r.scanned_per_step);
   if (!json.empty()) {
     FILE* f = std::fopen(json.c_str(), "w");
     if (!f) { std::perror(json.c_str()); return 1; }

@@ -1,5 +1,5 @@
-// Greedy run compression in one pass, candidates from two convex hulls: see step_compressor.hpp
-// and run_hulls.hpp.
+// Greedy run compression in one pass, candidates fitted to a few active windows and checked
+// against every step: see step_compressor.hpp and active_windows.hpp.
 #include "drivers/stepgen/step_compressor.hpp"
 
 #include <algorithm>  // std::min, std::max, std::clamp
@@ -15,6 +15,11 @@ constexpr int kNewtonSteps = 8;         // pieces of F crossed on the way to a f
 constexpr int kTrials = 8;              // integer adds tried after the first
 constexpr double kGapTol = 1e-7;        // ticks: F(s) this small counts as touching (doubles)
 constexpr double kRootSlack = 1e-6;     // adds: a tangent's root, widened for rounding
+constexpr double kTieTol = 1e-3;        // intervals: real bounds this close may round either way
+// A run's searches check at most this many steps per step of the run (plus the base): bounded
+// work per step whatever the stream (a run whose searches would exceed it ends there).
+constexpr uint64_t kScanPerStep = 16;
+constexpr uint64_t kScanBase = 4096;
 using detail::ceil_i;
 using detail::floor_i;
 using detail::round_i;
@@ -31,7 +36,6 @@ void StepCompressor::configure(const StepCompressorParams& params, RunSink* sink
   // never reaches are never touched, so resident memory follows the longest run, not the limit.
   const size_t cap = static_cast<size_t>(params_.max_run_count) + 2;
   T_.reset(static_cast<double*>(std::malloc(cap * sizeof(double))));
-  hulls_.configure(cap);
   stats_ = {};
   reset(0, 0.0);
 }
@@ -40,7 +44,7 @@ void StepCompressor::reset(int64_t last_step_clock, double last_step_target_tick
   P_ = last_step_clock;
   prev_target_ = last_step_target_ticks;
   n_ = 0;
-  hulls_.clear();
+  active_.clear();
 }
 
 void StepCompressor::push_slow(double target, double prev, int8_t direction) {
@@ -59,7 +63,6 @@ void StepCompressor::push_slow(double target, double prev, int8_t direction) {
     pos_ = P_ + kk * I_ + A_ * tri(kk);
     iv_ = I_ + kk * A_;
     n_ = k;
-    searched_to_ = k;
     return;
   }
   emit();
@@ -81,9 +84,9 @@ void StepCompressor::start_run_with_first_point() {
   }
   I_ = I;
   A_ = last_add_;  // the previous run's curvature: often right for the next steps too
-  // With the next steps at hand: the mean-interval line (run_hulls.hpp (1)) through the mean
+  // With the next steps at hand: the mean-interval line (active_windows.hpp (1)) through the mean
   // intervals at half and at all of the last run's length, the run these steps are likely to
-  // end on (a candidate only: the hulls decide).
+  // end on (a candidate only: the searches decide).
   const size_t m = std::min<size_t>(std::clamp<uint32_t>(last_count_, 4, 256), ahead_n_ + 1);
   if (m >= 4 && lo_i <= hi_i) {
     const size_t k1 = m / 2, k2 = m;
@@ -100,37 +103,60 @@ void StepCompressor::start_run_with_first_point() {
   pos_ = P_ + I;
   iv_ = I + A_;
   n_ = 1;
-  searched_to_ = 1;
-  hulls_.clear();
+  active_.clear();
+  scanned_ = 0;
   add_lo_ = -kMaxAdd;
   add_hi_ = kMaxAdd;
 }
 
-StepCompressor::Trial StepCompressor::gap_at(double a, uint32_t n) {
-  const double s = 0.5 * a;
-  const RunHulls::Bound lb = hulls_.lower_bound(s), ub = hulls_.upper_bound(s);
+StepCompressor::Trial StepCompressor::gap_at(double a, uint32_t n) const {
+  const ActiveWindows::Range r = active_.at(a);
   // I >= 1 and the last interval I + (n-1) A >= 1 (intervals are linear in k).
-  double lower = lb.value, d_lower = 0.5 * lb.slope;
+  double lower = r.lower.value, d_lower = r.lower.slope;
   if (lower < 1.0) lower = 1.0, d_lower = 0.0;
   const double nm1 = n - 1.0, last = 1.0 - nm1 * a;
   if (last > lower) lower = last, d_lower = -nm1;
-  return {0, -1, lower - ub.value, d_lower - 0.5 * ub.slope, lb.k, ub.k, lb.value, ub.value};
+  return {0,         -1,        lower - r.upper.value, d_lower - r.upper.slope,
+          r.lower.k, r.upper.k, r.lower.value,         r.upper.value};
 }
 
-StepCompressor::Trial StepCompressor::trial(int64_t a, uint32_t n) {
-  Trial t = gap_at(static_cast<double>(a), n);
-  // Integer bounds at the vertices the hulls name, settled by the exact test the fast path
-  // uses: the integer clock P + k I + t_k a against the window's real bound.
+StepCompressor::Trial StepCompressor::trial(int64_t a, uint32_t n) const {
+  const auto ad = static_cast<double>(a);
+  Trial t = gap_at(ad, n);
+  // Integer bounds settled by the exact test the fast path uses: the integer clock
+  // P + k I + t_k a against the window's real bound.
   auto clock = [&](int64_t k, int64_t i) { return static_cast<double>(P_ + k * i + tri(k) * a); };
-  const int64_t ku = t.k_lo, kl = t.k_hi;
-  const double lo = window_lo(t.k_lo), hi = window_hi(t.k_hi);
-  // The hulls' real bounds are within rounding of the exact ones: the loops settle them.
-  int64_t i_lo = ceil_i(std::clamp(t.lo_value, -4e18, 4e18));
-  while (clock(ku, i_lo - 1) >= lo) --i_lo;
-  while (clock(ku, i_lo) < lo) ++i_lo;
-  int64_t i_hi = floor_i(std::clamp(t.hi_value, -4e18, 4e18));
-  while (clock(kl, i_hi + 1) <= hi) ++i_hi;
-  while (clock(kl, i_hi) > hi) --i_hi;
+  auto settle_lo = [&](int64_t k, double real) {
+    const double lo = window_lo(static_cast<uint32_t>(k));
+    int64_t i = ceil_i(std::clamp(real, -4e18, 4e18));
+    while (clock(k, i - 1) >= lo) --i;
+    while (clock(k, i) < lo) ++i;
+    return i;
+  };
+  auto settle_hi = [&](int64_t k, double real) {
+    const double hi = window_hi(static_cast<uint32_t>(k));
+    int64_t i = floor_i(std::clamp(real, -4e18, 4e18));
+    while (clock(k, i + 1) <= hi) ++i;
+    while (clock(k, i) > hi) --i;
+    return i;
+  };
+  int64_t i_lo = settle_lo(t.k_lo, t.lo_value), i_hi = settle_hi(t.k_hi, t.hi_value);
+  // Another window whose real bound is within rounding of the settled integer may round past it
+  // (none can when the extreme itself is not that close).
+  if (t.lo_value > static_cast<double>(i_lo) - kTieTol) {
+    for (uint32_t j = 0; j < active_.size(); ++j) {
+      const uint32_t k = active_.step(j);
+      if (k != t.k_lo && active_.lower_at(j, ad) > static_cast<double>(i_lo) - kTieTol)
+        i_lo = std::max(i_lo, settle_lo(k, active_.lower_at(j, ad)));
+    }
+  }
+  if (t.hi_value < static_cast<double>(i_hi) + kTieTol) {
+    for (uint32_t j = 0; j < active_.size(); ++j) {
+      const uint32_t k = active_.step(j);
+      if (k != t.k_hi && active_.upper_at(j, ad) < static_cast<double>(i_hi) + kTieTol)
+        i_hi = std::min(i_hi, settle_hi(k, active_.upper_at(j, ad)));
+    }
+  }
   t.i_lo = std::max({i_lo, int64_t{1}, 1 - static_cast<int64_t>(n - 1) * a});
   t.i_hi = i_hi;
   return t;
@@ -140,19 +166,44 @@ bool StepCompressor::find_candidate(uint32_t n) {
   ++stats_.searches;
   if (add_lo_ > add_hi_) return false;  // an earlier search left no add for this run
   const double p = static_cast<double>(P_);
-  hulls_.extend(n, [&](uint32_t k) {
-    const double r = 1.0 / static_cast<double>(k);
-    return std::pair{(window_lo(k) - p) * r, (window_hi(k) - p) * r};
-  });
+  auto add_window = [&](uint32_t k) { active_.add(k, window_lo(k) - p, window_hi(k) - p); };
+  // The run's first step and the step that the candidate missed; then every step the new
+  // candidate misses, until one takes them all or the windows leave none.
+  if (active_.size() == 0 && n > 1) {
+    add_window(1);
+    if (n > 3) add_window(n / 2);
+  }
+  if (active_.full()) return false;
+  add_window(n);
+  for (;;) {
+    int64_t I = 0, A = 0;
+    if (!solve(n, I, A)) return false;
+    if (scanned_ > kScanPerStep * n + kScanBase) return false;  // bounded work per step
+    const uint32_t v = worst_violation(I, A, n);
+    const uint32_t checked = n;
+    scanned_ += checked;
+    stats_.scanned += checked;
+    if (v == 0) {
+      I_ = I;
+      A_ = A;
+      return true;
+    }
+    // A step already in S: the exact settle disagrees with the check (rounding); end the run.
+    if (active_.full() || active_.contains(v)) return false;
+    add_window(v);
+  }
+}
+
+bool StepCompressor::solve(uint32_t n, int64_t& I_out, int64_t& A_out) {
   const double d_n = T_[n] - T_[n - 1], nm1 = n - 1.0;
   auto accept = [&](int64_t a, const Trial& t) {
     // The I whose last interval is the newest exact one: the next steps continue it.
     const double i_pref = d_n - nm1 * static_cast<double>(a);
-    I_ = std::clamp<int64_t>(round_i(std::clamp(i_pref, -4e18, 4e18)), t.i_lo, t.i_hi);
-    A_ = a;
+    I_out = std::clamp<int64_t>(round_i(std::clamp(i_pref, -4e18, 4e18)), t.i_lo, t.i_hi);
+    A_out = a;
     return true;
   };
-  // F is convex and only grows as steps join the run, so its tangent at any trial bounds the
+  // F is convex and only grows as steps and windows join, so its tangent at any trial bounds the
   // adds that can still work, now and for the rest of the run: none lies past the tangent's root
   // on the side where it rises. The bounds make later searches short (the one that ends the run
   // mostly finds no add left after one trial). False when no add is left.
@@ -226,16 +277,20 @@ bool StepCompressor::find_candidate(uint32_t n) {
   return false;
 }
 
-uint32_t StepCompressor::first_violation(int64_t I, int64_t A, uint32_t n) const {
+uint32_t StepCompressor::worst_violation(int64_t I, int64_t A, uint32_t n) const {
   if (I + static_cast<int64_t>(n - 1) * A < 1 || I < 1) return n;  // intervals are linear in k
   int64_t clock = P_, iv = I;
+  double worst = 0.0;  // the largest miss of the mean interval, (2): ticks over k
+  uint32_t worst_k = 0;
   for (uint32_t k = 1; k <= n; ++k) {
     clock += iv;
     iv += A;
     const auto c = static_cast<double>(clock);
-    if (c < window_lo(k) || c > window_hi(k)) return k;
+    const double miss = std::max(window_lo(k) - c, c - window_hi(k)) / static_cast<double>(k);
+    worst_k = miss > worst ? k : worst_k;
+    worst = miss > worst ? miss : worst;
   }
-  return 0;
+  return worst_k;
 }
 
 void StepCompressor::emit() {
@@ -245,9 +300,10 @@ void StepCompressor::emit() {
   run.add_ticks = static_cast<int32_t>(A_);
   run.count = n_;
   run.direction = dir_;
-  // check_line: expand the run with the MCU step law before it leaves. Steps after the last
-  // search were each checked by the fast path with this very (I, A), by the same test.
-  if (first_violation(I_, A_, searched_to_) != 0 || run_end_clock(P_, run) != pos_) {
+  // Every step of the run was checked against its window by the test that admitted it (the
+  // search's scan of steps 1..n for the candidate it chose, the fast path for each later step);
+  // the run's end, expanded with the MCU step law, must be where those checks put it.
+  if (run_end_clock(P_, run) != pos_) {
     ++stats_.check_failures;
     emit_single_steps();
     return;

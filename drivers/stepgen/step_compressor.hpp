@@ -10,23 +10,26 @@
 // One pass over the steps, greedy run extension:
 //  - a candidate (I, A) valid for steps 1..n is kept; a new step is accepted when the
 //    candidate's next step (two integer additions) falls inside its window: the common case;
-//  - otherwise the steps since the last such event enter two convex hulls (run_hulls.hpp) that
-//    describe every run valid for steps 1..n exactly, and a new candidate is looked up in them:
-//    first the add from the curvature of the newest exact times (their second difference),
-//    then, if that leaves no integer I, Newton steps on the convex F of run_hulls.hpp to the
-//    nearest adds that do; I continues the newest interval, within the range the hulls give.
-//    Each trial add costs two hull look-ups; no step is looked at again. F only grows as steps
-//    join, so every trial's tangent of F bounds the adds left for the rest of the run (add_lo_,
-//    add_hi_): the search that ends a run mostly stops after its first trial;
+//  - otherwise a new candidate is fitted to a few of the run's windows (active_windows.hpp:
+//    the run's first step, its middle, the step that was missed, and the steps that earlier
+//    candidates missed): first the add from the curvature of the newest exact times (their
+//    second difference), then, if that leaves no integer I, Newton steps on the convex F of
+//    active_windows.hpp to the nearest adds that do; I continues the newest interval, within the
+//    exact integer range. The candidate is then checked against every step of the run; the
+//    step it misses worst joins the windows and the fit is repeated. F only grows as steps and
+//    windows join, so every trial's tangent of F bounds the adds left for the rest of the run
+//    (add_lo_, add_hi_): the search that ends a run mostly stops after its first trial, and a
+//    run ends only when its windows prove that no (I, A) is left;
 //  - when there is none, the run is emitted and the next one starts from its last step. Its first
 //    candidate, when on_steps() has the next steps at hand, is the line through the mean
 //    intervals at half and at all of the previous run's length (a run about as long as the last
 //    one), clamped to the first step's window; otherwise the previous run's add.
-// Every step enters each hull once and leaves it at most once: O(1) amortised per step. Before a
-// run is handed to the sink it is expanded with the MCU step law and checked against every
-// window up to its last search (as Klipper's check_line does; the fast path checked each later
-// step with the same (I, A) by the same test); a run that fails is counted in check_failures
-// (never expected; tests assert zero) and sent as one-step runs that keep the bound instead.
+// Every step of a run is checked against its window by the test that admitted it (a search's
+// scan, or the fast path), as Klipper's check_line does; a run's searches check at most
+// 16 steps per step of the run (plus 4096), so the work per step is bounded whatever the stream.
+// A run whose end, expanded with the MCU step law, is not where the checks put it is counted in
+// check_failures (never expected; tests assert zero) and sent as one-step runs that keep the
+// bound instead.
 #pragma once
 
 #include <algorithm>  // std::min
@@ -35,7 +38,7 @@
 #include <cstdlib>  // std::free
 #include <memory>
 
-#include "drivers/stepgen/run_hulls.hpp"
+#include "drivers/stepgen/active_windows.hpp"
 #include "drivers/stepgen/step_generator.hpp"
 #include "drivers/stepgen/step_run.hpp"
 
@@ -62,8 +65,9 @@ struct StepCompressorParams {
 struct StepCompressorStats {
   uint64_t steps = 0;
   uint64_t runs = 0;
-  uint64_t searches = 0;  // steps the candidate did not take (a hull look-up followed)
+  uint64_t searches = 0;  // steps the candidate did not take (a search followed)
   uint64_t trials = 0;    // adds tried exactly in those look-ups
+  uint64_t scanned = 0;   // steps the searches checked their candidates against
   uint64_t check_failures = 0;
   uint64_t window_violations = 0;  // steps closer than one tick: error bound could not be met
 };
@@ -123,21 +127,26 @@ class StepCompressor final : public StepSink {
  private:
   // Starts a run whose first step is T_[1] (T_[0]: the step before it).
   void start_run_with_first_point();
-  // A candidate valid for steps 1..n (n >= 2) from the hulls. False when there is none.
+  // A candidate valid for steps 1..n (n >= 2), fitted to the active windows and checked against
+  // every step. False when there is none (or the run's check budget is spent).
   bool find_candidate(uint32_t n);
-  // The exact integer range of I for steps 1..n at add a (empty: lo > hi), and F(a/2) of
-  // run_hulls.hpp with its derivative in a.
+  // The exact integer range of I that the active windows leave at add a (empty: lo > hi), and
+  // F(a) of active_windows.hpp with its derivative in a.
   struct Trial {
     int64_t i_lo, i_hi;
     double gap, gap_slope;  // I_min - I_max (> 0: no real I) and its derivative in a
-    uint32_t k_lo, k_hi;    // the hull vertices that bound I
-    double lo_value, hi_value;  // the real bounds on I at those vertices
+    uint32_t k_lo, k_hi;    // the steps whose windows bound I
+    double lo_value, hi_value;  // the real bounds on I from those windows
   };
-  Trial trial(int64_t a, uint32_t n);
+  Trial trial(int64_t a, uint32_t n) const;
   // Same, real-valued only (no integer rounding): for the search over a.
-  Trial gap_at(double a, uint32_t n);
-  // 0 if (I, A) keeps steps 1..n in their windows, else the first step that it violates.
-  uint32_t first_violation(int64_t I, int64_t A, uint32_t n) const;
+  Trial gap_at(double a, uint32_t n) const;
+  // A candidate (I, A) that the active windows leave (integer, every interval >= 1), searched
+  // over the adds not yet ruled out. False when there is none.
+  bool solve(uint32_t n, int64_t& I, int64_t& A);
+  // 0 if (I, A) keeps steps 1..n in their windows, else the step it misses by the most mean
+  // interval (active_windows.hpp (2)): the window most likely to bind; n if an interval < 1.
+  uint32_t worst_violation(int64_t I, int64_t A, uint32_t n) const;
   void emit();
   void emit_single_steps();
   void push_slow(double target, double prev, int8_t direction);
@@ -183,11 +192,11 @@ class StepCompressor final : public StepSink {
     void operator()(void* p) const { std::free(p); }
   };
   std::unique_ptr<double[], FreeDeleter> T_;
-  RunHulls hulls_;
+  ActiveWindows active_;       // the windows the searches fit candidates to (active_windows.hpp)
+  uint64_t scanned_ = 0;       // steps the current run's searches checked
   double prev_target_ = 0.0;   // exact time of the newest step pushed
   int64_t P_ = 0;              // clock of the last emitted step (run reference)
   uint32_t n_ = 0;             // accepted steps in the current run
-  uint32_t searched_to_ = 0;   // steps 1..this took (I, A) from the hulls or the first window
   int8_t dir_ = 1;
   int64_t I_ = 0, A_ = 0;      // candidate
   int64_t pos_ = 0, iv_ = 0;   // candidate's clock of step n_ and its next interval
