@@ -24,10 +24,25 @@
 // Owner: the compressor that holds it. Fixed capacity, no allocation (RT-safe).
 #pragma once
 
+#include <algorithm>  // std::min, std::max
+#include <array>
 #include <cstdint>
 #include <limits>
 
 namespace feedloop::stepgen {
+
+namespace detail {
+// 1/m (m >= 1), from a table for the small m of most runs: a division costs more than the rest
+// of a window's bookkeeping or of a step's check.
+inline constexpr auto kReciprocals = [] {
+  std::array<double, 1024> t{};
+  for (uint32_t i = 1; i < t.size(); ++i) t[i] = 1.0 / static_cast<double>(i);
+  return t;
+}();
+inline double reciprocal(uint32_t m) {
+  return m < kReciprocals.size() ? kReciprocals[m] : 1.0 / static_cast<double>(m);
+}
+}  // namespace detail
 
 class ActiveWindows {
  public:
@@ -43,7 +58,11 @@ class ActiveWindows {
     Bound lower, upper;  // I_min(A) and I_max(A)
   };
 
-  void clear() { size_ = 0; }
+  void clear() {
+    size_ = 0;
+    a_lo_ = -std::numeric_limits<double>::infinity();
+    a_hi_ = std::numeric_limits<double>::infinity();
+  }
   uint32_t size() const { return size_; }
   bool full() const { return size_ == kCapacity; }
   bool contains(uint32_t k) const {
@@ -52,14 +71,34 @@ class ActiveWindows {
     return false;
   }
   // Adds step k's window lo_rel <= rel_k <= hi_rel (ticks after the run's start). Needs room.
+  // The real adds the windows leave (F <= 0 and I >= 1) narrow with it: every pair of windows
+  // j, l bounds A by  c_j - h_j A <= d_l - h_l A,  and I >= 1 by  1 <= d_l - h_l A.
   void add(uint32_t k, double lo_rel, double hi_rel) {
-    const double r = 1.0 / static_cast<double>(k);
+    const double r = reciprocal(k);
+    const double c = lo_rel * r, d = hi_rel * r, h = 0.5 * (static_cast<double>(k) - 1.0);
+    for (uint32_t j = 0; j < size_; ++j) {
+      // h_j - h = (k_j - k) / 2:  (h_j - h) A <= d_j - c  and  (h - h_j) A <= d - c_j.
+      if (k_[j] > k) {
+        const double two_over_q = 2.0 * reciprocal(k_[j] - k);
+        a_hi_ = std::min(a_hi_, (d_[j] - c) * two_over_q);
+        a_lo_ = std::max(a_lo_, (c_[j] - d) * two_over_q);
+      } else if (k_[j] < k) {
+        const double two_over_q = 2.0 * reciprocal(k - k_[j]);
+        a_lo_ = std::max(a_lo_, (c - d_[j]) * two_over_q);
+        a_hi_ = std::min(a_hi_, (d - c_[j]) * two_over_q);
+      }
+    }
+    if (h > 0.0) a_hi_ = std::min(a_hi_, (d - 1.0) * 2.0 * reciprocal(k - 1));
     k_[size_] = k;
-    c_[size_] = lo_rel * r;
-    d_[size_] = hi_rel * r;
-    h_[size_] = 0.5 * (static_cast<double>(k) - 1.0);
+    c_[size_] = c;
+    d_[size_] = d;
+    h_[size_] = h;
     ++size_;
   }
+  // The real adds every pair of the windows leaves, [adds_lo, adds_hi] (empty: lo > hi, up to
+  // rounding), a relaxation of F <= 0: the run's last-interval bound is not in it.
+  double adds_lo() const { return a_lo_; }
+  double adds_hi() const { return a_hi_; }
 
   // (3) at add a. With S empty: lower -inf, upper +inf. Branch-free selects (the extremes move
   // unpredictably between a few entries).
@@ -83,7 +122,11 @@ class ActiveWindows {
   double upper_at(uint32_t j, double a) const { return d_[j] - h_[j] * a; }
 
  private:
+  static double reciprocal(uint32_t m) { return detail::reciprocal(m); }
+
   uint32_t size_ = 0;
+  double a_lo_ = -std::numeric_limits<double>::infinity();
+  double a_hi_ = std::numeric_limits<double>::infinity();
   uint32_t k_[kCapacity] = {};
   double c_[kCapacity] = {}, d_[kCapacity] = {}, h_[kCapacity] = {};
 };

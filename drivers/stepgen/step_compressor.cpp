@@ -195,6 +195,15 @@ bool StepCompressor::find_candidate(uint32_t n) {
 }
 
 bool StepCompressor::solve(uint32_t n, int64_t& I_out, int64_t& A_out) {
+  // The integer adds inside the real ones that every pair of windows leaves (widened for
+  // rounding): none means no run.
+  {
+    const double lo = active_.adds_lo(), hi = active_.adds_hi();
+    const double slack = kRootSlack * (1.0 + std::abs(lo) + std::abs(hi));
+    if (lo > -kMaxAdd) add_lo_ = std::max(add_lo_, ceil_i(lo - slack));
+    if (hi < kMaxAdd) add_hi_ = std::min(add_hi_, floor_i(hi + slack));
+    if (add_lo_ > add_hi_) return false;
+  }
   const double d_n = T_[n] - T_[n - 1], nm1 = n - 1.0;
   auto accept = [&](int64_t a, const Trial& t) {
     // The I whose last interval is the newest exact one: the next steps continue it.
@@ -282,14 +291,17 @@ uint32_t StepCompressor::worst_violation(int64_t I, int64_t A, uint32_t n) const
   int64_t clock = P_, iv = I;
   double worst = 0.0;  // the largest miss of the mean interval, (2): ticks over k
   uint32_t worst_k = 0;
-  for (uint32_t k = 1; k <= n; ++k) {
+  auto check = [&](uint32_t k, double over_k) {
     clock += iv;
     iv += A;
     const auto c = static_cast<double>(clock);
-    const double miss = std::max(window_lo(k) - c, c - window_hi(k)) / static_cast<double>(k);
+    const double miss = std::max(window_lo(k) - c, c - window_hi(k)) * over_k;
     worst_k = miss > worst ? k : worst_k;
     worst = miss > worst ? miss : worst;
-  }
+  };
+  const uint32_t n_table = std::min<uint32_t>(n, detail::kReciprocals.size() - 1);
+  for (uint32_t k = 1; k <= n_table; ++k) check(k, detail::kReciprocals[k]);
+  for (uint32_t k = n_table + 1; k <= n; ++k) check(k, 1.0 / static_cast<double>(k));
   return worst_k;
 }
 

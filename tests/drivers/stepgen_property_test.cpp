@@ -184,6 +184,9 @@ TEST(StepCompressorProperty, EveryRunReproducesEveryStepWithinTheBound) {
     EXPECT_EQ(o.stats.check_failures, 0u);
     EXPECT_EQ(o.stats.window_violations, 0u);
     EXPECT_EQ(o.stats.steps, exact.ticks.size());
+    // Bounded work: a run's searches check at most 16 steps per step (plus 4096) before their
+    // last check of at most the run's length.
+    EXPECT_LE(o.stats.scanned, 17 * o.stats.steps + 4096 * o.stats.runs);
     double prev_t = offset, prev_clock = offset;
     for (size_t i = 0; i < o.clocks.size(); ++i) {
       const double t = exact.ticks[i], c = static_cast<double>(o.clocks[i]);
@@ -228,6 +231,7 @@ void check_stream(const std::vector<double>& t, const std::vector<int8_t>& d, do
   EXPECT_EQ(comp.stats().check_failures, 0u);
   EXPECT_EQ(comp.stats().window_violations, 0u);
   EXPECT_EQ(comp.stats().steps, t.size());
+  EXPECT_LE(comp.stats().scanned, 17 * comp.stats().steps + 4096 * comp.stats().runs);
   std::vector<int64_t> clocks;
   std::vector<int8_t> dirs;
   ASSERT_TRUE(decode_bodies(sink, clocks, dirs)) << "malformed body or invalid run";

@@ -159,6 +159,9 @@ TEST(StepCompressor, ErrorBoundHoldsOnTrapezoidMoves) {
     EXPECT_LE(r.max_err_ticks, err_us * 20.0);
     EXPECT_EQ(r.stats.check_failures, 0u);
     EXPECT_EQ(r.stats.window_violations, 0u);
+    // Searches check their candidates against the run's steps: about once per step on printing
+    // moves (1.1 on bench_stepgen's stream), not once per search per step.
+    EXPECT_LE(static_cast<double>(r.stats.scanned), 3.0 * static_cast<double>(r.steps));
     if (err_us == 5.0) {
       EXPECT_LE(r.bytes_per_step, 1.0);
     }
