@@ -65,7 +65,11 @@ void StepGenerator::add_segment(const JointSegment& seg) {
 // u = 2D / (b1 + d sqrt(b1^2 + 4cD)), D = x - a1 (no cancellation because sign(b1) = d or b1 = 0).
 // The thresholds are x0 + d i: their count is known before the loop, and each step's time depends
 // on its threshold only, so the loop over a chunk has no branch and no call (a vector loop:
-// the file is compiled without errno for sqrt, docs/decisions.md).
+// the file is compiled without errno for sqrt, docs/decisions.md). On x86-64 GCC also builds an
+// AVX2 copy (four lanes; no FMA, so every step time is the same bit for bit), chosen at load.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("avx2", "default")))
+#endif
 void StepGenerator::quadratic_piece(double t0_s, double a, double b, double c, double tau_a,
                                     double tau_b) {
   const double a1 = a + tau_a * (b + tau_a * c);
