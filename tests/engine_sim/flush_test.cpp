@@ -6,6 +6,7 @@
 // (no latch): the host's position is the steps'.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -388,16 +389,22 @@ TEST(Dwell, AG4RightAfterAMoveHoldsTheMachineAndTheM400AfterItWaitsForItsEnd) {
     EXPECT_TRUE(rig.wait_idle());
     return took_s;
   };
-  const double plain_s = timed("G1 X120 Y60 F6000", false);
-  (void)timed("G1 X20 Y20 F6000", false);
-  const double dwell_s = timed("G1 X120 Y60 F6000", true);
+  // The least of three of each: a busy test machine can only add time (the virtual clock runs on
+  // while a thread that would release the move waits for a core; 0.25 s seen under load 5).
+  double plain_s = 1e9, dwell_s = 1e9;
+  for (int rep = 0; rep < 3; ++rep) {
+    plain_s = std::min(plain_s, timed("G1 X120 Y60 F6000", false));
+    (void)timed("G1 X20 Y20 F6000", false);
+    dwell_s = std::min(dwell_s, timed("G1 X120 Y60 F6000", true));
+    (void)timed("G1 X20 Y20 F6000", false);
+  }
   std::printf("move then M400: %.3f s; move, G4 P1000, M400: %.3f s of machine time\n", plain_s,
               dwell_s);
   // (Each figure varies by some 30 ms from run to run: where the motion starts on the servo grid
   // and the device loops' lead; the old G4 gave a difference of 0.)
   EXPECT_NEAR(dwell_s - plain_s, 1.0, 0.06);
   const MachineStatus s = rig.machine->status();
-  EXPECT_NEAR(s.pos_mm[0], 120.0, 1e-9);
+  EXPECT_NEAR(s.pos_mm[0], 20.0, 1e-9);
   EXPECT_EQ(s.lost_step_events, 0u);
 }
 
