@@ -91,8 +91,9 @@ void StepCompressor::start_run_with_first_point() {
   if (m >= 4 && lo_i <= hi_i) {
     const size_t k1 = m / 2, k2 = m;
     const double m1 = (k1 == 1 ? T_[1] : ahead_[k1 - 2]) - p, m2 = ahead_[k2 - 2] - p;
-    const double c1 = m1 / static_cast<double>(k1), c2 = m2 / static_cast<double>(k2);
-    const double a = 2.0 * (c2 - c1) / static_cast<double>(k2 - k1);
+    const double c1 = m1 * detail::reciprocal(static_cast<uint32_t>(k1));
+    const double c2 = m2 * detail::reciprocal(static_cast<uint32_t>(k2));
+    const double a = 2.0 * (c2 - c1) * detail::reciprocal(static_cast<uint32_t>(k2 - k1));
     if (std::abs(a) < 1e9) {
       A_ = round_i(a);
       I_ = std::clamp<int64_t>(
@@ -236,10 +237,7 @@ bool StepCompressor::solve(uint32_t n, int64_t& I_out, int64_t& A_out) {
       add_lo_, add_hi_);
   ++stats_.trials;
   Trial t = trial(a, n);
-  if (t.i_lo <= t.i_hi) {
-    bound(static_cast<double>(a), t);
-    return accept(a, t);
-  }
+  if (t.i_lo <= t.i_hi) return accept(a, t);
   if (!bound(static_cast<double>(a), t)) return false;
   int step;
   if (t.gap > 0.0) {
@@ -271,10 +269,7 @@ bool StepCompressor::solve(uint32_t n, int64_t& I_out, int64_t& A_out) {
   for (int i = 0; i <= kTrials && a >= add_lo_ && a <= add_hi_; ++i, a += step) {
     ++stats_.trials;
     t = trial(a, n);
-    if (t.i_lo <= t.i_hi) {
-      bound(static_cast<double>(a), t);
-      return accept(a, t);
-    }
+    if (t.i_lo <= t.i_hi) return accept(a, t);
     // An add that fails now fails for the rest of the run.
     if (a == add_lo_)
       ++add_lo_;
