@@ -25,14 +25,15 @@ namespace {
 void usage() {
   std::fputs(
       "usage: feedloop batch FILE.gcode [--config CFG.yaml] [--json OUT.json] [--quiet] [--threads "
-      "1|2]\n"
+      "auto|1|2]\n"
       "       feedloop batch FILE.gcode [--config CFG.yaml] --simulate [--json OUT.json]\n"
       "       feedloop batch FILE.gcode [--config CFG.yaml] --export-trace TRACE.csv\n"
       "  (each also takes --calibration OVERLAY.yaml: a calibration overlay laid over the config,\n"
       "  as feedloopd does; docs/calibration.md)\n"
       "  Translates FILE through the whole pipeline in virtual time (no hardware) and prints a\n"
       "  summary. Without --config the embedded simulated Cartesian printer is used. --threads 2\n"
-      "  (default) steps half the joints on a second thread; the output is the same with 1.\n"
+      "  steps half the joints on a second thread, 1 all on one; auto (default) takes 2 when a\n"
+      "  second core is free at the start. The output is the same either way.\n"
       "  --simulate runs FILE on the simulated printer of the config (its mock MCUs, plants and\n"
       "  control law) and prints what the machine did: lost-step events, the tracking error e_t\n"
       "  from the encoders, faults, steps the plant lost (ground truth). Exit 1 on any of them.\n"
@@ -234,18 +235,19 @@ int maneuver_batch(const std::string& file, const config::MachineConfig& cfg, bo
 int batch_command(const std::vector<std::string>& args) {
   std::string file, config_path, json_path, trace_path, calibration_path;
   bool quiet = false, sim = false;
-  int threads = 2;
+  int threads = 0;  // auto
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--config" && i + 1 < args.size()) config_path = args[++i];
     else if (args[i] == "--calibration" && i + 1 < args.size())
       calibration_path = args[++i];
     else if (args[i] == "--threads" && i + 1 < args.size()) {
       const std::string& v = args[++i];
-      if (v != "1" && v != "2") {
-        std::fprintf(stderr, "feedloop batch: --threads must be 1 or 2, not '%s'\n", v.c_str());
+      if (v != "auto" && v != "1" && v != "2") {
+        std::fprintf(stderr, "feedloop batch: --threads must be auto, 1 or 2, not '%s'\n",
+                     v.c_str());
         return 2;
       }
-      threads = v == "1" ? 1 : 2;
+      threads = v == "auto" ? 0 : v == "1" ? 1 : 2;
     } else if (args[i] == "--json" && i + 1 < args.size())
       json_path = args[++i];
     else if (args[i] == "--quiet") quiet = true;
@@ -298,17 +300,26 @@ int batch_command(const std::vector<std::string>& args) {
   std::printf("  bytes on the wire %llu (%.3f bytes/step, step-time bound %.1f us)\n",
               static_cast<unsigned long long>(s.wire_bytes), s.wire_bytes_per_step,
               cfg->stepgen.max_step_error_us);
-  std::printf("  wall time         %.3f s (%.0f lines/s, %.1f M steps/s)\n", s.wall_s,
-              s.lines / std::max(s.wall_s, 1e-9), s.total_steps / std::max(s.wall_s, 1e-9) / 1e6);
+  std::printf("  wall time         %.3f s (%.0f lines/s, %.1f M steps/s, %d thread%s)\n", s.wall_s,
+              s.lines / std::max(s.wall_s, 1e-9), s.total_steps / std::max(s.wall_s, 1e-9) / 1e6,
+              s.threads, s.threads == 1 ? "" : "s");
   if (s.check_failures) std::printf("  COMPRESSION CHECK FAILURES: %llu\n", static_cast<unsigned long long>(s.check_failures));
   for (const std::string& m : s.messages) std::printf("  warning: %s\n", m.c_str());
   if (s.rejected > static_cast<int64_t>(s.messages.size()))
     std::printf("  ... and %lld more rejected lines\n", static_cast<long long>(s.rejected - static_cast<int64_t>(s.messages.size())));
   if (!json_path.empty()) {
-    nlohmann::json j{{"file", s.file}, {"lines", s.lines}, {"commands", s.commands},
-                     {"rejected", s.rejected}, {"moves", s.moves}, {"print_time_s", s.print_time_s},
-                     {"total_steps", s.total_steps}, {"wire_bytes", s.wire_bytes},
-                     {"wire_bytes_per_step", s.wire_bytes_per_step}, {"wall_s", s.wall_s},
+    nlohmann::json j{{"file", s.file},
+                     {"lines", s.lines},
+                     {"commands", s.commands},
+                     {"rejected", s.rejected},
+                     {"moves", s.moves},
+                     {"print_time_s", s.print_time_s},
+                     {"total_steps", s.total_steps},
+                     {"wire_bytes", s.wire_bytes},
+                     {"wire_bytes_per_step", s.wire_bytes_per_step},
+                     {"wall_s", s.wall_s},
+                     {"cpu_s", s.cpu_s},
+                     {"threads", s.threads},
                      {"messages", s.messages}};
     for (int k = 0; k < engine::kJoints; ++k) {
       const auto& js = s.joints[static_cast<size_t>(k)];

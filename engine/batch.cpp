@@ -18,6 +18,7 @@
 
 #include "core/blocking_spsc_queue.hpp"
 #include "core/clock.hpp"
+#include "core/free_cores.hpp"
 #include "drivers/protocol/frame.hpp"
 #include "engine/machine.hpp"
 #include "gcode/line_splitter.hpp"
@@ -253,7 +254,9 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
 
   const planner::PlannerConfig pcfg = planner_config(cfg);
   if (Status s = pcfg.validate(); !s) return s.error();
-  const bool threaded = options.threads >= 2 && options.last_stage >= BatchStage::step_times;
+  const int threads =
+      options.threads == 0 ? (core::free_cores() >= 2 ? 2 : 1) : std::min(options.threads, 2);
+  const bool threaded = threads >= 2 && options.last_stage >= BatchStage::step_times;
   StepPipelineParams sp;
   sp.steps_per_mm = steps_per_mm(cfg);
   sp.mcu_clock_hz = static_cast<double>(cfg.stepgen.mcu_clock_hz);
@@ -329,6 +332,7 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
                       : 0.0;
   sum.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   sum.cpu_s = process_cpu_s() - cpu0;
+  sum.threads = threaded ? 2 : 1;
   return sum;
 }
 

@@ -26,9 +26,10 @@ struct BatchOptions {
   std::function<void(double fraction)> on_progress;
   size_t max_messages = 20;  // warnings kept in the summary
   // 2: the reading thread parses, plans and steps joints 1-2; a worker steps joints 0 and 3
-  // (moves handed over through an SPSC queue). 1: everything on the calling thread. The runs,
-  // batches and statistics are bit-identical either way.
-  int threads = 2;
+  // (moves handed over through an SPSC queue). 1: everything on the calling thread. 0 (auto): 2
+  // when a second core is free at the start (core/free_cores.hpp), else 1. The runs, batches and
+  // statistics are bit-identical either way.
+  int threads = 0;
   BatchStage last_stage = BatchStage::output;
   // Test taps, both optional. Each is called from the thread that steps the joint concerned
   // (never concurrently for the same joint): keep per-joint state apart.
@@ -52,6 +53,7 @@ struct BatchSummary {
   uint64_t check_failures = 0;
   double wall_s = 0.0;
   double cpu_s = 0.0;           // CPU time of the process during the run (all threads)
+  int threads = 1;              // threads that stepped the joints
   std::vector<std::string> messages;  // first rejected lines / warnings, "file:line:col: ..."
 };
 

@@ -38,6 +38,7 @@ struct Run {
   int64_t lines = 0;
   uint64_t moves = 0, steps = 0, wire_bytes = 0, check_failures = 0;
   double wall_s = 0, cpu_s = 0, max_rss_mb = 0, bytes_per_step = 0;
+  int threads = 0;  // threads that stepped the joints (what auto chose)
 };
 
 // Runs batch mode on one file in a child process and reads its figures back through a pipe.
@@ -64,6 +65,7 @@ Run run_child(const std::string& file, const config::MachineConfig& cfg, int thr
       r.wall_s = sum->wall_s;
       r.cpu_s = sum->cpu_s;
       r.bytes_per_step = sum->wire_bytes_per_step;
+      r.threads = sum->threads;
     }
     rusage ru{};
     getrusage(RUSAGE_SELF, &ru);
@@ -153,35 +155,44 @@ nlohmann::json stage_times(const Job& job, const config::MachineConfig& cfg, int
   return out;
 }
 
-// One thread against two, interleaved; alone, then with stress-ng --cpu 1 beside it.
+// One thread, two, and the default (auto: two when a second core is free at the start),
+// interleaved; alone, then with stress-ng --cpu 1 beside it.
 nlohmann::json threads_and_load(const Job& job, const config::MachineConfig& cfg, int reps,
                                 bool stress) {
   nlohmann::json out = nlohmann::json::array();
-  std::printf("\n%s, one thread vs two (median of %d, interleaved):\n", job.name.c_str(), reps);
-  std::printf("  %-22s %8s %8s %8s %10s %8s\n", "condition", "threads", "wall_s", "cpu_s",
-              "Msteps/s", "peakMB");
+  constexpr int kSettings[] = {1, 2, 0};
+  std::printf("\n%s, one thread vs two vs auto (median of %d, interleaved):\n", job.name.c_str(),
+              reps);
+  std::printf("  %-22s %8s %8s %8s %8s %10s %8s\n", "condition", "threads", "used", "wall_s",
+              "cpu_s", "Msteps/s", "peakMB");
   for (int loaded = 0; loaded <= (stress ? 1 : 0); ++loaded) {
     CpuHog hog;
     if (loaded && !hog.start()) {
       std::printf("  with stress-ng --cpu 1: not measured (stress-ng did not start)\n");
       break;
     }
-    std::vector<double> w[2], c[2], m[2];
+    std::vector<double> w[3], c[3], m[3], used[3];
     uint64_t steps = 0;
     for (int i = 0; i < reps; ++i)
-      for (int t = 0; t < 2; ++t) {
-        const Run r = run_child(job.path, cfg, t + 1);
+      for (int t = 0; t < 3; ++t) {
+        const Run r = run_child(job.path, cfg, kSettings[t]);
         if (!r.ok) return out;
         w[t].push_back(r.wall_s), c[t].push_back(r.cpu_s), m[t].push_back(r.max_rss_mb);
+        used[t].push_back(r.threads);
         steps = r.steps;
       }
     const char* cond = loaded ? "stress-ng --cpu 1" : "alone";
-    for (int t = 0; t < 2; ++t) {
+    for (int t = 0; t < 3; ++t) {
       const double wall = median(w[t]);
-      std::printf("  %-22s %8d %8.3f %8.3f %10.1f %8.1f\n", cond, t + 1, wall, median(c[t]),
-                  static_cast<double>(steps) / wall / 1e6, median(m[t]));
+      const std::string setting = kSettings[t] == 0 ? "auto" : std::to_string(kSettings[t]);
+      std::string chosen;  // the threads each rep used, e.g. "1,2,2" for auto
+      for (double u : used[t]) chosen += (chosen.empty() ? "" : ",") + std::to_string(int(u));
+      std::printf("  %-22s %8s %8s %8.3f %8.3f %10.1f %8.1f\n", cond, setting.c_str(),
+                  chosen.c_str(), wall, median(c[t]), static_cast<double>(steps) / wall / 1e6,
+                  median(m[t]));
       out.push_back({{"condition", cond},
-                     {"threads", t + 1},
+                     {"threads", setting},
+                     {"threads_used", used[t]},
                      {"wall_s", wall},
                      {"cpu_s", median(c[t])},
                      {"steps_per_s", static_cast<double>(steps) / wall},
@@ -261,7 +272,8 @@ int main(int argc, char** argv) {
   out["load_average_1min_at_start"] = load_average_1min();
   out["files"] = nlohmann::json::array();
   std::printf(
-      "batch mode, %d rep(s) per file (median; two threads; CPU = all threads of the process)\n",
+      "batch mode, %d rep(s) per file (median; default threads: two when a second core is free; "
+      "CPU = all threads of the process)\n",
       reps);
   std::printf("load average (1 min) at start: %.2f\n", load_average_1min());
   std::printf("%-36s %8s %10s %9s %8s %8s %8s %7s %7s %6s\n", "file", "lines", "Msteps/s", "steps",
@@ -271,7 +283,7 @@ int main(int argc, char** argv) {
     std::vector<double> wall, cpu, rss;
     Run r;
     for (int i = 0; i < reps; ++i) {
-      r = run_child(job.path, cfg, 2);
+      r = run_child(job.path, cfg, 0);
       if (!r.ok) break;
       wall.push_back(r.wall_s);
       cpu.push_back(r.cpu_s);
@@ -283,7 +295,7 @@ int main(int argc, char** argv) {
     }
     config::MachineConfig cfg25 = cfg;
     cfg25.stepgen.max_step_error_us = 25.0;
-    const Run r25 = run_child(job.path, cfg25, 2);
+    const Run r25 = run_child(job.path, cfg25, 0);
     const double w = median(wall), c = median(cpu), m = median(rss);
     std::printf("%-36s %8lld %10.1f %8.2fM %8.3f %8.3f %8.1f %7.3f %7.3f %6llu\n", job.name.c_str(),
                 static_cast<long long>(r.lines), static_cast<double>(r.steps) / w / 1e6,

@@ -67,6 +67,29 @@ TEST_F(BatchJson, DcServoWritesThePathFollowingFigures) {
   EXPECT_FALSE(j["faulted"].get<bool>());
 }
 
+// --threads auto (the default) takes one or two; 1 and 2 are what they say; the output is the same.
+TEST_F(BatchJson, ThreadsAreReportedAndDoNotChangeTheOutput) {
+  json runs[3];
+  const char* settings[] = {"1", "2", "auto"};
+  for (int i = 0; i < 3; ++i) {
+    const std::string out_json = (dir_ / ("threads" + std::to_string(i) + ".json")).string();
+    std::string out;
+    ASSERT_EQ(batch({"--threads", settings[i], "--json", out_json}, &out), 0) << out;
+    runs[i] = json::parse(std::ifstream(out_json));
+  }
+  EXPECT_EQ(runs[0]["threads"], 1);
+  EXPECT_EQ(runs[1]["threads"], 2);
+  const int chosen = runs[2]["threads"].get<int>();
+  EXPECT_TRUE(chosen == 1 || chosen == 2) << chosen;
+  for (int i = 1; i < 3; ++i) {
+    EXPECT_EQ(runs[i]["total_steps"], runs[0]["total_steps"]);
+    EXPECT_EQ(runs[i]["wire_bytes"], runs[0]["wire_bytes"]);
+  }
+  std::string out;
+  EXPECT_EQ(batch({"--threads", "3"}, &out), 2);
+  EXPECT_NE(out.find("--threads must be auto, 1 or 2, not '3'"), std::string::npos) << out;
+}
+
 TEST_F(BatchJson, AnUnwritableFileIsAnError) {
   std::string out;
   EXPECT_EQ(batch({"--json", (dir_ / "no-such-dir" / "x.json").string()}, &out), 1);
