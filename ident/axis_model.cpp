@@ -171,6 +171,13 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
   // trace's start, which the fitted sin/cos pair absorbs.
   const double u0 = u_mm[0];
   VecN q = VecN::Zero();
+  // At rest at the start: with a runout the belt leaves the pulley at x1 + b (x1 = 0), so the
+  // carriage (and the extra mass) rest at b; the output is counted from that rest position (the
+  // reading an incremental encoder is zeroed at).
+  const double rest_m = periodic ? pc : 0.0;
+  const double out_offset_m = -rest_m;
+  q[2] = rest_m;
+  if constexpr (N == 6) q[4] = rest_m;
   double z = 0.0;  // friction bristle
   double u_prev = 0.0;
   const double two_pi_over_p = 2.0 * kPi / period_m;
@@ -214,7 +221,7 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
       }
     }
     u_prev = u_k;
-    x2[k] = q[2] * 1e3 + u0;
+    x2[k] = (q[2] + out_offset_m) * 1e3 + u0;
   }
 }
 

@@ -37,6 +37,9 @@ struct AxisModel {
   bool enabled[kEffectCount] = {};
   // periodic_position: runout u + a sin + b cos of 2 pi x1 / P (amplitude_um = hypot(a, b)).
   double period_mm = 33.93, periodic_sin_um = 0.0, periodic_cos_um = 0.0;
+  // The axis starts at rest with the runout's value at its start position (b) already in the belt,
+  // and the measurement counts from that rest reading (an incremental encoder zeroed at power-on):
+  // the output is x2 - b at the start, a sin + b (cos - 1) quasi-statically.
   double friction_force_n = 0.0;     // coulomb_friction (Dahl) ...
   double presliding_um = 20.0;       // ... its bristle deflection at full sliding friction (fitted)
   double backlash_width_um = 0.0;    // backlash: total dead band in the belt

@@ -8,7 +8,7 @@
 // Seeds are first_seed + i for draw i of each kind: every row can be rerun alone with --kinds and
 // --first-seed / --draws.
 //   bench_ident_draws [--draws N] [--first-seed S] [--kinds k1,k2,..] [--duration S] [--threads N]
-//                     [--verbose] [--json FILE]
+//                     [--verbose] [--candidates] [--json FILE]
 #include <sys/resource.h>
 
 #include <atomic>
@@ -82,6 +82,7 @@ struct Outcome {
   double baseline_rms_um = 0, augmented_rms_um = 0;
   double cpu_s = 0;
   std::string error;
+  std::string rounds;  // every candidate's held-out RMS per round (--candidates)
 };
 
 double thread_cpu_s() {
@@ -185,6 +186,22 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
     }
   }
   if (o.found.empty()) o.found = o.found_values = "none";
+  {
+    char line[96];
+    std::snprintf(line, sizeof line, "      held-out %.2f um", res.baseline_validation_rms_um);
+    o.rounds = line;
+    int round = 0;
+    for (const ident::CandidateResult& c : res.candidates) {
+      if (c.round != round) {
+        round = c.round;
+        std::snprintf(line, sizeof line, "\n      round %d:", round);
+        o.rounds += line;
+      }
+      std::snprintf(line, sizeof line, " %s %.2f%s", ident::effect_name(c.effect),
+                    c.validation_rms_um, c.kept ? "*" : "");
+      o.rounds += line;
+    }
+  }
   if (!kind.effect) {
     o.named_right = o.key_right = res.effects.empty();
     return o;
@@ -214,7 +231,7 @@ int main(int argc, char** argv) {
   int draws = 10, threads = 2;
   uint64_t first_seed = 1000;
   double duration_s = 30.0;
-  bool verbose = false, calibration = false, plant2 = false;
+  bool verbose = false, calibration = false, plant2 = false, candidates = false;
   std::string json_path, kinds_arg;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -231,6 +248,8 @@ int main(int argc, char** argv) {
       threads = std::atoi(next().c_str());
     else if (a == "--verbose")
       verbose = true;
+    else if (a == "--candidates")
+      verbose = candidates = true;
     else if (a == "--excitation" && i + 1 < argc &&
              (std::string(argv[i + 1]) == "random" || std::string(argv[i + 1]) == "calibration"))
       calibration = next() == "calibration";
@@ -244,8 +263,8 @@ int main(int argc, char** argv) {
           stderr,
           "usage: bench_ident_draws [--draws N] [--first-seed S] [--kinds none,backlash,..] "
           "[--duration S] [--excitation random|calibration] [--simulator sim|plant2] [--threads N] "
-          "[--verbose] [--json "
-          "FILE]\n");
+          "[--verbose] [--candidates] "
+          "[--json FILE]\n");
       return 2;
     }
   }
@@ -304,7 +323,8 @@ int main(int argc, char** argv) {
             o.found_values.c_str(), o.named_right ? "RIGHT" : "WRONG", o.key_true,
             o.baseline_rms_um, o.augmented_rms_um, o.cpu_s,
             o.error.empty() ? "" : " error: ", o.error.c_str());
-      else
+      if (candidates && o.error.empty()) std::printf("%s\n", o.rounds.c_str());
+      if (!verbose && o.error.empty())
         std::fprintf(stderr, "\r  %zu/%zu identifications", n, jobs.size());
     }
   };
