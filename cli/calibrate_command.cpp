@@ -31,14 +31,15 @@ namespace {
 using nlohmann::json;
 namespace fs = std::filesystem;
 
-// A calibrated model whose check pattern tracks more than 10 % worse than the model it replaces
-// is not kept (the check's e_t repeats to well within that in virtual time; the first
-// simulator's exact model against its own fit: +4 %).
-constexpr double kWorseThanBefore = 1.10;
+// By default a calibrated model whose check pattern tracks more than 10 % worse than the model it
+// replaces is not kept (--max-worse-pct; the check's e_t repeats to well within that in virtual
+// time; the first simulator's exact model against its own fit: +4 %).
+constexpr double kDefaultMaxWorsePct = 10.0;
 
 void usage(std::FILE* out) {
   std::fputs(
       "usage: feedloop calibrate [--axes x,y] [--out DIR] [--api PATH] [--no-install] [--seed N]\n"
+      "                          [--max-worse-pct P]\n"
       "       feedloop calibrate --check-only [--api PATH]   (the check pattern's e_t alone)\n"
       "       feedloop calibrate --write-gcode DIR [--config CFG.yaml] [--axes x,y] [--seed N]\n"
       "  Runs the calibration program on each axis of the machine a running feedloopd drives (as\n"
@@ -399,6 +400,7 @@ int calibrate(const std::vector<std::string>& args) {
   std::vector<std::string> axes{"x", "y"};
   bool install = true, check_only = false;
   uint64_t seed = 1;
+  double max_worse_pct = kDefaultMaxWorsePct;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     const bool has = i + 1 < args.size();
@@ -414,6 +416,17 @@ int calibrate(const std::vector<std::string>& args) {
       seed = std::strtoull(args[++i].c_str(), &end, 10);
       if (end == nullptr || *end != '\0') {
         std::fprintf(stderr, "feedloop calibrate: --seed takes a whole number\n");
+        return 2;
+      }
+    } else if (a == "--max-worse-pct" && has) {
+      char* end = nullptr;
+      const std::string& v = args[++i];
+      max_worse_pct = std::strtod(v.c_str(), &end);
+      if (v.empty() || end == nullptr || *end != '\0' || !std::isfinite(max_worse_pct) ||
+          max_worse_pct < 0.0) {
+        std::fprintf(stderr,
+                     "feedloop calibrate: --max-worse-pct takes a percentage >= 0, not '%s'\n",
+                     v.c_str());
         return 2;
       }
     } else if (a == "--axes" && has) {
@@ -605,7 +618,7 @@ int calibrate(const std::vector<std::string>& args) {
     report["e_t_mm"]["after"] = after.value();
     const json& e_t_before = report["e_t_mm"]["before"];
     if (e_t_before.is_number() && std::isfinite(e_t_before.get<double>()) &&
-        after.value() > kWorseThanBefore * e_t_before.get<double>()) {
+        after.value() > (1.0 + 0.01 * max_worse_pct) * e_t_before.get<double>()) {
       char why[160];
       std::snprintf(why, sizeof why,
                     "with the calibrated model the check pattern's e_t is %.4f mm against %.4f mm "

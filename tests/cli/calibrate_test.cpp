@@ -165,15 +165,16 @@ TEST_F(Calibrate, OnTheSecondSimulatorTheCalibratedModelCutsTheTrackingError) {
 }
 
 // Second simulator, seed 4 (X and Y of drawn machines 4 and 5): the fitted model tracks the check
-// pattern worse than the model it would replace (measured 0.3956 against 0.3481 mm): it is not
-// kept, the daemon runs on without a calibration, and the report says why.
+// pattern worse than the model it would replace (measured 0.3733 against 0.3481 mm, +7 %); with
+// --max-worse-pct 0 it is not kept, the daemon runs on without a calibration, and the report says
+// why (the default, 10 %, keeps it).
 TEST_F(Calibrate, AModelThatTracksWorseIsRolledBack) {
 #ifdef FEEDLOOP_SANITIZED
   GTEST_SKIP() << "the external plant in lock-step for two minutes of motion: optimized build only";
 #endif
   start_daemon(printer_yaml(4));
   std::string out;
-  EXPECT_EQ(calibrate({"--out", dir_ + "/out"}, &out), 1) << out;
+  EXPECT_EQ(calibrate({"--out", dir_ + "/out", "--max-worse-pct", "0"}, &out), 1) << out;
   EXPECT_NE(out.find("the calibrated model was not kept: the daemon runs without a calibration"),
             std::string::npos)
       << out;
@@ -183,7 +184,7 @@ TEST_F(Calibrate, AModelThatTracksWorseIsRolledBack) {
                after = report["e_t_mm"]["after"].get<double>();
   std::printf("second simulator (seed 4): check pattern e_t %.4f -> %.4f mm: rolled back\n", before,
               after);
-  EXPECT_GT(after, 1.1 * before);
+  EXPECT_GT(after, before);
   EXPECT_EQ(report["installed"], "");
   EXPECT_NE(report["rolled_back"].get<std::string>().find("check pattern's e_t"),
             std::string::npos);
@@ -236,6 +237,12 @@ TEST_F(Calibrate, WithoutADaemonOrWithBadArgumentsItSaysWhy) {
   EXPECT_NE(out.find("cannot connect to the daemon's API socket " + dir_ + "/api.sock"), std::string::npos) << out;
   EXPECT_EQ(calibrate({"--seed", "x1"}, &out, 30), 2);
   EXPECT_NE(out.find("--seed takes a whole number"), std::string::npos) << out;
+  for (const char* bad : {"-1", "nan", "10%", ""}) {
+    EXPECT_EQ(calibrate({"--max-worse-pct", bad}, &out, 30), 2) << bad;
+    EXPECT_NE(out.find("--max-worse-pct takes a percentage >= 0, not '" + std::string(bad) + "'"),
+              std::string::npos)
+        << out;
+  }
   EXPECT_EQ(calibrate({"--write-gcode", dir_ + "/g", "--axes", "x,z"}, &out, 30), 1);
   EXPECT_NE(out.find("--axes takes x and y (not 'z')"), std::string::npos) << out;
   // The programs alone: every line a move, a dwell or a comment, within the travel.
