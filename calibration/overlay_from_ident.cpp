@@ -1,12 +1,23 @@
 // ident::IdentResult -> the calibration overlay (overlay_from_ident.hpp).
 #include "calibration/overlay_from_ident.hpp"
 
+#include <algorithm>  // std::max
 #include <cmath>
 
 #include "control/feedforward/gantry_lpv.hpp"
 #include "ident/report.hpp"
 
 namespace feedloop::calibration {
+
+bool apply_damping_floor(config::GantryModelConfig& g, double zeta_min) {
+  // Each spring's own mode: the motor's rotor on k1 (m1), the carriage on the belt k2 (m2).
+  const double c1_min = 2.0 * zeta_min * std::sqrt(std::max(0.0, g.k1_n_per_m * g.m1_kg));
+  const double c2_min = 2.0 * zeta_min * std::sqrt(std::max(0.0, g.k2_n_per_m * g.m2_kg));
+  const bool raised = g.c1_ns_per_m < c1_min || g.c2_ns_per_m < c2_min;
+  g.c1_ns_per_m = std::max(g.c1_ns_per_m, c1_min);
+  g.c2_ns_per_m = std::max(g.c2_ns_per_m, c2_min);
+  return raised;
+}
 
 double belt_length_from_direction_ratio(double ratio, double mean_position_mm,
                                         double max_abs_position_mm) {
@@ -33,6 +44,7 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
   g.k2_n_per_m = m.k2_n_m;
   g.c1_ns_per_m = m.c1_n_s_m;
   g.c2_ns_per_m = m.c2_n_s_m;
+  apply_damping_floor(g);
   if (m.has(ident::Effect::kDirectionStiffness))
     if (const double l_mm = belt_length_from_direction_ratio(m.stiffness_ratio, mean_position_mm,
                                                              max_abs_position_mm);

@@ -18,6 +18,13 @@
 
 namespace feedloop::calibration {
 
+// Raises c1 and c2 so that each spring's own mode (the rotor on k1, the carriage on k2) has a
+// damping ratio of at least zeta_min: the feedforward inverts the model, and a fit that puts a
+// damping near zero (c1 on its bound: a 700 Hz rotor mode at zeta 0.002 on the second simulator)
+// gives an inverse whose gain at that mode asks the motor for more steps than a link can carry.
+// True when it raised one.
+bool apply_damping_floor(config::GantryModelConfig& g, double zeta_min = 0.05);
+
 // L (mm) from a direction ratio measured at mean_position_mm, or 0 when the model cannot use it
 // (no ratio, or L not beyond the travel's largest |x| by 5 %).
 double belt_length_from_direction_ratio(double ratio, double mean_position_mm,

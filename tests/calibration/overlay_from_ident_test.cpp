@@ -1,0 +1,49 @@
+// What the calibration overlay takes from a fit (calibration/overlay_from_ident.hpp).
+#include "calibration/overlay_from_ident.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace feedloop::calibration {
+namespace {
+
+// The second simulator's seed 3 (Y): the fit put c1 at 2.3 N s/m with k1 2.6 MN/m on m1 0.13 kg,
+// a rotor mode of 712 Hz at damping ratio 0.002; the floor raises c1 to zeta 0.05 and leaves the
+// well-damped carriage alone.
+TEST(DampingFloor, RaisesOnlyTheSpringWhoseModeIsBarelyDamped) {
+  config::GantryModelConfig g;
+  g.m1_kg = 0.13;
+  g.m2_kg = 0.45;
+  g.k1_n_per_m = 2618092.0;
+  g.k2_n_per_m = 59305.9;
+  g.c1_ns_per_m = 2.30;
+  g.c2_ns_per_m = 51.27;
+  EXPECT_TRUE(apply_damping_floor(g, 0.05));
+  EXPECT_NEAR(g.c1_ns_per_m, 2.0 * 0.05 * std::sqrt(2618092.0 * 0.13), 1e-9);
+  EXPECT_NEAR(g.c1_ns_per_m, 58.34, 0.01);
+  EXPECT_DOUBLE_EQ(g.c2_ns_per_m, 51.27);  // zeta 0.157 already
+  // A model above the floor (the thesis's X axis, Table 4) is not touched.
+  config::GantryModelConfig thesis;
+  thesis.m1_kg = 0.13;
+  thesis.m2_kg = 0.45;
+  thesis.k1_n_per_m = 355e3;
+  thesis.k2_n_per_m = 110e3;
+  thesis.c1_ns_per_m = 2100.0;
+  thesis.c2_ns_per_m = 112.0;
+  const config::GantryModelConfig copy = thesis;
+  EXPECT_FALSE(apply_damping_floor(thesis, 0.05));
+  EXPECT_DOUBLE_EQ(thesis.c1_ns_per_m, copy.c1_ns_per_m);
+  EXPECT_DOUBLE_EQ(thesis.c2_ns_per_m, copy.c2_ns_per_m);
+}
+
+TEST(BeltLength, FromTheDirectionRatioOnlyWhenTheBeltSpansTheTravel) {
+  // K2(+)/K2(-) = (L + x)/(L - x): L = x (r + 1)/(r - 1).
+  EXPECT_NEAR(belt_length_from_direction_ratio(1.5, 70.0, 150.0), 350.0, 1e-9);
+  EXPECT_EQ(belt_length_from_direction_ratio(1.01, 70.0, 150.0), 0.0);  // no ratio to speak of
+  EXPECT_EQ(belt_length_from_direction_ratio(3.0, 70.0, 150.0), 0.0);   // L 140 < the travel
+  EXPECT_EQ(belt_length_from_direction_ratio(NAN, 70.0, 150.0), 0.0);
+}
+
+}  // namespace
+}  // namespace feedloop::calibration
