@@ -8,29 +8,29 @@
 namespace feedloop::calibration {
 namespace {
 
+// Eq. 13's parameters of one axis (kg, N/m, N s/m).
+config::GantryModelConfig eq13(double m1, double m2, double k1, double k2, double c1, double c2) {
+  config::GantryModelConfig g;
+  g.m1_kg = m1;
+  g.m2_kg = m2;
+  g.k1_n_per_m = k1;
+  g.k2_n_per_m = k2;
+  g.c1_ns_per_m = c1;
+  g.c2_ns_per_m = c2;
+  return g;
+}
+
 // The second simulator's seed 3 (Y): the fit put c1 at 2.3 N s/m with k1 2.6 MN/m on m1 0.13 kg,
 // a rotor mode of 712 Hz at damping ratio 0.002; the floor raises c1 to zeta 0.05 and leaves the
 // well-damped carriage alone.
 TEST(DampingFloor, RaisesOnlyTheSpringWhoseModeIsBarelyDamped) {
-  config::GantryModelConfig g;
-  g.m1_kg = 0.13;
-  g.m2_kg = 0.45;
-  g.k1_n_per_m = 2618092.0;
-  g.k2_n_per_m = 59305.9;
-  g.c1_ns_per_m = 2.30;
-  g.c2_ns_per_m = 51.27;
+  config::GantryModelConfig g = eq13(0.13, 0.45, 2618092.0, 59305.9, 2.30, 51.27);
   EXPECT_TRUE(apply_damping_floor(g, 0.05));
   EXPECT_NEAR(g.c1_ns_per_m, 2.0 * 0.05 * std::sqrt(2618092.0 * 0.13), 1e-9);
   EXPECT_NEAR(g.c1_ns_per_m, 58.34, 0.01);
   EXPECT_DOUBLE_EQ(g.c2_ns_per_m, 51.27);  // zeta 0.157 already
   // A model above the floor (the thesis's X axis, Table 4) is not touched.
-  config::GantryModelConfig thesis;
-  thesis.m1_kg = 0.13;
-  thesis.m2_kg = 0.45;
-  thesis.k1_n_per_m = 355e3;
-  thesis.k2_n_per_m = 110e3;
-  thesis.c1_ns_per_m = 2100.0;
-  thesis.c2_ns_per_m = 112.0;
+  config::GantryModelConfig thesis = eq13(0.13, 0.45, 355e3, 110e3, 2100.0, 112.0);
   const config::GantryModelConfig copy = thesis;
   EXPECT_FALSE(apply_damping_floor(thesis, 0.05));
   EXPECT_DOUBLE_EQ(thesis.c1_ns_per_m, copy.c1_ns_per_m);
