@@ -504,6 +504,7 @@ void Machine::servo_main() {
     servo_tick(st, wake, late_ns, period_ns);
     deadline += period_ns;
   }
+  if (executor_) executor_->servo_stopped();
 }
 
 }  // namespace feedloop::engine

@@ -118,6 +118,9 @@ class CommandExecutor {
   virtual void idle_tick(const std::atomic<bool>& /*cancel*/) {}
   // Servo thread, once per period. RT-safe.
   virtual void servo_cycle(int64_t /*now_ns*/, bool /*cancel*/) {}
+  // Servo thread, once, after its last cycle (the machine stopping): a request that waits for a
+  // servo cycle's answer (a homing) must not wait any longer.
+  virtual void servo_stopped() {}
   // Servo thread, RT-safe: the cycle at now_ns woke late_ns after its deadline (> one period).
   virtual void on_deadline_miss(int64_t /*now_ns*/, int64_t /*late_ns*/) {}
   // True while moves are queued anywhere or being executed. Any thread.

@@ -195,10 +195,12 @@ Status MotionExecutor::home(const gcode::Command& cmd, const std::atomic<bool>& 
       cancelled_at = std::chrono::steady_clock::now();
       homing_abort_.store(true, std::memory_order_release);  // a flush too, not only a stop
     }
-    // The servo thread aborts a running homing on cancel and reports it failed; should the servo
-    // thread be gone already (the machine stopping), do not wait for it forever.
-    if (seen_cancel && std::chrono::steady_clock::now() - cancelled_at > std::chrono::seconds(1) &&
-        !inline_driver_) {
+    // The servo thread aborts a running homing on cancel and reports it failed. When it has ended
+    // (the machine stopping: it may leave on the same cycle as the cancel arrives) no answer will
+    // come; a second without one is taken the same way.
+    if (seen_cancel && !inline_driver_ &&
+        (servo_stopped_.load(std::memory_order_acquire) ||
+         std::chrono::steady_clock::now() - cancelled_at > std::chrono::seconds(1))) {
       homing_req_.store(kNoHoming);
       interp_->set_unhomed(axes);
       return Error{"G28: cancelled during homing", cmd.where};

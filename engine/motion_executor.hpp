@@ -90,6 +90,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void homed_axes(char out[4]) const override { interp_->homed_axes(out); }
   void idle_tick(const std::atomic<bool>& cancel) override;
   void servo_cycle(int64_t now_ns, bool cancel) override;
+  void servo_stopped() override { servo_stopped_.store(true, std::memory_order_release); }
   bool faulted() const override;
   bool motion_pending() const override;
   bool settling() const override { return settling_.load(std::memory_order_relaxed); }
@@ -177,6 +178,8 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   // home() saw its command interrupted (a flush: a job's cancel, M524; or an emergency stop): the
   // servo thread aborts the homing on the MCUs, and the G28 ends as failed, the axes unhomed.
   std::atomic<bool> homing_abort_{false};
+  // The servo thread has ended (the machine stopping): no cycle will answer a homing request.
+  std::atomic<bool> servo_stopped_{false};
   std::atomic<unsigned> homing_mask_{0};
   std::array<double, kJoints> homed_joint_mm_{};        // servo thread writes before kHomingDone
   std::array<double, 3> homing_shift_mm_{};            // (CoreXY) likewise: unhomed axes moved

@@ -235,6 +235,29 @@ TEST(HomingPipeline, AFlushDuringG28AbortsTheHoming) {
   EXPECT_NEAR(plant->carriage_mm(0), rig.bridge->homing_report(0).homed_mm, 0.01);
 }
 
+// The machine stopping (SIGTERM) while G28 runs: the servo thread may leave on the cycle the stop
+// arrives, before it answers the homing; the planner thread must not wait for that answer (it
+// waited a second of wall time, which a loaded machine stretched past the daemon's 2 s to exit).
+TEST(HomingPipeline, StoppingTheMachineDuringG28DoesNotWaitForTheServo) {
+  PipelineRig rig(homing_config(2.0));
+  ASSERT_TRUE(rig.machine);
+  ASSERT_EQ(rig.run("G28"), "");
+  ASSERT_EQ(rig.run("G1 X60 F6000"), "");
+  ASSERT_EQ(rig.run("M400"), "");
+  const uint64_t g28 = rig.submit("G28 X");
+  const double t_submit = rig.seconds();
+  while (rig.bridge->encoder_mm(0) > 55.0 && rig.seconds() < t_submit + 10.0 &&
+         rig.done.load() < g28)
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  ASSERT_LT(rig.done.load(), g28) << "the homing ended before the stop";
+  const auto t0 = std::chrono::steady_clock::now();
+  rig.machine->stop();
+  const double stop_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("Machine::stop() during G28 X returned after %.3f s of wall time\n", stop_s);
+  EXPECT_LT(stop_s, 0.5);
+}
+
 // Issue 16: homing repeatability on the simulator within the endstop model's repeatability,
 // through the daemon's pipeline. The homed position is the trip point on the step grid
 // (q = 10.6 um on X): its spread lies within sigma +- q/2 (docs/homing.md), here measured over 20
