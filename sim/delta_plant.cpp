@@ -134,9 +134,9 @@ void DeltaPlant::derive_(const double* x, const double* qd_m, double* d) const {
   const double a2 = th[0] * th[0] + th[1] * th[1] + th[2] * th[2];
   double ca, sa, oa;  // cos a, sin a / a, (1 - cos a) / a^2
   if (a2 < 1e-6) {
-    ca = 1.0 - a2 / 2.0 * (1.0 - a2 / 12.0);
-    sa = 1.0 - a2 / 6.0 * (1.0 - a2 / 20.0);
-    oa = 0.5 - a2 / 24.0 * (1.0 - a2 / 30.0);
+    ca = 1.0 - a2 * 0.5 * (1.0 - a2 * (1.0 / 12.0));  // products, not quotients (no -ffast-math)
+    sa = 1.0 - a2 * (1.0 / 6.0) * (1.0 - a2 * (1.0 / 20.0));
+    oa = 0.5 - a2 * (1.0 / 24.0) * (1.0 - a2 * (1.0 / 30.0));
   } else {
     const double a = std::sqrt(a2);
     ca = std::cos(a);

@@ -33,17 +33,23 @@ constexpr double kMinActiveSpan = 0.05;
 // speed relative to the field: ~0.1 rad at a slip at 150 mm/s and 62.5 us.
 constexpr double kMaxSeriesRad = 0.25;
 
-double sin_near(double phase, double phase0, double s0, double c0) {
+// (Products with the reciprocals, not quotients: a compiler may not turn x / 6.0 into a product
+// without -ffast-math, and the ten divisions were a quarter of the simulator's time.)
+inline double sin_near(double phase, double phase0, double s0, double c0) {
   const double d = phase - phase0;
   if (!(std::abs(d) <= kMaxSeriesRad)) return std::sin(phase);
   const double d2 = d * d;
   const double sin_d =
       d *
-      (1.0 -
-       d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0 * (1.0 - d2 / 72.0 * (1.0 - d2 / 110.0)))));
+      (1.0 - d2 * (1.0 / 6.0) *
+                 (1.0 - d2 * (1.0 / 20.0) *
+                            (1.0 - d2 * (1.0 / 42.0) *
+                                       (1.0 - d2 * (1.0 / 72.0) * (1.0 - d2 * (1.0 / 110.0))))));
   const double cos_d =
-      1.0 -
-      d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0 * (1.0 - d2 / 56.0 * (1.0 - d2 / 90.0))));
+      1.0 - d2 * 0.5 *
+                (1.0 - d2 * (1.0 / 12.0) *
+                           (1.0 - d2 * (1.0 / 30.0) *
+                                      (1.0 - d2 * (1.0 / 56.0) * (1.0 - d2 * (1.0 / 90.0)))));
   return s0 * cos_d + c0 * sin_d;
 }
 }  // namespace
@@ -131,10 +137,11 @@ double GantryAxis::commanded_mm() const {
 }
 
 GantryAxis::State GantryAxis::derivative(const State& x, double u_m) const {
-  return derivative_(x, u_m, std::sin(phase_per_m_ * (x[kField] - x[kRotor])));
+  return derivative_(x, u_m, std::sin(phase_per_m_ * (x[kField] - x[kRotor])), nullptr);
 }
 
-GantryAxis::State GantryAxis::derivative_(const State& x, double u_m, double sin_phase) const {
+GantryAxis::State GantryAxis::derivative_(const State& x, double u_m, double sin_phase,
+                                          const RunoutAt* runout_from) const {
   const double uf = x[kField], y1 = x[kRotor], v1 = x[kRotorVel];
   const double y2 = x[kCarriage], v2 = x[kCarriageVel], x3 = x[kExtra], v3 = x[kExtraVel];
 
@@ -152,7 +159,13 @@ GantryAxis::State GantryAxis::derivative_(const State& x, double u_m, double sin
 
   // Belt (Eq. 5-6), with pulley runout and backlash when enabled.
   double belt_rotor_m = y1;
-  if (runout_m_ != 0.0) belt_rotor_m += runout_m_ * std::sin(runout_per_m_ * y1);
+  if (runout_m_ != 0.0) {
+    const double phase = runout_per_m_ * y1;
+    belt_rotor_m +=
+        runout_m_ * (runout_from != nullptr
+                         ? sin_near(phase, runout_from->phase, runout_from->sin, runout_from->cos)
+                         : std::sin(phase));
+  }
   double stretch_m = belt_rotor_m - y2;
   if (backlash_half_m_ > 0.0) {
     const double half_m = backlash_half_m_;
@@ -199,10 +212,17 @@ void GantryAxis::integrate_(State& x, double h) const {
   const double u = (static_cast<double>(steps_) + step_fraction_) * m_per_step_true_ + u0_m_;
   const double phase0 = phase_per_m_ * (x[kField] - x[kRotor]);
   const double s0 = std::sin(phase0), c0 = std::cos(phase0);
+  RunoutAt runout;  // the stages' runout near the substep's start, as the sine law's
+  if (runout_m_ != 0.0) {
+    runout.phase = runout_per_m_ * x[kRotor];
+    runout.sin = std::sin(runout.phase);
+    runout.cos = std::cos(runout.phase);
+  }
   auto stage = [&](const State& xs) {
-    return derivative_(xs, u, sin_near(phase_per_m_ * (xs[kField] - xs[kRotor]), phase0, s0, c0));
+    return derivative_(xs, u, sin_near(phase_per_m_ * (xs[kField] - xs[kRotor]), phase0, s0, c0),
+                       &runout);
   };
-  const State k1 = derivative_(x, u, s0);
+  const State k1 = derivative_(x, u, s0, &runout);
   const State k2 = stage(x + (0.5 * h) * k1);
   const State k3 = stage(x + (0.5 * h) * k2);
   const State k4 = stage(x + h * k3);

@@ -110,7 +110,14 @@ class GantryAxis final : public device::MotorPort {
   explicit GantryAxis(const GantryAxisParams& p);
   // derivative() with the sine law's value sin(2 pi (u_f - x1) / lambda) given: RK4 evaluates it
   // once per substep and carries it to the stages by angle addition (integrate_).
-  State derivative_(const State& x, double u_m, double sin_phase) const;
+  // The pulley runout's phase at a substep's start with its sine and cosine: the stages take
+  // theirs by angle addition (sin_near), as the sine law's.
+  struct RunoutAt {
+    double phase = 0.0, sin = 0.0, cos = 1.0;
+  };
+  // runout_from: the integration's stages (nullptr: the exact sine, for the linearisation).
+  State derivative_(const State& x, double u_m, double sin_phase,
+                    const RunoutAt* runout_from) const;
   void integrate_(State& x, double h_s) const;
   void after_substep_();
   void commit_substeps_(double t_s);
