@@ -10,6 +10,7 @@
 // servo thread (BatchSink = the MCU sessions). RT-safe after construction: no allocation.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -109,12 +110,23 @@ class StepPipeline final : public planner::JointSink {
     int8_t last_dir = 0;
     double min_interval_ticks = 1e300;
     void on_steps(const double* ticks, const int8_t* dirs, size_t n) override {
-      for (size_t i = 0; i < n; ++i) {
-        const double d = ticks[i] - last_ticks;
-        if (dirs[i] == last_dir && d < min_interval_ticks) min_interval_ticks = d;
-        last_ticks = ticks[i];
-        last_dir = dirs[i];
+      if (n == 0) return;
+      // Branch-free, in four independent minima (no chain through one running minimum or the
+      // previous step): this loop was 4 % of batch mode's time.
+      auto gap = [&](size_t i) { return dirs[i] == dirs[i - 1] ? ticks[i] - ticks[i - 1] : 1e300; };
+      double m0 = dirs[0] == last_dir ? ticks[0] - last_ticks : 1e300, m1 = 1e300, m2 = 1e300,
+             m3 = 1e300;
+      size_t i = 1;
+      for (; i + 4 <= n; i += 4) {
+        m0 = std::min(m0, gap(i));
+        m1 = std::min(m1, gap(i + 1));
+        m2 = std::min(m2, gap(i + 2));
+        m3 = std::min(m3, gap(i + 3));
       }
+      for (; i < n; ++i) m0 = std::min(m0, gap(i));
+      min_interval_ticks = std::min({min_interval_ticks, m0, m1, m2, m3});
+      last_ticks = ticks[n - 1];
+      last_dir = dirs[n - 1];
       next->on_steps(ticks, dirs, n);
     }
   };
