@@ -192,22 +192,31 @@ TEST(HomingPipeline, MoveBeforeG28IsRefusedThenG28HomesEveryAxisAndMovesFollow) 
 // A cancel (a flush: M524, a job's cancel) while G28 runs aborts the homing on the MCUs at once:
 // the G28 fails with the reason, the carriage stops short of its switch, the axis is unhomed, and
 // the next G28 homes. (Before, the homing ran on to its end after the G28 had given up.)
+// Homed, the carriage sent to X 60, then "G28 X" submitted and followed until the carriage is
+// below `below_mm` on its way to the switch (its encoder, an atomic the servo thread publishes;
+// the plant itself is the servo thread's while it runs). The G28's ticket; *t_submit its time,
+// *homed the X homings done before it.
+uint64_t g28_x_under_way(PipelineRig& rig, double below_mm, double* t_submit, uint64_t* homed) {
+  EXPECT_EQ(rig.run("G28"), "");
+  *homed = rig.bridge->homing_report(0).count;
+  EXPECT_EQ(rig.run("G1 X60 F6000"), "");
+  EXPECT_EQ(rig.run("M400"), "");
+  const uint64_t g28 = rig.submit("G28 X");
+  *t_submit = rig.seconds();
+  while (rig.bridge->encoder_mm(0) > below_mm && rig.seconds() < *t_submit + 10.0 &&
+         rig.done.load() < g28)
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  return g28;
+}
+
 TEST(HomingPipeline, AFlushDuringG28AbortsTheHoming) {
   PipelineRig rig(homing_config(2.0));
   ASSERT_TRUE(rig.machine);
-  ASSERT_EQ(rig.run("G28"), "");
-  ASSERT_EQ(rig.run("G1 X60 F6000"), "");
-  ASSERT_EQ(rig.run("M400"), "");
   SimulatedPlant* plant = rig.bridge->plant();
   ASSERT_NE(plant, nullptr);
-  const uint64_t homings = rig.bridge->homing_report(0).count;
-  const uint64_t g28 = rig.submit("G28 X");
-  const double t_submit = rig.seconds();
-  // Well into the approach: the carriage 10 mm on its way to the switch (its encoder, an atomic the
-  // servo thread publishes; the plant itself is the servo thread's while it runs).
-  while (rig.bridge->encoder_mm(0) > 50.0 && rig.seconds() < t_submit + 10.0 &&
-         rig.done.load() < g28)
-    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  double t_submit = 0.0;
+  uint64_t homings = 0;
+  const uint64_t g28 = g28_x_under_way(rig, 50.0, &t_submit, &homings);  // well into the approach
   ASSERT_LT(rig.done.load(), g28) << "the homing ended before the flush";
   const double x_at_flush = rig.bridge->encoder_mm(0);
   const double t_flush = rig.seconds();
@@ -241,14 +250,9 @@ TEST(HomingPipeline, AFlushDuringG28AbortsTheHoming) {
 TEST(HomingPipeline, StoppingTheMachineDuringG28DoesNotWaitForTheServo) {
   PipelineRig rig(homing_config(2.0));
   ASSERT_TRUE(rig.machine);
-  ASSERT_EQ(rig.run("G28"), "");
-  ASSERT_EQ(rig.run("G1 X60 F6000"), "");
-  ASSERT_EQ(rig.run("M400"), "");
-  const uint64_t g28 = rig.submit("G28 X");
-  const double t_submit = rig.seconds();
-  while (rig.bridge->encoder_mm(0) > 55.0 && rig.seconds() < t_submit + 10.0 &&
-         rig.done.load() < g28)
-    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  double t_submit = 0.0;
+  uint64_t homings = 0;
+  const uint64_t g28 = g28_x_under_way(rig, 55.0, &t_submit, &homings);
   ASSERT_LT(rig.done.load(), g28) << "the homing ended before the stop";
   const auto t0 = std::chrono::steady_clock::now();
   rig.machine->stop();
