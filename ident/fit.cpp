@@ -98,6 +98,12 @@ double from_solver(Param p, double x) {
   const Range r = baseline_range(p);
   return std::exp(std::clamp(x, std::max(-40.0, std::log(r.lo)), std::min(40.0, std::log(r.hi))));
 }
+// The range of a parameter in the solver's coordinates (from_solver clamps to it).
+Range solver_range(Param p) {
+  if (!is_log(p)) return {-1e300, 1e300};
+  const Range r = baseline_range(p);
+  return {std::max(-40.0, std::log(r.lo)), std::min(40.0, std::log(r.hi))};
+}
 double fd_step(Param p) { return is_log(p) ? 1e-3 : (p == Param::kScale ? 1e-3 : 0.02); }
 
 std::vector<Param> effect_params(Effect e) {
@@ -192,7 +198,10 @@ AxisModel levenberg_marquardt(AxisModel m, const std::vector<Param>& ps, const P
     auto column = [&](Eigen::Index i) {
       AxisModel mp = m;
       const Param p = ps[static_cast<size_t>(i)];
-      const double h = fd_step(p);
+      // A forward difference, backward at a parameter's upper bound (where a step forward would
+      // not move the model: the column would be zero and the parameter stuck there).
+      double h = fd_step(p);
+      if (from_solver(p, x[i] + h) == slot(m, p)) h = -h;
       slot(mp, p) = from_solver(p, x[i] + h);
       std::vector<double> yp;
       if (!run(mp, pb, &yp)) {
@@ -227,11 +236,38 @@ AxisModel levenberg_marquardt(AxisModel m, const std::vector<Param>& ps, const P
     for (int tries = 0; tries < 6 && !improved; ++tries) {
       Eigen::MatrixXd Ar = JtJ;
       for (Eigen::Index i = 0; i < np; ++i) Ar(i, i) += lambda * std::max(JtJ(i, i), 1e-9);
-      const Eigen::VectorXd dx = Ar.ldlt().solve(Jtr);
+      Eigen::VectorXd dx = Ar.ldlt().solve(Jtr);
+      // Active bounds: a parameter at a bound that the step would push past it is held there and
+      // the step solved again without it (projecting the unconstrained step instead bends it away
+      // from the direction the damped Gauss-Newton system chose, and it is then rejected again
+      // and again).
+      for (Eigen::Index pass = 0; pass < np && dx.allFinite(); ++pass) {
+        bool held = false;
+        for (Eigen::Index i = 0; i < np; ++i) {
+          const Range rg = solver_range(ps[static_cast<size_t>(i)]);
+          const bool at_lo = x[i] <= rg.lo + 1e-9 && dx[i] < 0.0,
+                     at_hi = x[i] >= rg.hi - 1e-9 && dx[i] > 0.0;
+          if (!(at_lo || at_hi)) continue;
+          Ar.row(i).setZero();
+          Ar.col(i).setZero();
+          Ar(i, i) = 1.0;
+          Jtr[i] = 0.0;
+          held = true;
+        }
+        if (!held) break;
+        dx = Ar.ldlt().solve(Jtr);
+      }
       if (!dx.allFinite()) break;
       AxisModel trial = m;
       Eigen::VectorXd xt = x + dx;
-      for (Eigen::Index i = 0; i < np; ++i) slot(trial, ps[static_cast<size_t>(i)]) = from_solver(ps[static_cast<size_t>(i)], xt[i]);
+      for (Eigen::Index i = 0; i < np; ++i) {
+        // The step is projected onto the parameter's range: the solver's x then always says what
+        // the model holds (a step past a bound, kept in x, left the parameter flat there: every
+        // later Jacobian column zero, the parameter stuck at its bound).
+        const Param p = ps[static_cast<size_t>(i)];
+        slot(trial, p) = from_solver(p, xt[i]);
+        xt[i] = to_solver(p, slot(trial, p));
+      }
       std::vector<double> yt;
       if (run(trial, pb, &yt)) {
         const double c = sse_train(yt, pb) + prior_cost(trial, pb);
