@@ -9,10 +9,9 @@ namespace feedloop::sim {
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kTimeEps_s = 1e-12;
-// Dahl bristle deflection at full sliding friction: small against the positions of interest,
-// large enough that RK4 stays stable (h |v| / z_max < 2.79: to 0.89 m/s at 16 kHz, the rate
-// kBristleSlide_m_s asks for at least).
+// Dahl bristle deflection at full sliding friction: small against the positions of interest.
 constexpr double kBristle_m = 20e-6;
+constexpr double kInvBristle_per_m = 1.0 / kBristle_m;
 
 size_t history_capacity(const GantryAxisParams& p) {
   const double delay_s = p.encoder.sampling_delay_s +
@@ -21,10 +20,6 @@ size_t history_capacity(const GantryAxisParams& p) {
   return static_cast<size_t>(std::ceil(delay_s * p.substep_hz * 2.0)) + 8;
 }
 
-// The bristle's sliding rate |v2| / z_max is a real mode of the friction model; the auto substep
-// resolves it up to this carriage speed (the example configs' max_velocity_mm_s) and stays stable
-// (h |lambda| < 2.79) to 2.79 times as fast.
-constexpr double kBristleSlide_m_s = 0.3;
 // Belt: Eq. 6's active length never falls below this fraction of the span (the model's clamp).
 constexpr double kMinActiveSpan = 0.05;
 // The sine law's stages: sin(phase0 + d) by angle addition from the substep's sin/cos of phase0,
@@ -52,6 +47,16 @@ inline double sin_near(double phase, double phase0, double s0, double c0) {
                                       (1.0 - d2 * (1.0 / 56.0) * (1.0 - d2 * (1.0 / 90.0)))));
   return s0 * cos_d + c0 * sin_d;
 }
+
+// Dahl's bristle after the carriage moved dx_m from where the bristle was z0_m (the law in
+// displacement, gantry_axis.hpp), exact for a displacement of one sign: a substep is far shorter
+// than the time a carriage takes to reverse. The bristle's sliding rate |v2| / z_max (15 kHz at
+// 0.3 m/s) therefore sets no substep, as it did when z was integrated in time.
+inline double bristle_at(double dx_m, double z0_m) {
+  if (dx_m == 0.0) return z0_m;
+  const double s_m = dx_m > 0.0 ? kBristle_m : -kBristle_m;
+  return s_m + (z0_m - s_m) * std::exp(-std::abs(dx_m) * kInvBristle_per_m);
+}
 }  // namespace
 
 Result<GantryAxis> GantryAxis::create(const GantryAxisParams& p) {
@@ -71,7 +76,6 @@ double GantryAxis::fastest_mode_rad_s(const GantryAxisParams& p) {
   double w = sim::fastest_mode_rad_s(GantryAxis(q).linearize().a);
   q.belt_stiffness_n_m /= kMinActiveSpan;  // K2 = k_hat / (0.05 L) = 20 k2 at x2 = 0
   w = std::max(w, sim::fastest_mode_rad_s(GantryAxis(q).linearize().a));
-  if (p.effects.coulomb_friction.enabled) w = std::max(w, kBristleSlide_m_s / kBristle_m);
   if (std::isfinite(p.hard_stop_min_mm) || std::isfinite(p.hard_stop_max_mm) || p.coupled_stops)
     w = std::max(w, 2.0 * std::sqrt(p.hard_stop_n_m / p.carriage_mass_kg));  // the contact's mode
   return w;
@@ -141,7 +145,7 @@ GantryAxis::State GantryAxis::derivative(const State& x, double u_m) const {
 }
 
 GantryAxis::State GantryAxis::derivative_(const State& x, double u_m, double sin_phase,
-                                          const RunoutAt* runout_from) const {
+                                          const SubstepStart* from) const {
   const double uf = x[kField], y1 = x[kRotor], v1 = x[kRotorVel];
   const double y2 = x[kCarriage], v2 = x[kCarriageVel], x3 = x[kExtra], v3 = x[kExtraVel];
 
@@ -162,9 +166,8 @@ GantryAxis::State GantryAxis::derivative_(const State& x, double u_m, double sin
   if (runout_m_ != 0.0) {
     const double phase = runout_per_m_ * y1;
     belt_rotor_m +=
-        runout_m_ * (runout_from != nullptr
-                         ? sin_near(phase, runout_from->phase, runout_from->sin, runout_from->cos)
-                         : std::sin(phase));
+        runout_m_ *
+        (from != nullptr ? sin_near(phase, from->phase, from->sin, from->cos) : std::sin(phase));
   }
   double stretch_m = belt_rotor_m - y2;
   if (backlash_half_m_ > 0.0) {
@@ -179,8 +182,11 @@ GantryAxis::State GantryAxis::derivative_(const State& x, double u_m, double sin
   double f_rail = -p_.bearing_damping_n_s_m * v2;
   double dz = 0.0;
   if (friction_n_per_m_ > 0.0) {
-    const double z = x[kBristle];
-    dz = v2 - std::abs(v2) * z / kBristle_m;
+    double z = x[kBristle];
+    if (from != nullptr)
+      z = bristle_at(y2 - from->carriage_m, from->bristle_m);  // integrate_ sets z after the step
+    else
+      dz = v2 - std::abs(v2) * z * kInvBristle_per_m;
     f_rail -= friction_n_per_m_ * z;
   }
 
@@ -212,21 +218,25 @@ void GantryAxis::integrate_(State& x, double h) const {
   const double u = (static_cast<double>(steps_) + step_fraction_) * m_per_step_true_ + u0_m_;
   const double phase0 = phase_per_m_ * (x[kField] - x[kRotor]);
   const double s0 = std::sin(phase0), c0 = std::cos(phase0);
-  RunoutAt runout;  // the stages' runout near the substep's start, as the sine law's
+  SubstepStart start;  // the stages' runout near the substep's start, as the sine law's
   if (runout_m_ != 0.0) {
-    runout.phase = runout_per_m_ * x[kRotor];
-    runout.sin = std::sin(runout.phase);
-    runout.cos = std::cos(runout.phase);
+    start.phase = runout_per_m_ * x[kRotor];
+    start.sin = std::sin(start.phase);
+    start.cos = std::cos(start.phase);
   }
+  start.carriage_m = x[kCarriage];
+  start.bristle_m = x[kBristle];
   auto stage = [&](const State& xs) {
     return derivative_(xs, u, sin_near(phase_per_m_ * (xs[kField] - xs[kRotor]), phase0, s0, c0),
-                       &runout);
+                       &start);
   };
-  const State k1 = derivative_(x, u, s0, &runout);
+  const State k1 = derivative_(x, u, s0, &start);
   const State k2 = stage(x + (0.5 * h) * k1);
   const State k3 = stage(x + (0.5 * h) * k2);
   const State k4 = stage(x + h * k3);
   x += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+  if (friction_n_per_m_ > 0.0)
+    x[kBristle] = bristle_at(x[kCarriage] - start.carriage_m, start.bristle_m);
 }
 
 void GantryAxis::after_substep_() {

@@ -13,7 +13,10 @@
 //   belt   F_t = K2(x2, sgn) (x1 - x2), K2 of Eq. 6                               (Eq. 5-7)
 //   rails  -c2 v2 (Eq. 10), plus Coulomb friction when enabled: a Dahl bristle model
 //          dz/dt = v2 (1 - sgn(v2) z / z_max), F_c z / z_max, which sticks at rest (holds any
-//          force below F_c) and slides with F_c, without a velocity singularity
+//          force below F_c) and slides with F_c, without a velocity singularity. Dahl's law is
+//          one in displacement (dz/dx2 = 1 - sgn(dx2) z / z_max), so the integration takes z in
+//          closed form from the carriage's displacement within a substep:
+//          z = s z_max + (z0 - s z_max) exp(-|x2 - x2_0| / z_max), s = sgn(x2 - x2_0)
 // In the linear regime this is exactly Eq. 13: k1 (u_f - x1) + c1 (du_f/dt - v1) = k1 (u - x1)
 // - c1 v1 because tau du_f/dt = u - u_f with tau = c1/k1. Damping relative to the moving field
 // (instead of to ground) is what lets the rotor run at print speeds: with the fitted c1 to ground
@@ -48,7 +51,7 @@ class GantryAxis final : public device::MotorPort {
   // The fastest mode of the plant anywhere in its travel (rad/s): the linearisation at rest, where
   // the motor's stiffness (the sine law's slope) and damping (full current) are largest, with the
   // belt as built and at its stiffest (Eq. 6 at the shortest active length the model allows, 20 k2)
-  // and, with Coulomb friction on, the bristle's sliding rate |v2| / z_max at 0.3 m/s.
+  // (The friction bristle sets no rate: the integration takes it in closed form, bristle_at.)
   static double fastest_mode_rad_s(const GantryAxisParams& p);
 
   // MotorPort (RT-safe: no allocation).
@@ -110,14 +113,17 @@ class GantryAxis final : public device::MotorPort {
   explicit GantryAxis(const GantryAxisParams& p);
   // derivative() with the sine law's value sin(2 pi (u_f - x1) / lambda) given: RK4 evaluates it
   // once per substep and carries it to the stages by angle addition (integrate_).
-  // The pulley runout's phase at a substep's start with its sine and cosine: the stages take
-  // theirs by angle addition (sin_near), as the sine law's.
-  struct RunoutAt {
+  // What the stages of one substep take from its start: the pulley runout's phase with its sine
+  // and cosine (the stages take theirs by angle addition, sin_near, as the sine law's), and the
+  // carriage's position with the friction bristle's deflection (the stages take the bristle's
+  // from the carriage's displacement since, in closed form: bristle_at).
+  struct SubstepStart {
     double phase = 0.0, sin = 0.0, cos = 1.0;
+    double carriage_m = 0.0, bristle_m = 0.0;
   };
-  // runout_from: the integration's stages (nullptr: the exact sine, for the linearisation).
-  State derivative_(const State& x, double u_m, double sin_phase,
-                    const RunoutAt* runout_from) const;
+  // from: the integration's stages (nullptr: the exact sine and the bristle's ODE, for the
+  // linearisation).
+  State derivative_(const State& x, double u_m, double sin_phase, const SubstepStart* from) const;
   void integrate_(State& x, double h_s) const;
   void after_substep_();
   void commit_substeps_(double t_s);
