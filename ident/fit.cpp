@@ -185,12 +185,22 @@ AxisModel levenberg_marquardt(AxisModel m, const std::vector<Param>& ps, const P
   pb.train_end = fit_end;
   const size_t n = pb.train_end;
   const auto np = static_cast<Eigen::Index>(ps.size());
+  // The solver's x and the model agree from the start: a starting value outside a parameter's
+  // range (a config's preset) is taken at the range's end.
+  Eigen::VectorXd x(np);
+  for (Eigen::Index i = 0; i < np; ++i) {
+    const Param p = ps[static_cast<size_t>(i)];
+    if (is_log(p)) {
+      const Range r = baseline_range(p);
+      slot(m, p) =
+          std::clamp(slot(m, p), std::max(r.lo, std::exp(-40.0)), std::min(r.hi, std::exp(40.0)));
+    }
+    x[i] = to_solver(p, slot(m, p));
+  }
   std::vector<double> ys;
   if (!run(m, pb, &ys)) return m;
   double cost = sse_train(ys, pb) + prior_cost(m, pb);
   double lambda = 1e-3;
-  Eigen::VectorXd x(np);
-  for (Eigen::Index i = 0; i < np; ++i) x[i] = to_solver(ps[static_cast<size_t>(i)], slot(m, ps[static_cast<size_t>(i)]));
   Eigen::MatrixXd J(static_cast<Eigen::Index>(n), np);
   Eigen::VectorXd r(static_cast<Eigen::Index>(n));
   for (int it = 0; it < iterations; ++it) {
