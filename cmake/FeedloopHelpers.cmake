@@ -55,7 +55,7 @@ function(feedloop_add_test_pch)
 endfunction()
 
 function(feedloop_add_test name)
-  cmake_parse_arguments(T "OPTIMIZED" "TIMEOUT;LONG_TESTS;COST" "SOURCES;LIBS;LABELS" ${ARGN})
+  cmake_parse_arguments(T "OPTIMIZED" "TIMEOUT;LONG_TESTS;REALTIME_TESTS;COST" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${name} ${T_SOURCES})
   target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main GTest::gmock)
   set(_opt)
@@ -72,11 +72,23 @@ function(feedloop_add_test name)
   endif()
   # LONG_TESTS "Suite.Name:Suite.Other" (a gtest filter): those cases of the program get the label
   # `long` (left out of scripts/test.sh, `ctest -L long` runs them), the others its labels.
+  # REALTIME_TESTS the same with the label `realtime`: cases whose assertion is about the wall
+  # clock (a thread keeping pace), run one at a time after the others (scripts/test.sh).
   set(others_filter)
+  set(_excluded)
   if(T_LONG_TESTS)
-    set(others_filter TEST_FILTER "-${T_LONG_TESTS}")
+    list(APPEND _excluded ${T_LONG_TESTS})
     gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 TEST_FILTER "${T_LONG_TESTS}"
       PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "long")
+  endif()
+  if(T_REALTIME_TESTS)
+    list(APPEND _excluded ${T_REALTIME_TESTS})
+    gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60 TEST_FILTER "${T_REALTIME_TESTS}"
+      PROPERTIES TIMEOUT ${T_TIMEOUT} LABELS "realtime")
+  endif()
+  if(_excluded)
+    list(JOIN _excluded ":" _excluded_filter)
+    set(others_filter TEST_FILTER "-${_excluded_filter}")
   endif()
   # COST N: ctest -j starts the costliest tests first (without its timing data from an earlier
   # run, as in a fresh clone, it starts them in the order they were declared, and a long test that

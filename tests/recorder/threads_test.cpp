@@ -15,7 +15,15 @@
 namespace feedloop::recorder {
 namespace {
 
-TEST(RecorderThreads, ThreeProducersAndTheRecorderThread) {
+// Three producers paced at 20 records per ms each (~1 s) and the recorder thread draining: what
+// arrived, in order, with every record either in the file or counted as dropped.
+struct ThreeProducersResult {
+  uint64_t lines = 0, moves = 0, samples = 0;
+  RecorderStats stats;
+};
+constexpr int kEach = 20000;
+
+void run_three_producers(ThreeProducersResult* out) {
   testing::ScratchDir dir("threads");
   auto opt = testing::test_options(dir.str());
   opt.io_ring_bytes = 1 << 18;  // room for ~10 drain periods at the pace below
@@ -26,7 +34,6 @@ TEST(RecorderThreads, ThreeProducersAndTheRecorderThread) {
   Recorder& r = **rec;
   ASSERT_TRUE(r.start_print("threads").ok());
   r.start_thread();
-  constexpr int kEach = 20000;  // paced at 20 records per ms per thread: ~1 s
   std::thread io([&] {
     for (int i = 0; i < kEach; ++i) {
       r.writer(Stream::io).gcode_line(i, GcodeSource::socket, "G1 X1 Y2");
@@ -80,9 +87,23 @@ TEST(RecorderThreads, ThreeProducersAndTheRecorderThread) {
   EXPECT_EQ(lines + st.dropped[0], static_cast<uint64_t>(kEach));
   EXPECT_EQ(moves + st.dropped[1], static_cast<uint64_t>(kEach));
   EXPECT_EQ(samples + st.dropped[2], static_cast<uint64_t>(kEach));
-  EXPECT_GE(lines + moves + samples, static_cast<uint64_t>(kEach) * 3 * 9 / 10);  // the drain kept up
   std::printf("dropped: io %llu, planner %llu, servo %llu of %d each\n", static_cast<unsigned long long>(st.dropped[0]),
               static_cast<unsigned long long>(st.dropped[1]), static_cast<unsigned long long>(st.dropped[2]), kEach);
+  *out = {lines, moves, samples, st};
+}
+
+TEST(RecorderThreads, ThreeProducersAndTheRecorderThread) {
+  ThreeProducersResult r;
+  run_three_producers(&r);
+}
+
+// The drain keeps pace: at most a tenth dropped. On the wall clock with the recorder thread given
+// its share of a core (label realtime: run alone; beside other tests and compilers on a 2-core
+// machine it dropped 15 %).
+TEST(RecorderThreads, TheDrainKeepsPaceWithThreeProducers) {
+  ThreeProducersResult r;
+  run_three_producers(&r);
+  EXPECT_GE(r.lines + r.moves + r.samples, static_cast<uint64_t>(kEach) * 3 * 9 / 10);
 }
 
 TEST(RecorderThreads, RunTapRecordsExactlyWhatItForwards) {
