@@ -92,17 +92,17 @@ Range baseline_range(Param p) {
       return {1e-12, 1e12};
   }
 }
-double from_solver(Param p, double x) {
-  if (p == Param::kScale) return 1.0 + x * 1e-3;
-  if (!is_log(p)) return x;
-  const Range r = baseline_range(p);
-  return std::exp(std::clamp(x, std::max(-40.0, std::log(r.lo)), std::min(40.0, std::log(r.hi))));
-}
 // The range of a parameter in the solver's coordinates (from_solver clamps to it).
 Range solver_range(Param p) {
   if (!is_log(p)) return {-1e300, 1e300};
   const Range r = baseline_range(p);
   return {std::max(-40.0, std::log(r.lo)), std::min(40.0, std::log(r.hi))};
+}
+double from_solver(Param p, double x) {
+  if (p == Param::kScale) return 1.0 + x * 1e-3;
+  if (!is_log(p)) return x;
+  const Range rg = solver_range(p);
+  return std::exp(std::clamp(x, rg.lo, rg.hi));
 }
 double fd_step(Param p) { return is_log(p) ? 1e-3 : (p == Param::kScale ? 1e-3 : 0.02); }
 
@@ -190,12 +190,12 @@ AxisModel levenberg_marquardt(AxisModel m, const std::vector<Param>& ps, const P
   Eigen::VectorXd x(np);
   for (Eigen::Index i = 0; i < np; ++i) {
     const Param p = ps[static_cast<size_t>(i)];
-    if (is_log(p)) {
-      const Range r = baseline_range(p);
-      slot(m, p) =
-          std::clamp(slot(m, p), std::max(r.lo, std::exp(-40.0)), std::min(r.hi, std::exp(40.0)));
-    }
+    const Range rg = solver_range(p);
     x[i] = to_solver(p, slot(m, p));
+    if (x[i] < rg.lo || x[i] > rg.hi) {
+      x[i] = std::clamp(x[i], rg.lo, rg.hi);
+      slot(m, p) = from_solver(p, x[i]);
+    }
   }
   std::vector<double> ys;
   if (!run(m, pb, &ys)) return m;
@@ -271,9 +271,9 @@ AxisModel levenberg_marquardt(AxisModel m, const std::vector<Param>& ps, const P
       AxisModel trial = m;
       Eigen::VectorXd xt = x + dx;
       for (Eigen::Index i = 0; i < np; ++i) {
-        // The step is projected onto the parameter's range: the solver's x then always says what
-        // the model holds (a step past a bound, kept in x, left the parameter flat there: every
-        // later Jacobian column zero, the parameter stuck at its bound).
+        // A step that crosses a bound stops at it, in x as in the model: the solver's x always
+        // says what the model holds (a step past a bound, kept in x, left the parameter flat
+        // there: every later Jacobian column zero, the parameter stuck at its bound).
         const Param p = ps[static_cast<size_t>(i)];
         slot(trial, p) = from_solver(p, xt[i]);
         xt[i] = to_solver(p, slot(trial, p));

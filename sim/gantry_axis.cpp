@@ -218,7 +218,7 @@ void GantryAxis::integrate_(State& x, double h) const {
   const double u = (static_cast<double>(steps_) + step_fraction_) * m_per_step_true_ + u0_m_;
   const double phase0 = phase_per_m_ * (x[kField] - x[kRotor]);
   const double s0 = std::sin(phase0), c0 = std::cos(phase0);
-  SubstepStart start;  // the stages' runout near the substep's start, as the sine law's
+  SubstepStart start;  // what the stages take from the substep's start (gantry_axis.hpp)
   if (runout_m_ != 0.0) {
     start.phase = runout_per_m_ * x[kRotor];
     start.sin = std::sin(start.phase);
