@@ -205,6 +205,9 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
               std::string* why) override;
   // machine_status(): declared once above (both interfaces ask the same of the daemon).
   int64_t now_ns() const override { return clock_.now_ns(); }
+  void set_input_coming(bool coming) override {
+    if (machine_) machine_->set_input_coming(coming);
+  }
   void open_jobs();
   // Commands of the daemon's own (heater hook) waiting for room in the machine's queue.
   void flush_internal();

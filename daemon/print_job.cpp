@@ -396,6 +396,17 @@ void PrintJob::send_sequence() {
 }
 
 void PrintJob::pump() {
+  pump_once();
+  report_input();
+}
+
+void PrintJob::report_input() {
+  const bool coming = state_ == JobState::kPrinting && (held_.has_value() || !eof_);
+  if (coming != input_coming_) sink_.set_input_coming(coming);
+  input_coming_ = coming;
+}
+
+void PrintJob::pump_once() {
   if (!active()) return;
   if (state_ == JobState::kPrinting) {
     // A machine that faulted (following error, encoder, MCU) or was stopped runs nothing more: the
@@ -541,6 +552,7 @@ void PrintJob::finish(JobState end) {
   phase_ = Phase::kNone;
   ended_ns_ = sink_.now_ns();
   close_file();
+  report_input();
 }
 
 double PrintJob::job_print_time_s(const engine::MachineStatus& s) const {

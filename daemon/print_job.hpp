@@ -76,6 +76,9 @@ class JobSink {
   // motion stopped in a controlled deceleration; the machine then takes the park moves. Default
   // (a sink without it): nothing, the queued commands run first.
   virtual void cancel_motion() {}
+  // Whether the job has more lines of its file to hand over (printing, not at the file's end):
+  // engine::Machine::set_input_coming. Default: nothing.
+  virtual void set_input_coming(bool /*coming*/) {}
 };
 
 struct JobOptions {
@@ -179,6 +182,8 @@ class PrintJob {
   // The next physical line of the file into line_; false at the end.
   bool read_line();
   void feed();
+  void pump_once();     // pump() without report_input()
+  void report_input();  // tells the sink whether lines of the file are still to come
   void track_modes(const gcode::Command& cmd);
   void track_extrusion(const gcode::Command& cmd);
   // Queues one of the job's own lines (pause/resume/cancel sequences).
@@ -205,6 +210,7 @@ class PrintJob {
   std::FILE* fp_ = nullptr;
   uint64_t read_offset_ = 0;  // bytes consumed from the file
   bool eof_ = false;
+  bool input_coming_ = false;  // last said to the sink (report_input)
   std::string line_;
   int64_t line_number_ = 0;
   std::optional<gcode::Command> held_;  // parsed, waiting for room

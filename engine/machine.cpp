@@ -429,7 +429,9 @@ void Machine::planner_main() {
         wake_cv_.wait_for(lock, std::chrono::milliseconds(5));
       }
       if (estop_.load()) cancel_.store(true);  // stays latched
-      executor_->idle_tick(interrupt_);
+      // Virtual time with a source's commands on their way: no idle release (set_input_coming).
+      if (!(clock_.is_virtual() && input_coming_.load(std::memory_order_acquire)))
+        executor_->idle_tick(interrupt_);
       publish_status();
       continue;
     }

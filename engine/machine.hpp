@@ -216,6 +216,13 @@ class Machine {
   // Commands submitted after the drain run normally once the machine is at rest (a cancel's park
   // moves). The machine stays usable: no latch, no homing lost.
   void flush(bool heaters_off);
+  // I/O thread: a source that has more commands ready (a print job reading its file) says so.
+  // In virtual time the planner then keeps its lookahead while the input is late (the wall-clock
+  // input pause and the running-dry release wait for the source instead): the clock does not run
+  // while the source is descheduled, so where the moves stop depends on the file alone, not on
+  // how busy the host is (docs/decisions.md, "Virtual time waits for a print job's input"). On the
+  // real clock nothing changes: the motion must not starve for a late reader.
+  void set_input_coming(bool coming) { input_coming_.store(coming, std::memory_order_release); }
   // True from flush() until the machine is at rest and the queue drained.
   bool flushing() const { return flush_requested_.load() || flush_running_.load(); }
 
@@ -275,6 +282,7 @@ class Machine {
   std::atomic<int64_t> virtual_wait_until_ns_{0};
   bool servo_carries_heaters_ = false;  // set_thermal(): the thermal loop uses heater ports
   std::atomic<int64_t> planner_stall_ns_{0}, servo_stall_ns_{0};  // inject_stall, not yet taken
+  std::atomic<bool> input_coming_{false};                         // set_input_coming
   std::atomic<bool> cancel_{false};     // latched: emergency stop, stop()
   std::atomic<bool> interrupt_{false};  // the command executing returns: cancel_ or a flush
   std::atomic<bool> flush_requested_{false}, flush_running_{false}, flush_heaters_off_{false};

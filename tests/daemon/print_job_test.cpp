@@ -94,6 +94,12 @@ struct FakeMachine final : JobSink {
     return s;
   }
   int64_t now_ns() const override { return clock_ns; }
+  bool input_coming = false;  // as the job last said (set_input_coming)
+  int input_reports = 0;
+  void set_input_coming(bool coming) override {
+    input_coming = coming;
+    ++input_reports;
+  }
   void all_heaters_off() override {
     ++heaters_off;
     queued_at_heaters_off = queue.size();
@@ -235,6 +241,54 @@ TEST_F(PrintJobTest, RunsAFileFromStartToEndPacedByTheQueue) {
   EXPECT_DOUBLE_EQ(s.progress_bytes, 1.0);
   EXPECT_NEAR(s.print_time_s, m.print_time_s, 1e-9);
   EXPECT_EQ(m.heaters_off, 0);
+}
+
+// The job tells the machine while lines of its file are still to come (in virtual time the machine
+// then keeps its lookahead for them instead of stopping the motion): from the start while printing,
+// not while paused, again on resume, and no longer once the file is read to its end or the job
+// ends.
+TEST_F(PrintJobTest, SaysWhileLinesOfTheFileAreStillToCome) {
+  const std::string text = part(60);
+  ASSERT_TRUE(files_->write("part.gcode", text).ok());
+  FakeMachine m;
+  PrintJob job(*files_, options_, m);
+  EXPECT_FALSE(m.input_coming);
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  EXPECT_TRUE(m.input_coming);
+  for (int i = 0; i < 20; ++i) m.step();
+  job.pump();
+  EXPECT_TRUE(m.input_coming);
+  ASSERT_TRUE(job.pause().ok());
+  EXPECT_FALSE(m.input_coming);  // the pause's own moves: the machine may release them at once
+  m.run();
+  ASSERT_EQ(job.state(), JobState::kPaused);
+  EXPECT_FALSE(m.input_coming);
+  ASSERT_TRUE(job.resume().ok());
+  EXPECT_FALSE(m.input_coming);  // the return moves first
+  while (job.state() == JobState::kResuming && m.step()) {
+  }
+  ASSERT_EQ(job.state(), JobState::kPrinting);
+  EXPECT_TRUE(m.input_coming);
+  // Read to the end: the last lines are queued, nothing more comes (the lookahead may be released).
+  bool said_done_before_complete = false;
+  while (m.step()) {
+    job.pump();
+    if (!m.input_coming && job.state() == JobState::kPrinting) said_done_before_complete = true;
+  }
+  job.pump();
+  EXPECT_EQ(job.state(), JobState::kComplete);
+  EXPECT_TRUE(said_done_before_complete);
+  EXPECT_FALSE(m.input_coming);
+  EXPECT_LE(m.input_reports, 6);  // said on a change only, not at every pump
+  // A job that ends in error says so too.
+  FakeMachine f;
+  PrintJob failing(*files_, options_, f);
+  ASSERT_TRUE(failing.start("part.gcode").ok());
+  EXPECT_TRUE(f.input_coming);
+  f.fault = "following error beyond the limit";
+  failing.pump();
+  EXPECT_EQ(failing.state(), JobState::kError);
+  EXPECT_FALSE(f.input_coming);
 }
 
 // A machine that faults mid-print (an encoder fault, a following error) runs nothing more: the

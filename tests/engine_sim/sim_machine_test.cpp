@@ -288,6 +288,65 @@ TEST(SimMachine, MachineInVirtualTimeDrivesTheSimulatedPrinter) {
   EXPECT_STREQ(s.last_error, "");
 }
 
+// Virtual time, a source whose next lines come late (a print job's reader descheduled on a busy
+// host): X0 -> 20 -> 40 at 100 mm/s, the I/O side silent for `stall_ms` of wall time between the
+// two moves. Returns how many times the motion started from rest.
+uint64_t motion_starts_with_late_lines(int stall_ms, bool say_input_coming) {
+  config::MachineConfig cfg = config::default_config();
+  cfg.planner.allow_moves_before_homing = true;
+  auto ex = make_executor(cfg);
+  EXPECT_TRUE(ex.ok());
+  if (!ex.ok()) return 0;
+  VirtualClock clock(1'000'000'000);
+  Machine m(machine_options(cfg), clock, std::move(ex.value()));
+  std::atomic<uint64_t> done{0};
+  m.set_done_callback([&](CommandDone d) {
+    EXPECT_TRUE(d.status.ok()) << d.status.error().message;
+    done.fetch_add(1);
+  });
+  EXPECT_TRUE(m.start().ok());
+  uint64_t ticket = 0;
+  auto send = [&](const char* l) {
+    auto cmd = gcode::parse_line(l, SourceLocation{"t", static_cast<int>(ticket) + 1, 0});
+    ASSERT_TRUE(cmd.ok());
+    while (!m.try_submit(++ticket, cmd.value()))
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  };
+  m.set_input_coming(say_input_coming);
+  send("G90");
+  send("G1 X20 F6000");
+  std::this_thread::sleep_for(std::chrono::milliseconds(stall_ms));
+  send("G1 X40");
+  m.set_input_coming(false);  // the file's end
+  send("M400");
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (done.load() < ticket && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  const MachineStatus st = m.status();
+  m.stop();
+  EXPECT_EQ(done.load(), ticket);
+  EXPECT_NEAR(st.pos_mm[0], 40.0, 1e-9);
+  return st.motion_starts;
+}
+
+// With the source saying that its lines are coming, the two moves join at full speed however late
+// the second comes on the wall clock, as when it comes at once: in virtual time the motion depends
+// on the file, not on the host's load. Without it the planner releases its lookahead after the
+// input pause (50 ms of wall time) and the carriage stops at X20, as it must on the real clock.
+TEST(SimMachine, VirtualTimeWaitsForAPrintJobsLateLines) {
+  const uint64_t prompt = motion_starts_with_late_lines(0, true);
+  const uint64_t late = motion_starts_with_late_lines(300, true);
+  const uint64_t late_unannounced = motion_starts_with_late_lines(300, false);
+  std::printf(
+      "motion starts from rest: lines at once %llu, 300 ms late with input coming %llu, without "
+      "%llu\n",
+      static_cast<unsigned long long>(prompt), static_cast<unsigned long long>(late),
+      static_cast<unsigned long long>(late_unannounced));
+  EXPECT_EQ(prompt, 1u);
+  EXPECT_EQ(late, 1u);
+  EXPECT_EQ(late_unannounced, 2u);
+}
+
 }  // namespace
 }  // namespace feedloop::engine
 
