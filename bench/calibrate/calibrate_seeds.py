@@ -1,0 +1,143 @@
+#!/usr/bin/env python3
+"""`feedloop calibrate` on drawn machines of the second simulator (issue 15), one row per seed.
+
+For each seed: the embedded simulated printer (config/examples/cartesian_sim.yaml) with the LPV
+feedforward, its X and Y on the second simulator (`feedloop-plant2 --seed N`: X is drawn machine
+N, Y drawn machine N + 1) as an external plant, in virtual time; `feedloop calibrate` runs the
+calibration program, identifies both axes, installs the overlay and measures the check pattern's
+e_t before (the config's thesis model), after (the calibrated model) and open loop. Prints a
+table; the reports stay in --keep DIR when given.
+
+    python3 bench/calibrate/calibrate_seeds.py [--build build] [--seeds 1-7] [--keep DIR] [--json F]
+
+Each seed takes about 75 s on a 2-core machine (two minutes of simulated motion in lock-step with
+the external plant, four fits). Same build as the tests (the README's build directory).
+"""
+import argparse
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+
+
+def seeds_from(text):
+    out = []
+    for part in text.split(","):
+        if "-" in part:
+            a, b = part.split("-")
+            out.extend(range(int(a), int(b) + 1))
+        else:
+            out.append(int(part))
+    return out
+
+
+def printer_yaml(plant2, seed):
+    with open(os.path.join(ROOT, "config/examples/cartesian_sim.yaml")) as f:
+        y = f.read()
+    y, n1 = re.subn(r"feedforward:\n  type: none", "feedforward:\n  type: lpv", y)
+    y, n2 = re.subn(r"simulator:\n  seed: 1",
+                    'simulator:\n  seed: 1\n  external_plant: {command: "%s --seed %d", axes: [x, y], period_us: 100}'
+                    % (plant2, seed), y)
+    # An external plant's carriages have no simulated switches: G28 is a move (docs/homing.md).
+    y = re.sub(r"\n    homing: \{direction: min[^\n]*", "", y)
+    if n1 != 1 or n2 != 1:
+        sys.exit("calibrate_seeds: config/examples/cartesian_sim.yaml changed shape (feedforward or simulator block)")
+    return y
+
+
+def wait_for(path, proc, timeout_s):
+    end = time.time() + timeout_s
+    while time.time() < end:
+        if os.path.exists(path):
+            return True
+        if proc.poll() is not None:
+            return False
+        time.sleep(0.05)
+    return False
+
+
+def run_seed(build, seed, keep):
+    work = tempfile.mkdtemp(prefix="calibrate_seed%d." % seed)
+    env = dict(os.environ, RUNTIME_DIRECTORY=work, STATE_DIRECTORY=work)
+    cfg = os.path.join(work, "printer.yaml")
+    with open(cfg, "w") as f:
+        f.write(printer_yaml(os.path.join(build, "plant2/feedloop-plant2"), seed))
+    log = open(os.path.join(work, "daemon.log"), "w")
+    daemon = subprocess.Popen([os.path.join(build, "daemon/feedloopd"), "--virtual-time", "--config", cfg],
+                              env=env, stdout=log, stderr=subprocess.STDOUT)
+    row = {"seed": seed}
+    try:
+        if not wait_for(os.path.join(work, "api.sock"), daemon, 30):
+            row["error"] = "feedloopd did not start (%s)" % os.path.join(work, "daemon.log")
+            return row
+        t0 = time.time()
+        out_dir = os.path.join(work, "out")
+        p = subprocess.run([os.path.join(build, "cli/feedloop"), "calibrate", "--out", out_dir], env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=900)
+        row["wall_s"] = time.time() - t0
+        row["rc"] = p.returncode
+        try:
+            with open(os.path.join(out_dir, "report.json")) as f:
+                row["report"] = json.load(f)
+        except (OSError, ValueError):
+            row["error"] = "no report (exit %d): %s" % (p.returncode, p.stdout.strip().splitlines()[-1:] or "")
+    finally:
+        daemon.send_signal(signal.SIGTERM)
+        try:
+            daemon.wait(20)
+        except subprocess.TimeoutExpired:
+            daemon.kill()
+        log.close()
+        if keep:
+            dst = os.path.join(keep, "seed%d" % seed)
+            shutil.rmtree(dst, ignore_errors=True)
+            shutil.copytree(work, dst, ignore=shutil.ignore_patterns("*.sock"))
+        shutil.rmtree(work, ignore_errors=True)
+    return row
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
+    ap.add_argument("--seeds", default="1-7")
+    ap.add_argument("--keep", default="")
+    ap.add_argument("--json", default="")
+    a = ap.parse_args()
+    rows = []
+    for exe in ("daemon/feedloopd", "cli/feedloop", "plant2/feedloop-plant2"):
+        if not os.access(os.path.join(a.build, exe), os.X_OK):
+            sys.exit("calibrate_seeds: %s not built (cmake --build %s)" % (exe, a.build))
+    if a.keep:
+        os.makedirs(a.keep, exist_ok=True)
+    print("feedloop calibrate on the second simulator, check pattern e_t in mm (LPV feedforward + PI on the device)")
+    print("%5s %10s %10s %10s %14s  %-10s %7s" % ("seed", "open_loop", "before", "after", "after_vs_open", "model", "wall_s"))
+    for seed in seeds_from(a.seeds):
+        print("seed %d ..." % seed, file=sys.stderr, flush=True)
+        r = run_seed(a.build, seed, a.keep)
+        rows.append({"seed": seed, "error": r.get("error", ""), "wall_s": r.get("wall_s"),
+                     "e_t_mm": r.get("report", {}).get("e_t_mm"), "kept": bool(r.get("report", {}).get("installed"))})
+        if "report" not in r:
+            print("%5d  %s" % (seed, r.get("error", "failed")), flush=True)
+            continue
+        e = r["report"].get("e_t_mm", {})
+        ol, be, af = e.get("open_loop"), e.get("before"), e.get("after")
+        kept = "kept" if r["report"].get("installed") else "rolled back"
+        vs = "%+.0f %%" % (100.0 * (af / ol - 1.0)) if ol and af is not None else "-"
+        fmt = lambda v: "%.4f" % v if isinstance(v, (int, float)) else "-"
+        print("%5d %10s %10s %10s %14s  %-10s %7.0f" % (seed, fmt(ol), fmt(be), fmt(af), vs, kept, r["wall_s"]), flush=True)
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump({"bench": "calibrate_seeds", "rows": rows}, f, indent=2)
+            f.write("\n")
+
+
+if __name__ == "__main__":
+    main()
