@@ -338,6 +338,28 @@ json effects_json(const std::vector<config::CalibrationEffect>& effects, const s
   return list;
 }
 
+// The model the machine now prints with (`key`: "after" when kept, "before" when rolled back)
+// tracking the check pattern worse than open loop (no feedforward, no loop): the user is better
+// served by feedforward.type none, and is told so (a calibration is judged against the model it
+// replaces, which may itself be worse than none).
+void warn_if_worse_than_open_loop(json& report, const char* key, const std::string& feedforward) {
+  if (feedforward == "none") return;  // before and after are the PI alone: no model in the path
+  const json& e = report["e_t_mm"];
+  if (!e.contains("open_loop") || !e.contains(key) || !e[key].is_number() ||
+      !e["open_loop"].is_number())
+    return;
+  const double ol = e["open_loop"].get<double>(), v = e[key].get<double>();
+  if (!(std::isfinite(ol) && std::isfinite(v) && v > ol)) return;
+  char w[320];
+  std::snprintf(
+      w, sizeof w,
+      "the model the machine now prints with tracks the check pattern worse than open loop "
+      "(%.4f mm against %.4f mm, %+.0f %%): the machine does what the model cannot describe; "
+      "feedforward.type none prints better until a calibration fits it",
+      v, ol, 100.0 * (v / ol - 1.0));
+  report["warning"] = w;
+}
+
 std::string report_markdown(const json& j) {
   std::ostringstream m;
   char buf[256];
@@ -388,6 +410,7 @@ std::string report_markdown(const json& j) {
   if (j.contains("rolled_back"))
     m << "\n**Not kept:** " << j["rolled_back"].get<std::string>()
       << "; the daemon went back to the calibration it had.\n";
+  if (j.contains("warning")) m << "\n**Warning:** " << j["warning"].get<std::string>() << ".\n";
   return m.str();
 }
 
@@ -603,8 +626,11 @@ int calibrate(const std::vector<std::string>& args) {
       const Status back = reload(api, false);
       report["installed"] = "";
       report["rolled_back"] = why;
+      warn_if_worse_than_open_loop(report, "before", info.value().value("feedforward", ""));
       (void)write_text_file(out_dir + "/report.json", report.dump(2) + "\n");
       (void)write_text_file(out_dir + "/report.md", report_markdown(report));
+      if (report.contains("warning"))
+        std::fprintf(stderr, "warning: %s\n", report["warning"].get<std::string>().c_str());
       return fail(Error{why + "\nthe calibrated model was not kept: " +
                         (previous ? "the previous calibration is back"
                                   : "the daemon runs without a calibration") +
@@ -627,6 +653,7 @@ int calibrate(const std::vector<std::string>& args) {
       return roll_back(why);
     }
   }
+  warn_if_worse_than_open_loop(report, "after", info.value().value("feedforward", ""));
   if (const std::string ff = info.value().value("feedforward", ""); ff == "none")
     report["note"] = "the config's feedforward is none: prints do not use the calibrated model "
                      "(feedforward.type: lpv uses it)";
@@ -652,6 +679,8 @@ int calibrate(const std::vector<std::string>& args) {
   std::printf("\nwrote %s, %s/report.md and report.json%s\n", overlay_path.c_str(), out_dir.c_str(),
               report["installed"].get<std::string>().empty() ? "" : "; installed and loaded");
   if (report.contains("note")) std::printf("note: %s\n", report["note"].get<std::string>().c_str());
+  if (report.contains("warning"))
+    std::printf("warning: %s\n", report["warning"].get<std::string>().c_str());
   return 0;
 }
 

@@ -118,21 +118,24 @@ def main():
     if a.keep:
         os.makedirs(a.keep, exist_ok=True)
     print("feedloop calibrate on the second simulator, check pattern e_t in mm (LPV feedforward + PI on the device)")
-    print("%5s %10s %10s %10s %14s  %-10s %7s" % ("seed", "open_loop", "before", "after", "after_vs_open", "model", "wall_s"))
+    print("%5s %10s %10s %10s %14s  %-20s %7s" % ("seed", "open_loop", "before", "after", "after_vs_open", "model", "wall_s"))
     for seed in seeds_from(a.seeds):
         print("seed %d ..." % seed, file=sys.stderr, flush=True)
         r = run_seed(a.build, seed, a.keep)
         rows.append({"seed": seed, "error": r.get("error", ""), "wall_s": r.get("wall_s"),
-                     "e_t_mm": r.get("report", {}).get("e_t_mm"), "kept": bool(r.get("report", {}).get("installed"))})
+                     "e_t_mm": r.get("report", {}).get("e_t_mm"), "kept": bool(r.get("report", {}).get("installed")),
+                     "warning": r.get("report", {}).get("warning", "")})
         if "report" not in r:
             print("%5d  %s" % (seed, r.get("error", "failed")), flush=True)
             continue
         e = r["report"].get("e_t_mm", {})
         ol, be, af = e.get("open_loop"), e.get("before"), e.get("after")
         kept = "kept" if r["report"].get("installed") else "rolled back"
+        if r["report"].get("warning"):
+            kept += ", warned"  # the model in use tracks worse than open loop
         vs = "%+.0f %%" % (100.0 * (af / ol - 1.0)) if ol and af is not None else "-"
         fmt = lambda v: "%.4f" % v if isinstance(v, (int, float)) else "-"
-        print("%5d %10s %10s %10s %14s  %-10s %7.0f" % (seed, fmt(ol), fmt(be), fmt(af), vs, kept, r["wall_s"]), flush=True)
+        print("%5d %10s %10s %10s %14s  %-20s %7.0f" % (seed, fmt(ol), fmt(be), fmt(af), vs, kept, r["wall_s"]), flush=True)
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"bench": "calibrate_seeds", "rows": rows}, f, indent=2)

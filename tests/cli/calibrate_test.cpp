@@ -162,6 +162,7 @@ TEST_F(Calibrate, OnTheSecondSimulatorTheCalibratedModelCutsTheTrackingError) {
   // (0.0148; 0.0123 before the damping floor of the overlay).
   EXPECT_LT(after, 0.3 * before);
   EXPECT_LT(after, 0.35 * open_loop);
+  EXPECT_FALSE(report.contains("warning")) << report["warning"];
 }
 
 // Second simulator, seed 4 (X and Y of drawn machines 4 and 5): the fitted model tracks the check
@@ -191,6 +192,16 @@ TEST_F(Calibrate, AModelThatTracksWorseIsRolledBack) {
   EXPECT_FALSE(fs::exists(dir_ + "/calibration.yaml"));
   EXPECT_EQ(api("info")["calibration"], "");
   EXPECT_NE(read_text(dir_ + "/out/report.md").find("**Not kept:**"), std::string::npos);
+  // The model the machine keeps printing with (the config's) tracks 7x worse than open loop: the
+  // user is told that no feedforward prints better.
+  EXPECT_GT(before, 2.0 * report["e_t_mm"]["open_loop"].get<double>());
+  ASSERT_TRUE(report.contains("warning")) << report.dump();
+  EXPECT_NE(report["warning"].get<std::string>().find("worse than open loop"), std::string::npos);
+  EXPECT_NE(out.find("warning: the model the machine now prints with tracks the check pattern "
+                     "worse than open loop"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(read_text(dir_ + "/out/report.md").find("**Warning:**"), std::string::npos);
 }
 
 // A daemon whose answers have another shape (an older feedloopd, a broken reply): every request
