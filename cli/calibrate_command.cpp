@@ -511,6 +511,7 @@ int calibrate(const std::vector<std::string>& args) {
   fs::create_directories(out_dir, ec);
   if (ec) return fail(Error{"cannot create " + out_dir + ": " + ec.message()});
 
+  const std::string feedforward = info.value().value("feedforward", "");
   json report{{"machine", info.value().value("name", "")},
               {"control", "control " + info.value().value("control", "?") + ", feedforward " +
                               info.value().value("feedforward", "?")},
@@ -626,7 +627,7 @@ int calibrate(const std::vector<std::string>& args) {
       const Status back = reload(api, false);
       report["installed"] = "";
       report["rolled_back"] = why;
-      warn_if_worse_than_open_loop(report, "before", info.value().value("feedforward", ""));
+      warn_if_worse_than_open_loop(report, "before", feedforward);
       (void)write_text_file(out_dir + "/report.json", report.dump(2) + "\n");
       (void)write_text_file(out_dir + "/report.md", report_markdown(report));
       if (report.contains("warning"))
@@ -653,8 +654,8 @@ int calibrate(const std::vector<std::string>& args) {
       return roll_back(why);
     }
   }
-  warn_if_worse_than_open_loop(report, "after", info.value().value("feedforward", ""));
-  if (const std::string ff = info.value().value("feedforward", ""); ff == "none")
+  warn_if_worse_than_open_loop(report, "after", feedforward);
+  if (feedforward == "none")
     report["note"] = "the config's feedforward is none: prints do not use the calibrated model "
                      "(feedforward.type: lpv uses it)";
   if (Status s = write_text_file(out_dir + "/report.json", report.dump(2) + "\n"); !s)
