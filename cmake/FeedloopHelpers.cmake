@@ -121,6 +121,12 @@ function(feedloop_add_test name)
   endforeach()
   if(_runs_under_sanitizers)
     set_property(GLOBAL APPEND PROPERTY FEEDLOOP_SANITIZER_TESTS ${name})
+    # FEEDLOOP_ALL_TESTS_IN_ALL OFF (scripts/test.sh's GCC build, before its sanitizer build): a
+    # program whose every case the sanitizer stage runs is not built here (ctest lists it as
+    # <name>_NOT_BUILT). A program with wall-clock or long cases is, for those cases.
+    if(NOT FEEDLOOP_ALL_TESTS_IN_ALL AND NOT T_REALTIME_TESTS AND NOT T_LONG_TESTS)
+      set_target_properties(${name} PROPERTIES EXCLUDE_FROM_ALL TRUE)
+    endif()
   endif()
 endfunction()
 
