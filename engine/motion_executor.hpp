@@ -114,6 +114,12 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
     double position_mm[4] = {0, 0, 0, 0};  // where the plan stopped (machine coordinates)
   };
   StopFigures last_stop() const { return stop_figures_; }
+  // True while a flush's stop waits for the servo thread: asked and released by the planner thread
+  // (flush_motion), not yet taken. Any thread.
+  bool stop_waits_for_servo() const {
+    return stop_req_.load(std::memory_order_acquire) == kStopRequested &&
+           stop_released_.load(std::memory_order_acquire);
+  }
 
   // The MCUs behind the batch sink (engine/mcu_bridge.hpp); set before the servo thread starts.
   // Each servo cycle then services it first, takes its clock estimates for step timing, waits

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -26,6 +27,7 @@
 #include "engine/machine.hpp"
 #include "engine/mcu_bridge.hpp"
 #include "engine/motion_executor.hpp"
+#include "engine/telemetry_tap.hpp"
 #include "engine/thermal_config.hpp"
 #include "gcode/parser.hpp"
 
@@ -52,12 +54,14 @@ struct FlushRig {
   std::atomic<uint64_t> done{0};
   uint64_t ticket = 0;
 
-  explicit FlushRig(const config::MachineConfig& c) : cfg(c) {
+  // tap: an observer of the executor (HoldPastX below), or none.
+  explicit FlushRig(const config::MachineConfig& c, TelemetryTap* tap = nullptr) : cfg(c) {
     auto stack = make_motion_stack(cfg, motion_options(cfg));
     EXPECT_TRUE(stack.ok()) << (stack.ok() ? "" : stack.error().message);
     if (!stack.ok()) return;
     bridge = stack.value().bridge;
     ex = stack.value().executor.get();
+    if (tap != nullptr) ex->set_telemetry(tap);
     machine =
         std::make_unique<Machine>(machine_options(cfg), clock, std::move(stack.value().executor));
     auto thermal = make_thermal_loop(cfg);
@@ -121,6 +125,42 @@ struct FlushRig {
     return {s.encoder_mm[0] - static_cast<double>(s.step_count[0]) / spm(0),
             s.encoder_mm[1] - static_cast<double>(s.step_count[1]) / spm(1)};
   }
+};
+
+// Holds the servo thread, and with it virtual time, at its first sample with the X encoder past
+// x_mm, until release(). A test thread that polls the encoder instead sees the carriage wherever
+// its own scheduling lets it look: virtual time runs free meanwhile, ~0.8 s of it (120 mm at
+// 150 mm/s) in 10-30 ms of a loaded machine's wall time. Blocking in a tap is for tests only (a
+// tap's calls are the servo thread's, engine/telemetry_tap.hpp).
+class HoldPastX final : public TelemetryTap {
+ public:
+  explicit HoldPastX(double x_mm) : x_mm_(x_mm) {}
+  void on_servo_sample(const ServoSample& s) override {
+    if (passed_ || !(s.encoder_mm[0] > x_mm_)) return;
+    passed_ = true;
+    std::unique_lock lock(mutex_);
+    held_ = true;
+    cv_.notify_all();
+    cv_.wait(lock, [this] { return released_; });
+  }
+  // True once the servo thread is held (false after timeout_s of wall time).
+  bool wait_held(double timeout_s) {
+    std::unique_lock lock(mutex_);
+    return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), [this] { return held_; });
+  }
+  void release() {
+    std::lock_guard lock(mutex_);
+    released_ = true;
+    cv_.notify_all();
+  }
+  ~HoldPastX() override { release(); }
+
+ private:
+  double x_mm_;
+  bool passed_ = false;  // servo thread
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool held_ = false, released_ = false;
 };
 
 std::string read_text(const std::string& path) {
@@ -226,7 +266,12 @@ TEST(Flush, AtRestWithNothingQueuedChangesNothingButTheHeaters) {
 
 // A 180 x 130 mm travel at the planner's 150 mm/s, cancelled while it cruises.
 TEST(Flush, ATravelAtFullSpeedStopsWithinVSquaredOverTwoAAlongItsLine) {
-  FlushRig rig(flush_config());
+  HoldPastX hold(80.0);  // outlives the rig (the executor's tap)
+  FlushRig rig(flush_config(), &hold);
+  struct ReleaseFirst {  // on every way out, before the rig joins the servo thread
+    HoldPastX& h;
+    ~ReleaseFirst() { h.release(); }
+  } release_first{hold};
   ASSERT_TRUE(rig.machine);
   ASSERT_EQ(rig.run("G28"), "");
   ASSERT_EQ(rig.run("G1 X20 Y20 Z5 F6000"), "");
@@ -238,25 +283,32 @@ TEST(Flush, ATravelAtFullSpeedStopsWithinVSquaredOverTwoAAlongItsLine) {
   const std::array<double, 2> at_rest = rig.encoder_less_steps(before);
   ASSERT_TRUE(rig.submit("G1 X200 Y150 F9000"));
   for (int i = 0; i < 5; ++i) ASSERT_TRUE(rig.submit(i % 2 == 0 ? "G1 X20 Y20 F9000" : "G1 X200 Y150 F9000"));
-  // Cruising: the encoder past X 80 (the cruise at 150 mm/s spans X 23..197).
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (!(rig.machine->status().encoder_mm[0] > 80.0) && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  // Cruising: the servo thread held at the encoder past X 80 (the cruise at 150 mm/s spans
+  // X 23..197), the flush requested there.
+  ASSERT_TRUE(hold.wait_held(60.0));
   const double request_s = rig.now_s();
   rig.machine->flush(true);
   const MachineStatus right_after = rig.machine->status();
-  const double heaters_off_ms = (rig.now_s() - request_s) * 1e3;
   EXPECT_DOUBLE_EQ(right_after.hotend_target_c, 0.0);
   EXPECT_DOUBLE_EQ(right_after.bed_target_c, 0.0);
-  // The targets are 0 when flush() returns, on the calling thread: the virtual servo clock's ticks
-  // that pass meanwhile depend on this thread's scheduling only, so they are printed, not asserted
-  // (CI saw 1.000 ms, one tick, rounded above 1.0).
+  // The servo thread runs on once the planner thread has handed it the stop, so the request is
+  // taken at the next cycle whatever either thread's scheduling (free-running, virtual time ran
+  // on for as long as the planner thread took to get there: up to 0.25 s allowed before).
+  const auto handed_by = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!rig.ex->stop_waits_for_servo() && std::chrono::steady_clock::now() < handed_by)
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  EXPECT_TRUE(rig.ex->stop_waits_for_servo());
+  const double heaters_off_ms = (rig.now_s() - request_s) * 1e3;
+  EXPECT_EQ(heaters_off_ms, 0.0);  // no virtual time passed: the servo thread is held
+  hold.release();
   ASSERT_TRUE(rig.wait_idle());
   const double idle_s = rig.now_s() - request_s;
   const MotionExecutor::StopFigures f = rig.ex->last_stop();
   std::printf("travel: heaters off %.2f ms after the request; the machine idle %.0f ms after it\n",
               heaters_off_ms, idle_s * 1e3);
   check_stop(rig, before, request_s, at_rest, "travel");
+  EXPECT_LE(f.request_s - request_s,
+            1.0 / rig.cfg.servo.rate_hz + 1e-9);  // taken at the next cycle
   EXPECT_NEAR(f.speed_mm_s, 150.0, 1e-6);  // cruising
   EXPECT_NEAR(f.decel_mm_s2, rig.cfg.planner.max_accel_mm_s2, 1e-9);
   // On the travel's line, short of its end, and the carriage there.
