@@ -6,7 +6,8 @@
 // - the belt's position dependence (Eq. 6): its length L from direction_dependent_stiffness when
 //   named (K2(+) / K2(-) = (L + x) / (L - x) at the trace's mean position x), else the config's;
 //   k_hat scaled so that the direction-averaged K2 there is the fitted k2;
-// - coulomb_friction: force and presliding deflection (the LPV feedforward's Dahl model).
+// - coulomb_friction: force and presliding deflection (the LPV feedforward's Dahl model);
+// - backlash: its width (the LPV feedforward crosses the dead band ahead of each force reversal).
 // Every other named effect is recorded with its parameters and in_model: false.
 #pragma once
 

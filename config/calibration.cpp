@@ -32,8 +32,11 @@ constexpr NumericKey kKeys[] = {
     {"c2_ns_per_m", [](const GantryModelConfig& g) { return g.c2_ns_per_m; }},
     {"coulomb_friction_n", [](const GantryModelConfig& g) { return g.coulomb_friction_n; }},
     {"friction_bristle_mm", [](const GantryModelConfig& g) { return g.friction_bristle_mm; }},
-    {"stepper.belt_unit_stiffness_n", [](const GantryModelConfig& g) { return g.stepper.belt_unit_stiffness_n; }},
-    {"stepper.pulley_distance_mm", [](const GantryModelConfig& g) { return g.stepper.pulley_distance_mm; }},
+    {"backlash_mm", [](const GantryModelConfig& g) { return g.backlash_mm; }},
+    {"stepper.belt_unit_stiffness_n",
+     [](const GantryModelConfig& g) { return g.stepper.belt_unit_stiffness_n; }},
+    {"stepper.pulley_distance_mm",
+     [](const GantryModelConfig& g) { return g.stepper.pulley_distance_mm; }},
 };
 
 void note_changes(const GantryModelConfig* before, const GantryModelConfig& after, std::vector<std::string>& out) {

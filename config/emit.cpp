@@ -208,6 +208,7 @@ void write_model(Writer& w, const MachineConfig& c) {
       w.num("c2_ns_per_m", g.c2_ns_per_m);
       w.num("coulomb_friction_n", g.coulomb_friction_n);
       w.num("friction_bristle_mm", g.friction_bristle_mm);
+      w.num("backlash_mm", g.backlash_mm);
       const StepperConfig& s = g.stepper;
       w.begin("stepper");
       w.num("holding_torque_nm", s.holding_torque_nm);

@@ -280,6 +280,9 @@ struct GantryModelConfig {
                                     // the LPV feedforward supplies it (docs/feedforward.md)
   double friction_bristle_mm = 0.02;  // Dahl presliding deflection at full friction (what
                                       // `feedloop ident fit` reports as presliding_um)
+  double backlash_mm = 0.0;  // dead band between the pulley and the belt (not in Eq. 13: what
+                             // `feedloop ident fit` reports as backlash width_um); the LPV
+                             // feedforward crosses it ahead of each reversal of the belt force
   StepperConfig stepper;
   bool operator==(const GantryModelConfig&) const = default;
 };

@@ -37,6 +37,7 @@ void read_gantry_axis(MapReader& g, GantryModelConfig& m, Need six, Diagnostics&
   g.number("coulomb_friction_n", m.coulomb_friction_n, Range::closed(0.0, 1000.0));
   // 0.5 um - 1 mm: the identification fits 1-300 um.
   g.number("friction_bristle_mm", m.friction_bristle_mm, Range::closed(0.0005, 1.0));
+  g.number("backlash_mm", m.backlash_mm, Range::closed(0.0, 1.0));
   read_stepper(g, m.stepper, diag);
 }
 

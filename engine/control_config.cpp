@@ -180,6 +180,7 @@ Result<std::unique_ptr<control::Feedforward>> model_inverse(const config::Machin
     m.pulley_distance_mm = g->stepper.pulley_distance_mm;
     m.coulomb_friction_n = g->coulomb_friction_n;
     m.friction_bristle_mm = g->friction_bristle_mm;
+    m.backlash_mm = g->backlash_mm;
     if (const config::AxisConfig* ax = cfg.axis(names[a])) {
       m.min_mm = ax->min_mm;
       m.max_mm = ax->max_mm;

@@ -49,6 +49,11 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
       return Error{axis + ": coulomb_friction_n must be >= 0 and finite", {}};
     if (ax.coulomb_friction_n > 0.0 && !(ax.friction_bristle_mm > 0.0 && std::isfinite(ax.friction_bristle_mm)))
       return Error{axis + ": friction_bristle_mm must be > 0 and finite", {}};
+    if (!(ax.backlash_mm >= 0.0 && std::isfinite(ax.backlash_mm)))
+      return Error{axis + ": backlash_mm must be >= 0 and finite", {}};
+    if (ax.backlash_mm > 0.0 &&
+        !(ax.direction_force_n > 0.0 && std::isfinite(ax.direction_force_n)))
+      return Error{axis + ": direction_force_n must be > 0 and finite", {}};
     ff->models_[a] = ax;
     std::vector<PreviewInverse> table;
     // Directional: designs 0..G-1 pulling - (K2 = k_hat / (L + x)), G..2G-1 pulling +.
@@ -99,8 +104,9 @@ void GantryLpvFeedforward::schedule_(int axis, double pos_mm, double force_n) {
 }
 
 bool GantryLpvFeedforward::load_offset(JointArray& mm) const {
-  mm = {friction_mm_[0], friction_mm_[1], 0.0, 0.0};
-  return models_[0].coulomb_friction_n > 0.0 || models_[1].coulomb_friction_n > 0.0;
+  mm = {load_offset_mm_[0], load_offset_mm_[1], 0.0, 0.0};
+  return models_[0].coulomb_friction_n > 0.0 || models_[1].coulomb_friction_n > 0.0 ||
+         models_[0].backlash_mm > 0.0 || models_[1].backlash_mm > 0.0;
 }
 
 double GantryLpvFeedforward::friction_n_(int axis, double r_mm) {
@@ -120,7 +126,7 @@ void GantryLpvFeedforward::reset(const FeedforwardInput& at) {
   for (int a = 0; a < 2; ++a) {
     const size_t as = static_cast<size_t>(a);
     bristle_mm_[as] = 0.0;  // at rest: the friction holds no force
-    friction_mm_[as] = 0.0;
+    load_offset_mm_[as] = 0.0;
     schedule_(a, at.r_mm[as], 0.0);
     inv_[as].reset(&at.r_mm[as]);
     r_prev_[as] = at.r_mm[as];
@@ -139,20 +145,30 @@ void GantryLpvFeedforward::step(const FeedforwardInput& in, JointArray& u_mm) {
     inv.push(&in.r_mm[as]);
     const double r0 = inv.reference(0, 0);
     // The model at the carriage's planned position at t_k and the planned belt force's direction.
-    const double friction_n = models_[as].coulomb_friction_n > 0.0 ? friction_n_(a, r0) : 0.0;
-    const double f = directional_[as]
-                         ? planned_belt_force_n(params_[as], r_prev_[as], r0, inv.reference(1, 0), period_s_) + friction_n
-                         : 0.0;
-    schedule_(a, r0, f);
+    const GantryAxisLpvModel& model = models_[as];
+    const double friction_n = model.coulomb_friction_n > 0.0 ? friction_n_(a, r0) : 0.0;
+    const double f =
+        directional_[as] || model.backlash_mm > 0.0
+            ? planned_belt_force_n(params_[as], r_prev_[as], r0, inv.reference(1, 0), period_s_) +
+                  friction_n
+            : 0.0;
+    schedule_(a, r0, directional_[as] ? f : 0.0);
     inv.step(&u_mm[as]);
-    friction_mm_[as] = 0.0;
+    load_offset_mm_[as] = 0.0;
+    if (model.backlash_mm > 0.0) {
+      // Across the dead band on the side the planned force pulls from (the pulley leads the belt
+      // by w / 2 while it pulls +, lags by w / 2 while it pulls -, centred at rest).
+      load_offset_mm_[as] = 0.5 * model.backlash_mm * std::tanh(f / model.direction_force_n);
+      u_mm[as] += load_offset_mm_[as];
+    }
     if (friction_n != 0.0) {
       // Static compliance of motor and belt in series, the belt at the scheduled stretch direction.
       const double wp = directional_[as] ? 0.5 + 0.5 * std::tanh(f * inv_force_[as]) : 0.5;
       const GantryAxisLpvModel& m = models_[as];
       const double inv_k2 = wp / belt_stiffness_n_m(m, r0, +1) + (1.0 - wp) / belt_stiffness_n_m(m, r0, -1);
-      friction_mm_[as] = friction_n * (1.0 / params_[as].k1_n_m + inv_k2) * 1e3;
-      u_mm[as] += friction_mm_[as];
+      const double friction_mm = friction_n * (1.0 / params_[as].k1_n_m + inv_k2) * 1e3;
+      load_offset_mm_[as] += friction_mm;
+      u_mm[as] += friction_mm;
     }
     r_prev_[as] = r0;
   }

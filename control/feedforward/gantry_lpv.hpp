@@ -15,6 +15,9 @@
 // F_c z / z_max that the belt must add to m2 a + c2 v; the command moves by it through the
 // chain's static compliance, 1 / k1 + 1 / K2(x, s) (motor and belt in series), and the force
 // joins the planned belt force that picks the stretch direction.
+// Backlash (the identified backlash effect): a dead band of width w between pulley and belt; the
+// command moves by (w / 2) tanh(F / F0) on the planned belt force F, so that the pulley is across
+// the gap on the side that pulls before the force is needed.
 // Z and E pass through, delayed by P periods so every joint's command is for the same t_k.
 #pragma once
 
@@ -47,6 +50,11 @@ struct GantryAxisLpvModel {
   // is fully developed (the simulator's and the identification's 20 um).
   double coulomb_friction_n = 0.0;
   double friction_bristle_mm = 0.02;
+  // Backlash (not in Eq. 13; the identified backlash effect, the simulators' dead band between
+  // the pulley and the belt), mm (0: none). The belt carries force only beyond half the width
+  // either side, so the command leads by (w / 2) tanh(F / F0) with F the planned belt force
+  // (friction included) and F0 = direction_force_n: across the gap as the force reverses.
+  double backlash_mm = 0.0;
 };
 
 // Eq. 6 at carriage position x_mm, in N/m: direction > 0 for the belt pulling the carriage
@@ -86,7 +94,7 @@ class GantryLpvFeedforward final : public Feedforward {
   std::array<model::GantryAxisParams, 2> params_{};
   std::array<GantryAxisLpvModel, 2> models_{};  // for K2(x, s) of the friction compensation
   std::array<double, 2> bristle_mm_{};      // Dahl state z
-  std::array<double, 2> friction_mm_{};     // the friction's share of the last command
+  std::array<double, 2> load_offset_mm_{};  // friction's and backlash's share of the last command
   std::array<double, 2> r_prev_{};          // r_{k-1}
   std::vector<JointArray> delay_;  // ring of the last P+1 inputs (pass-through joints)
   int head_ = 0;
