@@ -39,13 +39,13 @@ def seeds_from(text):
     return out
 
 
-def printer_yaml(plant2, seed):
+def printer_yaml(plant2, seed, effect=""):
     with open(os.path.join(ROOT, "config/examples/cartesian_sim.yaml")) as f:
         y = f.read()
     y, n1 = re.subn(r"feedforward:\n  type: none", "feedforward:\n  type: lpv", y)
     y, n2 = re.subn(r"simulator:\n  seed: 1",
-                    'simulator:\n  seed: 1\n  external_plant: {command: "%s --seed %d", axes: [x, y], period_us: 100}'
-                    % (plant2, seed), y)
+                    'simulator:\n  seed: 1\n  external_plant: {command: "%s --seed %d%s", axes: [x, y], period_us: 100}'
+                    % (plant2, seed, " --effect " + effect if effect else ""), y)
     # An external plant's carriages have no simulated switches: G28 is a move (docs/homing.md).
     y = re.sub(r"\n    homing: \{direction: min[^\n]*", "", y)
     if n1 != 1 or n2 != 1:
@@ -64,12 +64,12 @@ def wait_for(path, proc, timeout_s):
     return False
 
 
-def run_seed(build, seed, keep):
+def run_seed(build, seed, keep, effect=""):
     work = tempfile.mkdtemp(prefix="calibrate_seed%d." % seed)
     env = dict(os.environ, RUNTIME_DIRECTORY=work, STATE_DIRECTORY=work)
     cfg = os.path.join(work, "printer.yaml")
     with open(cfg, "w") as f:
-        f.write(printer_yaml(os.path.join(build, "plant2/feedloop-plant2"), seed))
+        f.write(printer_yaml(os.path.join(build, "plant2/feedloop-plant2"), seed, effect))
     log = open(os.path.join(work, "daemon.log"), "w")
     daemon = subprocess.Popen([os.path.join(build, "daemon/feedloopd"), "--virtual-time", "--config", cfg],
                               env=env, stdout=log, stderr=subprocess.STDOUT)
@@ -110,6 +110,8 @@ def main():
     ap.add_argument("--seeds", default="1-7")
     ap.add_argument("--keep", default="")
     ap.add_argument("--json", default="")
+    ap.add_argument("--effect", default="",
+                    help="one effect kind drawn into both axes' machines (feedloop-plant2 --effect KIND)")
     a = ap.parse_args()
     rows = []
     for exe in ("daemon/feedloopd", "cli/feedloop", "plant2/feedloop-plant2"):
@@ -118,10 +120,13 @@ def main():
     if a.keep:
         os.makedirs(a.keep, exist_ok=True)
     print("feedloop calibrate on the second simulator, check pattern e_t in mm (LPV feedforward + PI on the device)")
-    print("%5s %10s %10s %10s %14s  %-20s %7s" % ("seed", "open_loop", "before", "after", "after_vs_open", "model", "wall_s"))
+    if a.effect:
+        print("every drawn machine with the effect %s (feedloop-plant2 --effect %s)" % (a.effect, a.effect))
+    print("%5s %10s %10s %10s %14s  %-20s %7s  %s" % ("seed", "open_loop", "before", "after", "after_vs_open", "model",
+                                                   "wall_s", "effects named (x; y)"))
     for seed in seeds_from(a.seeds):
         print("seed %d ..." % seed, file=sys.stderr, flush=True)
-        r = run_seed(a.build, seed, a.keep)
+        r = run_seed(a.build, seed, a.keep, a.effect)
         rows.append({"seed": seed, "error": r.get("error", ""), "wall_s": r.get("wall_s"),
                      "e_t_mm": r.get("report", {}).get("e_t_mm"), "kept": bool(r.get("report", {}).get("installed")),
                      "warning": r.get("report", {}).get("warning", "")})
@@ -135,7 +140,12 @@ def main():
             kept += ", warned"  # the model in use tracks worse than open loop
         vs = "%+.0f %%" % (100.0 * (af / ol - 1.0)) if ol and af is not None else "-"
         fmt = lambda v: "%.4f" % v if isinstance(v, (int, float)) else "-"
-        print("%5d %10s %10s %10s %14s  %-20s %7.0f" % (seed, fmt(ol), fmt(be), fmt(af), vs, kept, r["wall_s"]), flush=True)
+        named = "; ".join(
+            ", ".join("%s%s" % (e["name"], "" if e.get("in_model") else " (recorded)") for e in ax.get("effects", [])) or "none"
+            for ax in r["report"].get("axes", []))
+        rows[-1]["effects"] = {ax.get("axis"): ax.get("effects", []) for ax in r["report"].get("axes", [])}
+        print("%5d %10s %10s %10s %14s  %-20s %7.0f  %s" % (seed, fmt(ol), fmt(be), fmt(af), vs, kept, r["wall_s"], named),
+              flush=True)
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"bench": "calibrate_seeds", "rows": rows}, f, indent=2)
