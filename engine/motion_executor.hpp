@@ -114,8 +114,11 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
     double position_mm[4] = {0, 0, 0, 0};  // where the plan stopped (machine coordinates)
   };
   StopFigures last_stop() const { return stop_figures_; }
+  // True once the planner thread has asked the servo thread to abort the running G28 (a cancel or a
+  // flush), until the next G28. Any thread.
   // True while a flush's stop waits for the servo thread: asked and released by the planner thread
   // (flush_motion), not yet taken. Any thread.
+  bool homing_abort_requested() const { return homing_abort_.load(std::memory_order_acquire); }
   bool stop_waits_for_servo() const {
     return stop_req_.load(std::memory_order_acquire) == kStopRequested &&
            stop_released_.load(std::memory_order_acquire);

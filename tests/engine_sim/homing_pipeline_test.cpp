@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <mutex>
 #include <string>
@@ -22,6 +23,8 @@
 #include "engine/executor_factory.hpp"
 #include "engine/machine.hpp"
 #include "engine/mcu_bridge.hpp"
+#include "engine/motion_executor.hpp"
+#include "engine/telemetry_tap.hpp"
 #include "gcode/parser.hpp"
 #include "planner/kinematics.hpp"
 #include "tests/common/sanitizer_stage.hpp"
@@ -39,11 +42,16 @@ struct PipelineRig {
   std::string last_error;  // of the last command (protected by mutex)
   uint64_t ticket = 0;
 
-  explicit PipelineRig(const config::MachineConfig& cfg) {
+  MotionExecutor* ex = nullptr;
+
+  // tap: an observer of the executor (HoldBelowX below), or none.
+  explicit PipelineRig(const config::MachineConfig& cfg, TelemetryTap* tap = nullptr) {
     auto stack = make_motion_stack(cfg, motion_options(cfg));
     EXPECT_TRUE(stack.ok()) << (stack.ok() ? "" : stack.error().message);
     if (!stack.ok()) return;
     bridge = stack.value().bridge;
+    ex = stack.value().executor.get();
+    if (tap != nullptr) ex->set_telemetry(tap);
     machine =
         std::make_unique<Machine>(machine_options(cfg), clock, std::move(stack.value().executor));
     machine->set_done_callback([this](CommandDone d) {
@@ -192,35 +200,83 @@ TEST(HomingPipeline, MoveBeforeG28IsRefusedThenG28HomesEveryAxisAndMovesFollow) 
 // A cancel (a flush: M524, a job's cancel) while G28 runs aborts the homing on the MCUs at once:
 // the G28 fails with the reason, the carriage stops short of its switch, the axis is unhomed, and
 // the next G28 homes. (Before, the homing ran on to its end after the G28 had given up.)
-// Homed, the carriage sent to X 60, then "G28 X" submitted and followed until the carriage is
-// below `below_mm` on its way to the switch (its encoder, an atomic the servo thread publishes;
-// the plant itself is the servo thread's while it runs). The G28's ticket; *t_submit its time,
-// *homed the X homings done before it.
-uint64_t g28_x_under_way(PipelineRig& rig, double below_mm, double* t_submit, uint64_t* homed) {
+// Holds the servo thread, and with it virtual time, at the first encoder sample of X below x_mm
+// once armed, until release(). A test thread that polls the encoder instead sees the carriage
+// wherever its own scheduling lets it look: virtual time runs free meanwhile. Blocking in a tap
+// is for tests only (its calls are the servo thread's, engine/telemetry_tap.hpp).
+class HoldBelowX final : public TelemetryTap {
+ public:
+  explicit HoldBelowX(double x_mm) : x_mm_(x_mm) {}
+  void arm() { armed_.store(true); }
+  void on_encoder_sample(const EncoderReading& r) override {
+    if (passed_ || !armed_.load() || r.joint != 0 || !(r.mm < x_mm_)) return;
+    passed_ = true;
+    std::unique_lock lock(mutex_);
+    held_ = true;
+    cv_.notify_all();
+    cv_.wait(lock, [this] { return released_; });
+  }
+  // True once the servo thread is held (false after timeout_s of wall time).
+  bool wait_held(double timeout_s) {
+    std::unique_lock lock(mutex_);
+    return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), [this] { return held_; });
+  }
+  void release() {
+    std::lock_guard lock(mutex_);
+    released_ = true;
+    cv_.notify_all();
+  }
+  ~HoldBelowX() override { release(); }
+
+ private:
+  double x_mm_;
+  std::atomic<bool> armed_{false};
+  bool passed_ = false;  // servo thread
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool held_ = false, released_ = false;
+};
+
+// Homed, the carriage sent to X 60, then "G28 X" submitted; returns with the servo thread held
+// (`hold`, armed here) at the carriage's first encoder sample below hold's x on its way to the
+// switch. The G28's ticket; *t_submit its time, *homed the X homings done before it.
+uint64_t g28_x_under_way(PipelineRig& rig, HoldBelowX& hold, double* t_submit, uint64_t* homed) {
   EXPECT_EQ(rig.run("G28"), "");
   *homed = rig.bridge->homing_report(0).count;
   EXPECT_EQ(rig.run("G1 X60 F6000"), "");
   EXPECT_EQ(rig.run("M400"), "");
+  hold.arm();
   const uint64_t g28 = rig.submit("G28 X");
   *t_submit = rig.seconds();
-  while (rig.bridge->encoder_mm(0) > below_mm && rig.seconds() < *t_submit + 10.0 &&
-         rig.done.load() < g28)
-    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  EXPECT_TRUE(hold.wait_held(60.0)) << "X never came below the hold";
   return g28;
 }
 
 TEST(HomingPipeline, AFlushDuringG28AbortsTheHoming) {
-  PipelineRig rig(homing_config(2.0));
+  HoldBelowX hold(50.0);  // well into the approach; outlives the rig (the executor's tap)
+  PipelineRig rig(homing_config(2.0), &hold);
   ASSERT_TRUE(rig.machine);
+  struct ReleaseFirst {  // on every way out, before the rig joins the servo thread
+    HoldBelowX& h;
+    ~ReleaseFirst() { h.release(); }
+  } release_first{hold};
   SimulatedPlant* plant = rig.bridge->plant();
   ASSERT_NE(plant, nullptr);
   double t_submit = 0.0;
   uint64_t homings = 0;
-  const uint64_t g28 = g28_x_under_way(rig, 50.0, &t_submit, &homings);  // well into the approach
+  const uint64_t g28 = g28_x_under_way(rig, hold, &t_submit, &homings);
   ASSERT_LT(rig.done.load(), g28) << "the homing ended before the flush";
   const double x_at_flush = rig.bridge->encoder_mm(0);
   const double t_flush = rig.seconds();
   rig.machine->flush(false);
+  // The servo thread runs on once the planner thread has asked it to abort the homing: it aborts
+  // on its next cycle, whatever either thread's scheduling.
+  const auto asked_by = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!rig.ex->homing_abort_requested() && std::chrono::steady_clock::now() < asked_by)
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  EXPECT_TRUE(rig.ex->homing_abort_requested());
+  EXPECT_EQ(rig.seconds(), t_flush);  // no virtual time passed: the servo thread is held
+  hold.release();
   const std::string err = rig.wait(g28);
   const double t_done = rig.seconds();
   std::printf("flush at %.3f s into G28 X, carriage at %.2f mm; G28 ended %.3f s later: %s\n",
@@ -248,12 +304,18 @@ TEST(HomingPipeline, AFlushDuringG28AbortsTheHoming) {
 // arrives, before it answers the homing; the planner thread must not wait for that answer (it
 // waited a second of wall time, which a loaded machine stretched past the daemon's 2 s to exit).
 TEST(HomingPipeline, StoppingTheMachineDuringG28DoesNotWaitForTheServo) {
-  PipelineRig rig(homing_config(2.0));
+  HoldBelowX hold(55.0);  // outlives the rig (the executor's tap)
+  PipelineRig rig(homing_config(2.0), &hold);
   ASSERT_TRUE(rig.machine);
+  struct ReleaseFirst {  // on every way out, before the rig joins the servo thread
+    HoldBelowX& h;
+    ~ReleaseFirst() { h.release(); }
+  } release_first{hold};
   double t_submit = 0.0;
   uint64_t homings = 0;
-  const uint64_t g28 = g28_x_under_way(rig, 55.0, &t_submit, &homings);
+  const uint64_t g28 = g28_x_under_way(rig, hold, &t_submit, &homings);
   ASSERT_LT(rig.done.load(), g28) << "the homing ended before the stop";
+  hold.release();  // the servo thread runs the homing on; the stop arrives during it
   const auto t0 = std::chrono::steady_clock::now();
   rig.machine->stop();
   const double stop_s =
