@@ -130,7 +130,7 @@ struct FlushRig {
 // Holds the servo thread, and with it virtual time, at its first sample with the X encoder past
 // x_mm, until release(). A test thread that polls the encoder instead sees the carriage wherever
 // its own scheduling lets it look: virtual time runs free meanwhile, as fast as the servo thread
-// simulates (the cruise past X 80 is 0.78 s of it). Blocking in a tap is for tests only (a tap's
+// simulates (the cruise past X 80 is ~0.95 s of it). Blocking in a tap is for tests only (a tap's
 // calls are the servo thread's, engine/telemetry_tap.hpp).
 class HoldPastX final : public TelemetryTap {
  public:
