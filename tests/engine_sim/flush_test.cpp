@@ -10,7 +10,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -30,6 +29,7 @@
 #include "engine/telemetry_tap.hpp"
 #include "engine/thermal_config.hpp"
 #include "gcode/parser.hpp"
+#include "tests/common/servo_hold.hpp"
 
 namespace feedloop::engine {
 namespace {
@@ -127,40 +127,17 @@ struct FlushRig {
   }
 };
 
-// Holds the servo thread, and with it virtual time, at its first sample with the X encoder past
-// x_mm, until release(). A test thread that polls the encoder instead sees the carriage wherever
-// its own scheduling lets it look: virtual time runs free meanwhile, as fast as the servo thread
-// simulates (the cruise past X 80 is ~0.95 s of it). Blocking in a tap is for tests only (a tap's
-// calls are the servo thread's, engine/telemetry_tap.hpp).
-class HoldPastX final : public TelemetryTap {
+// Holds the servo thread at its first sample with the X encoder past x_mm (the cruise past X 80
+// is ~0.95 s of virtual time), until release().
+class HoldPastX final : public testing::ServoHold {
  public:
   explicit HoldPastX(double x_mm) : x_mm_(x_mm) {}
   void on_servo_sample(const ServoSample& s) override {
-    if (passed_ || !(s.encoder_mm[0] > x_mm_)) return;
-    passed_ = true;
-    std::unique_lock lock(mutex_);
-    held_ = true;
-    cv_.notify_all();
-    cv_.wait(lock, [this] { return released_; });
+    if (s.encoder_mm[0] > x_mm_) hold_here();
   }
-  // True once the servo thread is held (false after timeout_s of wall time).
-  bool wait_held(double timeout_s) {
-    std::unique_lock lock(mutex_);
-    return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), [this] { return held_; });
-  }
-  void release() {
-    std::lock_guard lock(mutex_);
-    released_ = true;
-    cv_.notify_all();
-  }
-  ~HoldPastX() override { release(); }
 
  private:
   double x_mm_;
-  bool passed_ = false;  // servo thread
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  bool held_ = false, released_ = false;
 };
 
 std::string read_text(const std::string& path) {

@@ -9,7 +9,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
 #include <mutex>
 #include <string>
@@ -28,6 +27,7 @@
 #include "gcode/parser.hpp"
 #include "planner/kinematics.hpp"
 #include "tests/common/sanitizer_stage.hpp"
+#include "tests/common/servo_hold.hpp"
 
 namespace feedloop::engine {
 namespace {
@@ -197,44 +197,18 @@ TEST(HomingPipeline, MoveBeforeG28IsRefusedThenG28HomesEveryAxisAndMovesFollow) 
   EXPECT_EQ(rig.bridge->endstop_state(0), 0);  // released
 }
 
-// A cancel (a flush: M524, a job's cancel) while G28 runs aborts the homing on the MCUs at once:
-// the G28 fails with the reason, the carriage stops short of its switch, the axis is unhomed, and
-// the next G28 homes. (Before, the homing ran on to its end after the G28 had given up.)
-// Holds the servo thread, and with it virtual time, at the first encoder sample of X below x_mm
-// once armed, until release(). A test thread that polls the encoder instead sees the carriage
-// wherever its own scheduling lets it look: virtual time runs free meanwhile. Blocking in a tap
-// is for tests only (its calls are the servo thread's, engine/telemetry_tap.hpp).
-class HoldBelowX final : public TelemetryTap {
+// Holds the servo thread at the first encoder sample of X below x_mm once armed, until release().
+class HoldBelowX final : public testing::ServoHold {
  public:
   explicit HoldBelowX(double x_mm) : x_mm_(x_mm) {}
   void arm() { armed_.store(true); }
   void on_encoder_sample(const EncoderReading& r) override {
-    if (passed_ || !armed_.load() || r.joint != 0 || !(r.mm < x_mm_)) return;
-    passed_ = true;
-    std::unique_lock lock(mutex_);
-    held_ = true;
-    cv_.notify_all();
-    cv_.wait(lock, [this] { return released_; });
+    if (armed_.load() && r.joint == 0 && r.mm < x_mm_) hold_here();
   }
-  // True once the servo thread is held (false after timeout_s of wall time).
-  bool wait_held(double timeout_s) {
-    std::unique_lock lock(mutex_);
-    return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), [this] { return held_; });
-  }
-  void release() {
-    std::lock_guard lock(mutex_);
-    released_ = true;
-    cv_.notify_all();
-  }
-  ~HoldBelowX() override { release(); }
 
  private:
   double x_mm_;
   std::atomic<bool> armed_{false};
-  bool passed_ = false;  // servo thread
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  bool held_ = false, released_ = false;
 };
 
 // Homed, the carriage sent to X 60, then "G28 X" submitted; returns with the servo thread held
@@ -252,6 +226,9 @@ uint64_t g28_x_under_way(PipelineRig& rig, HoldBelowX& hold, double* t_submit, u
   return g28;
 }
 
+// A cancel (a flush: M524, a job's cancel) while G28 runs aborts the homing on the MCUs at once:
+// the G28 fails with the reason, the carriage stops short of its switch, the axis is unhomed, and
+// the next G28 homes. (Before, the homing ran on to its end after the G28 had given up.)
 TEST(HomingPipeline, AFlushDuringG28AbortsTheHoming) {
   HoldBelowX hold(50.0);  // well into the approach; outlives the rig (the executor's tap)
   PipelineRig rig(homing_config(2.0), &hold);
