@@ -164,8 +164,8 @@ void GantryLpvFeedforward::step(const FeedforwardInput& in, JointArray& u_mm) {
     if (friction_n != 0.0) {
       // Static compliance of motor and belt in series, the belt at the scheduled stretch direction.
       const double wp = directional_[as] ? 0.5 + 0.5 * std::tanh(f * inv_force_[as]) : 0.5;
-      const GantryAxisLpvModel& m = models_[as];
-      const double inv_k2 = wp / belt_stiffness_n_m(m, r0, +1) + (1.0 - wp) / belt_stiffness_n_m(m, r0, -1);
+      const double inv_k2 =
+          wp / belt_stiffness_n_m(model, r0, +1) + (1.0 - wp) / belt_stiffness_n_m(model, r0, -1);
       const double friction_mm = friction_n * (1.0 / params_[as].k1_n_m + inv_k2) * 1e3;
       load_offset_mm_[as] += friction_mm;
       u_mm[as] += friction_mm;
