@@ -2,11 +2,11 @@
 // engine::Machine's planner stage (Machine::execute_inline: the same dispatch the planner thread
 // runs, heaters and waits included) into a BatchExecutor, the executor without a servo stage:
 // interpreter -> lookahead -> joint segments -> steps, as fast as the CPU allows.
-// Threads: the calling thread reads, parses, plans and steps its
-// joints; with threads = 2 a worker receives every PlannedMove through a blocking SPSC queue
-// (core/blocking_spsc_queue.hpp: a side that waits sleeps on a futex, it does not spin) and steps
-// the other joints. Each thread has its own JointEmitter and StepPipeline (joint_mask), and both
-// close runs on the same schedule (every 64 moves), so the output does not depend on threading.
+// Threads: the calling thread reads, parses, plans and, with one thread, steps every joint. With
+// two, the joints are two lanes, each with its own JointEmitter and StepPipeline (joint_mask),
+// and the planned moves wait in a ring from which either thread steps whichever lane is free and
+// furthest behind (engine/move_lanes.hpp). Every lane closes runs on the same schedule (every 64
+// of its moves), so the output does not depend on threading.
 #include "engine/batch.hpp"
 
 #include <chrono>
@@ -16,11 +16,11 @@
 #include <memory>
 #include <thread>
 
-#include "core/blocking_spsc_queue.hpp"
+#include "core/allowed_cores.hpp"
 #include "core/clock.hpp"
-#include "core/free_cores.hpp"
 #include "drivers/protocol/frame.hpp"
 #include "engine/machine.hpp"
+#include "engine/move_lanes.hpp"
 #include "gcode/line_splitter.hpp"
 #include "gcode/parser.hpp"
 #include "planner/interpreter.hpp"
@@ -30,10 +30,12 @@
 namespace feedloop::engine {
 namespace {
 
-constexpr unsigned kMainJoints = 0x6u;    // y (or B) and z (or C): stepped by the reading thread
-constexpr unsigned kWorkerJoints = 0x9u;  // x (or A) and the extruder: stepped by the worker
-constexpr size_t kQueueMoves = 1024;      // moves in flight between the threads
-constexpr size_t kWakeMoves = 64;         // moves that wake a sleeping worker
+// With two threads, the joints are two lanes (engine/move_lanes.hpp) that either thread steps.
+constexpr unsigned kMainJoints = 0x6u;    // y (or B) and z (or C)
+constexpr unsigned kWorkerJoints = 0x9u;  // x (or A) and the extruder
+constexpr size_t kRingMoves = 4096;       // moves the lanes may be apart (~1.7 MB)
+constexpr size_t kPublishMoves = 64;      // moves the reading thread hands over at a time
+constexpr size_t kChunkMoves = 64;        // moves a thread steps on a lane at a time
 
 double process_cpu_s() {
   timespec ts{};
@@ -125,55 +127,24 @@ class MoveStepper {
   int since_flush_ = 0;
 };
 
-// The worker: pops moves until the reader closes the queue and it is drained.
-class StepWorker {
- public:
-  StepWorker(const planner::Kinematics& kin, double period_s, StepPipeline& steps,
-             planner::JointSink* tap)
-      : queue_(kQueueMoves, kWakeMoves), stepper_(kin, period_s, steps, tap), steps_(steps) {}
-  ~StepWorker() { finish(); }
-  void start() {
-    thread_ = std::thread([this] { run(); });
-  }
-  void push(const planner::PlannedMove& m) { queue_.push(m); }
-  void finish() {
-    if (!thread_.joinable()) return;
-    queue_.close();
-    thread_.join();
-  }
-  uint64_t reader_waits() const { return queue_.producer_waits(); }
-  uint64_t worker_waits() const { return queue_.consumer_waits(); }
-
- private:
-  void run() {
-    planner::PlannedMove m;
-    while (queue_.pop(m)) stepper_.on_move(m);
-    stepper_.finish();
-    steps_.flush();
-  }
-  BlockingSpscQueue<planner::PlannedMove> queue_;
-  MoveStepper stepper_;
-  StepPipeline& steps_;
-  std::thread thread_;
-};
-
-// Planner output: counted, stepped here, and handed to the worker if there is one.
+// Planner output: counted, then stepped here (one thread) or handed to the lanes (two).
 class MoveDispatch final : public planner::MoveSink {
  public:
-  MoveDispatch(MoveStepper& local, StepWorker* worker, bool step)
-      : local_(local), worker_(worker), step_(step) {}
-  void set_worker(StepWorker* worker) { worker_ = worker; }
+  MoveDispatch(MoveStepper& local, bool step) : local_(local), step_(step) {}
+  void set_lanes(MoveLanes<MoveStepper>* lanes) { lanes_ = lanes; }
   void on_move(const planner::PlannedMove& m) override {
     ++moves;
     if (!step_) return;
-    if (worker_ != nullptr) worker_->push(m);
-    local_.on_move(m);
+    if (lanes_ != nullptr)
+      lanes_->push(m);
+    else
+      local_.on_move(m);
   }
   uint64_t moves = 0;
 
  private:
   MoveStepper& local_;
-  StepWorker* worker_;
+  MoveLanes<MoveStepper>* lanes_ = nullptr;
   bool step_;
 };
 
@@ -194,7 +165,7 @@ class BatchExecutor final : public CommandExecutor {
       : kin_(planner::make_kinematics(pcfg)),
         steps_(sp, &batches_),
         local_(*kin_, pcfg.servo_period_s, steps_, options.segment_tap),
-        dispatch_(local_, nullptr, step),
+        dispatch_(local_, step),
         planner_(pcfg, dispatch_),
         interp_(pcfg, *kin_, planner_) {
     batches_.tap = worker_batches_.tap = options.batch_tap;
@@ -202,10 +173,13 @@ class BatchExecutor final : public CommandExecutor {
       StepPipelineParams wp = sp;
       wp.joint_mask = kWorkerJoints;
       worker_steps_ = std::make_unique<StepPipeline>(wp, &worker_batches_);
-      worker_ = std::make_unique<StepWorker>(*kin_, pcfg.servo_period_s, *worker_steps_,
-                                             options.segment_tap);
-      dispatch_.set_worker(worker_.get());
-      worker_->start();
+      worker_local_ = std::make_unique<MoveStepper>(*kin_, pcfg.servo_period_s, *worker_steps_,
+                                                    options.segment_tap);
+      lanes_ = std::make_unique<MoveLanes<MoveStepper>>(
+          std::array<MoveStepper*, 2>{worker_local_.get(), &local_}, kRingMoves, kPublishMoves,
+          kChunkMoves);
+      dispatch_.set_lanes(lanes_.get());
+      lanes_->start();
     }
   }
   Status execute(const gcode::Command& cmd, const std::atomic<bool>& /*cancel*/) override {
@@ -215,12 +189,16 @@ class BatchExecutor final : public CommandExecutor {
     const planner::Vec4& p = interp_.state().logical_mm;
     for (int i = 0; i < 4; ++i) out_mm[i] = p[static_cast<size_t>(i)];
   }
-  // End of input: the lookahead's tail, the open runs, the worker.
+  // End of input: the lookahead's tail, every lane's moves, the open runs.
   void finish() {
     planner_.flush();
+    if (lanes_) {
+      lanes_->finish();
+      worker_local_->finish();
+      worker_steps_->flush();
+    }
     local_.finish();
     steps_.flush();
-    if (worker_) worker_->finish();
   }
   uint64_t moves() const { return dispatch_.moves; }
   double print_time_s() const { return planner_.print_time_s(); }
@@ -234,7 +212,8 @@ class BatchExecutor final : public CommandExecutor {
   StepPipeline steps_;
   MoveStepper local_;
   std::unique_ptr<StepPipeline> worker_steps_;
-  std::unique_ptr<StepWorker> worker_;
+  std::unique_ptr<MoveStepper> worker_local_;
+  std::unique_ptr<MoveLanes<MoveStepper>> lanes_;
   MoveDispatch dispatch_;
   planner::Planner planner_;
   planner::Interpreter interp_;
@@ -255,7 +234,7 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
   const planner::PlannerConfig pcfg = planner_config(cfg);
   if (Status s = pcfg.validate(); !s) return s.error();
   const int threads =
-      options.threads == 0 ? (core::free_cores() >= 2 ? 2 : 1) : std::min(options.threads, 2);
+      options.threads == 0 ? (core::allowed_cores() >= 2 ? 2 : 1) : std::min(options.threads, 2);
   const bool threaded = threads >= 2 && options.last_stage >= BatchStage::step_times;
   StepPipelineParams sp;
   sp.steps_per_mm = steps_per_mm(cfg);

@@ -25,14 +25,16 @@ struct BatchOptions {
   // Called now and then with the fraction of the file read (0..1).
   std::function<void(double fraction)> on_progress;
   size_t max_messages = 20;  // warnings kept in the summary
-  // 2: the reading thread parses, plans and steps joints 1-2; a worker steps joints 0 and 3
-  // (moves handed over through an SPSC queue). 1: everything on the calling thread. 0 (auto): 2
-  // when a second core is free at the start (core/free_cores.hpp), else 1. The runs, batches and
-  // statistics are bit-identical either way.
+  // 2: the reading thread parses and plans; joints 0 and 3, and joints 1 and 2, are two lanes
+  // that the reading thread and a helper step, whichever is free (engine/move_lanes.hpp).
+  // 1: everything on the calling thread. 0 (auto): 2 when the process may run on two cores or
+  // more (core/allowed_cores.hpp), also beside other busy processes, else 1. The runs, batches
+  // and statistics are bit-identical either way.
   int threads = 0;
   BatchStage last_stage = BatchStage::output;
-  // Test taps, both optional. Each is called from the thread that steps the joint concerned
-  // (never concurrently for the same joint): keep per-joint state apart.
+  // Test taps, both optional. Each is called from a thread that steps the joint concerned, never
+  // from two at once for the same joint (with two threads, either may step a joint, one after
+  // the other): keep per-joint state apart.
   planner::JointSink* segment_tap = nullptr;  // every joint segment before step generation
   stepgen::BatchSink* batch_tap = nullptr;    // every QUEUE_STEPS batch body
 };

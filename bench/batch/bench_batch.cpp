@@ -155,7 +155,7 @@ nlohmann::json stage_times(const Job& job, const config::MachineConfig& cfg, int
   return out;
 }
 
-// One thread, two, and the default (auto: two when a second core is free at the start),
+// One thread, two, and the default (auto: two when the process may run on two cores),
 // interleaved; alone, then with stress-ng --cpu 1 beside it.
 nlohmann::json threads_and_load(const Job& job, const config::MachineConfig& cfg, int reps,
                                 bool stress) {
@@ -272,7 +272,7 @@ int main(int argc, char** argv) {
   out["load_average_1min_at_start"] = load_average_1min();
   out["files"] = nlohmann::json::array();
   std::printf(
-      "batch mode, %d rep(s) per file (median; default threads: two when a second core is free; "
+      "batch mode, %d rep(s) per file (median; default threads: two when two cores are allowed; "
       "CPU = all threads of the process)\n",
       reps);
   std::printf("load average (1 min) at start: %.2f\n", load_average_1min());
