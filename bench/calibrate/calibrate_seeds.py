@@ -9,12 +9,19 @@ e_t before (the config's thesis model), after (the calibrated model) and open lo
 table; the reports stay in --keep DIR when given.
 
     python3 bench/calibrate/calibrate_seeds.py [--build build] [--seeds 1-7] [--keep DIR] [--json F]
+                                               [--effect KIND] [--ablate KEY]
+
+--ablate KEY (e.g. backlash_mm): after the calibration, every KEY of the installed overlay is set
+to 0, the daemon reloads it, and the check pattern runs once more (`feedloop calibrate
+--check-only`): the column `without` is e_t with the calibrated model less that one term, so the
+term's own share is measured on the same machine.
 
 Each seed takes about 75 s on a 2-core machine (two minutes of simulated motion in lock-step with
 the external plant, four fits). Same build as the tests (the README's build directory).
 """
 import argparse
 import json
+import socket
 import os
 import re
 import shutil
@@ -64,7 +71,51 @@ def wait_for(path, proc, timeout_s):
     return False
 
 
-def run_seed(build, seed, keep, effect=""):
+def api_call(sock_path, method, params=None):
+    """One JSON-RPC call on the daemon's api.sock (one object per line)."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        s.settimeout(30)
+        s.connect(sock_path)
+        req = {"jsonrpc": "2.0", "id": 1, "method": method}
+        if params is not None:
+            req["params"] = params
+        s.sendall((json.dumps(req) + "\n").encode())
+        buf = b""
+        while b"\n" not in buf:
+            chunk = s.recv(65536)
+            if not chunk:
+                break
+            buf += chunk
+    reply = json.loads(buf.split(b"\n")[0])
+    if "error" in reply:
+        raise RuntimeError("%s: %s" % (method, reply["error"]))
+    return reply.get("result")
+
+
+def ablated_e_t(build, env, work, overlay, key):
+    """e_t of the check pattern with every `key` of the overlay set to 0 (reloaded), or an error."""
+    with open(overlay) as f:
+        text = f.read()
+    text, n = re.subn(r"(\b%s:\s*)[-+0-9.eE]+" % re.escape(key), r"\g<1>0", text)
+    if n == 0:
+        return None, "the overlay has no %s" % key
+    with open(overlay, "w") as f:
+        f.write(text)
+    sock = os.path.join(work, "api.sock")
+    reloads = api_call(sock, "status").get("config_reloads", 0)
+    api_call(sock, "config.reload", {"open_loop": False})
+    end = time.time() + 30
+    while api_call(sock, "status").get("config_reloads", 0) <= reloads:
+        if time.time() > end:
+            return None, "the daemon did not reload"
+        time.sleep(0.1)
+    p = subprocess.run([os.path.join(build, "cli/feedloop"), "calibrate", "--check-only"], env=env,
+                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=600)
+    m = re.search(r"e_t of the check pattern: ([0-9.]+) mm", p.stdout)
+    return (float(m.group(1)), "") if m else (None, p.stdout.strip().splitlines()[-1:])
+
+
+def run_seed(build, seed, keep, effect="", ablate=""):
     work = tempfile.mkdtemp(prefix="calibrate_seed%d." % seed)
     env = dict(os.environ, RUNTIME_DIRECTORY=work, STATE_DIRECTORY=work)
     cfg = os.path.join(work, "printer.yaml")
@@ -89,6 +140,11 @@ def run_seed(build, seed, keep, effect=""):
                 row["report"] = json.load(f)
         except (OSError, ValueError):
             row["error"] = "no report (exit %d): %s" % (p.returncode, p.stdout.strip().splitlines()[-1:] or "")
+        installed = row.get("report", {}).get("installed", "")
+        if ablate and installed:
+            row["ablated"], why = ablated_e_t(build, env, work, installed, ablate)
+            if row["ablated"] is None:
+                row["ablate_error"] = str(why)
     finally:
         daemon.send_signal(signal.SIGTERM)
         try:
@@ -110,6 +166,8 @@ def main():
     ap.add_argument("--seeds", default="1-7")
     ap.add_argument("--keep", default="")
     ap.add_argument("--json", default="")
+    ap.add_argument("--ablate", default="",
+                    help="an overlay key set to 0 after the calibration, then the check pattern again")
     ap.add_argument("--effect", default="",
                     help="one effect kind drawn into both axes' machines (feedloop-plant2 --effect KIND)")
     a = ap.parse_args()
@@ -122,14 +180,17 @@ def main():
     print("feedloop calibrate on the second simulator, check pattern e_t in mm (LPV feedforward + PI on the device)")
     if a.effect:
         print("every drawn machine with the effect %s (feedloop-plant2 --effect %s)" % (a.effect, a.effect))
-    print("%5s %10s %10s %10s %14s  %-20s %7s  %s" % ("seed", "open_loop", "before", "after", "after_vs_open", "model",
-                                                   "wall_s", "effects named (x; y)"))
+    if a.ablate:
+        print("without: e_t after the calibration with every %s of the overlay set to 0" % a.ablate)
+    print("%5s %10s %10s %10s %14s %10s  %-20s %7s  %s" % ("seed", "open_loop", "before", "after", "after_vs_open",
+                                                        "without", "model", "wall_s", "effects named (x; y)"))
     for seed in seeds_from(a.seeds):
         print("seed %d ..." % seed, file=sys.stderr, flush=True)
-        r = run_seed(a.build, seed, a.keep, a.effect)
+        r = run_seed(a.build, seed, a.keep, a.effect, a.ablate)
         rows.append({"seed": seed, "error": r.get("error", ""), "wall_s": r.get("wall_s"),
                      "e_t_mm": r.get("report", {}).get("e_t_mm"), "kept": bool(r.get("report", {}).get("installed")),
-                     "warning": r.get("report", {}).get("warning", "")})
+                     "warning": r.get("report", {}).get("warning", ""), "ablated_e_t_mm": r.get("ablated"),
+                     "ablate_error": r.get("ablate_error", "")})
         if "report" not in r:
             print("%5d  %s" % (seed, r.get("error", "failed")), flush=True)
             continue
@@ -144,8 +205,11 @@ def main():
             ", ".join("%s%s" % (e["name"], "" if e.get("in_model") else " (recorded)") for e in ax.get("effects", [])) or "none"
             for ax in r["report"].get("axes", []))
         rows[-1]["effects"] = {ax.get("axis"): ax.get("effects", []) for ax in r["report"].get("axes", [])}
-        print("%5d %10s %10s %10s %14s  %-20s %7.0f  %s" % (seed, fmt(ol), fmt(be), fmt(af), vs, kept, r["wall_s"], named),
-              flush=True)
+        without = fmt(r.get("ablated")) if a.ablate else "-"
+        print("%5d %10s %10s %10s %14s %10s  %-20s %7.0f  %s" % (seed, fmt(ol), fmt(be), fmt(af), vs, without, kept,
+                                                              r["wall_s"], named), flush=True)
+        if r.get("ablate_error"):
+            print("       without: %s" % r["ablate_error"], flush=True)
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"bench": "calibrate_seeds", "rows": rows}, f, indent=2)
