@@ -101,6 +101,7 @@ Result<std::string> merge_overlay(const config::MachineConfig& base, const std::
     for (const config::CalibrationEffect& e : old.value().effects)
       if (e.axis != r.axis) c.effects.push_back(e);
     if (!old.value().source.empty() && old.value().source != source) c.source = old.value().source + "; " + source;
+    c.gains = old.value().gains;
   }
   double max_abs_mm = 0.0;
   if (const config::AxisConfig* a = base.axis(r.axis))
@@ -110,6 +111,21 @@ Result<std::string> merge_overlay(const config::MachineConfig& base, const std::
       gantry_model_from_ident(r, base.model.gantry_for(r.axis), mean_position_mm, max_abs_mm));
   for (config::CalibrationEffect& e : effects_from_ident(r, mean_position_mm, max_abs_mm))
     c.effects.push_back(std::move(e));
+  return config::calibration_yaml(c);
+}
+
+Result<std::string> overlay_with_gains(const config::MachineConfig& base, const std::string& yaml,
+                                       const std::string& name,
+                                       const std::vector<config::AxisGainsConfig>& gains) {
+  auto applied = config::apply_calibration_text(base, yaml, name);
+  if (!applied) return applied.error();
+  config::Calibration c;
+  c.source = applied.value().source;
+  for (const std::string& axis : applied.value().axes)
+    if (const config::GantryModelConfig* g = applied.value().config.model.gantry_for(axis))
+      c.gantry.push_back(*g);
+  c.effects = applied.value().effects;
+  c.gains = gains;
   return config::calibration_yaml(c);
 }
 

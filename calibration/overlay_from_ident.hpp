@@ -50,4 +50,11 @@ Result<std::string> merge_overlay(const config::MachineConfig& base, const std::
                                   const std::string& existing_name, const ident::IdentResult& r,
                                   double mean_position_mm, const std::string& source);
 
+// The overlay `yaml` with its control.axes gains replaced by `gains` (empty: none, the config's
+// gains apply): what `feedloop calibrate` installs after choosing the PI gains on the calibrated
+// model.
+Result<std::string> overlay_with_gains(const config::MachineConfig& base, const std::string& yaml,
+                                       const std::string& name,
+                                       const std::vector<config::AxisGainsConfig>& gains);
+
 }  // namespace feedloop::calibration

@@ -75,6 +75,43 @@ void read_effects(MapReader& root, const MachineConfig& cfg, std::vector<Calibra
   }
 }
 
+// control.axes.<axis>: {kp, ki_per_s}, over the config's gains for that axis.
+void read_gains(MapReader& root, const MachineConfig& base, AppliedCalibration& out,
+                Diagnostics& diag) {
+  if (!root.has("control")) return;
+  MapReader control = root.sub("control");
+  MapReader axes = control.sub("axes");
+  for (const std::string& name : axes.keys()) {
+    const YAML::Mark where = axes.key_mark(name);
+    MapReader a(axes.get(name), axes.key_path(name), diag, where);
+    if (base.axis(name) == nullptr) {
+      diag.add(where, axes.key_path(name) + ": '" + name + "' is not an axis of the config");
+      continue;
+    }
+    const AxisGainsConfig before = out.config.control.gains_for(name);
+    AxisGainsConfig g = before;
+    a.number("kp", g.kp, Range::non_negative());
+    a.number("ki_per_s", g.ki_per_s, Range::non_negative());
+    a.finish();
+    if (g.kp != before.kp)
+      out.changes.push_back("control.axes." + name + ".kp: " + format_number(before.kp) + " -> " +
+                            format_number(g.kp));
+    if (g.ki_per_s != before.ki_per_s)
+      out.changes.push_back("control.axes." + name + ".ki_per_s: " +
+                            format_number(before.ki_per_s) + " -> " + format_number(g.ki_per_s));
+    bool replaced = false;
+    for (AxisGainsConfig& existing : out.config.control.axes)
+      if (existing.axis == name) {
+        existing = g;
+        replaced = true;
+      }
+    if (!replaced) out.config.control.axes.push_back(g);
+    out.gains.push_back(g);
+  }
+  axes.finish();
+  control.finish();
+}
+
 void read_overlay(const YAML::Node& doc, const MachineConfig& base, AppliedCalibration& out, Diagnostics& diag) {
   MapReader root(doc, "", diag, YAML::Mark());
   if (!root.present()) return;  // reported by MapReader
@@ -108,6 +145,7 @@ void read_overlay(const YAML::Node& doc, const MachineConfig& base, AppliedCalib
   }
   gantry.finish();
   model.finish();
+  read_gains(root, base, out, diag);
   read_effects(root, base, out.effects, diag);
   root.finish();
   diag.resolve_unknown_keys();
@@ -163,6 +201,17 @@ std::string calibration_yaml(const Calibration& c) {
     y << YAML::EndMap << YAML::EndMap;
   }
   y << YAML::EndMap << YAML::EndMap;
+  if (!c.gains.empty()) {
+    y << YAML::Key << "control" << YAML::Value << YAML::BeginMap << YAML::Key << "axes"
+      << YAML::Value << YAML::BeginMap;
+    for (const AxisGainsConfig& g : c.gains) {
+      y << YAML::Key << g.axis << YAML::Value << YAML::Flow << YAML::BeginMap;
+      y << YAML::Key << "kp" << YAML::Value << format_number(g.kp);
+      y << YAML::Key << "ki_per_s" << YAML::Value << format_number(g.ki_per_s);
+      y << YAML::EndMap;
+    }
+    y << YAML::EndMap << YAML::EndMap;
+  }
   y << YAML::Key << "effects" << YAML::Value << YAML::BeginSeq;
   for (const CalibrationEffect& e : c.effects) {
     y << YAML::Flow << YAML::BeginMap;

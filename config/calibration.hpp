@@ -7,14 +7,19 @@
 //   model:
 //     gantry:
 //       x: {k1_n_per_m: 298000, k2_n_per_m: 121000, coulomb_friction_n: 2.1, ...}
+//   control:                                                   # optional: the PI gains chosen
+//     axes:                                                    # on the calibrated model
+//       x: {kp: 0.25, ki_per_s: 10}
 //   effects:                                                   # what the identification named
 //     - {axis: x, name: coulomb_friction, params: {force_n: 2.1}, in_model: true}
 //
 // `model.gantry.<axis>` takes any key of the config's `model.gantry.<axis>` (config/README.md)
 // and replaces only the keys it names; an axis the config has no model for needs all six Eq. 13
-// parameters. `effects` records every named effect with its parameters and whether the model
-// carries it (`in_model`); it changes nothing. The overlay's problems are reported like a
-// config's, every one with the overlay's file:line:column, and nothing is applied when any exists.
+// parameters. `control.axes.<axis>` sets that axis's PI gains (kp, ki_per_s), as the config's
+// `control.axes` does; the others keep theirs. `effects` records every named effect with its
+// parameters and whether the model carries it (`in_model`); it changes nothing. The overlay's
+// problems are reported like a config's, every one with the overlay's file:line:column, and nothing
+// is applied when any exists.
 #pragma once
 
 #include <map>
@@ -38,14 +43,17 @@ struct Calibration {
   std::string source;
   std::vector<GantryModelConfig> gantry;  // written in full (every key of the entry)
   std::vector<CalibrationEffect> effects;
+  std::vector<AxisGainsConfig> gains;  // control.axes: per-axis PI gains (none: the config's)
 };
 
 struct AppliedCalibration {
   MachineConfig config;
   std::string source;
   std::vector<std::string> changes;  // "model.gantry.x.k1_n_per_m: 354562 -> 298000", one per key
+                                     // ("control.axes.x.kp: 0.5 -> 0.25" for the gains)
   std::vector<std::string> axes;     // the axes the overlay's model.gantry names
   std::vector<CalibrationEffect> effects;
+  std::vector<AxisGainsConfig> gains;  // the overlay's control.axes entries, as it sets them
 };
 
 // Lays the overlay over `base` (validated as a config's model section is). Error: every problem.

@@ -190,13 +190,16 @@ def main():
         rows.append({"seed": seed, "error": r.get("error", ""), "wall_s": r.get("wall_s"),
                      "e_t_mm": r.get("report", {}).get("e_t_mm"), "kept": bool(r.get("report", {}).get("installed")),
                      "warning": r.get("report", {}).get("warning", ""), "ablated_e_t_mm": r.get("ablated"),
-                     "ablate_error": r.get("ablate_error", "")})
+                     "ablate_error": r.get("ablate_error", ""),
+                     "pi_gains": r.get("report", {}).get("pi_gains")})
         if "report" not in r:
             print("%5d  %s" % (seed, r.get("error", "failed")), flush=True)
             continue
         e = r["report"].get("e_t_mm", {})
         ol, be, af = e.get("open_loop"), e.get("before"), e.get("after")
         kept = "kept" if r["report"].get("installed") else "rolled back"
+        if r["report"].get("pi_gains"):
+            kept += ", PI x%g" % r["report"]["pi_gains"]["scale"]  # the gain scale calibrate chose
         if r["report"].get("warning"):
             kept += ", warned"  # the model in use tracks worse than open loop
         vs = "%+.0f %%" % (100.0 * (af / ol - 1.0)) if ol and af is not None else "-"

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include "config/config.hpp"
+
 #include <cmath>
 
 namespace feedloop::calibration {
@@ -43,6 +45,34 @@ TEST(BeltLength, FromTheDirectionRatioOnlyWhenTheBeltSpansTheTravel) {
   EXPECT_EQ(belt_length_from_direction_ratio(1.01, 70.0, 150.0), 0.0);  // no ratio to speak of
   EXPECT_EQ(belt_length_from_direction_ratio(3.0, 70.0, 150.0), 0.0);   // L 140 < the travel
   EXPECT_EQ(belt_length_from_direction_ratio(NAN, 70.0, 150.0), 0.0);
+}
+
+// The gains calibrate chose replace the overlay's (or go, with none), and the model, effects and
+// source stay as they were.
+TEST(OverlayWithGains, ReplacesOnlyTheGains) {
+  const config::MachineConfig base = config::default_config();
+  const std::string overlay =
+      "calibration_version: 1\nsource: \"fit\"\nmodel:\n  gantry:\n    x: {k1_n_per_m: 298000}\n"
+      "effects:\n  - {axis: x, name: backlash, params: {width_um: 40}, in_model: true}\n";
+  auto with = overlay_with_gains(base, overlay, "cal.yaml", {{"x", 0.125, 5.0}, {"y", 0.125, 5.0}});
+  ASSERT_TRUE(with.ok()) << with.error().to_string();
+  auto a = config::apply_calibration_text(base, with.value(), "cal.yaml");
+  ASSERT_TRUE(a.ok()) << a.error().to_string() << "\n" << with.value();
+  EXPECT_EQ(a.value().config.control.gains_for("x").kp, 0.125);
+  EXPECT_EQ(a.value().config.control.gains_for("y").ki_per_s, 5.0);
+  EXPECT_EQ(a.value().config.model.gantry_for("x")->k1_n_per_m, 298000.0);
+  ASSERT_EQ(a.value().effects.size(), 1u);
+  EXPECT_EQ(a.value().effects[0].params.at("width_um"), 40.0);
+  EXPECT_EQ(a.value().source, "fit");
+  // None: the config's gains again.
+  auto without = overlay_with_gains(base, with.value(), "cal.yaml", {});
+  ASSERT_TRUE(without.ok());
+  auto b = config::apply_calibration_text(base, without.value(), "cal.yaml");
+  ASSERT_TRUE(b.ok());
+  EXPECT_EQ(b.value().config.control, base.control);
+  EXPECT_EQ(b.value().config.model, a.value().config.model);
+  // A broken overlay is its error, not a silent empty one.
+  EXPECT_FALSE(overlay_with_gains(base, "calibration_version: 9\n", "cal.yaml", {}).ok());
 }
 
 }  // namespace

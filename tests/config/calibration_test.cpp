@@ -2,6 +2,7 @@
 // they leave, round trips, and every kind of bad overlay located in the overlay's own file.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -140,6 +141,46 @@ TEST(Calibration, WrongFilesAreClearErrors) {
                                       "cal.yaml");
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.error().to_string().find("a delta uses model.delta_lpv"), std::string::npos);
+}
+
+// control.axes.<axis>: the PI gains `feedloop calibrate` chose; the other axes keep the config's.
+TEST(Calibration, PiGainsPerAxisOverTheConfigsAndBackExactly) {
+  const fc::MachineConfig base = minimal();
+  auto r = fc::apply_calibration_text(base,
+                                      "calibration_version: 1\n"
+                                      "model:\n  gantry:\n    x: {k1_n_per_m: 298000}\n"
+                                      "control:\n  axes:\n    x: {kp: 0.125, ki_per_s: 5}\n",
+                                      "cal.yaml");
+  ASSERT_TRUE(r.ok()) << r.error().to_string();
+  const fc::ControlConfig& c = r.value().config.control;
+  EXPECT_EQ(c.gains_for("x").kp, 0.125);
+  EXPECT_EQ(c.gains_for("x").ki_per_s, 5.0);
+  EXPECT_EQ(c.gains_for("y").kp, base.control.gains_for("y").kp);
+  EXPECT_EQ(c.gains_for("y").ki_per_s, base.control.gains_for("y").ki_per_s);
+  ASSERT_EQ(r.value().gains.size(), 1u);
+  const std::vector<std::string>& ch = r.value().changes;
+  EXPECT_NE(std::find(ch.begin(), ch.end(), "control.axes.x.kp: 0.5 -> 0.125"), ch.end());
+  EXPECT_NE(std::find(ch.begin(), ch.end(), "control.axes.x.ki_per_s: 20 -> 5"), ch.end());
+
+  // Written and read back: the same gains.
+  fc::Calibration cal;
+  cal.source = "gains";
+  cal.gantry.push_back(*r.value().config.model.gantry_for("x"));
+  cal.gains = {{"x", 0.1234567890123, 2.5}, {"y", 0.0, 0.0}};
+  const std::string yaml = fc::calibration_yaml(cal);
+  auto back = fc::apply_calibration_text(base, yaml, "cal.yaml");
+  ASSERT_TRUE(back.ok()) << back.error().to_string() << "\n" << yaml;
+  EXPECT_EQ(back.value().config.control.gains_for("x").kp, 0.1234567890123);
+  EXPECT_EQ(back.value().config.control.gains_for("y").kp, 0.0);
+  EXPECT_EQ(back.value().config.control.gains_for("y").ki_per_s, 0.0);
+
+  // Bad gains are located and nothing applies.
+  const std::string bad =
+      "calibration_version: 1\ncontrol:\n  axes:\n    x: {kp: -1, gain: 2}\n    w: {kp: 1}\n";
+  const std::string p = problems(bad);
+  EXPECT_NE(p.find("cal.yaml:4:"), std::string::npos) << p;
+  EXPECT_NE(p.find("unknown key 'gain'"), std::string::npos) << p;
+  EXPECT_NE(p.find("'w' is not an axis of the config"), std::string::npos) << p;
 }
 
 TEST(ConfigSource, TheDefaultOverlayIsOptionalAnExplicitOneIsNot) {
