@@ -442,7 +442,8 @@ std::string report_markdown(const json& j) {
   m << ".\n\n## Tracking error of the check pattern (circle r 20 mm and star r 5 mm at 90 mm/s)\n\n";
   m << "Before and after: the config's " << j["control"].get<std::string>()
     << "; open loop: the same machine with\n"
-    << "control.mode open_loop (the excitation's).\n\n";
+    << "control.mode open_loop (the excitation's)."
+    << (j.contains("pi_gains") ? " After: with the PI gains chosen below." : "") << "\n\n";
   m << "| run (before and after: the config's control) | e_t mean, mm |\n|---|---|\n";
   const double ol = j["e_t_mm"].value("open_loop", NAN);
   for (const char* k : {"open_loop", "before", "after"}) {
@@ -463,7 +464,8 @@ std::string report_markdown(const json& j) {
     m << "After: the calibrated model with the config's PI gains of every calibrated axis scaled "
          "by "
       << g["scale"].get<double>() << " (the scale that tracked the check pattern best; 0: the\n"
-      << "feedforward alone). Installed as the overlay's `control.axes`.\n\n";
+      << "feedforward alone), in the overlay's `control.axes`"
+      << (j["installed"].get<std::string>().empty() ? " (not kept: see the end)" : "") << ".\n\n";
     m << "| gain scale | e_t mean, mm |\n|---|---|\n";
     for (const json& t : g["tried"]) {
       if (t["e_t_mm"].is_number())
