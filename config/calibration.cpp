@@ -75,6 +75,17 @@ void read_effects(MapReader& root, const MachineConfig& cfg, std::vector<Calibra
   }
 }
 
+// The entry of `list` for v.axis becomes v (appended when there is none).
+template <class PerAxis>
+void set_for_axis(std::vector<PerAxis>& list, const PerAxis& v) {
+  for (PerAxis& existing : list)
+    if (existing.axis == v.axis) {
+      existing = v;
+      return;
+    }
+  list.push_back(v);
+}
+
 // control.axes.<axis>: {kp, ki_per_s}, over the config's gains for that axis.
 void read_gains(MapReader& root, const MachineConfig& base, AppliedCalibration& out,
                 Diagnostics& diag) {
@@ -99,13 +110,7 @@ void read_gains(MapReader& root, const MachineConfig& base, AppliedCalibration& 
     if (g.ki_per_s != before.ki_per_s)
       out.changes.push_back("control.axes." + name + ".ki_per_s: " +
                             format_number(before.ki_per_s) + " -> " + format_number(g.ki_per_s));
-    bool replaced = false;
-    for (AxisGainsConfig& existing : out.config.control.axes)
-      if (existing.axis == name) {
-        existing = g;
-        replaced = true;
-      }
-    if (!replaced) out.config.control.axes.push_back(g);
+    set_for_axis(out.config.control.axes, g);
     out.gains.push_back(g);
   }
   axes.finish();
@@ -135,13 +140,7 @@ void read_overlay(const YAML::Node& doc, const MachineConfig& base, AppliedCalib
     g.finish();
     note_changes(before, m, out.changes);
     out.axes.push_back(name);
-    bool replaced = false;
-    for (GantryModelConfig& existing : out.config.model.gantry)
-      if (existing.axis == name) {
-        existing = m;
-        replaced = true;
-      }
-    if (!replaced) out.config.model.gantry.push_back(m);
+    set_for_axis(out.config.model.gantry, m);
   }
   gantry.finish();
   model.finish();
