@@ -230,6 +230,9 @@ TEST_F(Calibrate, AModelThatTracksWorseIsRolledBack) {
       << out;
   const json report = json::parse(read_text(dir_ + "/out/report.json"), nullptr, false);
   ASSERT_TRUE(report.is_object());
+  ASSERT_TRUE(report["e_t_mm"]["after"].is_number()) << report.dump(2) << "\n--- calibrate:\n"
+                                                     << out << "\n--- daemon:\n"
+                                                     << daemon_->output();
   const double before = report["e_t_mm"]["before"].get<double>(),
                after = report["e_t_mm"]["after"].get<double>();
   std::printf("second simulator (seed 4): check pattern e_t %.4f -> %.4f mm: rolled back\n", before,
