@@ -110,6 +110,9 @@ void Daemon::open_recorder() {
   }
   recorder_ = std::move(*rec);
   recording_ = std::make_unique<recorder::EngineRecording>(*recorder_, *machine_clock_);
+  // In virtual time nothing waits for the wall clock, so a full ring waits for the recorder
+  // thread instead of losing records (a calibration's recording must be whole).
+  recorder_->set_wait_for_room(options_.virtual_time);
   recorder_->start_thread();
   spdlog::info("flight recorder: prints are recorded in {}", cfg_.recorder.directory);
 }
@@ -128,6 +131,8 @@ Result<std::unique_ptr<engine::CommandExecutor>> Daemon::make_recorded_executor(
   // In virtual time no time passes while the machine is idle, so no settling to record either
   // (and a tail cut short by the host's next line would make the recording depend on its pace).
   if (options_.virtual_time) mo.settle_tail_s = 0.0;
+  // ... and a job that follows an M400 starts from rest, at a virtual instant of its own.
+  mo.m400_waits_for_rest = options_.virtual_time;
   auto stack = engine::make_motion_stack(cfg_, mo, recording_.get());
   if (!stack) return stack.error();
   if (recording_) stack->executor->set_telemetry(recording_.get());

@@ -380,7 +380,13 @@ void MotionExecutor::on_deadline_miss(int64_t /*now_ns*/, int64_t late_ns) {
 // nothing back; never into moves the lookahead has not released yet.
 bool MotionExecutor::may_advance_virtual(bool planner_busy) const {
   if (waiting_.load()) return true;  // M400 flushed everything and waits for the machine
-  if (planned_end_s_.load() - executing_print_time_s() > options_.lead_s + 0.01) return true;
+  // Planned motion ahead counts only when the servo side has some (anchored, or moves queued to
+  // it). At rest, planned_end_s_ and idle_base_s_ are the last motion's end and start, and their
+  // difference is no lead: with it, virtual time ran on for 1-3 ms while the lookahead held a new
+  // job's first moves, as far as the host's pace let it (a check pattern's e_t then varied).
+  const bool has_motion = telemetry_.anchored.load() || pushed_.load() != popped_.load();
+  if (has_motion && planned_end_s_.load() - executing_print_time_s() > options_.lead_s + 0.01)
+    return true;
   return !planner_busy && planner_queued_.load() == 0;
 }
 
@@ -409,7 +415,9 @@ void MotionExecutor::wait_print_time(double t_s, const std::atomic<bool>& cancel
   planner_queued_.store(planner_.queued());
   while (!cancel.load()) {
     if (!motion_pending()) return;
-    if (telemetry_.anchored.load() && telemetry_.print_time_s.load() >= t_s) return;
+    if (!options_.m400_waits_for_rest && telemetry_.anchored.load() &&
+        telemetry_.print_time_s.load() >= t_s)
+      return;
     pause_for_machine();
   }
 }

@@ -68,6 +68,11 @@ struct MotionOptions {
   size_t timeline_capacity = 8192;    // sampled path: planned moves kept for sampling
   double settle_tail_s = 0.25;        // the telemetry tap (the recorder) keeps sampling the encoders
                                       // this long after the motion ends: the carriage still settles
+  // Virtual time: M400 returns only when the machine is at rest, the loop's hold after the plan
+  // (control_settle_s) included. Otherwise the hold runs on at CPU speed after M400 returns, and
+  // the next job's first move lands in it at a virtual instant set by the host's pace: the same
+  // calibration tracked its check pattern 0.3334 or 0.3860 mm (docs/calibration.md).
+  bool m400_waits_for_rest = false;
 };
 
 // Figures the servo side publishes (relaxed atomics; for status and tests).

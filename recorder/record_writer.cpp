@@ -2,12 +2,31 @@
 #include "recorder/record_writer.hpp"
 
 #include <algorithm>  // std::min
+#include <chrono>
+#include <thread>
 
 namespace feedloop::recorder {
 
-RecordWriter::RecordWriter(size_t ring_bytes, size_t max_text_bytes, int joints, const std::atomic<bool>* enabled)
-    : ring_(ring_bytes), joints_(std::min(joints, kMaxJoints)), enabled_(enabled) {
+RecordWriter::RecordWriter(size_t ring_bytes, size_t max_text_bytes, int joints,
+                           const std::atomic<bool>* enabled, const WaitForRoom* wait)
+    : ring_(ring_bytes), joints_(std::min(joints, kMaxJoints)), enabled_(enabled), wait_(wait) {
   max_text_ = std::min(max_text_bytes, ring_.max_payload() - sizeof(GcodeLineHead) - 8);
+}
+
+void RecordWriter::push_full(RecordType t, const void* a, size_t na, const void* b, size_t nb) {
+  // Virtual time only (WaitForRoom): wake the consumer and wait until it made room. The wait ends
+  // when the mode is switched off (the recorder thread stops), so it cannot outlive its consumer.
+  if (wait_ != nullptr && na + nb <= ring_.max_payload()) {
+    while (wait_->on.load(std::memory_order_acquire)) {
+      if (wait_->wake_consumer) wait_->wake_consumer(wait_->ctx);
+      std::this_thread::sleep_for(std::chrono::microseconds(100));
+      if (ring_.try_push(static_cast<uint8_t>(t), a, na, b, nb)) {
+        waits_.fetch_add(1, std::memory_order_relaxed);
+        return;
+      }
+    }
+  }
+  dropped_.fetch_add(1, std::memory_order_relaxed);
 }
 
 void RecordWriter::gcode_line(int64_t time_ns, GcodeSource source, std::string_view text) {

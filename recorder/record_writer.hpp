@@ -3,6 +3,12 @@
 // returns: no allocation, no lock, no system call. When the ring is full the record is dropped
 // and dropped() increments (the recorder thread writes a DropRecord into the log). A writer must be
 // used by one thread at a time.
+//
+// Virtual time is the exception (WaitForRoom): there the servo thread runs at CPU speed and can
+// fill its ring faster than a descheduled recorder thread empties it, and a dropped step run
+// shifts a recording's commanded position for good. So in virtual time a push that finds its ring
+// full wakes the recorder thread and waits for room instead (nothing is lost; no deadline exists
+// to miss). Real time never waits.
 #pragma once
 
 #include <atomic>
@@ -30,10 +36,20 @@ struct EventHead {
   uint8_t kind = 0;
 };
 
+// Owned by the Recorder, shared by its writers: whether a full ring waits (virtual time), and how
+// to wake the ring's consumer.
+struct WaitForRoom {
+  std::atomic<bool> on{false};
+  void (*wake_consumer)(void* ctx) = nullptr;
+  void* ctx = nullptr;
+};
+
 class RecordWriter {
  public:
-  // `enabled` (owned by the Recorder) switches every call to a no-op when false.
-  RecordWriter(size_t ring_bytes, size_t max_text_bytes, int joints, const std::atomic<bool>* enabled);
+  // `enabled` (owned by the Recorder) switches every call to a no-op when false; `wait` (may be
+  // null) makes a full ring wait for room while wait->on.
+  RecordWriter(size_t ring_bytes, size_t max_text_bytes, int joints,
+               const std::atomic<bool>* enabled, const WaitForRoom* wait = nullptr);
   RecordWriter(const RecordWriter&) = delete;
   RecordWriter& operator=(const RecordWriter&) = delete;
 
@@ -58,6 +74,9 @@ class RecordWriter {
 
   uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
   uint64_t rejected() const { return rejected_.load(std::memory_order_relaxed); }  // bad joint index
+  uint64_t waited() const {
+    return waits_.load(std::memory_order_relaxed);
+  }  // pushes that waited for room
   ByteRing& ring() { return ring_; }
 
  private:
@@ -68,15 +87,19 @@ class RecordWriter {
     return false;
   }
   void push(RecordType t, const void* a, size_t na, const void* b = nullptr, size_t nb = 0) {
-    if (!ring_.try_push(static_cast<uint8_t>(t), a, na, b, nb)) dropped_.fetch_add(1, std::memory_order_relaxed);
+    if (!ring_.try_push(static_cast<uint8_t>(t), a, na, b, nb)) push_full(t, a, na, b, nb);
   }
+  // The ring was full: wait for room (virtual time) or count a drop.
+  void push_full(RecordType t, const void* a, size_t na, const void* b, size_t nb);
 
   ByteRing ring_;
   size_t max_text_;
   int joints_;
   const std::atomic<bool>* enabled_;
+  const WaitForRoom* wait_;
   std::atomic<uint64_t> dropped_{0};
   std::atomic<uint64_t> rejected_{0};
+  std::atomic<uint64_t> waits_{0};
 };
 
 }  // namespace feedloop::recorder

@@ -51,9 +51,17 @@ Recorder::Recorder(RecorderOptions options) : opt_(std::move(options)) {
   enabled_.store(on);
   const int joints = static_cast<int>(opt_.joints.size());
   const size_t tiny = 256;  // disabled: the writers are no-ops, keep the rings small
-  writers_[0] = std::make_unique<RecordWriter>(on ? opt_.io_ring_bytes : tiny, opt_.max_gcode_text_bytes, joints, &enabled_);
-  writers_[1] = std::make_unique<RecordWriter>(on ? opt_.planner_ring_bytes : tiny, opt_.max_gcode_text_bytes, joints, &enabled_);
-  writers_[2] = std::make_unique<RecordWriter>(on ? opt_.servo_ring_bytes : tiny, opt_.max_gcode_text_bytes, joints, &enabled_);
+  wait_for_room_.ctx = this;
+  wait_for_room_.wake_consumer = [](void* ctx) {
+    auto* self = static_cast<Recorder*>(ctx);
+    self->drain_now_.store(true, std::memory_order_release);
+    self->cv_.notify_one();
+  };
+  const size_t ring_bytes[kStreams] = {opt_.io_ring_bytes, opt_.planner_ring_bytes,
+                                       opt_.servo_ring_bytes};
+  for (size_t i = 0; i < static_cast<size_t>(kStreams); ++i)
+    writers_[i] = std::make_unique<RecordWriter>(
+        on ? ring_bytes[i] : tiny, opt_.max_gcode_text_bytes, joints, &enabled_, &wait_for_room_);
   header_.joints = opt_.joints;
   header_.config_yaml = opt_.config_yaml;
   frame_.reserve(opt_.block_bytes + 1024);
@@ -73,6 +81,13 @@ void Recorder::start_thread() {
   if (thread_.joinable() || !enabled()) return;
   stop_ = false;
   thread_ = std::thread([this] { run(); });
+  wait_for_room_.on.store(wait_for_room_wanted_, std::memory_order_release);
+}
+
+void Recorder::set_wait_for_room(bool on) {
+  std::lock_guard<std::mutex> lk(mu_);
+  wait_for_room_wanted_ = on;
+  wait_for_room_.on.store(on && thread_.joinable(), std::memory_order_release);
 }
 
 void Recorder::stop_thread() {
@@ -80,6 +95,8 @@ void Recorder::stop_thread() {
     std::lock_guard<std::mutex> lk(mu_);
     if (!thread_.joinable()) return;
     stop_ = true;
+    wait_for_room_.on.store(false,
+                            std::memory_order_release);  // no writer waits for a stopped consumer
   }
   cv_.notify_all();
   thread_.join();
@@ -89,7 +106,8 @@ void Recorder::run() {
   std::unique_lock<std::mutex> lk(mu_);
   while (!stop_) {
     (void)tick_locked(std::chrono::steady_clock::now(), false, false);  // problems land in stats_.last_error
-    cv_.wait_for(lk, seconds(opt_.drain_period_s), [this] { return stop_; });
+    cv_.wait_for(lk, seconds(opt_.drain_period_s),
+                 [this] { return stop_ || drain_now_.exchange(false, std::memory_order_acq_rel); });
   }
 }
 
@@ -130,6 +148,7 @@ RecorderStats Recorder::stats() const {
   for (int i = 0; i < kStreams; ++i) {
     s.dropped[static_cast<size_t>(i)] = writers_[static_cast<size_t>(i)]->dropped();
     s.rejected += writers_[static_cast<size_t>(i)]->rejected();
+    s.waited += writers_[static_cast<size_t>(i)]->waited();
   }
   s.current_path = file_.is_open() ? file_.path() : std::string();
   return s;

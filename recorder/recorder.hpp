@@ -60,6 +60,7 @@ struct RecorderStats {
   uint64_t syncs = 0;
   std::array<uint64_t, kStreams> dropped{};  // ring full
   uint64_t rejected = 0;                     // bad joint index
+  uint64_t waited = 0;                       // pushes that waited for room (virtual time)
   std::string current_path;                  // empty: no print open
   std::string last_error;                    // last I/O problem (the print goes on unrecorded)
 };
@@ -78,6 +79,10 @@ class Recorder {
   // The recorder thread (drains every drain_period_s). Without it, call poll().
   void start_thread();
   void stop_thread();
+  // Virtual time: a writer whose ring is full wakes the recorder thread and waits for room
+  // instead of dropping the record (record_writer.hpp). Takes effect only while the recorder
+  // thread runs (stop_thread() switches it off, so no writer waits for a consumer that is gone).
+  void set_wait_for_room(bool on);
 
   // Opens a new log for a print (ending the current one first). Records already in the rings go
   // to the previous file (or are discarded when none was open).
@@ -106,6 +111,9 @@ class Recorder {
   RecorderOptions opt_;
   LogHeader header_;  // joints and config; name/part/times filled per file
   std::atomic<bool> enabled_{false};
+  WaitForRoom wait_for_room_;           // shared by the writers
+  bool wait_for_room_wanted_ = false;   // set_wait_for_room(); applied while the thread runs
+  std::atomic<bool> drain_now_{false};  // a waiting writer asks for a drain
   std::array<std::unique_ptr<RecordWriter>, kStreams> writers_;
   MonotonicClock monotonic_;
 

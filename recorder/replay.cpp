@@ -104,6 +104,7 @@ Result<VirtualPrintResult> record_virtual_print(const config::MachineConfig& cfg
   mo.max_buffered_s = 1e9;       // execute() never waits for the servo side: this thread runs both
   mo.input_pause_flush_s = 0.0;  // idle_tick() releases the lookahead at once (end, M400)
   mo.settle_tail_s = 0.0;        // as feedloopd --virtual-time: idle time does not pass
+  mo.m400_waits_for_rest = true;  // as feedloopd --virtual-time
   auto stack = engine::make_motion_stack(cfg, mo, &er);
   if (!stack) return stack.error();
   engine::MotionExecutor& ex = *stack->executor;

@@ -102,6 +102,7 @@ Result<TraceColumns> build_trace(const std::vector<std::string>& logs, const Exp
   for (const std::string& path : logs) {
     auto reader = LogReader::open(path);
     if (!reader) return reader.error();
+    uint64_t servo_dropped = 0;  // a file's DropRecords are running totals since it was opened
     if (joints.empty()) {
       joints = reader->header().joints;
       data.resize(joints.size());
@@ -125,11 +126,18 @@ Result<TraceColumns> build_trace(const std::vector<std::string>& logs, const Exp
         JointData& jd = data[static_cast<size_t>(e->joint)];
         jd.encoder.emplace_back(e->clock, e->counts);
         jd.span(static_cast<double>(e->clock) / hz, static_cast<double>(e->clock) / hz);
+      } else if (const auto* dr = std::get_if<DropRecord>(&d->record)) {
+        if (dr->stream == Stream::servo) servo_dropped = std::max(servo_dropped, dr->dropped_total);
       }
     }
+    out.servo_records_dropped += servo_dropped;
     if (reader->error())
       out.comments.push_back("warning: " + reader->error()->to_string() + "; data before it exported");
   }
+  if (out.servo_records_dropped > 0)
+    out.comments.push_back(
+        "warning: the recorder dropped " + std::to_string(out.servo_records_dropped) +
+        " servo records (its ring was full): step runs or encoder samples may be missing");
   for (size_t j = 0; j < joints.size(); ++j)
     if (data[j].has_data && joints[j].clock_hz <= 0)
       return Error{"joint " + joints[j].name + " has no MCU clock rate in the log header", {logs.front(), 0, 0}};

@@ -26,6 +26,10 @@ struct TraceColumns {
   // reading is held, not measured.
   std::vector<std::pair<double, double>> meas_span_s;
   std::vector<std::string> comments;       // '#' lines (without the '# ')
+  // Servo-stream records the recorder dropped (its ring was full), summed over the logs. Step runs
+  // or encoder samples may be missing: cmd_mm can be off for good after the first. A warning
+  // comment says so; `feedloop calibrate` refuses such a trace.
+  uint64_t servo_records_dropped = 0;
 };
 
 // Reads the logs in order (parts of one print, or one file). Error when a file cannot be read,

@@ -10,6 +10,7 @@
 #include "recorder/log_reader.hpp"
 #include "recorder/recorder.hpp"
 #include "recorder/run_tap.hpp"
+#include "recorder/trace_export.hpp"
 #include "recorder_test_util.hpp"
 
 namespace feedloop::recorder {
@@ -104,6 +105,75 @@ TEST(RecorderThreads, TheDrainKeepsPaceWithThreeProducers) {
   ThreeProducersResult r;
   run_three_producers(&r);
   EXPECT_GE(r.lines + r.moves + r.samples, static_cast<uint64_t>(kEach) * 3 * 9 / 10);
+}
+
+// One servo producer, unpaced, into a ring of ~100 encoder records, with a recorder thread that
+// drains only every 10 s unless woken: what reached the file, what was dropped, how often a push
+// waited, and what the trace export makes of it.
+struct FullRingResult {
+  uint64_t samples = 0, dropped = 0, waited = 0, trace_dropped = 0;
+  bool ordered = true, warned = false;
+};
+
+FullRingResult push_into_a_small_ring(bool wait_for_room) {
+  constexpr int kSamples = 20000;
+  testing::ScratchDir dir("fullring");
+  auto opt = testing::test_options(dir.str());
+  opt.servo_ring_bytes = 1 << 12;
+  opt.drain_period_s = 10.0;
+  auto rec = Recorder::create(opt);
+  EXPECT_TRUE(rec.ok());
+  Recorder& r = **rec;
+  r.set_wait_for_room(wait_for_room);
+  EXPECT_TRUE(r.start_print("fullring").ok());
+  r.start_thread();
+  for (int i = 0; i < kSamples; ++i)
+    r.writer(Stream::servo).encoder_sample(0, int64_t{1000} * i, i);  // 1 kHz
+  EXPECT_TRUE(r.end_print().ok());
+  r.stop_thread();
+  FullRingResult out;
+  out.dropped = r.stats().dropped[2];
+  out.waited = r.stats().waited;
+  auto reader = LogReader::open(dir.logs().at(0));
+  EXPECT_TRUE(reader.ok());
+  int64_t last = -1;
+  while (const DecodedRecord* d = reader->next())
+    if (const auto* e = std::get_if<EncoderRecord>(&d->record)) {
+      out.ordered &= e->clock > last;
+      last = e->clock;
+      ++out.samples;
+    }
+  EXPECT_EQ(out.samples + out.dropped, static_cast<uint64_t>(kSamples));
+  auto t = build_trace(dir.logs(), ExportOptions{});
+  EXPECT_TRUE(t.ok());
+  if (t.ok()) {
+    out.trace_dropped = t->servo_records_dropped;
+    for (const std::string& c : t->comments) out.warned |= c.find("dropped") != std::string::npos;
+  }
+  return out;
+}
+
+// Virtual time (the daemon's --virtual-time, `feedloop calibrate`): a full ring waits for the
+// recorder thread, so a recording is whole however far the producer runs ahead.
+TEST(RecorderThreads, AFullRingWaitsForRoomAndLosesNothingInVirtualTime) {
+  const FullRingResult r = push_into_a_small_ring(true);
+  EXPECT_EQ(r.dropped, 0u);
+  EXPECT_EQ(r.samples, 20000u);
+  EXPECT_GT(r.waited, 0u);  // the ring did fill: the waiting was exercised
+  EXPECT_TRUE(r.ordered);
+  EXPECT_EQ(r.trace_dropped, 0u);
+  EXPECT_FALSE(r.warned);
+}
+
+// Real time never waits: the same producer loses records, counted, and the trace export says how
+// many (feedloop calibrate refuses such a trace).
+TEST(RecorderThreads, AFullRingDropsInRealTimeAndTheTraceSaysHowMany) {
+  const FullRingResult r = push_into_a_small_ring(false);
+  EXPECT_GT(r.dropped, 0u);
+  EXPECT_EQ(r.waited, 0u);
+  EXPECT_TRUE(r.ordered);
+  EXPECT_EQ(r.trace_dropped, r.dropped);
+  EXPECT_TRUE(r.warned);
 }
 
 TEST(RecorderThreads, RunTapRecordsExactlyWhatItForwards) {
