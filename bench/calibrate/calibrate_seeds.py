@@ -9,7 +9,11 @@ e_t before (the config's thesis model), after (the calibrated model) and open lo
 table; the reports stay in --keep DIR when given.
 
     python3 bench/calibrate/calibrate_seeds.py [--build build] [--seeds 1-7] [--keep DIR] [--json F]
-                                               [--effect KIND] [--ablate KEY]
+                                               [--effect KIND] [--ablate KEY] [--simulator plant2|sim]
+
+--simulator sim: the first simulator (sim/, in-process, switches and all) instead, its seed the
+row's, with --effect KIND (one of the config's simulated effects, config/README.md) or all of them
+on X and Y, each size drawn from the seed in bench/ident_draws' ranges for that simulator.
 
 --ablate KEY (e.g. backlash_mm): after the calibration, every KEY of the installed overlay is set
 to 0, the daemon reloads it, and the check pattern runs once more (`feedloop calibrate
@@ -44,6 +48,43 @@ def seeds_from(text):
         else:
             out.append(int(part))
     return out
+
+
+FIRST_SIM_EFFECTS = ["coulomb_friction", "backlash", "periodic_position", "direction_dependent_stiffness",
+                     "extra_resonance", "time_delay", "scale_error"]
+
+
+def first_sim_effect(kind, rng):
+    """One simulated effect's config (simulator.effects, config/README.md), its size drawn from
+    bench/ident_draws' ranges for the first simulator."""
+    u = rng.uniform
+    sizes = {
+        "coulomb_friction": "force_n: %.3f" % u(0.8, 4.0),
+        "backlash": "width_um: %.1f" % u(15.0, 60.0),
+        "periodic_position": "period_mm: %.2f, amplitude_um: %.1f" % (u(20.0, 40.0), u(8.0, 30.0)),
+        "direction_dependent_stiffness": "ratio: %.3f" % u(1.4, 2.2),
+        "extra_resonance": "freq_hz: %.1f, damping: %.3f" % (u(25.0, 80.0), u(0.03, 0.1)),
+        "time_delay": "delay_ms: %.2f" % u(2.0, 10.0),
+        "scale_error": "scale: %.5f" % (1.0 + rng.choice([-1, 1]) * u(0.002, 0.01)),
+    }
+    return "%s: {%s, axes: [x, y]}" % (kind, sizes[kind])
+
+
+def first_sim_yaml(seed, effect):
+    """The first simulator (sim/, in-process) with `effect` on X and Y, or every effect for "all",
+    sizes drawn from the seed (first_sim_effect); `seed` is also the simulator's."""
+    import random
+    rng = random.Random(seed)
+    with open(os.path.join(ROOT, "config/examples/cartesian_sim.yaml")) as f:
+        y = f.read()
+    y, n1 = re.subn(r"feedforward:\n  type: none", "feedforward:\n  type: lpv", y)
+    kinds = FIRST_SIM_EFFECTS if effect == "all" else ([effect] if effect else [])
+    eff = "{%s}" % ", ".join(first_sim_effect(k, rng) for k in kinds)
+    y, n2 = re.subn(r"simulator:\n  seed: 1\n", "simulator:\n  seed: %d\n" % seed, y)
+    y, n3 = re.subn(r"\n  effects: \{\}", "\n  effects: %s" % eff, y)
+    if n1 != 1 or n2 != 1 or n3 != 1:
+        sys.exit("calibrate_seeds: config/examples/cartesian_sim.yaml changed shape (feedforward or simulator block)")
+    return y
 
 
 def printer_yaml(plant2, seed, effect=""):
@@ -115,12 +156,13 @@ def ablated_e_t(build, env, work, overlay, key):
     return (float(m.group(1)), "") if m else (None, p.stdout.strip().splitlines()[-1:])
 
 
-def run_seed(build, seed, keep, effect="", ablate=""):
+def run_seed(build, seed, keep, effect="", ablate="", simulator="plant2"):
     work = tempfile.mkdtemp(prefix="calibrate_seed%d." % seed)
     env = dict(os.environ, RUNTIME_DIRECTORY=work, STATE_DIRECTORY=work)
     cfg = os.path.join(work, "printer.yaml")
     with open(cfg, "w") as f:
-        f.write(printer_yaml(os.path.join(build, "plant2/feedloop-plant2"), seed, effect))
+        f.write(first_sim_yaml(seed, effect) if simulator == "sim" else
+                printer_yaml(os.path.join(build, "plant2/feedloop-plant2"), seed, effect))
     log = open(os.path.join(work, "daemon.log"), "w")
     daemon = subprocess.Popen([os.path.join(build, "daemon/feedloopd"), "--virtual-time", "--config", cfg],
                               env=env, stdout=log, stderr=subprocess.STDOUT)
@@ -169,16 +211,25 @@ def main():
     ap.add_argument("--ablate", default="",
                     help="an overlay key set to 0 after the calibration, then the check pattern again")
     ap.add_argument("--effect", default="",
-                    help="one effect kind drawn into both axes' machines (feedloop-plant2 --effect KIND)")
+                    help="one effect kind drawn into both axes' machines (feedloop-plant2 --effect KIND); "
+                         "with --simulator sim, one of the config's effects at its default size, or all")
+    ap.add_argument("--simulator", default="plant2", choices=["plant2", "sim"],
+                    help="plant2: the second simulator as an external plant (default); sim: the first, "
+                         "in-process, its seed the row's")
     a = ap.parse_args()
+    if a.simulator == "sim" and a.effect and a.effect != "all" and a.effect not in FIRST_SIM_EFFECTS:
+        sys.exit("calibrate_seeds: --simulator sim knows the effects %s and all" % ", ".join(FIRST_SIM_EFFECTS))
     rows = []
     for exe in ("daemon/feedloopd", "cli/feedloop", "plant2/feedloop-plant2"):
         if not os.access(os.path.join(a.build, exe), os.X_OK):
             sys.exit("calibrate_seeds: %s not built (cmake --build %s)" % (exe, a.build))
     if a.keep:
         os.makedirs(a.keep, exist_ok=True)
-    print("feedloop calibrate on the second simulator, check pattern e_t in mm (LPV feedforward + PI on the device)")
-    if a.effect:
+    print("feedloop calibrate on the %s simulator, check pattern e_t in mm (LPV feedforward + PI on the device)" %
+          ("first" if a.simulator == "sim" else "second"))
+    if a.effect and a.simulator == "sim":
+        print("effects on x and y, sizes drawn from the seed: %s" % a.effect)
+    elif a.effect:
         print("every drawn machine with the effect %s (feedloop-plant2 --effect %s)" % (a.effect, a.effect))
     if a.ablate:
         print("without: e_t after the calibration with every %s of the overlay set to 0" % a.ablate)
@@ -186,7 +237,7 @@ def main():
                                                         "without", "model", "wall_s", "effects named (x; y)"))
     for seed in seeds_from(a.seeds):
         print("seed %d ..." % seed, file=sys.stderr, flush=True)
-        r = run_seed(a.build, seed, a.keep, a.effect, a.ablate)
+        r = run_seed(a.build, seed, a.keep, a.effect, a.ablate, a.simulator)
         rows.append({"seed": seed, "error": r.get("error", ""), "wall_s": r.get("wall_s"),
                      "e_t_mm": r.get("report", {}).get("e_t_mm"), "kept": bool(r.get("report", {}).get("installed")),
                      "warning": r.get("report", {}).get("warning", ""), "ablated_e_t_mm": r.get("ablated"),
