@@ -66,6 +66,7 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
   g.coulomb_friction_n = friction ? m.friction_force_n : 0.0;
   if (friction) g.friction_bristle_mm = m.presliding_um * 1e-3;
   g.backlash_mm = m.has(ident::Effect::kBacklash) ? std::max(m.backlash_width_um, 0.0) * 1e-3 : 0.0;
+  g.encoder_delay_ms = m.has(ident::Effect::kTimeDelay) ? std::clamp(m.delay_ms, 0.0, 50.0) : 0.0;
   return g;
 }
 
@@ -79,6 +80,7 @@ std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResu
     c.name = ident::effect_name(e);
     for (const auto& [k, v] : ident::effect_params_report(r.augmented, e)) c.params[k] = v;
     c.in_model = e == ident::Effect::kCoulombFriction || e == ident::Effect::kBacklash ||
+                 e == ident::Effect::kTimeDelay ||
                  (e == ident::Effect::kDirectionStiffness &&
                   belt_length_from_direction_ratio(r.augmented.stiffness_ratio, mean_position_mm,
                                                    max_abs_position_mm) > 0.0);

@@ -283,6 +283,9 @@ struct GantryModelConfig {
   double backlash_mm = 0.0;  // dead band between the pulley and the belt (not in Eq. 13: what
                              // `feedloop ident fit` reports as backlash width_um); the LPV
                              // feedforward crosses it ahead of each reversal of the belt force
+  double encoder_delay_ms = 0.0;  // the encoder's reading shows the carriage this long ago (what
+                                  // `feedloop ident fit` reports as time_delay delay_ms): the
+                                  // loops and e_t compare it with the reference of that instant
   StepperConfig stepper;
   bool operator==(const GantryModelConfig&) const = default;
 };

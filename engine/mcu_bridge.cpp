@@ -229,6 +229,13 @@ Status McuBridge::build(const config::MachineConfig& cfg) {
     loop_link_.set_joint(j, static_cast<uint8_t>(joint_motor_[js]), lp);
   }
   publish_loop_telemetry();  // which joints have a device loop, before any report
+  // The encoders' measured delay (model.gantry.<axis>.encoder_delay_ms, the identified
+  // time_delay): a reading stands for the carriage that long before it was sampled. Cartesian
+  // joints are the axes; a CoreXY's encoders read the carriage's X and Y, not its motors.
+  for (int j = 0; j < kJoints; ++j)
+    if (cfg.kinematics == config::Kinematics::cartesian)
+      if (const config::GantryModelConfig* g = cfg.model.gantry_for(names[static_cast<size_t>(j)]))
+        encoder_delay_s_[static_cast<size_t>(j)] = g->encoder_delay_ms * 1e-3;
   // Homing sequences for the joints with an endstop (axes.<name>.homing), built now so that a G28
   // allocates nothing on the servo thread. Cartesian axes and delta carriages (each on its own
   // switch); on a CoreXY machine the Cartesian carriage's X and Y (each moves both motors: A =
@@ -925,11 +932,13 @@ void McuBridge::collect(double) {
         encoder_mm_[j].store(static_cast<double>(latest->counts) * encoder_mm_per_count_[j],
                              std::memory_order_relaxed);
         encoder_reports_[j].fetch_add(1, std::memory_order_relaxed);
-        // When it was sampled, on the host clock (the clock sync's map, inverted).
+        // When it was sampled, on the host clock (the clock sync's map, inverted), less the
+        // encoder's delay: the instant whose carriage position it shows.
         const stepgen::TickMap map = tick_map(static_cast<int>(j));
         if (map.ticks_per_s > 0.0)
           encoder_time_s_[j].store(
-              (static_cast<double>(latest->clock) - map.offset_ticks) / map.ticks_per_s,
+              (static_cast<double>(latest->clock) - map.offset_ticks) / map.ticks_per_s -
+                  encoder_delay_s_[j],
               std::memory_order_relaxed);
       }
       encoder_samples_.fetch_add(samples.size(), std::memory_order_relaxed);
@@ -1001,7 +1010,12 @@ void McuBridge::queue_target(int joint, int64_t mcu_clock, double r_mm) {
     loops_configured_ = true;
   }
   drivers::McuSession& s = *mcus_[static_cast<size_t>(joint_mcu_[static_cast<size_t>(joint)])]->session;
-  loop_link_.push_target(joint, s, mcu_clock, r_mm);
+  // The loop compares r(t) with the reading that shows the carriage at t: the one sampled the
+  // encoder's delay later. (Before the first knot the loop holds the first knot's position.)
+  const double delay_ticks =
+      encoder_delay_s_[static_cast<size_t>(joint)] * tick_map(joint).ticks_per_s;
+  loop_link_.push_target(joint, s, mcu_clock + static_cast<int64_t>(std::llround(delay_ticks)),
+                         r_mm);
 }
 
 size_t McuBridge::take_device_reports(DeviceLoopReport* out, size_t cap) {

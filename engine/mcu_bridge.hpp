@@ -203,6 +203,7 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   std::array<int, kJoints> joint_motor_{{0, 0, 0, 0}};
   std::array<std::string, kJoints> joint_names_;
   std::array<double, kJoints> encoder_mm_per_count_{};
+  std::array<double, kJoints> encoder_delay_s_{};  // model.gantry.<axis>.encoder_delay_ms
   std::array<std::unique_ptr<JointPort>, kJoints> ports_;
   std::unique_ptr<SimulatedPlant> plant_;
   SharedHeaterPorts heater_ports_;  // the motion MCUs' with heaters (Mcu::heater_port)

@@ -75,5 +75,40 @@ TEST(OverlayWithGains, ReplacesOnlyTheGains) {
   EXPECT_FALSE(overlay_with_gains(base, "calibration_version: 9\n", "cal.yaml", {}).ok());
 }
 
+// An identified time_delay flows into the model as the encoder's delay (the loops and e_t compare
+// the reading with the reference of the instant it shows), and its effect says so.
+TEST(OverlayFromIdent, TheTimeDelayBecomesTheEncodersDelay) {
+  const config::MachineConfig base = config::default_config();
+  ident::IdentResult r;
+  r.axis = "x";
+  r.augmented = ident::preset_axis_model("x");
+  r.augmented.set(ident::Effect::kTimeDelay, true);
+  r.augmented.delay_ms = 3.25;
+  r.effects = {ident::Effect::kTimeDelay};
+  auto yaml = merge_overlay(base, "", "", r, 100.0, "fit");
+  ASSERT_TRUE(yaml.ok()) << yaml.error().to_string();
+  auto a = config::apply_calibration_text(base, yaml.value(), "cal.yaml");
+  ASSERT_TRUE(a.ok()) << a.error().to_string() << "\n" << yaml.value();
+  ASSERT_NE(a.value().config.model.gantry_for("x"), nullptr);
+  EXPECT_DOUBLE_EQ(a.value().config.model.gantry_for("x")->encoder_delay_ms, 3.25);
+  ASSERT_EQ(a.value().effects.size(), 1u);
+  EXPECT_EQ(a.value().effects[0].name, "time_delay");
+  EXPECT_TRUE(a.value().effects[0].in_model);
+  // Without the effect: no delay.
+  r.augmented.set(ident::Effect::kTimeDelay, false);
+  r.effects.clear();
+  auto none = config::apply_calibration_text(
+      base, merge_overlay(base, "", "", r, 100.0, "fit").value(), "cal.yaml");
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(none.value().config.model.gantry_for("x")->encoder_delay_ms, 0.0);
+  // Out of range in an overlay: located.
+  auto bad = config::apply_calibration_text(
+      base, "calibration_version: 1\nmodel:\n  gantry:\n    x: {encoder_delay_ms: 80}\n",
+      "cal.yaml");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().to_string().find("encoder_delay_ms"), std::string::npos)
+      << bad.error().to_string();
+}
+
 }  // namespace
 }  // namespace feedloop::calibration

@@ -206,6 +206,38 @@ TEST(ClosedLoop, BacklashInTheModelRemovesTheBacklashsTrackingError) {
   EXPECT_LT(mean_mm[2], 0.5 * mean_mm[1]);  // and the model's width takes most of it away
 }
 
+// An encoder that shows the carriage 5 ms late (the simulators' time_delay, which Eq. 13 lacks):
+// the PI compares it with the reference of now and chases a phantom error of v x 5 ms, moving the
+// real carriage away from the path. With the delay in the model (model.gantry's encoder_delay_ms,
+// what the identified time_delay flows into) the device loop gets each target 5 ms later, and
+// the carriage follows the path again. Judged on the true carriage, not the encoder.
+TEST(ClosedLoop, AnEncoderDelayInTheModelKeepsThePiOffAPhantomError) {
+  const auto program =
+      lines({"G90", "G1 X40 Y30 F6000", "G1 X10 Y35", "G1 X30 Y5", "G1 X12 Y28", "G4 P300"});
+  double mean_mm[3] = {0, 0, 0};
+  for (int row = 0; row < 3; ++row) {
+    config::MachineConfig cfg = with_mode(config::ControlMode::pi);
+    cfg.feedforward.type = config::FeedforwardType::lpv;
+    config::TimeDelayConfig delay;
+    delay.delay_ms = 5.0;
+    if (row > 0) cfg.simulator.effects.time_delay = delay;
+    if (row == 2)
+      for (config::GantryModelConfig& g : cfg.model.gantry) g.encoder_delay_ms = delay.delay_ms;
+    auto r = run_simulated(cfg, program);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    EXPECT_EQ(r.value().error, "");
+    const Errors e = errors_of(r.value(), 12.0, 28.0);
+    mean_mm[row] = e.mean_mm;
+    std::printf("%-36s mean tracking error %.4f mm, max %.4f mm, end %.4f / %.4f mm\n",
+                row == 0   ? "no delay, model without"
+                : row == 1 ? "5 ms encoder delay, model without"
+                           : "5 ms encoder delay, model with 5 ms",
+                e.mean_mm, e.max_mm, e.final_x_mm, e.final_y_mm);
+  }
+  EXPECT_GT(mean_mm[1], 1.5 * mean_mm[0]);  // the delay costs the PI dearly
+  EXPECT_LT(mean_mm[2], 0.2 * mean_mm[1]);  // and the model's delay takes most of that away
+}
+
 // The lost-step detector's own model is Eq. 15 with a constant belt and no friction. Behind the LPV
 // feedforward it predicts the carriage at the desired position plus its response to the PI's
 // correction only, and leaves out the feedforward's friction share: a small star at 6000 mm/s^2
