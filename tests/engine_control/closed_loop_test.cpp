@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -174,34 +175,49 @@ TEST(ClosedLoop, FrictionInTheModelRemovesTheFrictionsTrackingError) {
   EXPECT_LT(mean_mm[2], 0.5 * mean_mm[1]);  // and the friction term takes most of it away
 }
 
+// Three runs of the same zig-zag on the LPV feedforward (LPV in `mode`): the plant without an
+// effect, with it and the model without, with it in the model too (`add_effect(cfg, in_model)`).
+// Mean |desired - true carriage| over XY of each, in mm, printed under `labels`.
+template <class AddEffect>
+std::array<double, 3> effect_rows(config::ControlMode mode, double dwell_ms, AddEffect add_effect,
+                                  const std::array<const char*, 3>& labels) {
+  char dwell[32];
+  std::snprintf(dwell, sizeof dwell, "G4 P%.0f", dwell_ms);
+  const auto program =
+      lines({"G90", "G1 X40 Y30 F6000", "G1 X10 Y35", "G1 X30 Y5", "G1 X12 Y28", dwell});
+  std::array<double, 3> mean_mm{};
+  for (int row = 0; row < 3; ++row) {
+    config::MachineConfig cfg = with_mode(mode);
+    cfg.feedforward.type = config::FeedforwardType::lpv;
+    if (row > 0) add_effect(cfg, row == 2);
+    auto r = run_simulated(cfg, program);
+    EXPECT_TRUE(r.ok()) << r.error().message;
+    if (!r.ok()) return mean_mm;
+    EXPECT_EQ(r.value().error, "");
+    const Errors e = errors_of(r.value(), 12.0, 28.0);
+    mean_mm[static_cast<size_t>(row)] = e.mean_mm;
+    std::printf("%-36s mean tracking error %.4f mm, max %.4f mm, end %.4f / %.4f mm\n",
+                labels[static_cast<size_t>(row)], e.mean_mm, e.max_mm, e.final_x_mm, e.final_y_mm);
+  }
+  return mean_mm;
+}
+
 // A plant with 60 um of backlash between pulley and belt on both axes (the first simulator's dead
 // band), which Eq. 13 lacks: without it in the model the carriage falls half the gap behind at
 // every reversal of the belt force; with the width in the model (model.gantry's backlash_mm, what
 // the identification's backlash width flows into) the command crosses the gap ahead of it.
 TEST(ClosedLoop, BacklashInTheModelRemovesTheBacklashsTrackingError) {
-  const auto program =
-      lines({"G90", "G1 X40 Y30 F6000", "G1 X10 Y35", "G1 X30 Y5", "G1 X12 Y28", "G4 P100"});
-  double mean_mm[3] = {0, 0, 0};
-  for (int row = 0; row < 3; ++row) {
-    config::MachineConfig cfg = with_mode(config::ControlMode::open_loop);
-    cfg.feedforward.type = config::FeedforwardType::lpv;
-    config::BacklashConfig backlash;
-    backlash.width_um = 60.0;
-    if (row > 0) cfg.simulator.effects.backlash = backlash;
-    if (row == 2)
-      for (config::GantryModelConfig& g : cfg.model.gantry)
-        g.backlash_mm = backlash.width_um * 1e-3;
-    auto r = run_simulated(cfg, program);
-    ASSERT_TRUE(r.ok()) << r.error().message;
-    EXPECT_EQ(r.value().error, "");
-    const Errors e = errors_of(r.value(), 12.0, 28.0);
-    mean_mm[row] = e.mean_mm;
-    std::printf("%-44s mean tracking error %.4f mm, max %.4f mm\n",
-                row == 0   ? "no backlash, model without"
-                : row == 1 ? "60 um backlash, model without"
-                           : "60 um backlash, model with 60 um",
-                e.mean_mm, e.max_mm);
-  }
+  const auto mean_mm = effect_rows(config::ControlMode::open_loop, 100.0,
+                                   [](config::MachineConfig& cfg, bool in_model) {
+                                     config::BacklashConfig backlash;
+                                     backlash.width_um = 60.0;
+                                     cfg.simulator.effects.backlash = backlash;
+                                     if (in_model)
+                                       for (config::GantryModelConfig& g : cfg.model.gantry)
+                                         g.backlash_mm = backlash.width_um * 1e-3;
+                                   },
+                                   {"no backlash, model without", "60 um backlash, model without",
+                                    "60 um backlash, model with 60 um"});
   EXPECT_GT(mean_mm[1], 2.0 * mean_mm[0]);  // the backlash is a large share of the error
   EXPECT_LT(mean_mm[2], 0.5 * mean_mm[1]);  // and the model's width takes most of it away
 }
@@ -212,28 +228,17 @@ TEST(ClosedLoop, BacklashInTheModelRemovesTheBacklashsTrackingError) {
 // what the identified time_delay flows into) the device loop gets each target 5 ms later, and
 // the carriage follows the path again. Judged on the true carriage, not the encoder.
 TEST(ClosedLoop, AnEncoderDelayInTheModelKeepsThePiOffAPhantomError) {
-  const auto program =
-      lines({"G90", "G1 X40 Y30 F6000", "G1 X10 Y35", "G1 X30 Y5", "G1 X12 Y28", "G4 P300"});
-  double mean_mm[3] = {0, 0, 0};
-  for (int row = 0; row < 3; ++row) {
-    config::MachineConfig cfg = with_mode(config::ControlMode::pi);
-    cfg.feedforward.type = config::FeedforwardType::lpv;
-    config::TimeDelayConfig delay;
-    delay.delay_ms = 5.0;
-    if (row > 0) cfg.simulator.effects.time_delay = delay;
-    if (row == 2)
-      for (config::GantryModelConfig& g : cfg.model.gantry) g.encoder_delay_ms = delay.delay_ms;
-    auto r = run_simulated(cfg, program);
-    ASSERT_TRUE(r.ok()) << r.error().message;
-    EXPECT_EQ(r.value().error, "");
-    const Errors e = errors_of(r.value(), 12.0, 28.0);
-    mean_mm[row] = e.mean_mm;
-    std::printf("%-36s mean tracking error %.4f mm, max %.4f mm, end %.4f / %.4f mm\n",
-                row == 0   ? "no delay, model without"
-                : row == 1 ? "5 ms encoder delay, model without"
-                           : "5 ms encoder delay, model with 5 ms",
-                e.mean_mm, e.max_mm, e.final_x_mm, e.final_y_mm);
-  }
+  const auto mean_mm = effect_rows(config::ControlMode::pi, 300.0,
+                                   [](config::MachineConfig& cfg, bool in_model) {
+                                     config::TimeDelayConfig delay;
+                                     delay.delay_ms = 5.0;
+                                     cfg.simulator.effects.time_delay = delay;
+                                     if (in_model)
+                                       for (config::GantryModelConfig& g : cfg.model.gantry)
+                                         g.encoder_delay_ms = delay.delay_ms;
+                                   },
+                                   {"no delay, model without", "5 ms encoder delay, model without",
+                                    "5 ms encoder delay, model with 5 ms"});
   EXPECT_GT(mean_mm[1], 1.5 * mean_mm[0]);  // the delay costs the PI dearly
   EXPECT_LT(mean_mm[2], 0.2 * mean_mm[1]);  // and the model's delay takes most of that away
 }
