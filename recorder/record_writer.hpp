@@ -74,9 +74,8 @@ class RecordWriter {
 
   uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
   uint64_t rejected() const { return rejected_.load(std::memory_order_relaxed); }  // bad joint index
-  uint64_t waited() const {
-    return waits_.load(std::memory_order_relaxed);
-  }  // pushes that waited for room
+  // Pushes that found the ring full and waited for room (WaitForRoom, virtual time).
+  uint64_t waited() const { return waits_.load(std::memory_order_relaxed); }
   ByteRing& ring() { return ring_; }
 
  private:

@@ -95,8 +95,8 @@ void Recorder::stop_thread() {
     std::lock_guard<std::mutex> lk(mu_);
     if (!thread_.joinable()) return;
     stop_ = true;
-    wait_for_room_.on.store(false,
-                            std::memory_order_release);  // no writer waits for a stopped consumer
+    // No writer waits for a consumer that is stopping.
+    wait_for_room_.on.store(false, std::memory_order_release);
   }
   cv_.notify_all();
   thread_.join();
