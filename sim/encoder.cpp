@@ -20,7 +20,8 @@ int64_t LinearEncoder::counts(double pos_mm) {
   return static_cast<int64_t>(std::llround(pos_um / p_.resolution_um));
 }
 
-History::History(size_t capacity) : t_(capacity < 2 ? 2 : capacity), v_(t_.size()) {}
+History::History(size_t capacity, double min_spacing_s)
+    : t_(capacity < 2 ? 2 : capacity), v_(t_.size()), min_spacing_s_(min_spacing_s) {}
 
 void History::clear(double t_s, double value) {
   head_ = 0;
@@ -31,6 +32,11 @@ void History::clear(double t_s, double value) {
 
 void History::push(double t_s, double value) {
   if (size_ > 0 && t_s <= t_[head_]) {  // same instant (an event): keep the latest value
+    v_[head_] = value;
+    return;
+  }
+  if (size_ > 1 && t_s - t_[(head_ + t_.size() - 1) % t_.size()] < min_spacing_s_) {
+    t_[head_] = t_s;  // too close to the sample before the newest: the newest moves up to t_s
     v_[head_] = value;
     return;
   }

@@ -43,9 +43,15 @@ class LinearEncoder {
 
 // Fixed-capacity ring of (time, value) samples, pushed in increasing time; value_at(t) interpolates
 // linearly and clamps to the oldest/newest sample. Capacity is fixed at construction.
+// A sample closer than min_spacing_s to the one before the newest replaces the newest: any two
+// samples two apart are min_spacing_s apart or more, so the ring spans at least
+// (capacity - 1) / 2 x min_spacing_s however often samples come. (A plant pushes one at every
+// input event too, beside its substeps: with the ring sized for the substeps alone, the first
+// simulator's Y axis, 8.3 ms of time_delay, read its carriage 3-4 ms late while it stepped fast:
+// the delay shrank with the step rate.)
 class History {
  public:
-  explicit History(size_t capacity);
+  explicit History(size_t capacity, double min_spacing_s = 0.0);
   void clear(double t_s, double value);
   // RT-safe.
   void push(double t_s, double value);
@@ -55,6 +61,7 @@ class History {
   std::vector<double> t_, v_;
   size_t head_ = 0;  // index of the newest sample
   size_t size_ = 0;
+  double min_spacing_s_ = 0.0;
 };
 
 }  // namespace feedloop::sim

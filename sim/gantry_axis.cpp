@@ -16,7 +16,7 @@ constexpr double kInvBristle_per_m = 1.0 / kBristle_m;
 size_t history_capacity(const GantryAxisParams& p) {
   const double delay_s = p.encoder.sampling_delay_s +
                          (p.effects.time_delay.enabled ? p.effects.time_delay.delay_ms * 1e-3 : 0.0);
-  // Samples are kept at least half a substep apart (History::push below).
+  // Samples two apart are at least a substep apart (History::push): 2 d / h + 8 span d.
   return static_cast<size_t>(std::ceil(delay_s * p.substep_hz * 2.0)) + 8;
 }
 
@@ -82,7 +82,7 @@ double GantryAxis::fastest_mode_rad_s(const GantryAxisParams& p) {
 }
 
 GantryAxis::GantryAxis(const GantryAxisParams& p)
-    : p_(p), encoder_(p.encoder, p.seed), history_(history_capacity(p)) {
+    : p_(p), encoder_(p.encoder, p.seed), history_(history_capacity(p), 1.0 / p.substep_hz) {
   h_s_ = 1.0 / p.substep_hz;
   stop_min_m_ = p.hard_stop_min_mm * 1e-3;
   stop_max_m_ = p.hard_stop_max_mm * 1e-3;
