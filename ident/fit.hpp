@@ -51,6 +51,7 @@ struct CandidateResult {
   double validation_rms_um = 0.0;  // held-out RMS of baseline + kept effects + this candidate
   bool kept = false;
   int round = 0;
+  int with = -1;  // screened on top of this effect (fit.cpp's look-ahead by one effect); -1: alone
 };
 
 struct IdentResult {

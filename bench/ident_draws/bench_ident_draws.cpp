@@ -8,7 +8,7 @@
 // Seeds are first_seed + i for draw i of each kind: every row can be rerun alone with --kinds and
 // --first-seed / --draws.
 //   bench_ident_draws [--draws N] [--first-seed S] [--kinds k1,k2,..] [--duration S] [--threads N]
-//                     [--verbose] [--candidates] [--json FILE]
+//                     [--verbose] [--candidates] [--json FILE] [--save-traces DIR]
 #include <sys/resource.h>
 
 #include <atomic>
@@ -132,7 +132,8 @@ Plant2Case record_plant2(const Kind& kind, uint64_t seed, const std::vector<doub
   return c;
 }
 
-Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibration, bool plant2) {
+Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibration, bool plant2,
+                const std::string& save_dir) {
   Outcome o;
   o.kind = kind.name;
   o.seed = seed;
@@ -162,6 +163,11 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
   if (!trace.ok()) {
     o.error = trace.error().to_string();
     return o;
+  }
+  if (!save_dir.empty()) {
+    // The draw's trace, for `feedloop ident fit --trace` (the same fit as below).
+    const std::string path = save_dir + "/" + kind.name + "_" + std::to_string(seed) + ".csv";
+    if (auto s = ident::write_trace_csv(path, trace.value()); !s) o.error = s.error().to_string();
   }
   const ident::AxisTrace& a = trace.value().axes[0];
   auto r = ident::identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(),
@@ -197,7 +203,9 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
         std::snprintf(line, sizeof line, "\n      round %d:", round);
         o.rounds += line;
       }
-      std::snprintf(line, sizeof line, " %s %.2f%s", ident::effect_name(c.effect),
+      std::snprintf(line, sizeof line, " %s%s%s %.2f%s", ident::effect_name(c.effect),
+                    c.with >= 0 ? "@" : "",
+                    c.with >= 0 ? ident::effect_name(static_cast<ident::Effect>(c.with)) : "",
                     c.validation_rms_um, c.kept ? "*" : "");
       o.rounds += line;
     }
@@ -232,7 +240,7 @@ int main(int argc, char** argv) {
   uint64_t first_seed = 1000;
   double duration_s = 30.0;
   bool verbose = false, calibration = false, plant2 = false, candidates = false;
-  std::string json_path, kinds_arg;
+  std::string json_path, kinds_arg, save_dir;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
@@ -258,13 +266,15 @@ int main(int argc, char** argv) {
       plant2 = next() == "plant2";
     else if (a == "--json")
       json_path = next();
+    else if (a == "--save-traces")
+      save_dir = next();
     else {
       std::fprintf(
           stderr,
           "usage: bench_ident_draws [--draws N] [--first-seed S] [--kinds none,backlash,..] "
           "[--duration S] [--excitation random|calibration] [--simulator sim|plant2] [--threads N] "
           "[--verbose] [--candidates] "
-          "[--json FILE]\n");
+          "[--json FILE] [--save-traces DIR]\n");
       return 2;
     }
   }
@@ -311,7 +321,8 @@ int main(int argc, char** argv) {
   const auto wall0 = std::chrono::steady_clock::now();
   auto worker = [&] {
     for (size_t j; (j = next_job.fetch_add(1)) < jobs.size();) {
-      outcomes[j] = run_one(kinds[jobs[j].kind], jobs[j].seed, duration_s, calibration, plant2);
+      outcomes[j] =
+          run_one(kinds[jobs[j].kind], jobs[j].seed, duration_s, calibration, plant2, save_dir);
       const size_t n = ++done;
       std::lock_guard<std::mutex> lock(print_mutex);
       const Outcome& o = outcomes[j];
