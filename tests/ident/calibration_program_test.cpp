@@ -69,10 +69,11 @@ TEST(CalibrationProgram, ResonanceAboveTheBeltModeIsNamedFromTheFrf) {
   EXPECT_NEAR(r.augmented.extra_freq_hz, 70.0, 0.25 * 70.0);
 }
 
-// The first simulator's X axis as the daemon runs it: its belt anchored so that the stiffness
-// depends on position and direction (Eq. 6, the carriage 80 mm off the belt's middle), and an
-// encoder 8.31 ms late (calibrate seed 1). The delay bends the baseline into a low-pass, on which
-// neither effect alone passes the margin; the look-ahead by one effect names both.
+// The first simulator's X axis with its belt anchored so that the stiffness depends on position
+// and direction (Eq. 6, the carriage 80 mm off the belt's middle), and an encoder 8.31 ms late
+// (calibrate seed 1's draw). On this program the delay alone passes the margin and the ratio
+// follows (rounds 1 and 2); the daemon's recording of the same machine, with its fast travel
+// moves, needs the look-ahead by one effect (Calibrate.TheFirstSimulatorsEncoderDelayIs...).
 TEST(CalibrationProgram, ADelayBesideTheBeltsDirectionIsNamedAsAPair) {
   sim::GantryAxisParams p = sim::thesis_x_axis();
   p.seed = 3;
