@@ -919,7 +919,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
     if (!significant && !frf_resonance) {
       // Look-ahead by one effect. Forward selection adds one effect at a time, and two effects
       // can each need the other in the model before they pay: a measurement delay of several ms
-      // bends the baseline into a 20 Hz low-pass (k1 at its bound), and beside the belt's
+      // bends the baseline into a 20 Hz low-pass (k2 10 kN/m for 110), and beside the belt's
       // direction-dependent stiffness the delay alone then lowers the held-out RMS by 7 %
       // (the first simulator, 8.3 ms: 14.6 -> 13.6 um), while the pair takes it to ~4 um.
       // The candidates that lowered the held-out RMS by a third of the margin or more (the best
