@@ -115,17 +115,13 @@ std::string report_markdown(const IdentResult& r, const std::string& trace_name,
   s += "| augmented | " + num(r.augmented_rms_um, "%.3f") + " | " + num(r.augmented_validation_rms_um, "%.3f") +
        " |\n\n";
   s += "## Baseline model\n\n" + baseline_description(r.baseline) + "\n\n";
-  s +=
-      "## Evidence: every candidate tried\n\nEach round fits every effect not yet in the model "
-      "(its own "
-      "parameters, from an initial guess read off the residual) and compares the RMS on the "
-      "held-out "
-      "part of the trace; the best is kept, refitted with all parameters free, if it lowers the "
-      "held-out RMS significantly. When none does, the best one or two are each taken as the start "
-      "of a second screening (rows \"X after Y\"), and a pair is kept when together they lower it "
-      "by "
-      "the margin twice and by the margin over the best single effect.\n\n| round | candidate | "
-      "held-out RMS (um) | kept |\n|---|---|---|---|\n";
+  s += "## Evidence: every candidate tried\n\nEach round fits every effect not yet in the model "
+       "(its own parameters, from an initial guess read off the residual) and compares the RMS on "
+       "the held-out part of the trace; the best is kept, refitted with all parameters free, if it "
+       "lowers the held-out RMS significantly. When none does, the best one or two are each taken "
+       "as the start of a second screening (rows \"X after Y\"), and a pair is kept when together "
+       "they lower it by the margin twice and by the margin over the best single effect.\n\n"
+       "| round | candidate | held-out RMS (um) | kept |\n|---|---|---|---|\n";
   for (const auto& c : r.candidates)
     s += "| " + std::to_string(c.round) + " | " + effect_name(c.effect) +
          (c.with >= 0 ? std::string(" after ") + effect_name(static_cast<Effect>(c.with))
