@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <mutex>
@@ -167,7 +168,10 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
   if (!save_dir.empty()) {
     // The draw's trace, for `feedloop ident fit --trace` (the same fit as below).
     const std::string path = save_dir + "/" + kind.name + "_" + std::to_string(seed) + ".csv";
-    if (auto s = ident::write_trace_csv(path, trace.value()); !s) o.error = s.error().to_string();
+    if (auto s = ident::write_trace_csv(path, trace.value()); !s) {
+      o.error = "--save-traces: " + s.error().to_string();
+      return o;
+    }
   }
   const ident::AxisTrace& a = trace.value().axes[0];
   auto r = ident::identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(),
@@ -277,6 +281,11 @@ int main(int argc, char** argv) {
           "[--json FILE] [--save-traces DIR]\n");
       return 2;
     }
+  }
+  if (!save_dir.empty() && !std::filesystem::is_directory(save_dir)) {
+    std::fprintf(stderr, "bench_ident_draws: --save-traces %s: not a directory\n",
+                 save_dir.c_str());
+    return 2;
   }
   if (draws < 1 || threads < 1 || duration_s <= 0.0) {
     std::fprintf(stderr, "bench_ident_draws: --draws, --threads and --duration must be positive\n");
