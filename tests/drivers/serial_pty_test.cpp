@@ -473,7 +473,7 @@ TEST(SerialPty, StalledIoThreadDoesNotDelayTheTimingThread) {
   // ms now and then (6.0 ms seen once on a CI machine, 0.3 ms outside the pause in the same run),
   // so the bounds on it only say the thread kept cycling through the 52 ms window and was never
   // late by anything like the pause: at most 20 ms late, and at least 30 of its ~52 cycles.
-  EXPECT_LT(r.during.max_work_us, 5000.0);
+  EXPECT_LT(r.during.max_work_us, 20000.0);
   if (r.realtime) {
     EXPECT_GE(r.during.cycles, 30u);
     EXPECT_LT(r.during.max_late_us, 20000.0);

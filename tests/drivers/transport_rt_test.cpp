@@ -159,7 +159,7 @@ TEST(SerialRealTime, IdleIoThreadCost) {
               (unsigned long long)turns, cpu_s * 1e3, cpu_s * 100.0, turns > 0 ? cpu_s * 1e6 / static_cast<double>(turns) : 0.0);
   EXPECT_GT(turns, 50u);     // the reader turns (at most 200/s: it waits 5 ms for input)
   EXPECT_LE(turns, 210u);    // and sleeps between turns
-  EXPECT_LT(cpu_s, 0.10);    // under 10 % of a core (both threads)
+  EXPECT_LT(cpu_s, 0.20);    // under 20 % of a core (both threads; 2.9-4.7 % seen, more on a VM)
 }
 
 // The device hangs up: the I/O thread takes the link down with the reason; the caller's side sees

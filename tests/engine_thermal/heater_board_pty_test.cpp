@@ -102,7 +102,9 @@ TEST(HeaterBoardPty, TheBoardHeatsAndTurnsItsHeaterOffWhenTheHostStopsConfirming
   const double after_s = rig.now_s() - t_drop;
   EXPECT_NE(f->find("heater extruder: mcu heater watchdog: no confirmation from the host for 3.0 s"),
             std::string::npos) << *f;
-  EXPECT_GE(after_s, 3.0 - 0.3 - 0.05);  // the last confirmation answered the last report
+  // The last confirmation answered the last report (a report period before the drop), less the
+  // 20 ms step and a report the scheduler delayed (0.2 s: a busy CI host; 2.85 s seen here).
+  EXPECT_GE(after_s, 3.0 - 0.3 - 0.2);
   EXPECT_LE(after_s, 3.0 + 0.5);         // + a sample + the report's way back + the 20 ms step
   std::printf("confirmations dropped: the board's fault after %.2f s: %s\n", after_s, f->c_str());
 }
@@ -121,7 +123,9 @@ TEST(HeaterBoardPty, ABoardThatLosesPowerIsAThermalFaultNamingIt) {
   EXPECT_NE(f->find("no temperature report for 2.0 s (its MCU stopped reporting: MCU 'board'"),
             std::string::npos) << *f;
   EXPECT_NE(f->find("disconnected"), std::string::npos) << *f;  // the session's event
-  EXPECT_GE(rig.now_s() - t_kill, 2.0 - 0.3);
+  // Less the 20 ms step and a late report (0.2 s: a busy CI host; 1.73 s seen here, 30 ms from
+  // the bare 2.0 - 0.3).
+  EXPECT_GE(rig.now_s() - t_kill, 2.0 - 0.3 - 0.2);
   EXPECT_LE(rig.now_s() - t_kill, 2.0 + 0.3);
   std::printf("board killed: thermal fault after %.2f s: %s\n", rig.now_s() - t_kill, f->c_str());
 }
