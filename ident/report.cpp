@@ -120,13 +120,17 @@ std::string report_markdown(const IdentResult& r, const std::string& trace_name,
        "the held-out part of the trace; the best is kept, refitted with all parameters free, if it "
        "lowers the held-out RMS significantly. When none does, the best one or two are each taken "
        "as the start of a second screening (rows \"X after Y\"), and a pair is kept when together "
-       "they lower it by the margin twice and by the margin over the best single effect.\n\n"
+       "they lower it by the margin twice and by the margin over the best single effect. A "
+       "resonance \"read off the FRF\" is a mode fitted to the measured frequency response (the "
+       "baseline refitted around it), kept when the current model misses the held-out FRF near "
+       "its frequency and the mode at least halves that.\n\n"
        "| round | candidate | held-out RMS (um) | kept |\n|---|---|---|---|\n";
   for (const auto& c : r.candidates)
     s += "| " + std::to_string(c.round) + " | " + effect_name(c.effect) +
          (c.with >= 0 ? std::string(" after ") + effect_name(static_cast<Effect>(c.with))
                       : std::string()) +
-         " | " + num(c.validation_rms_um, "%.3f") + " | " + (c.kept ? "yes" : "") + " |\n";
+         (c.from_frf ? " (read off the FRF)" : "") + " | " + num(c.validation_rms_um, "%.3f") +
+         " | " + (c.kept ? "yes" : "") + " |\n";
   s += "\n## Measured frequency response\n\n";
   s += extras.frf_summary.empty() ? std::string("No FRF estimate.\n") : extras.frf_summary;
   s += "\n## Plots\n\n";
