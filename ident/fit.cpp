@@ -357,14 +357,12 @@ FrfData measure_frf(const std::vector<double>& u, const std::vector<double>& y, 
 double frf_misfit_band(const AxisModel& m, const FrfData& d, double period_s, double lo_hz,
                        double hi_hz, int min_points) {
   if (!d.valid) return NAN;
-  const model::FrequencyGrid grid = ident_grid(period_s);
-  auto g = axis_model_frf(m, period_s, grid);
+  auto g = axis_model_frf(m, period_s, ident_grid(period_s));
   if (!g) return NAN;
   double sum = 0.0;
   int count = 0;
   for (size_t i = 0; i < d.est.h1.size(); ++i) {
-    const double f_hz = grid.start_hz + static_cast<double>(i) * grid.step_hz;
-    if (f_hz < lo_hz || f_hz > hi_hz) continue;
+    if (d.est.freq_hz[i] < lo_hz || d.est.freq_hz[i] > hi_hz) continue;
     if (d.est.coherence[i] <= kCoherent || std::abs(g.value()[i]) == 0.0) continue;
     sum += std::abs(d.est.h1[i] / g.value()[i] - 1.0);
     ++count;
@@ -406,7 +404,8 @@ AxisModel frf_mode_guess(const AxisModel& cur, const FrfData& d, double period_s
     for (double zs : {0.6, 0.8, 1.0, 1.25, 1.6})
       for (double ms : {0.7, 0.85, 1.0, 1.2, 1.4})
         consider(coarse.extra_freq_hz * std::pow(1.005, i),
-                 std::min(0.19, coarse.extra_damping * zs), coarse.extra_mass_kg * ms);
+                 std::min(baseline_range(Param::kExtraZeta).hi, coarse.extra_damping * zs),
+                 coarse.extra_mass_kg * ms);
   return best;
 }
 
@@ -696,6 +695,8 @@ AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb,
 // plant whose structure the baseline lacks (the second simulator: 4-9 um RMS on clean draws) a
 // scale error of 3 um over the whole travel, fitted beside a 30 um runout, is not a finding.
 constexpr double kMaxModeDamping = 0.2;
+// A mode's band: its notch and peak lie within a factor of this of its frequency.
+constexpr double kModeBand = 1.25;
 bool resolvable(const AxisModel& m, Effect e, const Problem& pb, const FitOptions& o,
                 double cur_val_um) {
   const double min_effect_um = std::max(o.min_effect_um, cur_val_um);
@@ -727,7 +728,7 @@ bool resolvable(const AxisModel& m, Effect e, const Problem& pb, const FitOption
     // misses, the time-domain fit put a "mode" at 195-277 Hz on six of 50 second-simulator draws.
     case Effect::kExtraResonance:
       return m.extra_damping < kMaxModeDamping &&
-             m.extra_freq_hz * 1.25 <= ident_grid(pb.period_s).stop_hz;
+             m.extra_freq_hz * kModeBand <= ident_grid(pb.period_s).stop_hz;
   }
   return true;
 }
@@ -979,21 +980,16 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
           AxisModel fm = frf_mode_guess(cur, frf_train, period_s);
           fm = levenberg_marquardt(fm, {Param::kK1, Param::kK2, Param::kC1, Param::kC2}, pb,
                                    o.screen_iterations, screen_end, false);
-          // Its notch and peak must both be within the measured grid (a mode read at the grid's
-          // end, 195-280 Hz, was named beside five of 50 frictions).
-          const double f0 = fm.extra_freq_hz;
-          const model::FrequencyGrid grid = ident_grid(period_s);
-          const bool inside = f0 / 1.25 >= grid.start_hz && f0 * 1.25 <= grid.stop_hz;
-          const double band_before =
-              frf_misfit_band(cur, frf_val, period_s, f0 / 1.25, f0 * 1.25, 8);
-          const double band_after = frf_misfit_band(fm, frf_val, period_s, f0 / 1.25, f0 * 1.25, 8);
+          const double lo_hz = fm.extra_freq_hz / kModeBand, hi_hz = fm.extra_freq_hz * kModeBand;
+          const double band_before = frf_misfit_band(cur, frf_val, period_s, lo_hz, hi_hz, 8);
+          const double band_after = frf_misfit_band(fm, frf_val, period_s, lo_hz, hi_hz, 8);
           std::vector<double> ys;
           if (run(fm, pb, &ys)) {
             const double v = residual_rms_um(ys, meas_mm, pb.train_end, n);
             out.candidates.push_back(
                 CandidateResult{Effect::kExtraResonance, v, false, round, -1, true});
             frf_resonance =
-                inside && band_before > o.min_frf_band_misfit && band_after < 0.5 * band_before &&
+                band_before > o.min_frf_band_misfit && band_after < 0.5 * band_before &&
                 frf_misfit(fm, frf_val, period_s) < frf_misfit(cur, frf_val, period_s) &&
                 v <= 1.01 * cur_val && resolvable(fm, Effect::kExtraResonance, pb, o, 0.0);
             if (frf_resonance) {

@@ -57,8 +57,8 @@ struct CandidateResult {
   bool kept = false;
   int round = 0;
   int with = -1;  // screened on top of this effect (fit.cpp's look-ahead by one effect); -1: alone
-  bool from_frf =
-      false;  // a mode read off the measured FRF (fit.cpp's frf_mode_guess), not screened
+  // A mode read off the measured FRF (fit.cpp's frf_mode_guess), not screened.
+  bool from_frf = false;
 };
 
 struct IdentResult {
