@@ -261,11 +261,15 @@ int fit(const std::vector<std::string>& args) {
     return 2;
   }
   const auto t0 = std::chrono::steady_clock::now();
-  auto trace = ident::read_trace_csv(trace_path);
+  auto read = ident::read_trace_csv(trace_path);
+  std::string resampled;
+  auto trace = read ? ident::evenly_sampled(read.value(), trace_path, &resampled) : read;
   if (!trace) {
     std::fprintf(stderr, "feedloop ident fit: %s\n", trace.error().to_string().c_str());
     return 1;
   }
+  if (!resampled.empty())
+    std::fprintf(stderr, "feedloop ident fit: %s: %s\n", trace_path.c_str(), resampled.c_str());
   const ident::Trace& tr = trace.value();
   const ident::AxisTrace* axis = axis_name.empty() ? &tr.axes.front() : tr.axis(axis_name);
   if (axis == nullptr) {
@@ -355,11 +359,15 @@ int frf(const std::vector<std::string>& args) {
     usage(stderr);
     return 2;
   }
-  auto trace = ident::read_trace_csv(trace_path);
+  auto read = ident::read_trace_csv(trace_path);
+  std::string resampled;
+  auto trace = read ? ident::evenly_sampled(read.value(), trace_path, &resampled) : read;
   if (!trace) {
     std::fprintf(stderr, "feedloop ident frf: %s\n", trace.error().to_string().c_str());
     return 1;
   }
+  if (!resampled.empty())
+    std::fprintf(stderr, "feedloop ident frf: %s: %s\n", trace_path.c_str(), resampled.c_str());
   const ident::Trace& tr = trace.value();
   const ident::AxisTrace* axis = axis_name.empty() ? &tr.axes.front() : tr.axis(axis_name);
   if (axis == nullptr) {

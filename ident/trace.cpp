@@ -1,6 +1,7 @@
 // Trace CSV v1 reader and writer (see trace.hpp).
 #include "ident/trace.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -118,6 +119,7 @@ Result<Trace> parse_trace_csv(const std::string& text, const std::string& source
       return located("time_s must increase (" + cells[0] + " after " + std::to_string(trace.time_s.back()) + ")",
                      source, line_no, colpos[0]);
     trace.time_s.push_back(t);
+    trace.row_line.push_back(line_no);
     for (size_t a = 0; a < cols.size(); ++a) {
       double c = 0.0, m = 0.0;
       if (!parse_double(cells[cols[a].first], &c))
@@ -139,6 +141,65 @@ Result<Trace> read_trace_csv(const std::string& path) {
   std::stringstream ss;
   ss << f.rdbuf();
   return parse_trace_csv(ss.str(), path);
+}
+
+Result<Trace> evenly_sampled(const Trace& trace, const std::string& source, std::string* note) {
+  if (note != nullptr) note->clear();
+  const size_t n = trace.time_s.size();
+  if (n < 3) return trace;
+  std::vector<double> steps(n - 1);
+  for (size_t i = 0; i + 1 < n; ++i) steps[i] = trace.time_s[i + 1] - trace.time_s[i];
+  std::vector<double> sorted = steps;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2),
+                   sorted.end());
+  const double median = sorted[sorted.size() / 2];
+  const auto [lo, hi] = std::minmax_element(steps.begin(), steps.end());
+  if (*hi <= 1.01 * median && *lo >= 0.99 * median) return trace;
+  const auto gap = static_cast<size_t>(hi - steps.begin());
+  if (*hi > 2.5 * median) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "rows are missing: time_s steps by %.6g s after %.6g s, %.1f times the median "
+                  "step of %.6g s; "
+                  "the identification needs evenly spaced samples (cut the trace at the gap)",
+                  *hi, trace.time_s[gap], *hi / median, median);
+    const int line = gap + 1 < trace.row_line.size() ? trace.row_line[gap + 1] : 0;
+    return located(buf, source, line, 1);
+  }
+  Trace even;
+  even.metadata = trace.metadata;
+  const double t0 = trace.time_s.front();
+  const auto rows = static_cast<size_t>(std::floor((trace.time_s.back() - t0) / median + 1e-9)) + 1;
+  even.time_s.resize(rows);
+  for (size_t k = 0; k < rows; ++k) even.time_s[k] = t0 + static_cast<double>(k) * median;
+  for (const AxisTrace& a : trace.axes) {
+    AxisTrace& b = even.axes.emplace_back();
+    b.name = a.name;
+    b.cmd_mm.resize(rows);
+    b.meas_mm.resize(rows);
+  }
+  size_t i = 0;  // the row at or before the grid time
+  for (size_t k = 0; k < rows; ++k) {
+    const double t = even.time_s[k];
+    while (i + 2 < n && trace.time_s[i + 1] <= t) ++i;
+    const double f =
+        std::clamp((t - trace.time_s[i]) / (trace.time_s[i + 1] - trace.time_s[i]), 0.0, 1.0);
+    for (size_t a = 0; a < trace.axes.size(); ++a) {
+      const AxisTrace& src = trace.axes[a];
+      even.axes[a].cmd_mm[k] = src.cmd_mm[i] + f * (src.cmd_mm[i + 1] - src.cmd_mm[i]);
+      even.axes[a].meas_mm[k] = src.meas_mm[i] + f * (src.meas_mm[i + 1] - src.meas_mm[i]);
+    }
+  }
+  if (note != nullptr) {
+    char buf[256];
+    std::snprintf(
+        buf, sizeof buf,
+        "time steps of %.6g-%.6g s: resampled onto an even %.6g s grid (the median step) by linear "
+        "interpolation, %zu rows -> %zu samples",
+        *lo, *hi, median, n, rows);
+    *note = buf;
+  }
+  return even;
 }
 
 std::string format_trace_csv(const Trace& trace) {

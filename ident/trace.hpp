@@ -5,7 +5,8 @@
 //   0.000,0.0,0.0                    one row per sample, time increasing
 //
 // Errors (a malformed number, a missing column, time not increasing) are values located at the
-// file, line and column where they occur.
+// file, line and column where they occur. evenly_sampled() puts a trace on the even grid that the
+// identification needs.
 #pragma once
 
 #include <string>
@@ -26,6 +27,8 @@ struct Trace {
   std::vector<std::pair<std::string, std::string>> metadata;  // "# key=value" lines, in order
   std::vector<double> time_s;
   std::vector<AxisTrace> axes;
+  std::vector<int>
+      row_line;  // the file line of each row (parsed traces; empty when built in memory)
 
   size_t samples() const { return time_s.size(); }
   // Mean sample period from the time column (0 with fewer than two samples).
@@ -37,6 +40,15 @@ struct Trace {
 // Parses trace CSV v1 text; `source` names it in error locations.
 Result<Trace> parse_trace_csv(const std::string& text, const std::string& source = "<trace>");
 Result<Trace> read_trace_csv(const std::string& path);
+
+// The trace on an even time grid, as the identification and the FRF need it (the contract asks
+// only that time increases). Steps within 1 % of the median step: the trace as it is. Uneven
+// steps up to 2.5 medians (a jittered clock, one lost row): every column linearly interpolated
+// onto the median step from the first time, and *note (when given) says so. A longer step means
+// rows are missing: an error located at the row after the gap (interpolating across it would be
+// fitted as motion). `source` names the trace in the error.
+Result<Trace> evenly_sampled(const Trace& trace, const std::string& source,
+                             std::string* note = nullptr);
 
 // Writes trace CSV v1 (metadata lines first). Errors: axes of different lengths, I/O failure.
 std::string format_trace_csv(const Trace& trace);

@@ -86,6 +86,22 @@ TEST(IdentCli, UserErrorsAreReportedNotCrashes) {
   EXPECT_EQ(ident_command({"fit", "--trace", (dir / "missing.csv").string(), "--out", dir.string()}), 1);
   std::ofstream(dir / "bad.csv") << "time_s,x_cmd_mm,x_meas_mm\n0,0,0\n0.001,zz,0\n";
   EXPECT_EQ(ident_command({"fit", "--trace", (dir / "bad.csv").string(), "--out", dir.string()}), 1);
+  // Rows missing from the middle of a trace: refused (fit and frf), nothing written.
+  {
+    std::ofstream gap(dir / "gap.csv");
+    gap << "time_s,x_cmd_mm,x_meas_mm\n";
+    for (int k = 0; k < 3000; ++k)
+      if (k < 1500 || k >= 1520)
+        gap << 0.001 * k << "," << std::sin(0.003 * k) << "," << std::sin(0.003 * k) << "\n";
+  }
+  EXPECT_EQ(ident_command({"fit", "--trace", (dir / "gap.csv").string(), "--out",
+                           (dir / "gap_out").string()}),
+            1);
+  EXPECT_FALSE(std::filesystem::exists(dir / "gap_out" / "report.json"));
+  EXPECT_EQ(ident_command({"frf", "--trace", (dir / "gap.csv").string(), "--out",
+                           (dir / "gap_frf.csv").string()}),
+            1);
+  EXPECT_FALSE(std::filesystem::exists(dir / "gap_frf.csv"));
   EXPECT_EQ(ident_command({"excite", "--axis", "x", "--effect", "wobble", "--out", (dir / "t.csv").string()}), 2);
   EXPECT_EQ(ident_command({"excite", "--axis", "x", "--effect", "backlash:depth=3", "--out", (dir / "t.csv").string()}), 2);
   EXPECT_EQ(ident_command({"frobnicate"}), 2);

@@ -2,6 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
 
 #include "ident/excitation.hpp"
 #include "ident/trace.hpp"
@@ -53,6 +56,66 @@ TEST(TraceCsv, ErrorsAreLocated) {
   ASSERT_FALSE(short_row.ok());
   EXPECT_EQ(short_row.error().where.line, 2);
   EXPECT_FALSE(read_trace_csv("no/such/file.csv").ok());
+}
+
+// A CSV of `rows` samples of cmd = 2 t, meas = 3 t at the given times (lines from 2).
+std::string linear_trace_csv(const std::vector<double>& times) {
+  std::string csv = "time_s,x_cmd_mm,x_meas_mm\n";
+  char buf[96];
+  for (double t : times) {
+    std::snprintf(buf, sizeof buf, "%.6f,%.7f,%.7f\n", t, 2.0 * t, 3.0 * t);
+    csv += buf;
+  }
+  return csv;
+}
+
+TEST(TraceCsv, AnEvenTraceIsKeptAsItIs) {
+  std::vector<double> times;
+  for (int k = 0; k < 500; ++k) times.push_back(0.001 * k);
+  auto r = parse_trace_csv(linear_trace_csv(times), "even.csv");
+  ASSERT_TRUE(r.ok());
+  std::string note = "stale";
+  auto e = evenly_sampled(r.value(), "even.csv", &note);
+  ASSERT_TRUE(e.ok());
+  EXPECT_TRUE(note.empty());
+  EXPECT_EQ(e.value().time_s, r.value().time_s);
+  EXPECT_EQ(e.value().axes[0].meas_mm, r.value().axes[0].meas_mm);
+}
+
+TEST(TraceCsv, AJitteredTraceIsResampledOntoItsMedianStep) {
+  // Steps alternate 0.8 and 1.2 ms around a median of 1.0 (every third is 1.0 ms).
+  std::vector<double> times{0.0};
+  for (int k = 1; k < 900; ++k)
+    times.push_back(times.back() + (k % 3 == 0 ? 1.0e-3 : k % 3 == 1 ? 0.8e-3 : 1.2e-3));
+  auto r = parse_trace_csv(linear_trace_csv(times), "jitter.csv");
+  ASSERT_TRUE(r.ok());
+  std::string note;
+  auto e = evenly_sampled(r.value(), "jitter.csv", &note);
+  ASSERT_TRUE(e.ok());
+  EXPECT_NE(note.find("resampled"), std::string::npos);
+  const Trace& t = e.value();
+  ASSERT_EQ(t.axes.size(), 1U);
+  ASSERT_EQ(t.time_s.size(), t.axes[0].cmd_mm.size());
+  EXPECT_NEAR(t.period_s(), 1.0e-3, 1e-9);
+  EXPECT_EQ(t.time_s.size(), static_cast<size_t>(std::floor(times.back() / 1.0e-3 + 1e-9)) + 1);
+  // Linear columns stay exact under linear interpolation (up to the CSV's 7 decimals).
+  for (size_t k = 0; k < t.time_s.size(); k += 37) {
+    EXPECT_NEAR(t.axes[0].cmd_mm[k], 2.0 * t.time_s[k], 2e-7) << k;
+    EXPECT_NEAR(t.axes[0].meas_mm[k], 3.0 * t.time_s[k], 2e-7) << k;
+  }
+}
+
+TEST(TraceCsv, MissingRowsAreAnErrorAtTheRowAfterTheGap) {
+  std::vector<double> times;
+  for (int k = 0; k < 300; ++k)
+    if (k < 100 || k >= 104) times.push_back(0.001 * k);  // rows 100-103 lost
+  auto r = parse_trace_csv("# sample_rate_hz=1000\n" + linear_trace_csv(times), "gap.csv");
+  ASSERT_TRUE(r.ok());
+  auto e = evenly_sampled(r.value(), "gap.csv");
+  ASSERT_FALSE(e.ok());
+  EXPECT_EQ(e.error().where.source, "gap.csv");
+  EXPECT_EQ(e.error().where.line, 103);  // metadata, header, rows 0-99 on lines 3-102, then k = 104
+  EXPECT_NE(e.error().message.find("5.0 times"), std::string::npos) << e.error().message;
 }
 
 TEST(Excitation, RandomMovesStayNearTheDriftAndRecordFollowsTheCommand) {
