@@ -686,9 +686,12 @@ int calibrate(const std::vector<std::string>& args) {
                               {"held_out_before_um", r.baseline_validation_rms_um},
                               {"held_out_after_um", r.augmented_validation_rms_um},
                               {"effects", json::array()}});
+    report["axes"].back()["warnings"] = r.warnings;
     std::printf("axis %s: residual RMS %.2f -> %.2f um (held out %.2f -> %.2f um), effects: %zu\n", axes[i].c_str(),
                 r.baseline_rms_um, r.augmented_rms_um, r.baseline_validation_rms_um, r.augmented_validation_rms_um,
                 r.effects.size());
+    for (const std::string& w : r.warnings)
+      std::fprintf(stderr, "warning: axis %s: %s\n", axes[i].c_str(), w.c_str());
   }
   if (excited) {  // the effects as the overlay has them
     auto applied = config::apply_calibration_text(cfg, overlay, out_dir + "/calibration.yaml");

@@ -283,7 +283,8 @@ int fit(const std::vector<std::string>& args) {
   auto r = ident::identify_axis(axis->name, axis->cmd_mm, axis->meas_mm, tr.period_s(), o);
   if (tty) progress.finish();
   if (!r) {
-    std::fprintf(stderr, "feedloop ident fit: %s\n", r.error().to_string().c_str());
+    std::fprintf(stderr, "feedloop ident fit: %s: axis %s: %s\n", trace_path.c_str(),
+                 axis->name.c_str(), r.error().to_string().c_str());
     return 1;
   }
   ident::ReportExtras extras;
@@ -295,6 +296,9 @@ int fit(const std::vector<std::string>& args) {
   }
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const auto& res = r.value();
+  for (const std::string& w : res.warnings)
+    std::fprintf(stderr, "feedloop ident fit: %s: axis %s: warning: %s\n", trace_path.c_str(),
+                 res.axis.c_str(), w.c_str());
   std::printf("axis %s: baseline %.3f um RMS -> augmented %.3f um RMS; effects:", res.axis.c_str(),
               res.baseline_rms_um, res.augmented_rms_um);
   if (res.effects.empty()) std::printf(" none");

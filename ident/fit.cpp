@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cmath>
 #include <complex>
+#include <cstdio>
 #include <mutex>
 #include <thread>
 
@@ -748,11 +749,56 @@ double residual_rms_um(const std::vector<double>& y_model_mm, const std::vector<
 }
 
 namespace {
+// What the model can be fitted to: a sample rate at which the axis's dynamics show (its modes
+// reach ~150 Hz) and its simulation stays affordable, a trace long enough for a held-out part,
+// positions a printer can have, and a command that moves.
+Status check_fit_input(const std::vector<double>& cmd_mm, const std::vector<double>& meas_mm,
+                       double period_s) {
+  char buf[256];
+  if (!(period_s >= 1.0 / 20000.0 && period_s <= 1.0 / 200.0)) {
+    std::snprintf(
+        buf, sizeof buf,
+        "sample period %.6g s (%.6g Hz): the fit needs 200 Hz to 20 kHz (the axis's modes reach "
+        "~150 Hz; resample the trace)",
+        period_s, period_s > 0.0 ? 1.0 / period_s : 0.0);
+    return Error{buf, {}};
+  }
+  const double duration_s = static_cast<double>(cmd_mm.size()) * period_s;
+  if (duration_s < 1.0) {
+    std::snprintf(
+        buf, sizeof buf,
+        "trace too short to fit: %.3g s (at least 1 s; the last 30 %% is held out, and the "
+        "calibration program runs 100 s)",
+        duration_s);
+    return Error{buf, {}};
+  }
+  constexpr double kMaxPositionMm = 1e5;  // 100 m: beyond any printer's axis
+  for (const auto* column : {&cmd_mm, &meas_mm})
+    for (size_t k = 0; k < column->size(); ++k)
+      if (!(std::abs((*column)[k]) <= kMaxPositionMm)) {
+        std::snprintf(buf, sizeof buf,
+                      "%s position at sample %zu is %.6g mm: not a position (beyond +-%g mm)",
+                      column == &cmd_mm ? "commanded" : "measured", k, (*column)[k],
+                      kMaxPositionMm);
+        return Error{buf, {}};
+      }
+  const auto [lo, hi] = std::minmax_element(cmd_mm.begin(), cmd_mm.end());
+  if (*hi - *lo < 2e-3) {
+    std::snprintf(
+        buf, sizeof buf,
+        "the commanded position does not move (%.3g um peak to peak): nothing to identify",
+        (*hi - *lo) * 1e3);
+    return Error{buf, {}};
+  }
+  return Status::Ok();
+}
+
 Result<AxisModel> fit_baseline_impl(const AxisModel& start, const std::vector<double>& cmd_mm,
                                     const std::vector<double>& meas_mm, double period_s, const FitOptions& o,
                                     bool* converged) {
   if (cmd_mm.size() != meas_mm.size()) return Error{"cmd and meas have different lengths", {}};
   if (cmd_mm.size() < 100) return Error{"trace too short to fit (fewer than 100 samples)", {}};
+  if (Status s = check_fit_input(cmd_mm, meas_mm, period_s); !s) return s.error();
   AxisModel m = start;
   for (int i = 0; i < kEffectCount; ++i) m.enabled[i] = false;
   const AxisModel preset = m;
@@ -793,6 +839,8 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   if (!run(out.baseline, pb, &y_cur)) return Error{"baseline model cannot be simulated", {}};
   out.baseline_rms_um = residual_rms_um(y_cur, meas_mm, 0, n);
   out.baseline_validation_rms_um = residual_rms_um(y_cur, meas_mm, pb.train_end, n);
+  if (!std::isfinite(out.baseline_rms_um) || !std::isfinite(out.baseline_validation_rms_um))
+    return Error{"the fitted baseline's simulation does not stay finite on this trace", {}};
   out.baseline_residual_mm.resize(n);
   for (size_t k = 0; k < n; ++k) out.baseline_residual_mm[k] = meas_mm[k] - y_cur[k];
 
@@ -1103,6 +1151,25 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   out.augmented_validation_rms_um = cur_val;
   out.augmented_residual_mm.resize(n);
   for (size_t k = 0; k < n; ++k) out.augmented_residual_mm[k] = meas_mm[k] - y_cur[k];
+  // A model that leaves a tenth of the measured motion unexplained describes another axis, other
+  // units or a broken encoder more than this one (fitted traces leave 1e-4 to 1e-3 of it).
+  double mean_mm = 0.0;
+  for (size_t k = pb.train_end; k < n; ++k) mean_mm += meas_mm[k];
+  mean_mm /= static_cast<double>(std::max<size_t>(1, n - pb.train_end));
+  std::vector<double> flat(n, mean_mm);
+  const double motion_um = residual_rms_um(flat, meas_mm, pb.train_end, n);
+  if (out.augmented_validation_rms_um > 0.1 * motion_um) {
+    char buf[320];
+    std::snprintf(
+        buf, sizeof buf,
+        "the model leaves %.4g um RMS on the held-out part, %.0f %% of the measured motion (%.4g "
+        "um "
+        "RMS about its mean): the measured column may not be this axis's encoder (axis, units, "
+        "sign), and the fitted parameters mean little",
+        out.augmented_validation_rms_um,
+        100.0 * out.augmented_validation_rms_um / std::max(motion_um, 1e-12), motion_um);
+    out.warnings.emplace_back(buf);
+  }
   return out;
 }
 

@@ -72,6 +72,7 @@ struct IdentResult {
   double augmented_validation_rms_um = 0.0;
   std::vector<CandidateResult> candidates;  // every candidate tried, every round
   std::vector<double> baseline_residual_mm, augmented_residual_mm;  // measured - simulated
+  std::vector<std::string> warnings;  // what makes the result doubtful (a fit that explains little)
 };
 
 // Residual RMS (um) of a model over samples [begin, end) of the trace.

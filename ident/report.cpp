@@ -99,8 +99,10 @@ std::string report_json(const IdentResult& r) {
 std::string report_markdown(const IdentResult& r, const std::string& trace_name, const ReportExtras& extras) {
   std::string s = "# Identification report: axis " + r.axis + "\n\nTrace: `" + trace_name + "`\n\n";
   s += "## Result\n\n";
+  for (const std::string& w : r.warnings) s += "**Warning:** " + w + ".\n\n";
   if (r.effects.empty()) {
-    s += "Effects found: **none** (the baseline model explains the data).\n\n";
+    s += r.warnings.empty() ? "Effects found: **none** (the baseline model explains the data).\n\n"
+                            : "Effects found: **none**.\n\n";
   } else {
     s += "Effects found:\n\n| effect | parameters |\n|---|---|\n";
     for (Effect e : r.effects) {

@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <string>
+#include <vector>
 
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
@@ -56,6 +58,64 @@ TEST(IdentFitFast, ScreeningOnTwoThreadsFindsARunoutInModelData) {
   EXPECT_GE(progress_calls, kEffectCount);
   EXPECT_TRUE(monotonic);
   EXPECT_DOUBLE_EQ(last_fraction, 1.0);
+}
+
+}  // namespace
+}  // namespace feedloop::ident
+
+namespace feedloop::ident {
+namespace {
+
+// Inputs the model cannot be fitted to are refused with the reason, before any fit runs.
+TEST(IdentFitFast, InputsItCannotFitAreRefusedWithTheReason) {
+  std::vector<double> cmd(3000), meas(3000);
+  for (size_t k = 0; k < cmd.size(); ++k)
+    cmd[k] = meas[k] = 5.0 * std::sin(0.01 * static_cast<double>(k));
+  auto refused = [&](const std::vector<double>& c, const std::vector<double>& m,
+                     double period_s) -> std::string {
+    auto r = identify_axis("x", c, m, period_s, FitOptions{});
+    return r.ok() ? std::string() : r.error().message;
+  };
+  EXPECT_NE(refused(cmd, meas, 1e-6).find("200 Hz to 20 kHz"), std::string::npos);  // 1 MHz
+  EXPECT_NE(refused(cmd, meas, 0.5).find("200 Hz to 20 kHz"), std::string::npos);   // 2 Hz
+  EXPECT_NE(refused(cmd, meas, 1e-4).find("too short"), std::string::npos);  // 0.3 s at 10 kHz
+  std::vector<double> huge = meas;
+  huge[1234] = 1e200;
+  EXPECT_NE(refused(cmd, huge, 1e-3).find("measured position at sample 1234"), std::string::npos);
+  huge[1234] = std::nan("");
+  EXPECT_NE(refused(cmd, huge, 1e-3).find("not a position"), std::string::npos);
+  const std::vector<double> still(cmd.size(), 12.5);
+  EXPECT_NE(refused(still, still, 1e-3).find("does not move"), std::string::npos);
+  // The same trace at 1 kHz is fitted.
+  EXPECT_EQ(refused(cmd, meas, 1e-3), "");
+}
+
+}  // namespace
+}  // namespace feedloop::ident
+
+namespace feedloop::ident {
+namespace {
+
+// A measured column that is not this axis's encoder: fitted, but with a warning that says so; the
+// model's own data: no warning.
+TEST(IdentFitFast, AFitThatExplainsLittleCarriesAWarning) {
+  RandomMovesOptions ro;
+  ro.duration_s = 4.0;
+  ro.travel_mm = 40.0;
+  const std::vector<double> cmd = random_moves(ro);
+  std::vector<double> own, other(cmd.size());
+  ASSERT_TRUE(simulate_axis(preset_axis_model("x"), cmd, 1e-3, &own).ok());
+  for (size_t k = 0; k < cmd.size(); ++k) other[k] = 3.0 * std::cos(0.027 * static_cast<double>(k));
+  FitOptions o;
+  o.max_effects = 0;
+  auto good = identify_axis("x", cmd, own, 1e-3, o);
+  ASSERT_TRUE(good.ok()) << good.error().message;
+  EXPECT_TRUE(good.value().warnings.empty());
+  auto bad = identify_axis("x", cmd, other, 1e-3, o);
+  ASSERT_TRUE(bad.ok()) << bad.error().message;
+  ASSERT_EQ(bad.value().warnings.size(), 1U);
+  EXPECT_NE(bad.value().warnings[0].find("may not be this axis's encoder"), std::string::npos);
+  EXPECT_GT(bad.value().augmented_validation_rms_um, 1000.0);
 }
 
 }  // namespace
