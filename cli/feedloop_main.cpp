@@ -7,6 +7,8 @@
 //   feedloop record FILE         record a simulated print in virtual time
 //   feedloop help                this text
 #include <cstdio>
+#include <exception>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -40,15 +42,7 @@ void usage(std::FILE* out) {
       out);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  if (argc < 2) {
-    usage(stderr);
-    return 2;
-  }
-  const std::string cmd = argv[1];
-  std::vector<std::string> args(argv + 2, argv + argc);
+int dispatch(const std::string& cmd, const std::vector<std::string>& args) {
   if (cmd == "print") return feedloop::cli::print_command(args);
   if (cmd == "batch") return feedloop::cli::batch_command(args);
   if (cmd == "log") return feedloop::cli::log_command(args);
@@ -64,4 +58,24 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "feedloop: unknown command '%s'\n", cmd.c_str());
   usage(stderr);
   return 2;
+}
+
+}  // namespace
+
+// Commands report what they can foresee as errors; what escapes them (memory running out on a
+// huge input) still ends with a message and a status, not an abort.
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    usage(stderr);
+    return 2;
+  }
+  const std::string cmd = argv[1];
+  try {
+    return dispatch(cmd, std::vector<std::string>(argv + 2, argv + argc));
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "feedloop %s: out of memory\n", cmd.c_str());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "feedloop %s: internal error: %s\n", cmd.c_str(), e.what());
+  }
+  return 1;
 }

@@ -2,6 +2,7 @@
 #include "model/delta_kinematics.hpp"
 
 #include <cmath>    // std::cos, std::sin, std::sqrt
+#include <cstdio>   // std::snprintf
 #include <numbers>  // std::numbers::pi
 #include <string>
 
@@ -9,7 +10,9 @@ namespace feedloop::model {
 namespace {
 
 std::string fmt_pos(const Eigen::Vector3d& v) {
-  return "(" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " + std::to_string(v.z()) + ")";
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%.6g, %.6g, %.6g)", v.x(), v.y(), v.z());
+  return buf;
 }
 
 // Rows s_i^T of Eq. 11 at (X, q).

@@ -95,6 +95,13 @@ class EncoderCursor {
 Result<TraceColumns> build_trace(const std::vector<std::string>& logs, const ExportOptions& options) {
   if (!(options.rate_hz > 0.0) || !std::isfinite(options.rate_hz))
     return Error{"sample rate must be a positive number of Hz", {}};
+  if (options.rate_hz < kMinExportRateHz || options.rate_hz > kMaxExportRateHz) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf,
+                  "sample rate %.6g Hz: must be %g Hz to %g kHz (the encoders report at 1 kHz)",
+                  options.rate_hz, kMinExportRateHz, kMaxExportRateHz * 1e-3);
+    return Error{buf, {}};
+  }
   if (logs.empty()) return Error{"no log given", {}};
   TraceColumns out;
   std::vector<JointInfo> joints;
@@ -152,7 +159,26 @@ Result<TraceColumns> build_trace(const std::vector<std::string>& logs, const Exp
   }
   if (!any) return Error{"the log has no step runs and no encoder samples: nothing to export", {logs.front(), 0, 0}};
   const auto rows = static_cast<size_t>(std::floor((t_last - t_first) * options.rate_hz + 1e-9)) + 1;
-  if (rows < 2) return Error{"the log's data spans less than one sample period at " + std::to_string(options.rate_hz) + " Hz", {logs.front(), 0, 0}};
+  if (rows < 2) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "the log's data spans less than one sample period at %.6g Hz",
+                  options.rate_hz);
+    return Error{buf, {logs.front(), 0, 0}};
+  }
+  // The columns are held in memory: a bound, with the way out, rather than an allocation failure.
+  size_t columns = 1;
+  for (const JointData& jd : data) columns += jd.has_data ? 2 : 0;
+  const double bytes = static_cast<double>(rows) * static_cast<double>(columns) * sizeof(double);
+  if (bytes > kMaxExportBytes) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  "the export would hold %zu rows of %zu columns (%.1f GiB in memory, at most "
+                  "%.0f): export fewer "
+                  "logs or at a lower --rate-hz",
+                  rows, columns, bytes / (1024.0 * 1024.0 * 1024.0),
+                  kMaxExportBytes / (1024.0 * 1024.0 * 1024.0));
+    return Error{buf, {logs.front(), 0, 0}};
+  }
 
   out.t0_s = t_first;
   out.rate_hz = options.rate_hz;

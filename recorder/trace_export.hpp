@@ -12,8 +12,14 @@
 
 namespace feedloop::recorder {
 
+// The rates an export may sample at, and the memory its columns may take (a 1 kHz export of four
+// joints holds 72 bytes a row: 15 hours in 4 GiB).
+inline constexpr double kMinExportRateHz = 1.0;
+inline constexpr double kMaxExportRateHz = 100e3;
+inline constexpr double kMaxExportBytes = 4.0 * 1024.0 * 1024.0 * 1024.0;
+
 struct ExportOptions {
-  double rate_hz = 1000.0;
+  double rate_hz = 1000.0;  // kMinExportRateHz .. kMaxExportRateHz
 };
 
 struct TraceColumns {

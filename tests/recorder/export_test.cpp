@@ -150,5 +150,28 @@ TEST(RecorderExport, NothingToExportIsAClearError) {
   ASSERT_FALSE(bad.ok());
 }
 
+// A rate that would need terabytes (it aborted on an allocation failure) or one beyond what the
+// encoders give is refused before anything is allocated; the bounds themselves are accepted.
+TEST(RecorderExport, RatesOutsideTheBoundsAreRefusedNotAllocated) {
+  ScratchDir dir("rates");
+  auto rec = Recorder::create(testing::test_options(dir.str()));
+  ASSERT_TRUE(rec.ok());
+  ASSERT_TRUE((*rec)->start_print("rates").ok());
+  record_fixture(**rec);
+  ASSERT_TRUE((*rec)->end_print().ok());
+  for (double hz : {1e12, 100001.0, 0.5, 1e-9}) {
+    auto t = build_trace(dir.logs(), ExportOptions{hz});
+    ASSERT_FALSE(t.ok()) << hz;
+    EXPECT_NE(t.error().message.find("must be 1 Hz to 100 kHz"), std::string::npos)
+        << t.error().message;
+  }
+  auto top = build_trace(dir.logs(), ExportOptions{kMaxExportRateHz});
+  ASSERT_TRUE(top.ok()) << top.error().to_string();
+  auto base = build_trace(dir.logs(), ExportOptions{1000.0});
+  ASSERT_TRUE(base.ok());
+  EXPECT_NEAR(static_cast<double>(top->time_s.size()),
+              100.0 * static_cast<double>(base->time_s.size()), 100.0);
+}
+
 }  // namespace
 }  // namespace feedloop::recorder
