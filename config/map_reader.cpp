@@ -42,7 +42,14 @@ std::string node_kind(const YAML::Node& node) {
   if (!node.IsDefined() || node.IsNull()) return "nothing";
   if (node.IsMap()) return "a mapping";
   if (node.IsSequence()) return "a list";
-  return "'" + node.Scalar() + "'";
+  // A long scalar (a whole file that is not YAML mappings reads as one) is cut: the location says
+  // where it starts.
+  constexpr size_t kShown = 60;
+  const std::string& text = node.Scalar();
+  if (text.size() <= kShown) return "'" + text + "'";
+  size_t cut = kShown;  // not inside a UTF-8 sequence
+  while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;
+  return "'" + text.substr(0, cut) + "...' (" + std::to_string(text.size()) + " bytes)";
 }
 
 bool split_number(std::string_view text, double& value, std::string& unit) {

@@ -76,6 +76,18 @@ TEST(ConfigErrors, SectionThatIsNotAMapping) {
   expect_error(y, "planner must be a mapping of keys to values, got '5'", pos_of(y, "planner: 5", 9));
 }
 
+// A long value is quoted in part (a whole non-YAML file reads as one scalar), never cut inside a
+// UTF-8 character.
+TEST(ConfigErrors, ALongValueIsQuotedInPart) {
+  const std::string value =
+      std::string(59, 'a') + "\xc3\xa9" + std::string(200, 'b');  // 'e' acute at 59-60
+  const std::string y = std::string(kMinimal) + "planner: " + value + "\n";
+  expect_error(y,
+               "planner must be a mapping of keys to values, got '" + std::string(59, 'a') +
+                   "...' (261 bytes)",
+               pos_of(y, "planner: a", 9));
+}
+
 TEST(ConfigErrors, MissingRequiredKey) {
   const std::string y = edit(kMinimal, "    max_accel_mm_s2: 100\n", "");
   // Reported at the start of the axis mapping that lacks it (its first key).
