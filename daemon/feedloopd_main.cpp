@@ -79,6 +79,14 @@ int main(int argc, char** argv) {
       source.calibration_path.clear();
     } else if (a == "--log-level" && i + 1 < argc) {
       log_level = argv[++i];
+      // spdlog reads an unknown name as "off": a typo would silence the log.
+      if (log_level != "trace" && log_level != "debug" && log_level != "info" &&
+          log_level != "warn" && log_level != "error") {
+        std::fprintf(stderr,
+                     "feedloopd: --log-level must be trace, debug, info, warn or error, not '%s'\n",
+                     log_level.c_str());
+        return 2;
+      }
     } else if (a == "--virtual-time") {
       virtual_time = true;
     } else if (a == "--check-config") {

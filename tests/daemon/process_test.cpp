@@ -71,6 +71,14 @@ TEST_F(Process, CheckConfigReportsEveryProblemWithItsLocation) {
   Subprocess ok({FEEDLOOPD_PATH, "--check-config", "--config", dir_ + "/good.yaml"}, {},
                 dir_ + "/out2.txt");
   EXPECT_EQ(ok.wait(20), 0) << ok.output();
+
+  // A log level spdlog does not know would silence the log ("off"): refused before anything starts.
+  Subprocess typo({FEEDLOOPD_PATH, "--log-level", "wran", "--check-config"}, {},
+                  dir_ + "/out3.txt");
+  EXPECT_EQ(typo.wait(20), 2);
+  EXPECT_NE(typo.output().find("--log-level must be trace, debug, info, warn or error, not 'wran'"),
+            std::string::npos)
+      << typo.output();
 }
 
 TEST_F(Process, SighupReloadsTheConfigAndSigtermStopsCleanly) {
