@@ -1,6 +1,7 @@
 // Calibration overlays (calibration.hpp): read and validated with the config's own readers
 // (detail::read_gantry_axis), so a key means the same in both files.
 #include "config/calibration.hpp"
+#include "config/file_text.hpp"
 
 #include <cerrno>   // errno
 #include <cstring>  // strerror
@@ -175,12 +176,9 @@ Result<AppliedCalibration> apply_calibration_text(const MachineConfig& base, std
 }
 
 Result<AppliedCalibration> apply_calibration_file(const MachineConfig& base, const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  if (in) text << in.rdbuf();
-  if (!in || in.bad())
-    return Error{"cannot read calibration file: " + std::string(std::strerror(errno)), SourceLocation{path, 0, 0}};
-  return apply_calibration_text(base, text.str(), path);
+  auto text = read_config_file_text(path, "calibration file");
+  if (!text) return text.error();
+  return apply_calibration_text(base, text.value(), path);
 }
 
 std::string calibration_yaml(const Calibration& c) {

@@ -10,6 +10,7 @@
 
 #include "config/config.hpp"
 #include "config/enum_names.hpp"
+#include "config/file_text.hpp"
 #include "config/sections.hpp"
 #include "core/utf8.hpp"
 
@@ -130,18 +131,9 @@ Result<MachineConfig> load_config_text(std::string_view yaml, const std::string&
 }
 
 Result<MachineConfig> load_config_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    return Error{"cannot read config file: " + std::string(std::strerror(errno)),
-                 SourceLocation{path, 0, 0}};
-  }
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) {
-    return Error{"cannot read config file: " + std::string(std::strerror(errno)),
-                 SourceLocation{path, 0, 0}};
-  }
-  return load_config_text(text.str(), path);
+  auto text = read_config_file_text(path, "config file");
+  if (!text) return text.error();
+  return load_config_text(text.value(), path);
 }
 
 }  // namespace feedloop::config

@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "config/calibration.hpp"
 #include "config/config.hpp"
 #include "config_fixture.hpp"
 
@@ -210,6 +211,19 @@ TEST(ConfigFiles, MissingFileIsAnErrorNamingThePath) {
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.error().where.source, "no/such/dir/printer.yaml");
   EXPECT_NE(r.error().to_string().find("cannot read config file"), std::string::npos);
+}
+
+// A path that never ends (/dev/zero: it was read until memory ran out) or a file far beyond any
+// printer's YAML is refused after 16 MiB, for the config and the calibration overlay alike.
+TEST(ConfigFiles, AFileThatIsNoConfigIsRefusedAfterABoundedRead) {
+  Result<MachineConfig> r = load_config_file("/dev/zero");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().where.source, "/dev/zero");
+  EXPECT_NE(r.error().message.find("larger than 16 MiB"), std::string::npos) << r.error().message;
+  auto c = apply_calibration_file(default_config(), "/dev/zero");
+  ASSERT_FALSE(c.ok());
+  EXPECT_NE(c.error().message.find("calibration file is larger than 16 MiB"), std::string::npos)
+      << c.error().message;
 }
 
 }  // namespace
