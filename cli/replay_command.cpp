@@ -6,6 +6,8 @@
 #include <sstream>
 
 #include "config/config.hpp"
+#include "config/file_text.hpp"
+#include "gcode/file_lines.hpp"
 #include "recorder/replay.hpp"
 
 namespace feedloop::cli {
@@ -92,29 +94,37 @@ int record_command(const std::vector<std::string>& args) {
   }
   std::string yaml(config::default_config_yaml());
   if (!config_path.empty()) {
-    std::ifstream in(config_path, std::ios::binary);
-    if (!in) {
-      std::fprintf(stderr, "feedloop record: cannot open %s\n", config_path.c_str());
+    auto text = config::read_config_file_text(config_path, "config file");
+    if (!text) {
+      std::fprintf(stderr, "feedloop record: %s\n", text.error().to_string().c_str());
       return 2;
     }
-    std::stringstream ss;
-    ss << in.rdbuf();
-    yaml = ss.str();
+    yaml = std::move(text.value());
   }
   auto cfg = config::load_config_text(yaml, config_path.empty() ? "(embedded default)" : config_path);
   if (!cfg) {
     std::fprintf(stderr, "feedloop record: %s\n", cfg.error().to_string().c_str());
     return 2;
   }
-  std::ifstream in(gcode, std::ios::binary);
-  if (!in) {
-    std::fprintf(stderr, "feedloop record: cannot open %s\n", gcode.c_str());
+  // Streamed in chunks with the line cap of the other readers: a line without an end (a binary
+  // file, /dev/zero) is held to 256 KiB, not read into memory whole.
+  std::vector<std::string> lines;
+  int64_t first_too_long = 0;
+  const Status read = gcode::for_each_file_line(gcode, [&](const gcode::SplitLine& l) {
+    if (l.too_long && first_too_long == 0) first_too_long = l.number;
+    std::string_view t = l.text;
+    if (!t.empty() && t.back() == '\r') t.remove_suffix(1);
+    lines.emplace_back(t);
+  });
+  if (!read) {
+    std::fprintf(stderr, "feedloop record: %s\n", read.error().to_string().c_str());
     return 2;
   }
-  std::vector<std::string> lines;
-  for (std::string l; std::getline(in, l);) {
-    if (!l.empty() && l.back() == '\r') l.pop_back();
-    lines.push_back(l);
+  if (first_too_long != 0) {
+    std::fprintf(stderr, "feedloop record: %s:%lld: line longer than %zu bytes: not G-code\n",
+                 gcode.c_str(), static_cast<long long>(first_too_long),
+                 gcode::LineSplitter::kDefaultMaxLineBytes);
+    return 2;
   }
   if (name.empty()) {
     name = gcode.substr(gcode.find_last_of('/') + 1);

@@ -9,6 +9,7 @@
 // identification needs.
 #pragma once
 
+#include <cstddef>
 #include <string>
 #include <utility>
 #include <vector>
@@ -39,6 +40,8 @@ struct Trace {
 
 // Parses trace CSV v1 text; `source` names it in error locations.
 Result<Trace> parse_trace_csv(const std::string& text, const std::string& source = "<trace>");
+// Files up to kMaxTraceFileBytes (a calibration trace of 100 s at 1 kHz is ~3 MB).
+inline constexpr size_t kMaxTraceFileBytes = size_t{256} << 20;
 Result<Trace> read_trace_csv(const std::string& path);
 
 // The trace on an even time grid, as the identification and the FRF need it (the contract asks

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "config/config.hpp"
+#include "config/file_text.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/executor_factory.hpp"
 #include "engine/machine.hpp"
@@ -270,11 +271,9 @@ Result<ReplayReport> replay_print(const std::vector<std::string>& logs, const Re
     cfg = config::load_config_text(yaml, logs[0] + " (config in the header)");
   } else {
     rep.config_source = options.config_path;
-    std::ifstream in(options.config_path, std::ios::binary);
-    if (!in) return Error{"cannot open " + options.config_path};
-    std::stringstream ss;
-    ss << in.rdbuf();
-    yaml = ss.str();
+    auto text = config::read_config_file_text(options.config_path, "config file");
+    if (!text) return text.error();
+    yaml = std::move(text.value());
     cfg = config::load_config_text(yaml, options.config_path);
   }
   if (!cfg) return cfg.error();

@@ -69,6 +69,14 @@ std::string linear_trace_csv(const std::vector<double>& times) {
   return csv;
 }
 
+// A path that never ends is refused at the bound (it was read until memory ran out).
+TEST(TraceCsv, AFileBeyondTheBoundIsRefused) {
+  auto r = read_trace_csv("/dev/zero");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().where.source, "/dev/zero");
+  EXPECT_NE(r.error().message.find("larger than 256 MiB"), std::string::npos) << r.error().message;
+}
+
 TEST(TraceCsv, AnEvenTraceIsKeptAsItIs) {
   std::vector<double> times;
   for (int k = 0; k < 500; ++k) times.push_back(0.001 * k);

@@ -1,0 +1,69 @@
+// Inputs that are no input of the kind asked for (a path that never ends, a line without an end,
+// a rate that would need terabytes): the `feedloop` tool ends each with a message naming it and a
+// status, in bounded memory, where it used to read until memory ran out or abort.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "tests/daemon/subprocess.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+class BoundedInput : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("feedloop-bounded-input-" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  // Runs `feedloop ARGS...`; returns its exit status and its output (stdout and stderr).
+  int feedloop(const std::vector<std::string>& args, std::string* out) {
+    std::vector<std::string> argv{FEEDLOOP_PATH};
+    argv.insert(argv.end(), args.begin(), args.end());
+    feedloop::testing::Subprocess p(argv, {}, (dir_ / "out.log").string());
+    const int rc = p.wait(120);
+    *out = p.output();
+    return rc;
+  }
+  fs::path dir_;
+};
+
+TEST_F(BoundedInput, ARecordOfAFileWithALineWithoutAnEndIsRefused) {
+  const std::string gcode = (dir_ / "long.gcode").string();
+  std::ofstream(gcode) << "G28\n;" << std::string(300000, 'x') << "\nG1 X5 F3000\n";
+  std::string out;
+  EXPECT_EQ(feedloop({"record", gcode, "--dir", (dir_ / "rec").string()}, &out), 2);
+  EXPECT_NE(out.find("long.gcode:2: line longer than 262144 bytes"), std::string::npos) << out;
+}
+
+TEST_F(BoundedInput, ConfigAndTraceFilesThatNeverEndAreRefused) {
+  std::string out;
+  EXPECT_EQ(feedloop({"batch", (dir_ / "x.gcode").string(), "--config", "/dev/zero"}, &out), 1);
+  EXPECT_NE(out.find("/dev/zero: config file is larger than 16 MiB"), std::string::npos) << out;
+  EXPECT_EQ(feedloop({"ident", "fit", "--trace", "/dev/zero", "--out", (dir_ / "fit").string()}, &out), 1);
+  EXPECT_NE(out.find("/dev/zero: trace file is larger than 256 MiB"), std::string::npos) << out;
+}
+
+TEST_F(BoundedInput, AnExportRateBeyondTheEncodersIsRefused) {
+  const std::string gcode = (dir_ / "square.gcode").string();
+  std::ofstream(gcode) << "G28\nG1 X10 Y10 F3000\nG1 X20 F3000\n";
+  std::string out;
+  ASSERT_EQ(feedloop({"record", gcode, "--dir", (dir_ / "rec").string()}, &out), 0) << out;
+  std::string log;
+  for (const auto& e : fs::directory_iterator(dir_ / "rec"))
+    if (e.path().extension() == ".flrec") log = e.path().string();
+  ASSERT_FALSE(log.empty());
+  const std::string csv = (dir_ / "t.csv").string();
+  EXPECT_EQ(feedloop({"log", "export", log, "--csv", csv, "--rate-hz", "1e12"}, &out), 1);  // aborted before
+  EXPECT_NE(out.find("sample rate 1e+12 Hz: must be 1 Hz to 100 kHz"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(csv));
+  EXPECT_EQ(feedloop({"log", "export", log, "--csv", csv, "--rate-hz", "2000"}, &out), 0) << out;
+  EXPECT_TRUE(fs::exists(csv));
+}
+
+}  // namespace
