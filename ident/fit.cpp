@@ -333,9 +333,7 @@ struct FrfData {
 // within what printers show and what the sweep excites. Where nothing excites it the coherence
 // leaves it out.
 model::FrequencyGrid ident_grid(double period_s) {
-  model::FrequencyGrid g;
-  g.stop_hz = std::max(g.start_hz + g.step_hz, std::floor(0.2 / period_s / g.step_hz) * g.step_hz);
-  return g;
+  return identification_frf_grid(period_s);
 }
 constexpr double kCoherent = 0.9;
 
@@ -1171,6 +1169,12 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
     out.warnings.emplace_back(buf);
   }
   return out;
+}
+
+model::FrequencyGrid identification_frf_grid(double period_s) {
+  model::FrequencyGrid g;
+  g.stop_hz = std::max(g.start_hz + g.step_hz, std::floor(0.2 / period_s / g.step_hz) * g.step_hz);
+  return g;
 }
 
 }  // namespace feedloop::ident

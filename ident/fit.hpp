@@ -19,6 +19,7 @@
 
 #include "core/result.hpp"
 #include "ident/axis_model.hpp"
+#include "model/frequency_grid.hpp"
 
 namespace feedloop::ident {
 
@@ -82,6 +83,10 @@ double residual_rms_um(const std::vector<double>& y_model_mm, const std::vector<
 // Fits the baseline alone (the Eq. 17 coefficients through k1, k2, c1, c2 at fixed masses).
 Result<AxisModel> fit_baseline(const AxisModel& start, const std::vector<double>& cmd_mm,
                                const std::vector<double>& meas_mm, double period_s, const FitOptions& o);
+
+// The identification's FRF grid for a trace sampled at period_s: the delta paper's 0.5 Hz steps
+// from 2 Hz up to a fifth of the sampling rate (200 Hz at 1 kHz). The report shows the FRF on it.
+model::FrequencyGrid identification_frf_grid(double period_s);
 
 // The whole loop for one axis of a trace.
 Result<IdentResult> identify_axis(const std::string& axis_name, const std::vector<double>& cmd_mm,

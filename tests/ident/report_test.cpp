@@ -78,10 +78,11 @@ TEST(IdentReport, WritesFrfResidualAndEvidenceDataAndListsThePlots) {
   EXPECT_GT(f.r.baseline_rms_um, 5.0);
   ReportExtras extras;
   ASSERT_TRUE(write_report(dir.string(), f.r, f.time_s, f.cmd_mm, f.meas_mm, 1e-3, "fixture", {}, &extras).ok());
-  // frf.csv: header + 247 grid points; the measurement is the model, so H1 of a runout-free
-  // stretch matches the baseline closely at low frequency.
+  // frf.csv: header + 397 grid points (2-200 Hz at 1 kHz, the identification's grid); the
+  // measurement is the model, so H1 of a runout-free stretch matches the baseline closely at low
+  // frequency.
   const std::string frf = slurp(dir / "frf.csv");
-  EXPECT_EQ(count_lines(frf), 248);
+  EXPECT_EQ(count_lines(frf), 398);
   EXPECT_EQ(frf.rfind("freq_hz,h1_mag,h1_phase_deg,coherence,baseline_mag", 0), 0u);
   EXPECT_EQ(count_lines(slurp(dir / "residual.csv")), 8001);
   EXPECT_GT(count_lines(slurp(dir / "residual_psd.csv")), 400);  // 0.5-250 Hz in 0.5 Hz steps
