@@ -15,11 +15,16 @@
 namespace feedloop::ident {
 namespace {
 
-TEST(IdentFitFast, ScreeningOnTwoThreadsFindsARunoutInModelData) {
+// The commanded positions of random small moves (ident/excitation.hpp) over `travel_mm`.
+std::vector<double> random_moves_mm(double duration_s, double travel_mm) {
   RandomMovesOptions ro;
-  ro.duration_s = 8.0;
-  ro.travel_mm = 60.0;
-  const std::vector<double> cmd = random_moves(ro);
+  ro.duration_s = duration_s;
+  ro.travel_mm = travel_mm;
+  return random_moves(ro);
+}
+
+TEST(IdentFitFast, ScreeningOnTwoThreadsFindsARunoutInModelData) {
+  const std::vector<double> cmd = random_moves_mm(8.0, 60.0);
   AxisModel truth = preset_axis_model("x");
   truth.set(Effect::kPeriodicPosition, true);
   truth.period_mm = 12.0;
@@ -60,12 +65,6 @@ TEST(IdentFitFast, ScreeningOnTwoThreadsFindsARunoutInModelData) {
   EXPECT_DOUBLE_EQ(last_fraction, 1.0);
 }
 
-}  // namespace
-}  // namespace feedloop::ident
-
-namespace feedloop::ident {
-namespace {
-
 // Inputs the model cannot be fitted to are refused with the reason, before any fit runs.
 TEST(IdentFitFast, InputsItCannotFitAreRefusedWithTheReason) {
   std::vector<double> cmd(3000), meas(3000);
@@ -90,19 +89,10 @@ TEST(IdentFitFast, InputsItCannotFitAreRefusedWithTheReason) {
   EXPECT_EQ(refused(cmd, meas, 1e-3), "");
 }
 
-}  // namespace
-}  // namespace feedloop::ident
-
-namespace feedloop::ident {
-namespace {
-
 // A measured column that is not this axis's encoder: fitted, but with a warning that says so; the
 // model's own data: no warning.
 TEST(IdentFitFast, AFitThatExplainsLittleCarriesAWarning) {
-  RandomMovesOptions ro;
-  ro.duration_s = 4.0;
-  ro.travel_mm = 40.0;
-  const std::vector<double> cmd = random_moves(ro);
+  const std::vector<double> cmd = random_moves_mm(4.0, 40.0);
   std::vector<double> own, other(cmd.size());
   ASSERT_TRUE(simulate_axis(preset_axis_model("x"), cmd, 1e-3, &own).ok());
   for (size_t k = 0; k < cmd.size(); ++k) other[k] = 3.0 * std::cos(0.027 * static_cast<double>(k));
