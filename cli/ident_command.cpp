@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -39,7 +40,8 @@ void usage(std::FILE* out) {
       "                          [--window hann|rect]   (H1 and coherence, 2-125 Hz in 0.5 Hz "
       "steps)\n"
       "       feedloop ident excite --axis x|y --out FILE.csv [--effect NAME[:key=value,...]]...\n"
-      "                             [--duration S] [--travel MM] [--seed N] [--sweep | "
+      "                             [--duration S (<= 3600)] [--travel MM (<= 1000)] [--seed N] "
+      "[--sweep | "
       "--calibration]\n"
       "                             (--calibration: the calibration program, "
       "ident/excitation.hpp)\n"
@@ -147,10 +149,12 @@ int excite(const std::vector<std::string>& args) {
     } else if (a == "--effect" && has_value) {
       effects.push_back(args[++i]);
       direction = direction || effects.back().rfind("direction_dependent_stiffness", 0) == 0;
-    } else if (a == "--duration" && has_value && parse_number(args[i + 1], &v) && v > 0.0) {
+    } else if (a == "--duration" && has_value && parse_number(args[i + 1], &v) && v > 0.0 &&
+               v <= 3600.0) {
       ro.duration_s = v;
       ++i;
-    } else if (a == "--travel" && has_value && parse_number(args[i + 1], &v) && v >= 0.0) {
+    } else if (a == "--travel" && has_value && parse_number(args[i + 1], &v) && v >= 0.0 &&
+               v <= 1000.0) {
       ro.travel_mm = v;
       ++i;
     } else if (a == "--seed" && has_value && parse_number(args[i + 1], &v)) {
@@ -259,6 +263,19 @@ int fit(const std::vector<std::string>& args) {
   if (trace_path.empty() || out_dir.empty()) {
     usage(stderr);
     return 2;
+  }
+  // Where the overlay goes is checked before the fit, not after it.
+  if (!overlay_path.empty()) {
+    const auto parent = std::filesystem::path(overlay_path).parent_path();
+    if (!parent.empty() && !std::filesystem::is_directory(parent)) {
+      std::fprintf(stderr, "feedloop ident fit: --overlay %s: no directory %s\n",
+                   overlay_path.c_str(), parent.string().c_str());
+      return 1;
+    }
+    if (auto base = config::load_machine_config({config_path, "", false}); !base) {
+      std::fprintf(stderr, "feedloop ident fit: %s\n", base.error().to_string().c_str());
+      return 1;
+    }
   }
   const auto t0 = std::chrono::steady_clock::now();
   auto read = ident::read_trace_csv(trace_path);

@@ -102,6 +102,22 @@ TEST(IdentCli, UserErrorsAreReportedNotCrashes) {
                            (dir / "gap_frf.csv").string()}),
             1);
   EXPECT_FALSE(std::filesystem::exists(dir / "gap_frf.csv"));
+  EXPECT_EQ(ident_command(
+                {"excite", "--axis", "x", "--duration", "1e9", "--out", (dir / "t.csv").string()}),
+            2);
+  EXPECT_FALSE(std::filesystem::exists(dir / "t.csv"));
+  // An overlay that cannot be written is refused before the fit (the report is not written).
+  {
+    std::ofstream even(dir / "even.csv");
+    even << "time_s,x_cmd_mm,x_meas_mm\n";
+    for (int k = 0; k < 3000; ++k)
+      even << 0.001 * k << "," << std::sin(0.003 * k) << "," << std::sin(0.003 * k) << "\n";
+  }
+  EXPECT_EQ(
+      ident_command({"fit", "--trace", (dir / "even.csv").string(), "--out",
+                     (dir / "ov_out").string(), "--overlay", (dir / "no" / "cal.yaml").string()}),
+      1);
+  EXPECT_FALSE(std::filesystem::exists(dir / "ov_out"));
   EXPECT_EQ(ident_command({"excite", "--axis", "x", "--effect", "wobble", "--out", (dir / "t.csv").string()}), 2);
   EXPECT_EQ(ident_command({"excite", "--axis", "x", "--effect", "backlash:depth=3", "--out", (dir / "t.csv").string()}), 2);
   EXPECT_EQ(ident_command({"frobnicate"}), 2);
