@@ -8,6 +8,7 @@
 #include <time.h>      // clock_gettime
 #include <unistd.h>    // fork, _exit
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <thread>
@@ -74,7 +75,11 @@ TEST(RecorderCrash, SigkillLosesLessThanOneSecond) {
               static_cast<unsigned long long>(lines), 1e-9 * static_cast<double>(last_ns - first_ns), lost_s);
   RecordProperty("lost_s", std::to_string(lost_s));
   EXPECT_GT(lines, 500u);  // it really recorded for seconds
-  EXPECT_EQ(samples, lines);
+  // Each pair goes to two rings (io, servo), drained one after the other: the last block written
+  // before the kill may hold a pair's sample without its line or the other way round (a CI run
+  // under ASan: 4007 samples, 4006 lines).
+  EXPECT_LE(std::max(samples, lines) - std::min(samples, lines), 2u)
+      << samples << " samples, " << lines << " lines";
   EXPECT_GE(lost_s, 0.0);
   EXPECT_LT(lost_s, 1.0);
 }
