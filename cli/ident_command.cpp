@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -216,13 +217,11 @@ int excite(const std::vector<std::string>& args) {
 
 // The fitted axis into the overlay at `path` (kept: the other axes already in it), written to a
 // temporary file and renamed over it, so a reader never sees half of it.
-Status write_overlay(const std::string& path, const std::string& config_path,
+Status write_overlay(const std::string& path, const config::MachineConfig& base,
                      const ident::IdentResult& r, double mean_position_mm,
                      const std::string& source) {
-  auto base = config::load_machine_config({config_path, "", false});
-  if (!base) return base.error();
-  auto yaml = calibration::merge_overlay(base.value().config, read_text_file(path), path, r,
-                                         mean_position_mm, source);
+  auto yaml =
+      calibration::merge_overlay(base, read_text_file(path), path, r, mean_position_mm, source);
   if (!yaml) return yaml.error();
   return write_text_file(path, yaml.value());
 }
@@ -264,7 +263,9 @@ int fit(const std::vector<std::string>& args) {
     usage(stderr);
     return 2;
   }
-  // Where the overlay goes is checked before the fit, not after it.
+  // Where the overlay goes, and the config it is read against, are checked before the fit, not
+  // after it.
+  std::optional<config::MachineConfig> overlay_base;
   if (!overlay_path.empty()) {
     const auto parent = std::filesystem::path(overlay_path).parent_path();
     if (!parent.empty() && !std::filesystem::is_directory(parent)) {
@@ -272,10 +273,12 @@ int fit(const std::vector<std::string>& args) {
                    overlay_path.c_str(), parent.string().c_str());
       return 1;
     }
-    if (auto base = config::load_machine_config({config_path, "", false}); !base) {
+    auto base = config::load_machine_config({config_path, "", false});
+    if (!base) {
       std::fprintf(stderr, "feedloop ident fit: %s\n", base.error().to_string().c_str());
       return 1;
     }
+    overlay_base = std::move(base.value().config);
   }
   const auto t0 = std::chrono::steady_clock::now();
   auto read = ident::read_trace_csv(trace_path);
@@ -334,7 +337,7 @@ int fit(const std::vector<std::string>& args) {
   if (!overlay_path.empty()) {
     double mean_mm = 0.0;
     for (double u : axis->cmd_mm) mean_mm += u / static_cast<double>(axis->cmd_mm.size());
-    if (auto w = write_overlay(overlay_path, config_path, res, mean_mm,
+    if (auto w = write_overlay(overlay_path, *overlay_base, res, mean_mm,
                                "feedloop ident fit of " + trace_path);
         !w) {
       std::fprintf(stderr, "feedloop ident fit: %s\n", w.error().to_string().c_str());

@@ -9,6 +9,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/bounded_file.hpp"
+
 namespace feedloop::ident {
 namespace {
 
@@ -136,22 +138,22 @@ Result<Trace> parse_trace_csv(const std::string& text, const std::string& source
 }
 
 Result<Trace> read_trace_csv(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) return Error{"cannot open trace file", SourceLocation{path, 0, 0}};
-  // Read in chunks up to the bound: a path that never ends (/dev/zero) or a file far beyond an
-  // identification's trace is refused instead of filling memory.
-  std::string text;
-  std::vector<char> chunk(1 << 20);
-  while (f) {
-    f.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
-    text.append(chunk.data(), static_cast<size_t>(f.gcount()));
-    if (text.size() > kMaxTraceFileBytes)
+  // A path that never ends (/dev/zero) or a file far beyond an identification's trace is refused
+  // instead of filling memory.
+  const BoundedFile f = read_file_bounded(path, kMaxTraceFileBytes);
+  switch (f.status) {
+    case BoundedFile::Status::kOk:
+      return parse_trace_csv(f.text, path);
+    case BoundedFile::Status::kCannotOpen:
+      return Error{"cannot open trace file", SourceLocation{path, 0, 0}};
+    case BoundedFile::Status::kTooLarge:
       return Error{"trace file is larger than " + std::to_string(kMaxTraceFileBytes >> 20) +
                        " MiB (about 1.5 hours of one axis at 1 kHz): export or cut a shorter part",
                    SourceLocation{path, 0, 0}};
+    case BoundedFile::Status::kReadError:
+      break;
   }
-  if (f.bad()) return Error{"cannot read trace file", SourceLocation{path, 0, 0}};
-  return parse_trace_csv(text, path);
+  return Error{"cannot read trace file", SourceLocation{path, 0, 0}};
 }
 
 Result<Trace> evenly_sampled(const Trace& trace, const std::string& source, std::string* note) {
