@@ -18,6 +18,7 @@
 #include "engine/config_mapping.hpp"
 #include "engine/maneuver_executor.hpp"
 #include "engine/sim_run.hpp"
+#include "gcode/file_lines.hpp"
 
 namespace feedloop::cli {
 namespace {
@@ -51,14 +52,24 @@ std::string format_duration(double s) {
   return buf;
 }
 
-// The G-code file's lines (false, with a message, when it cannot be read).
+// The G-code file's lines (false, with a message, when it cannot be read or a line is longer than
+// the 256 KiB every reader caps lines at).
 bool read_lines(const std::string& file, std::vector<std::string>& lines) {
-  std::ifstream in(file);
-  if (!in) {
-    std::fprintf(stderr, "feedloop batch: cannot read %s\n", file.c_str());
+  int64_t too_long_at = 0;
+  const Status read = gcode::for_each_file_line(file, [&](const gcode::SplitLine& l) {
+    if (l.too_long && too_long_at == 0) too_long_at = l.number;
+    lines.emplace_back(l.text);
+  });
+  if (!read) {
+    std::fprintf(stderr, "feedloop batch: %s\n", read.error().to_string().c_str());
     return false;
   }
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  if (too_long_at > 0) {
+    std::fprintf(stderr, "feedloop batch: %s:%lld: line longer than %zu bytes: not G-code\n",
+                 file.c_str(), static_cast<long long>(too_long_at),
+                 gcode::LineSplitter::kDefaultMaxLineBytes);
+    return false;
+  }
   return true;
 }
 

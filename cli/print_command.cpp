@@ -8,16 +8,17 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <chrono>
-#include <thread>
-#include <cstdio>
 #include <cerrno>
+#include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <deque>
+#include <filesystem>
 #include <fstream>
 #include <optional>
 #include <string>
+#include <thread>
 
 #include "cli/line_connection.hpp"
 #include "cli/print_lines.hpp"
@@ -86,10 +87,23 @@ int print_command(const std::vector<std::string>& args) {
   if (socket_path.empty()) socket_path = *config::expand_path("${RUNTIME_DIR}/feedloop.sock", vars);
   if (api_path.empty()) api_path = *config::expand_path("${RUNTIME_DIR}/api.sock", vars);
 
+  // A directory opens but reads as nothing; a pipe (`feedloop print <(zcat f.gcode.gz)`) is read
+  // once, so its lines are not counted beforehand (progress shows lines sent alone).
+  std::error_code type_error;
+  const auto type = std::filesystem::status(file, type_error).type();
+  if (type == std::filesystem::file_type::directory) {
+    std::fprintf(stderr, "feedloop print: %s: is a directory, not a G-code file\n", file.c_str());
+    return 1;
+  }
+  const bool counted = type == std::filesystem::file_type::regular;
   std::ifstream in(file, std::ios::binary);
-  if (!in) { std::fprintf(stderr, "feedloop print: cannot open %s\n", file.c_str()); return 1; }
-  double total_lines = 0;  // for progress: physical lines of the file
-  {
+  if (!in) {
+    std::fprintf(stderr, "feedloop print: cannot open %s: %s\n", file.c_str(),
+                 std::strerror(errno));
+    return 1;
+  }
+  double total_lines = 0;  // for progress: physical lines of the file (0: not known)
+  if (counted) {
     char buf[65536];
     while (in.read(buf, sizeof buf) || in.gcount() > 0) {
       total_lines += static_cast<double>(std::count(buf, buf + in.gcount(), '\n'));
@@ -98,7 +112,7 @@ int print_command(const std::vector<std::string>& args) {
     in.clear();
     in.seekg(0);
   }
-  if (resume_from > static_cast<int64_t>(total_lines) + 1) {
+  if (counted && resume_from > static_cast<int64_t>(total_lines) + 1) {
     std::fprintf(stderr, "feedloop print: --resume-from %lld is past the end of %s (%.0f lines)\n",
                  static_cast<long long>(resume_from), file.c_str(), total_lines);
     return 2;
@@ -118,6 +132,7 @@ int print_command(const std::vector<std::string>& args) {
   char chunk[65536];
   int acked_file_line = 0;
   bool eof = false;
+  std::string read_error;  // the file could not be read to its end: nothing after is sent
   ResumeTracker resume;
   bool resume_preamble_sent = resume_from <= 1;
   std::string line_error;  // the Error: text of the line whose ok comes next
@@ -145,6 +160,11 @@ int print_command(const std::vector<std::string>& args) {
     while (to_send.size() < 256 && !eof) {
       in.read(chunk, sizeof chunk);
       const std::streamsize got = in.gcount();
+      if (in.bad()) {
+        read_error = std::strerror(errno);
+        eof = true;
+        break;
+      }
       auto on_line = [&](const gcode::SplitLine& l) {
         const int file_line = static_cast<int>(l.number);
         if (l.too_long) {
@@ -231,8 +251,17 @@ int print_command(const std::vector<std::string>& args) {
       case ReplyKind::Kind::kOther:
         break;  // echo:busy, echo:Unknown command, temperatures...
     }
-    progress.update(total_lines > 0 ? std::min(1.0, acked_file_line / total_lines) : 1.0,
+    progress.update(total_lines > 0 ? std::min(1.0, acked_file_line / total_lines) : 0.0,
                     std::to_string(acked) + " lines acknowledged");
+  }
+  if (!read_error.empty()) {
+    progress.finish();
+    std::fprintf(stderr,
+                 "\nfeedloop print: %s: read error after line %d (%s): the print stops there; "
+                 "the %lld lines sent are executed\n",
+                 file.c_str(), acked_file_line, read_error.c_str(),
+                 static_cast<long long>(lines_sent));
+    return 1;
   }
   // The last lines are acknowledged when planned; M400 returns when the machine has finished.
   conn.send(numbered_line(next_n, "M400") + "\n");

@@ -111,6 +111,7 @@ Status PrintJob::open_file(uint64_t start_byte) {
   read_offset_ = 0;
   line_number_ = 0;
   eof_ = false;
+  read_error_.clear();
   if (start_byte > 0) {
     // M26 S: Marlin seeks to the byte; a byte inside a line skips the rest of that line here, so
     // no half command is ever executed.
@@ -137,6 +138,9 @@ bool PrintJob::read_line() {
   for (;;) {
     const int c = std::fgetc(fp_);
     if (c == EOF) {
+      // A read error (a removed USB stick, EIO) is not the file's end: the job fails, naming it,
+      // rather than completing without the rest of the file.
+      if (std::ferror(fp_)) read_error_ = std::strerror(errno);
       eof_ = true;
       break;
     }
@@ -327,7 +331,12 @@ void PrintJob::feed() {
       if (ms.moving && ms.planned_until_s - ms.print_time_s > options_.read_ahead_s) return;
     }
     if (!held_) {
-      if (!read_line()) return;
+      if (!read_line()) {
+        if (!read_error_.empty())
+          fail(file_ + ": read error after line " + std::to_string(line_number_) + " (byte " +
+               std::to_string(read_offset_) + "): " + read_error_);
+        return;
+      }
       if (line_.size() > kMaxLineBytes) {
         fail(file_ + ":" + std::to_string(line_number_) + ": line longer than " +
              std::to_string(kMaxLineBytes) + " bytes");

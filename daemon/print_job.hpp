@@ -210,6 +210,7 @@ class PrintJob {
   std::FILE* fp_ = nullptr;
   uint64_t read_offset_ = 0;  // bytes consumed from the file
   bool eof_ = false;
+  std::string read_error_;     // the file could not be read to its end (errno's text)
   bool input_coming_ = false;  // last said to the sink (report_input)
   std::string line_;
   int64_t line_number_ = 0;

@@ -12,7 +12,7 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
-#include <fstream>
+#include <filesystem>
 #include <memory>
 #include <thread>
 
@@ -21,6 +21,7 @@
 #include "drivers/protocol/frame.hpp"
 #include "engine/machine.hpp"
 #include "engine/move_lanes.hpp"
+#include "gcode/file_lines.hpp"
 #include "gcode/line_splitter.hpp"
 #include "gcode/parser.hpp"
 #include "planner/interpreter.hpp"
@@ -223,11 +224,11 @@ class BatchExecutor final : public CommandExecutor {
 
 Result<BatchSummary> run_batch(const std::string& gcode_path, const config::MachineConfig& cfg,
                                const BatchOptions& options) {
-  std::ifstream in(gcode_path, std::ios::binary);
-  if (!in) return Error{"cannot open " + gcode_path};
-  in.seekg(0, std::ios::end);
-  const auto file_bytes = static_cast<double>(in.tellg());
-  in.seekg(0);
+  // The size for progress only: a pipe (`feedloop batch <(zcat f.gcode.gz)`) has none and is
+  // read to its end all the same.
+  std::error_code size_error;
+  const auto size = std::filesystem::file_size(gcode_path, size_error);
+  const double file_bytes = size_error ? 0.0 : static_cast<double>(size);
   const auto t0 = std::chrono::steady_clock::now();
   const double cpu0 = process_cpu_s();
 
@@ -254,7 +255,6 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
   BatchSummary sum;
   sum.file = gcode_path;
   sum.joint_names = joint_names(cfg);
-  gcode::LineSplitter splitter;
   gcode::Command cmd;
   SourceLocation where{gcode_path, 0, 0};
   auto note = [&](const std::string& msg) {
@@ -282,17 +282,13 @@ Result<BatchSummary> run_batch(const std::string& gcode_path, const config::Mach
       note(s.error().to_string());
     }
   };
-  std::vector<char> buf(1 << 20);
   double read_bytes = 0;
-  while (in) {
-    in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
-    const auto got = static_cast<size_t>(in.gcount());
-    if (got == 0) break;
-    splitter.feed(std::string_view(buf.data(), got), on_line);
+  const Status read = gcode::for_each_file_line_reporting(gcode_path, on_line, [&](size_t got) {
     read_bytes += static_cast<double>(got);
-    if (options.on_progress) options.on_progress(file_bytes > 0 ? read_bytes / file_bytes : 1.0);
-  }
-  splitter.finish(on_line);
+    if (options.on_progress)
+      options.on_progress(file_bytes > 0 ? std::min(1.0, read_bytes / file_bytes) : 1.0);
+  });
+  if (!read) return read.error();
   exec.finish();
 
   sum.moves = exec.moves();

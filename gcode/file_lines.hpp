@@ -10,17 +10,20 @@
 #include <cerrno>
 #include <cstring>
 #include <string>
+#include <type_traits>
 
 #include "core/result.hpp"
 #include "gcode/line_splitter.hpp"
 
 namespace feedloop::gcode {
 
-// Calls on_line(const SplitLine&) for every line of the file at `path`, then returns Ok, or an
-// Error naming the file when it cannot be opened or read.
-template <class F>
-Status for_each_file_line(const std::string& path, F&& on_line,
-                          size_t max_line_bytes = LineSplitter::kDefaultMaxLineBytes) {
+// Calls on_line(const SplitLine&) for every line of the file at `path`, and on_read(size_t bytes)
+// after each chunk read (when it returns a bool, false stops the reading there), then returns Ok,
+// or an Error naming the file when it cannot be opened or read (a directory: "Is a directory").
+// Pipes and FIFOs are read to their end like files.
+template <class F, class R>
+Status for_each_file_line_reporting(const std::string& path, F&& on_line, R&& on_read,
+                                    size_t max_line_bytes = LineSplitter::kDefaultMaxLineBytes) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return Error{"cannot open G-code file: " + std::string(std::strerror(errno)), {path}};
   LineSplitter splitter(max_line_bytes);
@@ -35,10 +38,23 @@ Status for_each_file_line(const std::string& path, F&& on_line,
     }
     if (n == 0) break;
     splitter.feed(std::string_view(chunk.data(), static_cast<size_t>(n)), on_line);
+    if constexpr (std::is_same_v<std::invoke_result_t<R&, size_t>, bool>) {
+      if (!on_read(static_cast<size_t>(n))) break;
+    } else {
+      on_read(static_cast<size_t>(n));
+    }
   }
   splitter.finish(on_line);
   ::close(fd);
   return Status::Ok();
+}
+
+// The same without the byte count.
+template <class F>
+Status for_each_file_line(const std::string& path, F&& on_line,
+                          size_t max_line_bytes = LineSplitter::kDefaultMaxLineBytes) {
+  return for_each_file_line_reporting(
+      path, on_line, [](size_t) {}, max_line_bytes);
 }
 
 }  // namespace feedloop::gcode

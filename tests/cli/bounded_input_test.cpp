@@ -1,11 +1,15 @@
 // Inputs that are no input of the kind asked for (a path that never ends, a line without an end,
 // a rate that would need terabytes): the `feedloop` tool ends each with a message naming it and a
 // status, in bounded memory, where it used to read until memory ran out or abort.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "tests/daemon/subprocess.hpp"
@@ -67,3 +71,30 @@ TEST_F(BoundedInput, AnExportRateBeyondTheEncodersIsRefused) {
 }
 
 }  // namespace
+
+// A directory opens like a file and reads as nothing: it was a batch of 0 lines, exit 0. A pipe
+// cannot seek: batch read 0 of its lines (the size probe left the stream failed), exit 0.
+TEST_F(BoundedInput, ADirectoryIsRefusedAndAPipeIsReadToItsEnd) {
+  std::string out;
+  EXPECT_EQ(feedloop({"batch", dir_.string()}, &out), 1);
+  EXPECT_NE(out.find("cannot read G-code file: Is a directory"), std::string::npos) << out;
+  EXPECT_EQ(feedloop({"print", dir_.string()}, &out), 1);
+  EXPECT_NE(out.find("is a directory, not a G-code file"), std::string::npos) << out;
+
+  const std::string fifo = (dir_ / "in.fifo").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  std::thread writer([&] {
+    const int fd = ::open(fifo.c_str(), O_WRONLY);
+    if (fd < 0) return;
+    const std::string text = "G28\nG1 X10 Y10 F3000\nG1 X20 F3000\n";
+    EXPECT_EQ(::write(fd, text.data(), text.size()), static_cast<ssize_t>(text.size()));
+    ::close(fd);
+  });
+  const int rc = feedloop({"batch", fifo}, &out);
+  // Releases the writer if feedloop never opened the pipe.
+  const int unblock = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);
+  writer.join();
+  if (unblock >= 0) ::close(unblock);
+  EXPECT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("lines             3 (3 commands, 0 rejected"), std::string::npos) << out;
+}

@@ -474,6 +474,27 @@ TEST_F(PrintJobTest, ABadLineEndsTheJobWithItsLocationAndHeatersOff) {
   EXPECT_NE(job.status().message.find("far.gcode:3"), std::string::npos) << job.status().message;
 }
 
+// A file that cannot be read to its end (here: replaced by a directory after it was selected, so
+// that every read fails with EISDIR) ends the job in error, naming the file: it completed, having
+// run none of it.
+TEST_F(PrintJobTest, AReadErrorEndsTheJobInErrorNotComplete) {
+  ASSERT_TRUE(files_->write("gone.gcode", part(10)).ok());
+  FakeMachine m;
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.select("gone.gcode").ok());
+  std::filesystem::remove(dir_ + "/gcodes/gone.gcode");
+  std::filesystem::create_directory(dir_ + "/gcodes/gone.gcode");
+  ASSERT_TRUE(job.start("").ok());
+  m.run();
+  job.pump();
+  EXPECT_EQ(job.state(), JobState::kError);
+  EXPECT_NE(job.status().message.find("gone.gcode: read error after line 0"), std::string::npos)
+      << job.status().message;
+  EXPECT_NE(job.status().message.find("Is a directory"), std::string::npos) << job.status().message;
+  EXPECT_TRUE(m.executed.empty());
+  EXPECT_EQ(m.heaters_off, 1);
+}
+
 TEST_F(PrintJobTest, SelectStartByteAndRefusals) {
   const std::string text = "G28\nG1 X10 F3000\nG1 X20\nG1 X30\n";
   ASSERT_TRUE(files_->write("s.gcode", text).ok());
