@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "core/json_depth.hpp"
 #include "core/result.hpp"
 #include "core/utf8.hpp"
 
@@ -200,6 +201,12 @@ void handle_request(JsonApiBackend& backend, ClientSession& client, std::string_
       }
       i += n;
     }
+  }
+  if (json_nesting_depth(line) > kMaxClientJsonDepth) {
+    reply(json_rpc_error(nullptr, -32700,
+                         "parse error: the request nests arrays or objects deeper than " +
+                             std::to_string(kMaxClientJsonDepth) + " levels"));
+    return;
   }
   json req;
   try {

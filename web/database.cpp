@@ -2,6 +2,8 @@
 
 #include <sqlite3.h>
 
+#include "core/json_depth.hpp"
+
 namespace feedloop::web {
 
 using nlohmann::json;
@@ -48,7 +50,11 @@ Result<std::vector<std::string>> split_key(const std::string& key) {
   while (true) {
     const size_t e = key.find('.', b);
     const std::string part = key.substr(b, e == std::string::npos ? std::string::npos : e - b);
-    if (part.empty()) return Error{"invalid key '" + key + "': an empty part"};
+    if (part.empty()) return Error{"invalid key '" + key.substr(0, 200) + "': an empty part"};
+    // Each part is a level of the stored value: bounded as a client's JSON is
+    // (core/json_depth.hpp).
+    if (parts.size() == kMaxClientJsonDepth)
+      return Error{"invalid key: more than " + std::to_string(kMaxClientJsonDepth) + " parts"};
     parts.push_back(part);
     if (e == std::string::npos) break;
     b = e + 1;

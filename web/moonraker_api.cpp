@@ -13,6 +13,7 @@
 #include <fstream>
 #include <random>
 
+#include "core/json_depth.hpp"
 #include "core/utf8.hpp"
 #include "web/multipart.hpp"
 #include "web/printer_objects.hpp"
@@ -173,13 +174,18 @@ void MoonrakerApi::on_message(uint64_t conn, std::string_view text) {
   // A job's end seen by a client is in the history before anything the client does next (a
   // start right after "complete" is a new job, not the same one going on).
   track_jobs(now_s_);
-  json msg = json::parse(text, nullptr, /*allow_exceptions=*/false);
   auto error_reply = [&](int code, const std::string& message) {
     send(conn, std::make_shared<const std::string>(
                    wire(json{{"jsonrpc", "2.0"},
                              {"error", {{"code", code}, {"message", message}}},
                              {"id", nullptr}})));
   };
+  if (json_nesting_depth(text) > kMaxClientJsonDepth) {
+    error_reply(-32700, "Parse error: nested deeper than " + std::to_string(kMaxClientJsonDepth) +
+                            " levels");
+    return;
+  }
+  json msg = json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (msg.is_discarded()) {
     error_reply(-32700, "Parse error");
     return;
@@ -456,6 +462,9 @@ void MoonrakerApi::on_http(const HttpRequest& req, std::function<void(HttpReply)
     params = json{{"objects", objects}};
   }
   if (!req.body.empty() && req.content_type.find("json") != std::string::npos) {
+    if (json_nesting_depth(req.body) > kMaxClientJsonDepth)
+      return error(400, "the request body nests deeper than " +
+                            std::to_string(kMaxClientJsonDepth) + " levels");
     json body = json::parse(req.body, nullptr, false);
     if (body.is_discarded() || !body.is_object())
       return error(400, "the request body is not a JSON object");

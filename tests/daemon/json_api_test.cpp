@@ -58,5 +58,33 @@ TEST(JsonApiInput, ANulByteIsAParseErrorAtItsColumn) {
   EXPECT_EQ(backend.infos, 1);
 }
 
+// Nesting beyond 64 levels is refused before the parse (core/json_depth.hpp): nlohmann parses
+// any depth but dumps and copies by recursion, so a value nested 100 000 deep, once stored or
+// echoed, overflows the stack. Brackets inside strings are no nesting.
+TEST(JsonApiInput, NestingDeeperThan64IsAParseError) {
+  CountingBackend backend;
+  auto session = std::make_shared<NullSession>();
+  Subscription sub;
+  std::vector<json> replies;
+  auto send = [&](const std::string& params) {
+    replies.clear();
+    handle_json_request(backend, *session,
+                        R"({"jsonrpc":"2.0","id":3,"method":"info","params":)" + params + "}", sub,
+                        [&](const json& r) { replies.push_back(r); });
+    EXPECT_EQ(replies.size(), 1u);
+    return replies.empty() ? json() : replies[0];
+  };
+  const json deep = send("{\"a\":" + std::string(100000, '[') + std::string(100000, ']') + "}");
+  EXPECT_EQ(deep["error"]["code"], -32700);
+  EXPECT_NE(deep["error"]["message"].get<std::string>().find("deeper than 64 levels"),
+            std::string::npos)
+      << deep.dump();
+  EXPECT_EQ(backend.infos, 0);
+  const json ok =
+      send("{\"a\":" + std::string(60, '[') + "\"[[[[\\\"[\"" + std::string(60, ']') + "}");
+  EXPECT_EQ(ok["result"]["name"], "test") << ok.dump();
+  EXPECT_EQ(backend.infos, 1);
+}
+
 }  // namespace
 }  // namespace feedloop::daemon

@@ -344,5 +344,38 @@ TEST(WebFiles, MetadataOfSlicerLinesAndOfHostileOnes) {
   EXPECT_DOUBLE_EQ(m["object_height"].get<double>(), 2.5);
 }
 
+// JSON nested 100 000 deep (200 kB, inside the message limits) parsed, then overflowed the stack
+// when stored or echoed (nlohmann dumps by recursion); a database key of 100 000 parts built the
+// same nesting. Both are refused with an error, and the connection goes on.
+TEST(WebApi, DeeplyNestedJsonAndKeysAreRefused) {
+  Fixture f;
+  const size_t depth = 100000;
+  const std::string deep = std::string(depth, '[') + std::string(depth, ']');
+  auto r = f.call(
+      R"({"jsonrpc":"2.0","method":"server.database.post_item","params":{"namespace":"n","key":"k","value":)" +
+      deep + R"(},"id":7})");
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0]["error"]["code"], -32700);
+  EXPECT_NE(r[0]["error"]["message"].get<std::string>().find("deeper than 64"), std::string::npos)
+      << r[0].dump();
+  std::string key = "a";
+  for (size_t i = 1; i < depth; ++i) key += ".a";
+  r = f.call(json{
+      {"jsonrpc", "2.0"},
+      {"method", "server.database.post_item"},
+      {"params", {{"namespace", "n"}, {"key", key}, {"value", 1}}},
+      {"id", 8}}.dump());
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_NE(r[0]["error"]["message"].get<std::string>().find("more than 64 parts"),
+            std::string::npos)
+      << r[0]["error"].dump();
+  // Within the limit: stored and read back (a string holding brackets is no nesting).
+  const std::string nested_ok = std::string(60, '[') + "\"]]]]{{{{\"" + std::string(60, ']');
+  f.result("server.database.post_item",
+           {{"namespace", "n"}, {"key", "k"}, {"value", json::parse(nested_ok)}});
+  EXPECT_EQ(f.result("server.database.get_item", {{"namespace", "n"}, {"key", "k"}})["value"],
+            json::parse(nested_ok));
+}
+
 }  // namespace
 }  // namespace feedloop::web
