@@ -21,10 +21,15 @@ Result<LogReader> LogReader::open(const std::string& path) {
   std::fseek(f, 0, SEEK_SET);
   uint8_t fixed[kFixedHeaderBytes];
   const size_t got = std::fread(fixed, 1, sizeof fixed, f);
+  // A read error (a directory, EIO) is not a short file: say which.
+  if (std::ferror(f))
+    return Error{std::string("cannot read log: ") + std::strerror(errno), {path, 0, 0}};
   auto body_len = parse_fixed_header(fixed, got);
   if (!body_len) return Error{body_len.error().message, {path, 0, 0}};
   std::vector<uint8_t> body(static_cast<size_t>(*body_len) + 4);
   const size_t got_body = std::fread(body.data(), 1, body.size(), f);
+  if (std::ferror(f))
+    return Error{std::string("cannot read log: ") + std::strerror(errno), {path, 0, 0}};
   if (got_body < body.size())
     return Error{"truncated file header at byte offset " + std::to_string(kFixedHeaderBytes + got_body) +
                      " (the header needs " + std::to_string(kFixedHeaderBytes + body.size()) + " bytes)",
@@ -56,11 +61,18 @@ bool LogReader::read_block() {
   std::FILE* f = file_.get();
   const uint64_t block_offset = offset_;
   const int marker = std::fgetc(f);
+  const std::string at = " at byte offset " + std::to_string(block_offset);
+  // A read error ends the reading as an error, never as the file's end or a crash's cut.
+  auto read_failed = [&] {
+    if (!std::ferror(f)) return false;
+    fail(std::string("cannot read log") + at + ": " + std::strerror(errno));
+    return true;
+  };
   if (marker == EOF) {
+    if (read_failed()) return false;
     done_ = true;  // clean end
     return false;
   }
-  const std::string at = " at byte offset " + std::to_string(block_offset);
   if (marker != kBlockMarker) {
     char hex[8];
     std::snprintf(hex, sizeof hex, "0x%02x", marker);
@@ -84,6 +96,7 @@ bool LogReader::read_block() {
   uint64_t body_len = 0, count = 0;
   uint8_t crc_bytes[4];
   if (!read_varint(body_len) || !read_varint(count) || std::fread(crc_bytes, 1, 4, f) != 4) {
+    if (read_failed()) return false;
     fail("truncated block header" + at + " (the file ends at byte " + std::to_string(file_size_) +
          "; the recording was cut short, e.g. by a crash)");
     return false;
@@ -96,6 +109,7 @@ bool LogReader::read_block() {
   body_.resize(static_cast<size_t>(body_len));
   const size_t got = std::fread(body_.data(), 1, body_.size(), f);
   if (got < body_.size()) {
+    if (read_failed()) return false;
     fail("truncated block" + at + ": its body needs " + std::to_string(body_len) + " bytes, the file has " +
          std::to_string(got) + " (the recording was cut short, e.g. by a crash)");
     return false;

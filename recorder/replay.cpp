@@ -203,7 +203,7 @@ Result<RecordedPrint> read_recorded_print(const std::vector<std::string>& logs) 
     std::error_code ec;
     if (!fs::exists(logs[i], ec)) return Error{logs[i] + ": no such file"};
     auto r = LogReader::open(logs[i]);
-    if (!r) return Error{logs[i] + ": " + r.error().to_string()};
+    if (!r) return r.error();  // names the file already
     if (i == 0) {
       p.header = r->header();
       p.encoders.resize(p.header.joints.size());

@@ -168,6 +168,13 @@ TEST(RecorderDamage, NotALogAndTruncatedHeaderFailToOpen) {
   auto d = LogReader::open(dir.file("hdr.flrec"));
   ASSERT_FALSE(d.ok());
   EXPECT_NE(d.error().message.find("file header CRC mismatch"), std::string::npos);
+
+  // A read error is not a short file (a directory reads with EISDIR; it was "truncated file
+  // header at byte offset 0").
+  auto e = LogReader::open(dir.file(""));
+  ASSERT_FALSE(e.ok());
+  EXPECT_NE(e.error().message.find("cannot read log: Is a directory"), std::string::npos)
+      << e.error().message;
 }
 
 // A step run that breaks the step law (found by fuzz/fuzz_recording_reader.cpp: a run of
