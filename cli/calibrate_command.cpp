@@ -713,10 +713,18 @@ int calibrate(const std::vector<std::string>& args) {
     std::fprintf(stderr, "calibrate: the daemon reads no calibration (--no-calibration): not installed\n");
   std::optional<std::string> previous;  // the overlay the daemon had (nullopt: none)
   if (excited && install && !target.empty()) {
-    if (fs::exists(target)) previous = read_text_file(target);
-    if (Status s = write_text_file(target, overlay); !s)
-      excited = s;
-    else report["installed"] = target;
+    // The daemon's overlay is kept to roll back to: one that cannot be read is not replaced.
+    auto had = read_existing_text_file(target);
+    if (!had) {
+      excited = Error{"the daemon's calibration " + had.error().to_string() +
+                      ": not replaced (the new overlay is in " + overlay_path + ")"};
+    } else {
+      previous = had.value();
+      if (Status s = write_text_file(target, overlay); !s)
+        excited = s;
+      else
+        report["installed"] = target;
+    }
   }
   // Back to the configured control (with the new calibration when installed), also after a failure.
   if (Status s = reload(api, false); !s) return fail(s.error());

@@ -220,8 +220,10 @@ int excite(const std::vector<std::string>& args) {
 Status write_overlay(const std::string& path, const config::MachineConfig& base,
                      const ident::IdentResult& r, double mean_position_mm,
                      const std::string& source) {
-  auto yaml =
-      calibration::merge_overlay(base, read_text_file(path), path, r, mean_position_mm, source);
+  auto existing = read_existing_text_file(path);
+  if (!existing) return existing.error();
+  auto yaml = calibration::merge_overlay(base, existing.value().value_or(""), path, r,
+                                         mean_position_mm, source);
   if (!yaml) return yaml.error();
   return write_text_file(path, yaml.value());
 }
@@ -279,6 +281,11 @@ int fit(const std::vector<std::string>& args) {
       return 1;
     }
     overlay_base = std::move(base.value().config);
+    if (auto existing = read_existing_text_file(overlay_path); !existing) {
+      std::fprintf(stderr, "feedloop ident fit: --overlay %s\n",
+                   existing.error().to_string().c_str());
+      return 1;
+    }
   }
   const auto t0 = std::chrono::steady_clock::now();
   auto read = ident::read_trace_csv(trace_path);

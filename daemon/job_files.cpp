@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "core/atomic_file.hpp"
 #include "core/utf8.hpp"
 
 namespace feedloop::daemon {
@@ -148,34 +149,8 @@ Result<JobFileInfo> JobFiles::write(std::string_view name, std::string_view cont
     return Error{"file '" + std::string(name) + "' is " + std::to_string(content.size()) +
                  " bytes, above jobs.max_file_size_mb (" + std::to_string(max_size_) + " bytes)"};
   const std::string final_path = path_of(name);
-  std::string tmp = directory_ + "/.upload-XXXXXX";
-  const int fd = ::mkstemp(tmp.data());
-  if (fd < 0)
-    return Error{"cannot create a file in jobs.directory '" + directory_ +
-                 "': " + errno_text(errno)};
-  ::fchmod(fd, 0640);
-  size_t off = 0;
-  while (off < content.size()) {
-    const ssize_t n = ::write(fd, content.data() + off, content.size() - off);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int err = errno;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      return Error{"cannot write job file '" + std::string(name) + "': " + errno_text(err)};
-    }
-    off += static_cast<size_t>(n);
-  }
-  if (::fsync(fd) != 0 || ::close(fd) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    return Error{"cannot write job file '" + std::string(name) + "': " + errno_text(err)};
-  }
-  if (::rename(tmp.c_str(), final_path.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    return Error{"cannot store job file '" + std::string(name) + "': " + errno_text(err)};
-  }
+  if (Status s = write_file_atomically(final_path, content, 0640); !s)
+    return Error{"job file '" + std::string(name) + "': " + s.error().message};
   return info_of(final_path, name);
 }
 

@@ -10,6 +10,7 @@
 #include <optional>
 #include <string_view>
 
+#include "core/atomic_file.hpp"
 #include "gcode/file_lines.hpp"
 
 namespace feedloop::web {
@@ -311,17 +312,8 @@ Result<json> FileStore::write(const std::string& root, const std::string& rel,
   std::error_code ec;
   fs::create_directories(fs::path(*p).parent_path(), ec);
   if (ec) return Error{"cannot create the folder of '" + rel + "': " + ec.message()};
-  const std::string tmp = *p + ".part";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(data.data(), static_cast<std::streamsize>(data.size()));
-    if (!out) {
-      fs::remove(tmp, ec);
-      return Error{"cannot write '" + rel + "'"};
-    }
-  }
-  fs::rename(tmp, *p, ec);
-  if (ec) return Error{"cannot write '" + rel + "': " + ec.message()};
+  if (Status s = write_file_atomically(*p, data, 0640); !s)
+    return Error{"cannot store '" + rel + "': " + s.error().message};
   return json{{"path", rel},
               {"root", root},
               {"modified", mtime_s(*p)},

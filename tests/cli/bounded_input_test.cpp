@@ -98,3 +98,34 @@ TEST_F(BoundedInput, ADirectoryIsRefusedAndAPipeIsReadToItsEnd) {
   EXPECT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("lines             3 (3 commands, 0 rejected"), std::string::npos) << out;
 }
+
+// The overlay a fit merges into was read whole with no bound, and as empty when unreadable: an
+// endless device was read until the kernel killed the tool, and a directory (or a file without
+// read permission) was taken for no overlay, so the other axes in it would have been written
+// over. Both are refused before the fit.
+TEST_F(BoundedInput, AnOverlayThatCannotBeReadWholeIsRefusedBeforeTheFit) {
+  const std::string trace = (dir_ / "t.csv").string();
+  std::string out;
+  ASSERT_EQ(feedloop({"ident", "excite", "--axis", "x", "--out", trace, "--duration", "5"}, &out),
+            0)
+      << out;
+  EXPECT_EQ(feedloop({"ident", "fit", "--trace", trace, "--out", (dir_ / "f1").string(),
+                      "--no-plots", "--overlay", "/dev/zero"},
+                     &out),
+            1);
+  EXPECT_NE(out.find("--overlay /dev/zero: larger than 16 MiB"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir_ / "f1" / "report.json"));
+  EXPECT_EQ(feedloop({"ident", "fit", "--trace", trace, "--out", (dir_ / "f2").string(),
+                      "--no-plots", "--overlay", dir_.string()},
+                     &out),
+            1);
+  EXPECT_NE(out.find("cannot read: Is a directory"), std::string::npos) << out;
+  // A new overlay (no file yet) is written.
+  const std::string fresh = (dir_ / "cal.yaml").string();
+  ASSERT_EQ(feedloop({"ident", "fit", "--trace", trace, "--out", (dir_ / "f3").string(),
+                      "--no-plots", "--overlay", fresh},
+                     &out),
+            0)
+      << out;
+  EXPECT_TRUE(fs::exists(fresh));
+}
