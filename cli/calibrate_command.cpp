@@ -147,20 +147,24 @@ struct Plan {
 
 Result<Plan> make_plan(const config::MachineConfig& cfg, const std::vector<std::string>& axes, uint64_t seed) {
   if (cfg.kinematics == config::Kinematics::delta)
-    return Error{"calibrate: a delta is calibrated from FRFs (feedloop ident delta; docs/ident_delta.md), not here"};
+    return Error{
+        "a delta is calibrated from FRFs (feedloop ident delta; docs/ident_delta.md), not here"};
   Plan p;
   p.axes = axes;
   const config::AxisConfig* ax[2] = {cfg.axis("x"), cfg.axis("y")};
   for (const config::AxisConfig* a : ax)
     if (a == nullptr || !std::isfinite(a->min_mm) || !std::isfinite(a->max_mm))
-      return Error{"calibrate: the config's x and y axes need min_mm and max_mm"};
+      return Error{"the config's x and y axes need min_mm and max_mm"};
   p.cx = 0.5 * (ax[0]->min_mm + ax[0]->max_mm);
   p.cy = 0.5 * (ax[1]->min_mm + ax[1]->max_mm);
   p.check_start = check_start(p.cx, p.cy);
   p.check = check_pattern(p.cx, p.cy);
+  if (axes.empty()) return Error{"--axes names no axis (it takes x, y or x,y)"};
   for (const std::string& name : axes) {
     const config::AxisConfig* a = name == "x" ? ax[0] : name == "y" ? ax[1] : nullptr;
-    if (a == nullptr) return Error{"calibrate: --axes takes x and y (not '" + name + "')"};
+    if (a == nullptr) return Error{"--axes takes x and y (not '" + name + "')"};
+    if (std::count(axes.begin(), axes.end(), name) > 1)
+      return Error{"--axes names " + name + " twice"};
     calibration::ExcitationGcodeOptions o;
     o.axis = name == "x" ? 'X' : 'Y';
     o.travel_mm = std::min(80.0, 0.6 * (a->max_mm - a->min_mm));
@@ -193,9 +197,9 @@ Result<std::string> run_job(Api& api, const std::string& name, const std::string
     if (i % 20 == 0) std::fprintf(stderr, ".");
     if (state == "complete") break;
     if (state == "cancelled" || state == "error" || state == "off")
-      return Error{"calibrate: the job " + name + " ended " + state + ": " + j.value().value("message", "")};
+      return Error{"the job " + name + " ended " + state + ": " + j.value().value("message", "")};
     if (std::chrono::steady_clock::now() - t0 > std::chrono::minutes(30))
-      return Error{"calibrate: the job " + name + " did not end within 30 min"};
+      return Error{"the job " + name + " did not end within 30 min"};
   }
   // The recording closes when the machine is idle and nobody owns it.
   for (int i = 0; i < 600; ++i) {
@@ -205,12 +209,12 @@ Result<std::string> run_job(Api& api, const std::string& name, const std::string
     if (!rec.value("recording", false) && rec.value("last_print", "") != before && !rec.value("last_print", "").empty()) {
       std::fprintf(stderr, " %.1f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
       if (!s.value().value("last_error", "").empty())
-        return Error{"calibrate: the machine reported a fault: " + s.value()["last_error"].get<std::string>()};
+        return Error{"the machine reported a fault: " + s.value()["last_error"].get<std::string>()};
       return rec["last_print"].get<std::string>();
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
-  return Error{"calibrate: the daemon did not close the recording of " + name +
+  return Error{"the daemon did not close the recording of " + name +
                " (is the recorder on? recorder.enabled in the config)"};
 }
 
@@ -347,7 +351,7 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
   // A dropped step run shifts the commanded position for the rest of the trace: a model fitted to
   // it would be fitted to a broken trace (27.6 mm RMS was seen), so none is fitted.
   if (t.servo_records_dropped > 0)
-    return Error{"calibrate: the recording " + last_part + " is incomplete: the recorder dropped " +
+    return Error{"the recording " + last_part + " is incomplete: the recorder dropped " +
                  std::to_string(t.servo_records_dropped) +
                  " servo records (its ring was full; `feedloop log info` shows them). Run the "
                  "calibration again (a daemon in --virtual-time never drops; in real time, on a "
@@ -355,14 +359,13 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
   size_t j = t.joints.size();
   for (size_t i = 0; i < t.joints.size(); ++i)
     if (t.joints[i] == axis) j = i;
-  if (j == t.joints.size()) return Error{"calibrate: the recording " + last_part + " has no joint " + axis};
+  if (j == t.joints.size()) return Error{"the recording " + last_part + " has no joint " + axis};
   // Only the rows the encoder measured (the last report of a print may close after it; the
   // export holds the last reading there).
   recorder::TraceColumns& tw = trace.value();
   const auto [first_s, last_s] = tw.meas_span_s[j];
   if (!(last_s - first_s > 10.0))
-    return Error{"calibrate: the recording " + last_part +
-                 " has under 10 s of encoder samples of " + axis};
+    return Error{"the recording " + last_part + " has under 10 s of encoder samples of " + axis};
   const auto row = [&](double s) {
     return static_cast<size_t>(
         std::clamp(s * tw.rate_hz, 0.0, static_cast<double>(tw.time_s.size())));

@@ -350,6 +350,11 @@ TEST_F(Calibrate, WithoutADaemonOrWithBadArgumentsItSaysWhy) {
   }
   EXPECT_EQ(calibrate({"--write-gcode", dir_ + "/g", "--axes", "x,z"}, &out, 30), 1);
   EXPECT_NE(out.find("--axes takes x and y (not 'z')"), std::string::npos) << out;
+  // No axis ran an empty calibration and wrote an empty overlay; an axis twice ran it twice.
+  EXPECT_EQ(calibrate({"--write-gcode", dir_ + "/g", "--axes", ""}, &out, 30), 1);
+  EXPECT_NE(out.find("feedloop calibrate: --axes names no axis"), std::string::npos) << out;
+  EXPECT_EQ(calibrate({"--write-gcode", dir_ + "/g", "--axes", "x,y,x"}, &out, 30), 1);
+  EXPECT_NE(out.find("--axes names x twice"), std::string::npos) << out;
   // The programs alone: every line a move, a dwell or a comment, within the travel.
   EXPECT_EQ(calibrate({"--write-gcode", dir_ + "/g"}, &out, 30), 0) << out;
   const std::string x = read_text(dir_ + "/g/calibrate_x.gcode");
