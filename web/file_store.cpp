@@ -33,6 +33,8 @@ std::string bad_path_reason(std::string_view rel) {
     if (e == std::string_view::npos) e = rel.size();
     const std::string_view part = rel.substr(b, e - b);
     if (part == "..") return "'..' in the path";
+    // "gcodes/." named the root itself: a forced delete_directory removed every file in it.
+    if (part == ".") return "'.' in the path";
     if (!part.empty() && ++depth > 8) return "more than 8 levels";
     b = e + 1;
   }
@@ -364,6 +366,9 @@ Result<json> FileStore::remove_dir(const std::string& path, bool force) const {
   auto p = resolve(rr->first, rr->second);
   if (!p) return p.error();
   std::error_code ec;
+  if (fs::path(*p) == fs::path(root_dir(rr->first)).lexically_normal() ||
+      fs::path(*p) == (fs::path(root_dir(rr->first)) / "").lexically_normal())
+    return Error{"cannot delete a root"};
   if (!fs::is_directory(*p, ec)) return Error{"Directory '" + path + "' not found"};
   if (force)
     fs::remove_all(*p, ec);

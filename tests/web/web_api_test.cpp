@@ -304,6 +304,17 @@ TEST(WebFiles, ListsDirectoriesAndRefusesEscapes) {
   EXPECT_FALSE(f.files->write("gcodes", "../x", "no"));
   EXPECT_FALSE(f.files->write("gcodes", "/etc/x", "no"));
   EXPECT_FALSE(f.files->resolve("logs", "x"));
+  // "gcodes/." named the root: a forced delete removed every file in it.
+  for (const char* root_again : {"gcodes/.", "gcodes/./", "gcodes/sub/..", "gcodes//."}) {
+    auto r = f.call(json{
+        {"jsonrpc", "2.0"},
+        {"method", "server.files.delete_directory"},
+        {"params", {{"path", root_again}, {"force", true}}},
+        {"id", 3}}.dump());
+    ASSERT_EQ(r.size(), 1u);
+    EXPECT_TRUE(r[0].contains("error")) << root_again << " " << r[0].dump();
+  }
+  ASSERT_EQ(f.result("server.files.list", {{"root", "gcodes"}}).size(), 1u);
   EXPECT_EQ(f.result("server.files.delete_file", {{"path", "gcodes/sub/x.gcode"}})["action"],
             "delete_file");
   EXPECT_TRUE(f.result("server.files.list", {{"root", "gcodes"}}).empty());
