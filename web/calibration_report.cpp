@@ -1,9 +1,11 @@
 #include "web/calibration_report.hpp"
 
 #include <chrono>
+#include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
+#include <utility>
+
+#include "core/bounded_file.hpp"
 
 namespace feedloop::web {
 
@@ -23,26 +25,20 @@ double unix_s(fs::file_time_type t) {
 }
 
 bool read_capped(const fs::path& p, uintmax_t cap, std::string* out, std::string* why) {
-  std::error_code ec;
-  const uintmax_t size = fs::file_size(p, ec);
-  if (ec) {
-    *why = "cannot read " + p.string() + ": " + ec.message();
-    return false;
+  BoundedFile f = read_file_bounded(p.string(), static_cast<std::size_t>(cap));
+  switch (f.status) {
+    case BoundedFile::Status::kOk:
+      *out = std::move(f.text);
+      return true;
+    case BoundedFile::Status::kTooLarge:
+      *why = p.string() + " is over " + std::to_string(cap) + " bytes";
+      return false;
+    case BoundedFile::Status::kCannotOpen:
+    case BoundedFile::Status::kReadError:
+      break;
   }
-  if (size > cap) {
-    *why =
-        p.string() + " is " + std::to_string(size) + " bytes (at most " + std::to_string(cap) + ")";
-    return false;
-  }
-  std::ifstream f(p, std::ios::binary);
-  std::ostringstream s;
-  s << f.rdbuf();
-  if (!f.good() && !f.eof()) {
-    *why = "cannot read " + p.string();
-    return false;
-  }
-  *out = s.str();
-  return true;
+  *why = "cannot read " + p.string() + ": " + std::strerror(f.errno_value);
+  return false;
 }
 }  // namespace
 

@@ -6,7 +6,6 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <optional>
 #include <string_view>
 
@@ -366,9 +365,6 @@ Result<json> FileStore::remove_dir(const std::string& path, bool force) const {
   auto p = resolve(rr->first, rr->second);
   if (!p) return p.error();
   std::error_code ec;
-  if (fs::path(*p) == fs::path(root_dir(rr->first)).lexically_normal() ||
-      fs::path(*p) == (fs::path(root_dir(rr->first)) / "").lexically_normal())
-    return Error{"cannot delete a root"};
   if (!fs::is_directory(*p, ec)) return Error{"Directory '" + path + "' not found"};
   if (force)
     fs::remove_all(*p, ec);
