@@ -32,6 +32,10 @@ void usage(std::FILE* out) {
   std::fputs(
       "usage: feedloop ident fit --trace FILE.csv --out DIR [--axis NAME] [--max-effects N] "
       "[--no-plots]\n"
+      "                          [--carriage-mass-kg M]   (the carriage weighed, 0.01-100 kg; "
+      "default: the\n"
+      "                          thesis axis's, X 0.45, Y 1.07: a friction force is only as "
+      "right as this)\n"
       "                          [--overlay CAL.yaml [--config CFG.yaml]]\n"
       "                          (--overlay: write the fitted model into a calibration overlay "
       "for\n"
@@ -241,6 +245,10 @@ int fit(const std::vector<std::string>& args) {
     } else if (a == "--max-effects" && has_value && parse_number(args[i + 1], &v) && v >= 0.0 && v <= 7.0 &&
                v == static_cast<int>(v)) {
       o.max_effects = static_cast<int>(v);
+      ++i;
+    } else if (a == "--carriage-mass-kg" && has_value && parse_number(args[i + 1], &v) &&
+               v >= 0.01 && v <= 100.0) {
+      o.carriage_mass_kg = v;
       ++i;
     } else if (a == "--out" && has_value) {
       out_dir = args[++i];

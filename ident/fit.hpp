@@ -42,6 +42,11 @@ struct FitOptions {
   // its lightly damped modes of 40-150 Hz: 0.3-3.0), the mode at least halves that, the whole
   // FRF's misfit falls and the held-out RMS is no more than 1 % worse.
   double min_frf_band_misfit = 0.5;
+  // The carriage's mass m2 (kg), weighed; 0: the preset axis's (thesis Table 2: X 0.45, Y 1.07).
+  // Position-to-position data fix forces only per unit mass (scaling m1, m2, k1, k2, c1, c2 and a
+  // friction force by one factor leaves Eq. 17 and the trace unchanged), so a force in newtons
+  // (coulomb_friction's key) is only as right as this mass.
+  double carriage_mass_kg = 0.0;
   int max_effects = 3;
   int max_iterations = 20;         // Levenberg-Marquardt iterations per full fit
   int screen_iterations = 8;       // ... per candidate while screening (6 missed a 2 N friction

@@ -22,6 +22,7 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <random>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -82,6 +83,7 @@ struct Outcome {
   double key_true = NAN, key_found = NAN;
   double baseline_rms_um = 0, augmented_rms_um = 0;
   double cpu_s = 0;
+  double mass_kg = 0;  // the carriage mass identification is told (0: the preset's)
   std::string error;
   std::string rounds;  // every candidate's held-out RMS per round (--candidates)
 };
@@ -96,6 +98,7 @@ double thread_cpu_s() {
 struct Plant2Case {
   char axis = 'x';
   double key_true = NAN;
+  double weighed_mass_kg = 0.0;  // the carriage's drawn mass with a weighing error of +-10 %
   Result<ident::Trace> trace{Error{"not run", {}}};
 };
 
@@ -129,12 +132,15 @@ Plant2Case record_plant2(const Kind& kind, uint64_t seed, const std::vector<doub
   c.axis = d.params.carriage.mass_kg < 0.5 * (0.45 + 1.07) ? 'x' : 'y';
   if (kind.effect && !d.effects.empty())
     c.key_true = d.effects[0].param(judged_param(*kind.effect));
+  std::mt19937_64 weighing(seed ^ 0x5eedULL);
+  c.weighed_mass_kg =
+      d.params.carriage.mass_kg * std::uniform_real_distribution<double>(0.9, 1.1)(weighing);
   c.trace = plant2::record_axis2_trace(d.params, program, 1000.0, std::string(1, c.axis));
   return c;
 }
 
 Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibration, bool plant2,
-                const std::string& save_dir) {
+                bool weighed_mass, const std::string& save_dir) {
   Outcome o;
   o.kind = kind.name;
   o.seed = seed;
@@ -155,6 +161,7 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
     Plant2Case c = record_plant2(kind, seed, program);
     o.axis = c.axis;
     o.key_true = c.key_true;
+    if (weighed_mass) o.mass_kg = c.weighed_mass_kg;
     trace = std::move(c.trace);
   } else {
     o.axis = d.axis;
@@ -174,8 +181,9 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
     }
   }
   const ident::AxisTrace& a = trace.value().axes[0];
-  auto r = ident::identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(),
-                                ident::FitOptions{});
+  ident::FitOptions fo;
+  fo.carriage_mass_kg = o.mass_kg;
+  auto r = ident::identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(), fo);
   o.cpu_s = thread_cpu_s() - t0;
   if (!r.ok()) {
     o.error = r.error().to_string();
@@ -244,6 +252,7 @@ int main(int argc, char** argv) {
   uint64_t first_seed = 1000;
   double duration_s = 30.0;
   bool verbose = false, calibration = false, plant2 = false, candidates = false;
+  bool weighed_mass = false;
   std::string json_path, kinds_arg, save_dir;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -268,6 +277,8 @@ int main(int argc, char** argv) {
     else if (a == "--simulator" && i + 1 < argc &&
              (std::string(argv[i + 1]) == "sim" || std::string(argv[i + 1]) == "plant2"))
       plant2 = next() == "plant2";
+    else if (a == "--weighed-mass")
+      weighed_mass = true;
     else if (a == "--json")
       json_path = next();
     else if (a == "--save-traces")
@@ -277,7 +288,7 @@ int main(int argc, char** argv) {
           stderr,
           "usage: bench_ident_draws [--draws N] [--first-seed S] [--kinds none,backlash,..] "
           "[--duration S] [--excitation random|calibration] [--simulator sim|plant2] [--threads N] "
-          "[--verbose] [--candidates] "
+          "[--weighed-mass] [--verbose] [--candidates] "
           "[--json FILE] [--save-traces DIR]\n");
       return 2;
     }
@@ -324,14 +335,18 @@ int main(int argc, char** argv) {
       draws, static_cast<unsigned long long>(first_seed),
       static_cast<unsigned long long>(first_seed + static_cast<uint64_t>(draws) - 1),
       excitation.c_str(), threads);
+  if (plant2)
+    std::printf("carriage mass given to the identification: %s\n",
+                weighed_mass ? "the drawn one x 0.9-1.1 (--weighed-mass)"
+                             : "the nearer preset's, 0.45 or 1.07 kg (draws: 0.35-1.20)");
   std::vector<Outcome> outcomes(jobs.size());
   std::atomic<size_t> next_job{0}, done{0};
   std::mutex print_mutex;
   const auto wall0 = std::chrono::steady_clock::now();
   auto worker = [&] {
     for (size_t j; (j = next_job.fetch_add(1)) < jobs.size();) {
-      outcomes[j] =
-          run_one(kinds[jobs[j].kind], jobs[j].seed, duration_s, calibration, plant2, save_dir);
+      outcomes[j] = run_one(kinds[jobs[j].kind], jobs[j].seed, duration_s, calibration, plant2,
+                            weighed_mass, save_dir);
       const size_t n = ++done;
       std::lock_guard<std::mutex> lock(print_mutex);
       const Outcome& o = outcomes[j];

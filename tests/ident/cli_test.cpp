@@ -78,6 +78,13 @@ TEST(IdentCli, ExciteThenFitFindsThePeriodicEffectAndWritesTheContract) {
             0);
   const std::string base = slurp(dir / "base" / "report.json");
   EXPECT_EQ(base.find("\"name\": \"periodic_position\""), std::string::npos) << base;
+  EXPECT_NE(base.find("m2=1.07 kg"), std::string::npos) << base;  // the thesis's Y carriage
+  // --carriage-mass-kg: the weighed carriage is the model's m2.
+  ASSERT_EQ(ident_command({"fit", "--trace", trace.string(), "--out", (dir / "mass").string(),
+                           "--max-effects", "0", "--no-plots", "--carriage-mass-kg", "2.14"}),
+            0);
+  const std::string mass = slurp(dir / "mass" / "report.json");
+  EXPECT_NE(mass.find("m2=2.14 kg"), std::string::npos) << mass;
   std::filesystem::remove_all(dir);
 }
 
@@ -123,6 +130,11 @@ TEST(IdentCli, UserErrorsAreReportedNotCrashes) {
   EXPECT_EQ(ident_command({"frobnicate"}), 2);
   EXPECT_EQ(ident_command({"fit", "--trace", "t.csv", "--out", dir.string(), "--max-effects", "2.5"}), 2);
   EXPECT_EQ(ident_command({"fit", "--trace", "t.csv", "--out", dir.string(), "--max-effects", "-1"}), 2);
+  for (const char* bad : {"0", "-1", "1e9", "nan", "heavy"})
+    EXPECT_EQ(ident_command(
+                  {"fit", "--trace", "t.csv", "--out", dir.string(), "--carriage-mass-kg", bad}),
+              2)
+        << bad;
   EXPECT_EQ(model_command({"frf", "--pos", "1,2", "--out", (dir / "f.csv").string()}), 2);
   std::filesystem::remove_all(dir);
 }
