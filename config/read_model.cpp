@@ -28,12 +28,16 @@ void read_stepper(MapReader& g, StepperConfig& st, Diagnostics& diag) {
 }  // namespace
 
 void read_gantry_axis(MapReader& g, GantryModelConfig& m, Need six, Diagnostics& diag) {
-  g.number("m1_kg", m.m1_kg, Range::positive(), six);
-  g.number("m2_kg", m.m2_kg, Range::positive(), six);
-  g.number("k1_n_per_m", m.k1_n_per_m, Range::positive(), six);
-  g.number("k2_n_per_m", m.k2_n_per_m, Range::positive(), six);
-  g.number("c1_ns_per_m", m.c1_ns_per_m, Range::non_negative(), six);
-  g.number("c2_ns_per_m", m.c2_ns_per_m, Range::non_negative(), six);
+  // Plausible for any printer's axis, and wide around what identification fits (k1 2e4-2e7, k2
+  // 2e3-2e6, c1 1-2e5, c2 0.1-2e3; the thesis: m1 0.13 kg, m2 0.45-1.07 kg): a value outside is
+  // a typo or a unit slip (N/mm for N/m), not a machine, and the feedforward would be designed on
+  // it (k2: 1e300 was accepted).
+  g.number("m1_kg", m.m1_kg, Range::closed(1e-4, 100.0), six);
+  g.number("m2_kg", m.m2_kg, Range::closed(1e-3, 1000.0), six);
+  g.number("k1_n_per_m", m.k1_n_per_m, Range::closed(100.0, 1e10), six);
+  g.number("k2_n_per_m", m.k2_n_per_m, Range::closed(100.0, 1e10), six);
+  g.number("c1_ns_per_m", m.c1_ns_per_m, Range::closed(0.0, 1e7), six);
+  g.number("c2_ns_per_m", m.c2_ns_per_m, Range::closed(0.0, 1e7), six);
   g.number("coulomb_friction_n", m.coulomb_friction_n, Range::closed(0.0, 1000.0));
   // 0.5 um - 1 mm: the identification fits 1-300 um.
   g.number("friction_bristle_mm", m.friction_bristle_mm, Range::closed(0.0005, 1.0));

@@ -102,7 +102,15 @@ TEST(ConfigErrors, MissingKinematics) {
 
 TEST(ConfigErrors, NegativeMass) {
   const std::string y = edit(kMinimal, "m2_kg: 0.45", "m2_kg: -0.45");
-  expect_error(y, "model.gantry.x.m2_kg must be > 0 kg, got -0.45", pos_of(y, "-0.45"));
+  expect_error(y, "model.gantry.x.m2_kg must be in [0.001, 1000] kg, got -0.45",
+               pos_of(y, "-0.45"));
+}
+
+// A belt stiffness no machine has (1e300 N/m was accepted and the feedforward designed on it).
+TEST(ConfigErrors, ImplausibleStiffness) {
+  const std::string y = edit(kMinimal, "k2_n_per_m: 110e3", "k2_n_per_m: 1e300");
+  expect_error(y, "model.gantry.x.k2_n_per_m must be in [100, 1e+10] N/m, got 1e+300",
+               pos_of(y, "1e300"));
 }
 
 TEST(ConfigErrors, ZeroStepsPerMm) {
