@@ -482,6 +482,15 @@ void short_period_scan(const std::vector<double>& u, const std::vector<double>& 
 // 11.4). docs/ident.md, "Friction screened from the preset too".
 constexpr Effect kScreenedFromPresetToo[] = {Effect::kCoulombFriction};
 
+// m with the baseline parameters (k1, k2, c1, c2) of `base`; its effects kept.
+AxisModel with_baseline_of(AxisModel m, const AxisModel& base) {
+  m.k1_n_m = base.k1_n_m;
+  m.k2_n_m = base.k2_n_m;
+  m.c1_n_s_m = base.c1_n_s_m;
+  m.c2_n_s_m = base.c2_n_s_m;
+  return m;
+}
+
 AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb,
                         const std::vector<double>& y_cur, size_t window, const FrfData& frf_train) {
   AxisModel m = cur;
@@ -582,11 +591,7 @@ AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb,
       // Lag scan of the current model's output and of the preset's (the current fit may have
       // absorbed part of the delay into its damping).
       std::vector<double> y_preset;
-      AxisModel plain = cur;
-      plain.k1_n_m = pb.preset->k1_n_m;
-      plain.k2_n_m = pb.preset->k2_n_m;
-      plain.c1_n_s_m = pb.preset->c1_n_s_m;
-      plain.c2_n_s_m = pb.preset->c2_n_s_m;
+      const AxisModel plain = with_baseline_of(cur, *pb.preset);
       const bool have_preset = run(plain, pb, &y_preset);
       double best = 1e300;
       for (int src = 0; src < (have_preset ? 2 : 1); ++src) {
@@ -670,11 +675,7 @@ AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb,
   }
   // The baseline may have bent to absorb the effect (a scale error, a delay): start from whichever
   // of the current fit and the axis preset fits better with the effect's initial guess.
-  AxisModel alt = m;
-  alt.k1_n_m = pb.preset->k1_n_m;
-  alt.k2_n_m = pb.preset->k2_n_m;
-  alt.c1_n_s_m = pb.preset->c1_n_s_m;
-  alt.c2_n_s_m = pb.preset->c2_n_s_m;
+  AxisModel alt = with_baseline_of(m, *pb.preset);
   if (e == Effect::kScaleError) {
     // Re-estimate the scale against the preset's output.
     std::vector<double> y_alt;
@@ -919,11 +920,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
     };
     // Effect e screened on `from` with its baseline (k1, k2, c1, c2) reset to the preset's.
     auto screen_from_preset = [&](const AxisModel& from, Effect e, size_t window) {
-      AxisModel plain = from;
-      plain.k1_n_m = preset.k1_n_m;
-      plain.k2_n_m = preset.k2_n_m;
-      plain.c1_n_s_m = preset.c1_n_s_m;
-      plain.c2_n_s_m = preset.c2_n_s_m;
+      const AxisModel plain = with_baseline_of(from, preset);
       std::vector<double> y_plain;
       if (!run(plain, pb, &y_plain)) return plain;
       const AxisModel guess = initial_guess(plain, e, pb, y_plain, window, frf_train);
