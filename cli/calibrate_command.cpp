@@ -344,7 +344,11 @@ struct AxisOutcome {
   double mean_mm = 0.0;
 };
 
-Result<AxisOutcome> identify_recording(const std::string& axis, const std::string& last_part, const std::string& dir) {
+// carriage_mass_kg: the config's m2 of the axis (0: none configured), the mass identification
+// reads forces through (position data fix a force only per unit mass: docs/ident.md, "The force
+// needs the carriage's mass").
+Result<AxisOutcome> identify_recording(const std::string& axis, const std::string& last_part,
+                                       const std::string& dir, double carriage_mass_kg) {
   auto trace = recorder::build_trace(recorder::print_log_parts(last_part), recorder::ExportOptions{});
   if (!trace) return trace.error();
   const recorder::TraceColumns& t = trace.value();
@@ -391,7 +395,10 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
   // Two starting points, the thesis's X and Y axes (80 and 21 Hz): the fit is local, and a
   // machine's axis may be either kind whatever its name (the second simulator's Y axis is of the X
   // kind: from the Y start 120.8 um RMS, from the X start 16.3). The better held-out RMS wins.
+  // Both starts carry the config's carriage mass when it has one, their belt's stiffness and
+  // damping scaled with it so that each keeps its carriage mode (ident::FitOptions).
   ident::FitOptions o;
+  o.carriage_mass_kg = carriage_mass_kg;
   Result<ident::IdentResult> r = Error{"no fit"};
   for (const char* start : {"x", "y"}) {
     auto f = ident::identify_axis(start, t.cmd_mm[j], t.meas_mm[j], 1.0 / t.rate_hz, o);
@@ -668,7 +675,10 @@ int calibrate(const std::vector<std::string>& args) {
     const std::string dir = out_dir + "/" + axes[i];
     fs::create_directories(dir, ec);
     std::fprintf(stderr, "calibrate: identifying axis %s ...\n", axes[i].c_str());
-    auto got = identify_recording(axes[i], rec.value(), dir);
+    // The mass the user's config gives the carriage (the base config: an overlay's m2 is a
+    // calibration's, not a weighing).
+    const config::GantryModelConfig* g = cfg.model.gantry_for(axes[i]);
+    auto got = identify_recording(axes[i], rec.value(), dir, g != nullptr ? g->m2_kg : 0.0);
     if (!got) {
       excited = got.error();
       break;

@@ -45,7 +45,8 @@ struct FitOptions {
   // The carriage's mass m2 (kg), weighed; 0: the preset axis's (thesis Table 2: X 0.45, Y 1.07).
   // Position-to-position data fix forces only per unit mass (scaling m1, m2, k1, k2, c1, c2 and a
   // friction force by one factor leaves Eq. 17 and the trace unchanged), so a force in newtons
-  // (coulomb_friction's key) is only as right as this mass.
+  // (coulomb_friction's key) is only as right as this mass. The fit runs on the preset and its
+  // models are scaled to this mass at the end: the positions and the names do not depend on it.
   double carriage_mass_kg = 0.0;
   int max_effects = 3;
   int max_iterations = 20;         // Levenberg-Marquardt iterations per full fit
