@@ -395,8 +395,8 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
   // Two starting points, the thesis's X and Y axes (80 and 21 Hz): the fit is local, and a
   // machine's axis may be either kind whatever its name (the second simulator's Y axis is of the X
   // kind: from the Y start 120.8 um RMS, from the X start 16.3). The better held-out RMS wins.
-  // Both starts carry the config's carriage mass when it has one, their belt's stiffness and
-  // damping scaled with it so that each keeps its carriage mode (ident::FitOptions).
+  // Both fits are scaled to the config's carriage mass when it has one (ident::FitOptions: the
+  // positions and names do not change, the forces come out in that carriage's newtons).
   ident::FitOptions o;
   o.carriage_mass_kg = carriage_mass_kg;
   Result<ident::IdentResult> r = Error{"no fit"};
