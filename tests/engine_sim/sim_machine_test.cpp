@@ -316,6 +316,16 @@ uint64_t motion_starts_with_late_lines(int stall_ms, bool say_input_coming) {
   send("G90");
   send("G1 X20 F6000");
   std::this_thread::sleep_for(std::chrono::milliseconds(stall_ms));
+  if (!say_input_coming) {
+    // The release comes from the planner thread after the input pause; on a loaded host (the
+    // sanitizer stage runs two tests on two cores) that thread may not run within the stall, so
+    // the late line waits until the released move has run (up to 10 s) instead of a fixed time.
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    for (MachineStatus s = m.status();
+         !(s.motion_starts >= 1 && !s.moving) && std::chrono::steady_clock::now() < until;
+         s = m.status())
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
   send("G1 X40");
   m.set_input_coming(false);  // the file's end
   send("M400");
