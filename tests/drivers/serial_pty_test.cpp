@@ -405,7 +405,10 @@ TEST(SerialPty, DeviceRestartIsReportedAndRecovered) {
 
   // Recovery: identify again, resynchronise, stream; every new step exactly once.
   ASSERT_TRUE(session.start(h.now()).ok());
-  ASSERT_TRUE(h.pump_until([&] { return session.ready(); }, 2.0)) << (session.error() ? session.error()->message : "");
+  // Up to 5 s: on a busy CI host (the sanitizer build compiling beside it) a recovery once needed
+  // over 2 s of retransmissions (122 frames sent, 132 retransmitted) to identify again.
+  ASSERT_TRUE(h.pump_until([&] { return session.ready(); }, 5.0))
+      << (session.error() ? session.error()->message : "");
   h.pump(h.now() + 0.5);
   const Streamed part2 = stream(h, 8, 10);
   session.request_status();
