@@ -45,14 +45,21 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
   g.c1_ns_per_m = m.c1_n_s_m;
   g.c2_ns_per_m = m.c2_n_s_m;
   apply_damping_floor(g);
-  if (m.has(ident::Effect::kDirectionStiffness))
-    if (const double l_mm = belt_length_from_direction_ratio(m.stiffness_ratio, mean_position_mm,
-                                                             max_abs_position_mm);
-        l_mm > 0.0) {
-      g.stepper.pulley_distance_mm = l_mm;
-      if (!(g.stepper.belt_unit_stiffness_n > 0.0))
-        g.stepper.belt_unit_stiffness_n = 1.0;  // set below
-    }
+  if (!m.has(ident::Effect::kDirectionStiffness)) {
+    // The data shows no direction-dependent stiffness: a uniform belt at the fitted k2. The
+    // config's Eq. 6 geometry (L, the anchor at x0 = 0) is an assumption the machine did not
+    // bear out; kept, it schedules K2 by (L + x) / (L - x) between the directions (a factor 2
+    // at x = L / 3), and the second simulator's seed 2 tracked the check pattern 25 um behind
+    // on X at 90 mm/s whichever way it moved (docs/calibration.md, "The belt's geometry").
+    g.stepper.belt_unit_stiffness_n = 0.0;
+  } else if (const double l_mm = belt_length_from_direction_ratio(
+                 m.stiffness_ratio, mean_position_mm, max_abs_position_mm);
+             l_mm > 0.0) {
+    g.stepper.pulley_distance_mm = l_mm;
+    if (!(g.stepper.belt_unit_stiffness_n > 0.0))
+      g.stepper.belt_unit_stiffness_n = 1.0;  // set below
+  }
+  // Named but with no Eq. 6 belt that spans the travel: the config's geometry stays, scaled below.
   if (g.stepper.belt_unit_stiffness_n > 0.0 && g.stepper.pulley_distance_mm > 0.0) {
     // Eq. 6 direction-averaged: K2(x) = k_hat L / (L^2 - x^2); k_hat so that K2(x_mean) = k2 (the
     // fit's k2 is the mean of its two directions' stiffnesses).

@@ -31,6 +31,9 @@ bool apply_damping_floor(config::GantryModelConfig& g, double zeta_min = 0.05);
 double belt_length_from_direction_ratio(double ratio, double mean_position_mm,
                                         double max_abs_position_mm);
 
+// The belt: Eq. 6 with L from the direction ratio when direction_dependent_stiffness is named
+// and gives a belt beyond the travel; uniform at the fitted k2 (belt_unit_stiffness_n 0) when it
+// is not named; otherwise the config's L, its k-hat scaled to the fitted k2.
 // `current`: the config's model of that axis (what the fit does not give is kept; nullptr: the
 // defaults); `mean_position_mm`: the mean commanded position of the trace the fit used;
 // `max_abs_position_mm`: the axis's travel, the largest |x|.

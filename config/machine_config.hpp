@@ -260,7 +260,8 @@ struct StepperConfig {
   int rotor_teeth = 50;                    // n_r
   double rotor_inertia_kg_m2 = 3.8e-6;     // J = 38 g cm^2
   double pulley_radius_mm = 5.40;          // r
-  double belt_unit_stiffness_n = 33000.0;  // k-hat of Eq. 6 (K_2 = k-hat / active length)
+  double belt_unit_stiffness_n =
+      33000.0;  // k-hat of Eq. 6 (K_2 = k-hat / active length); 0: k2 uniform
   double pulley_distance_mm = 300.0;       // L of Eq. 6
   double belt_efficiency = 1.0;            // e of Eq. 7
   bool operator==(const StepperConfig&) const = default;

@@ -19,7 +19,8 @@ void read_stepper(MapReader& g, StepperConfig& st, Diagnostics& diag) {
   s.integer_as("rotor_teeth", st.rotor_teeth, 1, 1000);
   s.number("rotor_inertia_kg_m2", st.rotor_inertia_kg_m2, Range::positive());
   s.number("pulley_radius_mm", st.pulley_radius_mm, Range::positive());
-  s.number("belt_unit_stiffness_n", st.belt_unit_stiffness_n, Range::positive());
+  // 0: a uniform belt, k2 at every position and in both directions (no Eq. 6 schedule).
+  s.number("belt_unit_stiffness_n", st.belt_unit_stiffness_n, Range::non_negative());
   s.number("pulley_distance_mm", st.pulley_distance_mm, Range::positive());
   s.number("belt_efficiency", st.belt_efficiency, Range::open_closed(0.0, 1.0));
   s.finish();

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "config/config.hpp"
+#include "control/feedforward/gantry_lpv.hpp"
 
 #include <cmath>
 
@@ -107,6 +108,65 @@ TEST(OverlayFromIdent, TheTimeDelayBecomesTheEncodersDelay) {
       "cal.yaml");
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().to_string().find("encoder_delay_ms"), std::string::npos)
+      << bad.error().to_string();
+}
+
+// The belt the feedforward schedules on (Eq. 6) comes from the data: a uniform belt at the fitted
+// k2 when no direction-dependent stiffness is named (the config's L was an assumption), L from the
+// ratio when one is named and gives a belt beyond the travel, the config's L otherwise.
+TEST(OverlayFromIdent, TheBeltIsUniformUnlessTheDataShowsADirection) {
+  const config::MachineConfig base = config::default_config();
+  ASSERT_GT(base.model.gantry_for("x")->stepper.belt_unit_stiffness_n, 0.0);  // Eq. 6 by default
+  ident::IdentResult r;
+  r.axis = "x";
+  r.augmented = ident::preset_axis_model("x");
+  r.augmented.k2_n_m = 32100.0;
+  const auto overlay = [&](const ident::IdentResult& res) {
+    auto yaml = merge_overlay(base, "", "", res, 100.0, "fit");
+    EXPECT_TRUE(yaml.ok()) << yaml.error().to_string();
+    auto a = config::apply_calibration_text(base, yaml.value(), "cal.yaml");
+    EXPECT_TRUE(a.ok()) << a.error().to_string() << "\n" << yaml.value();
+    return *a.value().config.model.gantry_for("x");
+  };
+  const auto lpv = [](const config::GantryModelConfig& g) {
+    control::GantryAxisLpvModel m;
+    m.params.k2_n_m = g.k2_n_per_m;
+    m.belt_unit_stiffness_n = g.stepper.belt_unit_stiffness_n;
+    m.pulley_distance_mm = g.stepper.pulley_distance_mm;
+    return m;
+  };
+  // None named: k2 in both directions, everywhere.
+  const config::GantryModelConfig uniform = overlay(r);
+  EXPECT_EQ(uniform.stepper.belt_unit_stiffness_n, 0.0);
+  for (double x_mm : {-80.0, 0.0, 100.0})
+    for (int dir : {-1, 0, 1})
+      EXPECT_DOUBLE_EQ(control::belt_stiffness_n_m(lpv(uniform), x_mm, dir), 32100.0);
+  // Named, ratio 1.5 at the trace's mean 100 mm: L = 500 mm, the directions 1.5 apart there,
+  // their mean the fitted k2.
+  r.augmented.set(ident::Effect::kDirectionStiffness, true);
+  r.augmented.stiffness_ratio = 1.5;
+  r.effects = {ident::Effect::kDirectionStiffness};
+  const config::GantryModelConfig belt = overlay(r);
+  EXPECT_NEAR(belt.stepper.pulley_distance_mm, 500.0, 1e-9);
+  const auto m = lpv(belt);
+  EXPECT_NEAR(control::belt_stiffness_n_m(m, 100.0, 1) / control::belt_stiffness_n_m(m, 100.0, -1),
+              1.5, 1e-9);
+  EXPECT_NEAR(control::belt_stiffness_n_m(m, 100.0, 0), 32100.0, 1e-6);
+  // Named, but a ratio no belt beyond the travel gives (L = 200 mm at ratio 3): the config's L,
+  // k-hat scaled so that the mean is the fitted k2 at 100 mm.
+  r.augmented.stiffness_ratio = 3.0;
+  const config::GantryModelConfig kept = overlay(r);
+  EXPECT_EQ(kept.stepper.pulley_distance_mm,
+            base.model.gantry_for("x")->stepper.pulley_distance_mm);
+  EXPECT_GT(kept.stepper.belt_unit_stiffness_n, 0.0);
+  EXPECT_NEAR(control::belt_stiffness_n_m(lpv(kept), 100.0, 0), 32100.0, 1e-6);
+  // In a hand-written overlay 0 is a uniform belt too; below 0 is an error with its place.
+  auto bad = config::apply_calibration_text(
+      base,
+      "calibration_version: 1\nmodel:\n  gantry:\n    x: {stepper: {belt_unit_stiffness_n: -1}}\n",
+      "cal.yaml");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().to_string().find("cal.yaml:4"), std::string::npos)
       << bad.error().to_string();
 }
 

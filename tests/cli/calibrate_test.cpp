@@ -199,10 +199,11 @@ TEST_F(Calibrate, OnTheSecondSimulatorTheCalibratedModelCutsTheTrackingError) {
   const double open_loop = report["e_t_mm"]["open_loop"].get<double>();
   std::printf("second simulator (seed 7): check pattern e_t %.4f -> %.4f mm, open loop %.4f mm\n",
               before, after, open_loop);
-  // Measured 0.3513 -> 0.0131 mm: the config's thesis model against a machine it does not describe
-  // made the feedforward 6x worse than open loop (0.060 mm); calibrated, 78 % better than it.
+  // Measured 0.3513 -> 0.0054 mm: the config's thesis model against a machine it does not describe
+  // made the feedforward 6x worse than open loop (0.060 mm); calibrated, 91 % better than it
+  // (78 %, 0.0131 mm, while the overlay kept the config's belt geometry).
   EXPECT_LT(after, 0.3 * before);
-  EXPECT_LT(after, 0.35 * open_loop);
+  EXPECT_LT(after, 0.12 * open_loop);
   EXPECT_FALSE(report.contains("warning")) << report["warning"];
   // The carriages keep the config's masses (X 0.45 kg, Y 1.07 kg): identification reads the
   // forces through them. This machine's axes are fitted best from the other axis's start, so
@@ -217,7 +218,35 @@ TEST_F(Calibrate, OnTheSecondSimulatorTheCalibratedModelCutsTheTrackingError) {
     ASSERT_NE(configured, nullptr);
     ASSERT_NE(calibrated, nullptr);
     EXPECT_DOUBLE_EQ(calibrated->m2_kg, configured->m2_kg) << axis;
+    // No direction-dependent stiffness is named on this machine: the belt is uniform at the
+    // fitted k2, not the config's Eq. 6 belt (L 350 mm) that the data did not bear out.
+    EXPECT_GT(configured->stepper.belt_unit_stiffness_n, 0.0) << axis;
+    EXPECT_EQ(calibrated->stepper.belt_unit_stiffness_n, 0.0) << axis;
   }
+}
+
+// Second simulator, seed 1 (X: drawn machine 1, a clean machine whose carriage mode is at 34 Hz):
+// from the thesis's presets the baseline fit stopped at 135 Hz with k1 on its bound (34.7 um held
+// out, 86 % off the measured FRF), the screening named a 226 Hz resonance and an 8.2 N friction
+// the machine does not have, and the calibrated model tracked 0.0238 mm (-62 % against open loop).
+// A baseline that far off its FRF is fitted again from a start read off the FRF (docs/ident.md):
+// measured 8.39 um held out, nothing named on either axis, 0.0055 mm (-91 %).
+TEST_F(Calibrate, OnTheSecondSimulatorABaselineFarFromThePresetsIsStartedFromTheFrf) {
+#ifdef FEEDLOOP_SANITIZED
+  GTEST_SKIP() << "the external plant in lock-step for two minutes of motion: optimized build only";
+#endif
+  const json report = run(1);
+  ASSERT_TRUE(report.is_object());
+  ASSERT_EQ(report["axes"].size(), 2u);
+  const json& x = report["axes"][0];
+  EXPECT_EQ(x["axis"], "x");
+  EXPECT_LT(x["baseline_rms_um"].get<double>(), 15.0) << x.dump();  // was 33.1
+  for (const json& a : report["axes"]) EXPECT_TRUE(a["effects"].empty()) << a.dump();
+  const double after = report["e_t_mm"]["after"].get<double>();
+  const double open_loop = report["e_t_mm"]["open_loop"].get<double>();
+  std::printf("second simulator (seed 1): check pattern e_t %.4f mm, open loop %.4f mm\n", after,
+              open_loop);
+  EXPECT_LT(after, 0.12 * open_loop);
 }
 
 // Second simulator, seed 4 (X and Y of drawn machines 4 and 5): the config's PI gains (the
