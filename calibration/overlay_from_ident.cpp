@@ -77,6 +77,18 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
   return g;
 }
 
+const std::vector<ident::Effect>& effects_not_in_model() {
+  static const std::vector<ident::Effect> effects = {
+      ident::Effect::kPeriodicPosition, ident::Effect::kExtraResonance, ident::Effect::kScaleError};
+  return effects;
+}
+
+ident::IdentResult with_carried_model(const ident::IdentResult& r) {
+  ident::IdentResult c = r;
+  c.augmented = r.carried;
+  return c;
+}
+
 std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r,
                                                           double mean_position_mm,
                                                           double max_abs_position_mm) {

@@ -397,8 +397,11 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
   // kind: from the Y start 120.8 um RMS, from the X start 16.3). The better held-out RMS wins.
   // Both fits are scaled to the config's carriage mass when it has one (ident::FitOptions: the
   // positions and names do not change, the forces come out in that carriage's newtons).
+  // The start whose model without the effects the feedforward cannot carry predicts the held-out
+  // part better wins (calibration::effects_not_in_model: that model is the overlay's).
   ident::FitOptions o;
   o.carriage_mass_kg = carriage_mass_kg;
+  o.not_carried = calibration::effects_not_in_model();
   Result<ident::IdentResult> r = Error{"no fit"};
   for (const char* start : {"x", "y"}) {
     auto f = ident::identify_axis(start, t.cmd_mm[j], t.meas_mm[j], 1.0 / t.rate_hz, o);
@@ -407,7 +410,8 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
       continue;
     }
     f.value().axis = axis;
-    if (!r || f.value().augmented_validation_rms_um < r.value().augmented_validation_rms_um) r = std::move(f);
+    if (!r || f.value().carried_validation_rms_um < r.value().carried_validation_rms_um)
+      r = std::move(f);
   }
   if (!r) return r.error();
   if (Status s = ident::write_report(dir, r.value(), t.time_s, t.cmd_mm[j], t.meas_mm[j], 1.0 / t.rate_hz, csv); !s)
@@ -684,9 +688,9 @@ int calibrate(const std::vector<std::string>& args) {
       break;
     }
     const ident::IdentResult& r = got.value().fit;
-    auto merged = calibration::merge_overlay(cfg, overlay, out_dir + "/calibration.yaml", r,
-                                             got.value().mean_mm,
-                                             "feedloop calibrate, recording " + rec.value());
+    auto merged = calibration::merge_overlay(
+        cfg, overlay, out_dir + "/calibration.yaml", calibration::with_carried_model(r),
+        got.value().mean_mm, "feedloop calibrate, recording " + rec.value());
     if (!merged) {
       excited = merged.error();
       break;

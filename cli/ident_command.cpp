@@ -226,8 +226,9 @@ Status write_overlay(const std::string& path, const config::MachineConfig& base,
                      const std::string& source) {
   auto existing = read_existing_text_file(path);
   if (!existing) return existing.error();
-  auto yaml = calibration::merge_overlay(base, existing.value().value_or(""), path, r,
-                                         mean_position_mm, source);
+  auto yaml =
+      calibration::merge_overlay(base, existing.value().value_or(""), path,
+                                 calibration::with_carried_model(r), mean_position_mm, source);
   if (!yaml) return yaml.error();
   return write_text_file(path, yaml.value());
 }
@@ -236,6 +237,7 @@ int fit(const std::vector<std::string>& args) {
   std::string trace_path, out_dir, axis_name, overlay_path, config_path;
   ident::ReportOptions report_options;
   ident::FitOptions o;
+  o.not_carried = calibration::effects_not_in_model();  // the overlay's model (--overlay)
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     const bool has_value = i + 1 < args.size();

@@ -1288,8 +1288,34 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
         100.0 * out.augmented_validation_rms_um / std::max(motion_um, 1e-12), motion_um);
     out.warnings.emplace_back(buf);
   }
+  out.carried = out.augmented;
+  out.carried_validation_rms_um = out.augmented_validation_rms_um;
+  bool drop = false;
+  for (Effect e : o.not_carried) drop |= out.augmented.has(e);
+  if (drop) {
+    report(1.0, "refit without the effects not carried");
+    AxisModel m = out.augmented;
+    for (Effect e : o.not_carried) m.set(e, false);
+    AxisModel fitted = levenberg_marquardt(m, free_params(m), pb, o.max_iterations, fit_end);
+    std::vector<double> y;
+    if (run(fitted, pb, &y)) {
+      out.carried = fitted;
+      out.carried_validation_rms_um = residual_rms_um(y, meas_mm, pb.train_end, n);
+    }
+    bool any_left = false;
+    for (int i = 0; i < kEffectCount; ++i) any_left |= out.carried.enabled[i];
+    if (!any_left && out.baseline_validation_rms_um < out.carried_validation_rms_um) {
+      // The baseline fitted alone; the effects' own fields stay the augmented model's (reported).
+      out.carried.k1_n_m = out.baseline.k1_n_m;
+      out.carried.k2_n_m = out.baseline.k2_n_m;
+      out.carried.c1_n_s_m = out.baseline.c1_n_s_m;
+      out.carried.c2_n_s_m = out.baseline.c2_n_s_m;
+      out.carried_validation_rms_um = out.baseline_validation_rms_um;
+    }
+  }
   out.baseline = with_carriage_mass(out.baseline, o.carriage_mass_kg);
   out.augmented = with_carriage_mass(out.augmented, o.carriage_mass_kg);
+  out.carried = with_carriage_mass(out.carried, o.carriage_mass_kg);
   return out;
 }
 

@@ -48,6 +48,11 @@ struct FitOptions {
   // (coulomb_friction's key) is only as right as this mass. The fit runs on the preset and its
   // models are scaled to this mass at the end: the positions and the names do not depend on it.
   double carriage_mass_kg = 0.0;
+  // Effects the model's consumer does not carry (feedloop calibrate: the feedforward has no
+  // runout, extra mode or scale). When any is named, IdentResult::carried is the augmented model
+  // without them, refitted: the baseline fitted beside an effect bends around it, and without
+  // the effect that bend is error.
+  std::vector<Effect> not_carried;
   int max_effects = 3;
   int max_iterations = 20;         // Levenberg-Marquardt iterations per full fit
   int screen_iterations = 8;       // ... per candidate while screening (6 missed a 2 N friction
@@ -73,6 +78,9 @@ struct IdentResult {
   AxisModel baseline;              // fitted baseline
   AxisModel augmented;             // fitted baseline + kept effects (== baseline when none)
   std::vector<Effect> effects;     // kept effects, in the order found
+  AxisModel carried;  // augmented without FitOptions::not_carried, refitted (== augmented when none
+                      // is named)
+  double carried_validation_rms_um = 0.0;
   double baseline_rms_um = 0.0;    // over the whole trace
   double augmented_rms_um = 0.0;
   double baseline_validation_rms_um = 0.0;  // over the held-out part

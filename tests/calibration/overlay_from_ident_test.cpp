@@ -170,5 +170,33 @@ TEST(OverlayFromIdent, TheBeltIsUniformUnlessTheDataShowsADirection) {
       << bad.error().to_string();
 }
 
+// The overlay writes the carried model (identification's model without the effects the
+// feedforward does not carry), and still records the effects left out, with their parameters.
+TEST(OverlayFromIdent, TheOverlayWritesTheModelTheFeedforwardCarries) {
+  const config::MachineConfig base = config::default_config();
+  ident::IdentResult r;
+  r.axis = "x";
+  r.augmented = ident::preset_axis_model("x");
+  r.augmented.k2_n_m = 61000.0;
+  r.augmented.set(ident::Effect::kExtraResonance, true);
+  r.augmented.extra_freq_hz = 44.8;
+  r.effects = {ident::Effect::kExtraResonance};
+  r.carried = ident::preset_axis_model("x");
+  r.carried.k2_n_m = 52000.0;
+  r.carried.extra_freq_hz = 44.8;
+  auto yaml = merge_overlay(base, "", "", with_carried_model(r), 100.0, "fit");
+  ASSERT_TRUE(yaml.ok()) << yaml.error().to_string();
+  auto a = config::apply_calibration_text(base, yaml.value(), "cal.yaml");
+  ASSERT_TRUE(a.ok()) << a.error().to_string();
+  EXPECT_EQ(a.value().config.model.gantry_for("x")->k2_n_per_m, 52000.0);
+  ASSERT_EQ(a.value().effects.size(), 1u);
+  EXPECT_EQ(a.value().effects[0].name, "extra_resonance");
+  EXPECT_FALSE(a.value().effects[0].in_model);
+  EXPECT_NEAR(a.value().effects[0].params.at("freq_hz"), 44.8, 1e-9);
+  for (ident::Effect e : effects_not_in_model())
+    EXPECT_TRUE(e == ident::Effect::kPeriodicPosition || e == ident::Effect::kExtraResonance ||
+                e == ident::Effect::kScaleError);
+}
+
 }  // namespace
 }  // namespace feedloop::calibration

@@ -141,6 +141,29 @@ TEST(CalibrationProgram, SecondSimulatorsModeAboveTheSweepsEnergyIsReadOffTheFrf
   EXPECT_NEAR(r.augmented.extra_freq_hz, f_true, 0.25 * f_true);
 }
 
+// The model without the effects a consumer does not carry (FitOptions::not_carried; feedloop
+// calibrate's feedforward has no extra mode): the same draw's 111 Hz mode is named, and the
+// carried model is the baseline structure refitted without it, predicting the held-out part at
+// least as well as the baseline fitted alone. With nothing left out it is the augmented model.
+TEST(CalibrationProgram, TheCarriedModelIsRefittedWithoutTheEffectsLeftOut) {
+  FitOptions fo;
+  fo.not_carried = {Effect::kExtraResonance, Effect::kPeriodicPosition, Effect::kScaleError};
+  const IdentResult r =
+      identify_plant2(1024, plant2::EffectKind::extra_resonance, nullptr, "freq_hz", fo);
+  ASSERT_EQ(r.effects.size(), 1u);
+  EXPECT_TRUE(r.augmented.has(Effect::kExtraResonance));
+  EXPECT_FALSE(r.carried.has(Effect::kExtraResonance));
+  std::printf("held out: baseline %.3f, augmented %.3f, carried %.3f um\n",
+              r.baseline_validation_rms_um, r.augmented_validation_rms_um,
+              r.carried_validation_rms_um);
+  EXPECT_LE(r.carried_validation_rms_um, r.baseline_validation_rms_um + 1e-9);
+  EXPECT_GE(r.carried_validation_rms_um, r.augmented_validation_rms_um);
+  const IdentResult all = identify_plant2(1024, plant2::EffectKind::extra_resonance, nullptr);
+  EXPECT_TRUE(all.carried.has(Effect::kExtraResonance));
+  EXPECT_EQ(all.carried.k2_n_m, all.augmented.k2_n_m);
+  EXPECT_EQ(all.carried_validation_rms_um, all.augmented_validation_rms_um);
+}
+
 // The clean draw whose baseline misses its FRF most near a candidate mode of the 50 clean draws
 // (seed 1007, X: 0.43 within +-25 % of 76 Hz, below the 0.5 a mode must first show).
 TEST(CalibrationProgram, SecondSimulatorsCleanAxisNamesNoModeFromTheFrf) {
