@@ -4,10 +4,16 @@
 #include <algorithm>  // std::max
 #include <cmath>
 
-#include "control/feedforward/gantry_lpv.hpp"
 #include "ident/report.hpp"
 
 namespace feedloop::calibration {
+
+double direction_ratio_in_model(const ident::AxisModel& m) {
+  const double r = m.stiffness_ratio;
+  // The config's range (0.1-10); identification fits 0.4-2.5.
+  if (!m.has(ident::Effect::kDirectionStiffness) || !(r >= 0.1 && r <= 10.0)) return 1.0;
+  return r;
+}
 
 bool apply_damping_floor(config::GantryModelConfig& g, double zeta_min) {
   // Each spring's own mode: the motor's rotor on k1 (m1), the carriage on the belt k2 (m2).
@@ -19,22 +25,8 @@ bool apply_damping_floor(config::GantryModelConfig& g, double zeta_min) {
   return raised;
 }
 
-double belt_length_from_direction_ratio(double ratio, double mean_position_mm,
-                                        double max_abs_position_mm) {
-  // K2(+) / K2(-) = (L + x) / (L - x) (Eq. 6, x0 = 0) at the trace's mean position x.
-  if (!(std::abs(ratio - 1.0) > 0.02) || !std::isfinite(ratio) || !std::isfinite(mean_position_mm))
-    return 0.0;
-  const double l_mm = mean_position_mm * (ratio + 1.0) / (ratio - 1.0);
-  // The belt spans the travel (the LPV grid covers |x| <= 0.8 L and holds its edge designs
-  // beyond), and is not kilometres long.
-  if (!(l_mm > 1.05 * max_abs_position_mm) || l_mm > 20000.0) return 0.0;
-  return l_mm;
-}
-
 config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
-                                                  const config::GantryModelConfig* current,
-                                                  double mean_position_mm,
-                                                  double max_abs_position_mm) {
+                                                  const config::GantryModelConfig* current) {
   config::GantryModelConfig g = current != nullptr ? *current : config::GantryModelConfig{};
   g.axis = r.axis;
   const ident::AxisModel& m = r.augmented;
@@ -45,30 +37,15 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
   g.c1_ns_per_m = m.c1_n_s_m;
   g.c2_ns_per_m = m.c2_n_s_m;
   apply_damping_floor(g);
-  if (!m.has(ident::Effect::kDirectionStiffness)) {
-    // The data shows no direction-dependent stiffness: a uniform belt at the fitted k2. The
-    // config's Eq. 6 geometry (L, the anchor at x0 = 0) is an assumption the machine did not
-    // bear out; kept, it schedules K2 by (L + x) / (L - x) between the directions (a factor 2
-    // at x = L / 3), and the second simulator's seed 2 tracked the check pattern 25 um behind
-    // on X at 90 mm/s whichever way it moved (docs/calibration.md, "The belt's geometry").
-    g.stepper.belt_unit_stiffness_n = 0.0;
-  } else if (const double l_mm = belt_length_from_direction_ratio(
-                 m.stiffness_ratio, mean_position_mm, max_abs_position_mm);
-             l_mm > 0.0) {
-    g.stepper.pulley_distance_mm = l_mm;
-    if (!(g.stepper.belt_unit_stiffness_n > 0.0))
-      g.stepper.belt_unit_stiffness_n = 1.0;  // set below
-  }
-  // Named but with no Eq. 6 belt that spans the travel: the config's geometry stays, scaled below.
-  if (g.stepper.belt_unit_stiffness_n > 0.0 && g.stepper.pulley_distance_mm > 0.0) {
-    // Eq. 6 direction-averaged: K2(x) = k_hat L / (L^2 - x^2); k_hat so that K2(x_mean) = k2 (the
-    // fit's k2 is the mean of its two directions' stiffnesses).
-    control::GantryAxisLpvModel unit;
-    unit.belt_unit_stiffness_n = 1.0;
-    unit.pulley_distance_mm = g.stepper.pulley_distance_mm;
-    const double per_unit = control::belt_stiffness_n_m(unit, mean_position_mm, 0);
-    if (per_unit > 0.0) g.stepper.belt_unit_stiffness_n = m.k2_n_m / per_unit;
-  }
+  // The belt the fit found: uniform at k2, and K2 pulling + / pulling - the named ratio (K+ =
+  // 2 r k2 / (1 + r), K- = 2 k2 / (1 + r)). The config's Eq. 6 geometry (L, the anchor at x0 = 0)
+  // is an assumption the fit did not test; kept, it schedules K2 by (L + x) / (L - x) between the
+  // directions (a factor 2 at x = L / 3): the second simulator's seed 2 tracked the check pattern
+  // 25 um behind on X at 90 mm/s whichever way it moved (docs/calibration.md, "The belt's
+  // geometry"), and a ratio below 1 (the second simulator draws 1/2.2-1/1.4 as often as 1.4-2.2)
+  // is no Eq. 6 belt with its anchor at 0 at any x > 0.
+  g.stepper.belt_unit_stiffness_n = 0.0;
+  g.belt_direction_ratio = direction_ratio_in_model(m);
   const bool friction = m.has(ident::Effect::kCoulombFriction);
   g.coulomb_friction_n = friction ? m.friction_force_n : 0.0;
   if (friction) g.friction_bristle_mm = m.presliding_um * 1e-3;
@@ -89,28 +66,26 @@ ident::IdentResult with_carried_model(const ident::IdentResult& r) {
   return c;
 }
 
-std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r,
-                                                          double mean_position_mm,
-                                                          double max_abs_position_mm) {
+std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r) {
   std::vector<config::CalibrationEffect> out;
   for (ident::Effect e : r.effects) {
     config::CalibrationEffect c;
     c.axis = r.axis;
     c.name = ident::effect_name(e);
     for (const auto& [k, v] : ident::effect_params_report(r.augmented, e)) c.params[k] = v;
-    c.in_model = e == ident::Effect::kCoulombFriction || e == ident::Effect::kBacklash ||
-                 e == ident::Effect::kTimeDelay ||
-                 (e == ident::Effect::kDirectionStiffness &&
-                  belt_length_from_direction_ratio(r.augmented.stiffness_ratio, mean_position_mm,
-                                                   max_abs_position_mm) > 0.0);
+    c.in_model =
+        e == ident::Effect::kCoulombFriction || e == ident::Effect::kBacklash ||
+        e == ident::Effect::kTimeDelay ||
+        (e == ident::Effect::kDirectionStiffness && direction_ratio_in_model(r.augmented) != 1.0);
     out.push_back(std::move(c));
   }
   return out;
 }
 
-Result<std::string> merge_overlay(const config::MachineConfig& base, const std::string& existing_yaml,
+Result<std::string> merge_overlay(const config::MachineConfig& base,
+                                  const std::string& existing_yaml,
                                   const std::string& existing_name, const ident::IdentResult& r,
-                                  double mean_position_mm, const std::string& source) {
+                                  const std::string& source) {
   config::Calibration c;
   c.source = source;
   if (!existing_yaml.empty()) {
@@ -124,14 +99,8 @@ Result<std::string> merge_overlay(const config::MachineConfig& base, const std::
     if (!old.value().source.empty() && old.value().source != source) c.source = old.value().source + "; " + source;
     c.gains = old.value().gains;
   }
-  double max_abs_mm = 0.0;
-  if (const config::AxisConfig* a = base.axis(r.axis))
-    max_abs_mm = std::max(std::isfinite(a->min_mm) ? std::abs(a->min_mm) : 0.0,
-                          std::isfinite(a->max_mm) ? std::abs(a->max_mm) : 0.0);
-  c.gantry.push_back(
-      gantry_model_from_ident(r, base.model.gantry_for(r.axis), mean_position_mm, max_abs_mm));
-  for (config::CalibrationEffect& e : effects_from_ident(r, mean_position_mm, max_abs_mm))
-    c.effects.push_back(std::move(e));
+  c.gantry.push_back(gantry_model_from_ident(r, base.model.gantry_for(r.axis)));
+  for (config::CalibrationEffect& e : effects_from_ident(r)) c.effects.push_back(std::move(e));
   return config::calibration_yaml(c);
 }
 

@@ -26,26 +26,19 @@ namespace feedloop::calibration {
 // True when it raised one.
 bool apply_damping_floor(config::GantryModelConfig& g, double zeta_min = 0.05);
 
-// L (mm) from a direction ratio measured at mean_position_mm, or 0 when the model cannot use it
-// (no ratio, or L not beyond the travel's largest |x| by 5 %).
-double belt_length_from_direction_ratio(double ratio, double mean_position_mm,
-                                        double max_abs_position_mm);
-
-// The belt: Eq. 6 with L from the direction ratio when direction_dependent_stiffness is named
-// and gives a belt beyond the travel; uniform at the fitted k2 (belt_unit_stiffness_n 0) when it
-// is not named; otherwise the config's L, its k-hat scaled to the fitted k2.
+// The belt is the one identification fitted: uniform at the fitted k2 (belt_unit_stiffness_n 0),
+// with the named direction_dependent_stiffness's ratio as belt_direction_ratio (1 when none is
+// named). The config's Eq. 6 geometry is an assumption the fit does not test.
 // `current`: the config's model of that axis (what the fit does not give is kept; nullptr: the
-// defaults); `mean_position_mm`: the mean commanded position of the trace the fit used;
-// `max_abs_position_mm`: the axis's travel, the largest |x|.
+// defaults).
 config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
-                                                  const config::GantryModelConfig* current,
-                                                  double mean_position_mm,
-                                                  double max_abs_position_mm);
+                                                  const config::GantryModelConfig* current);
+// The ratio the overlay writes as belt_direction_ratio: m's direction_dependent_stiffness ratio
+// when it is named (and within the config's 0.1-10), else 1.
+double direction_ratio_in_model(const ident::AxisModel& m);
 
 // Every named effect of r, with in_model set as above.
-std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r,
-                                                          double mean_position_mm,
-                                                          double max_abs_position_mm);
+std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r);
 
 // The named effects the feedforward does not carry (recorded in the overlay with in_model false):
 // runout, an extra mode, a scale error. Identification is asked for the model without them
@@ -59,9 +52,10 @@ ident::IdentResult with_carried_model(const ident::IdentResult& r);
 
 // The overlay `existing` (an overlay file's text, "" for none) with r's axis replaced: what
 // `feedloop ident fit --overlay` writes, so that fitting x then y leaves both in one file.
-Result<std::string> merge_overlay(const config::MachineConfig& base, const std::string& existing_yaml,
+Result<std::string> merge_overlay(const config::MachineConfig& base,
+                                  const std::string& existing_yaml,
                                   const std::string& existing_name, const ident::IdentResult& r,
-                                  double mean_position_mm, const std::string& source);
+                                  const std::string& source);
 
 // The overlay `yaml` with its control.axes gains replaced by `gains` (empty: none, the config's
 // gains apply): what `feedloop calibrate` installs after choosing the PI gains on the calibrated

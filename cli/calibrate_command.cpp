@@ -341,7 +341,6 @@ Result<std::string> choose_pi_gains(Api& api, const Plan& plan, const config::Ma
 struct AxisOutcome {
   std::string axis, recording;
   ident::IdentResult fit;
-  double mean_mm = 0.0;
 };
 
 // carriage_mass_kg: the config's m2 of the axis (0: none configured), the mass identification
@@ -420,7 +419,6 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
   out.axis = axis;
   out.recording = last_part;
   out.fit = std::move(r.value());
-  for (double u : t.cmd_mm[j]) out.mean_mm += u / static_cast<double>(t.cmd_mm[j].size());
   return out;
 }
 
@@ -688,9 +686,9 @@ int calibrate(const std::vector<std::string>& args) {
       break;
     }
     const ident::IdentResult& r = got.value().fit;
-    auto merged = calibration::merge_overlay(
-        cfg, overlay, out_dir + "/calibration.yaml", calibration::with_carried_model(r),
-        got.value().mean_mm, "feedloop calibrate, recording " + rec.value());
+    auto merged = calibration::merge_overlay(cfg, overlay, out_dir + "/calibration.yaml",
+                                             calibration::with_carried_model(r),
+                                             "feedloop calibrate, recording " + rec.value());
     if (!merged) {
       excited = merged.error();
       break;

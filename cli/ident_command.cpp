@@ -222,13 +222,11 @@ int excite(const std::vector<std::string>& args) {
 // The fitted axis into the overlay at `path` (kept: the other axes already in it), written to a
 // temporary file and renamed over it, so a reader never sees half of it.
 Status write_overlay(const std::string& path, const config::MachineConfig& base,
-                     const ident::IdentResult& r, double mean_position_mm,
-                     const std::string& source) {
+                     const ident::IdentResult& r, const std::string& source) {
   auto existing = read_existing_text_file(path);
   if (!existing) return existing.error();
-  auto yaml =
-      calibration::merge_overlay(base, existing.value().value_or(""), path,
-                                 calibration::with_carried_model(r), mean_position_mm, source);
+  auto yaml = calibration::merge_overlay(base, existing.value().value_or(""), path,
+                                         calibration::with_carried_model(r), source);
   if (!yaml) return yaml.error();
   return write_text_file(path, yaml.value());
 }
@@ -352,10 +350,8 @@ int fit(const std::vector<std::string>& args) {
               extras.plots.size(), secs);
   if (!extras.plot_note.empty()) std::printf("note: %s\n", extras.plot_note.c_str());
   if (!overlay_path.empty()) {
-    double mean_mm = 0.0;
-    for (double u : axis->cmd_mm) mean_mm += u / static_cast<double>(axis->cmd_mm.size());
-    if (auto w = write_overlay(overlay_path, *overlay_base, res, mean_mm,
-                               "feedloop ident fit of " + trace_path);
+    if (auto w =
+            write_overlay(overlay_path, *overlay_base, res, "feedloop ident fit of " + trace_path);
         !w) {
       std::fprintf(stderr, "feedloop ident fit: %s\n", w.error().to_string().c_str());
       return 1;

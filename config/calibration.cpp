@@ -34,6 +34,7 @@ constexpr NumericKey kKeys[] = {
     {"coulomb_friction_n", [](const GantryModelConfig& g) { return g.coulomb_friction_n; }},
     {"friction_bristle_mm", [](const GantryModelConfig& g) { return g.friction_bristle_mm; }},
     {"backlash_mm", [](const GantryModelConfig& g) { return g.backlash_mm; }},
+    {"belt_direction_ratio", [](const GantryModelConfig& g) { return g.belt_direction_ratio; }},
     {"encoder_delay_ms", [](const GantryModelConfig& g) { return g.encoder_delay_ms; }},
     {"stepper.belt_unit_stiffness_n",
      [](const GantryModelConfig& g) { return g.stepper.belt_unit_stiffness_n; }},

@@ -209,6 +209,7 @@ void write_model(Writer& w, const MachineConfig& c) {
       w.num("coulomb_friction_n", g.coulomb_friction_n);
       w.num("friction_bristle_mm", g.friction_bristle_mm);
       w.num("backlash_mm", g.backlash_mm);
+      w.num("belt_direction_ratio", g.belt_direction_ratio);
       w.num("encoder_delay_ms", g.encoder_delay_ms);
       const StepperConfig& s = g.stepper;
       w.begin("stepper");

@@ -284,6 +284,10 @@ struct GantryModelConfig {
   double backlash_mm = 0.0;  // dead band between the pulley and the belt (not in Eq. 13: what
                              // `feedloop ident fit` reports as backlash width_um); the LPV
                              // feedforward crosses it ahead of each reversal of the belt force
+  double belt_direction_ratio = 1.0;  // K2 pulling + / K2 pulling - beyond Eq. 6 (what `feedloop
+                                      // ident fit` reports as direction_dependent_stiffness
+                                      // ratio): the belt's stiffness is 2 r / (1 + r) of Eq. 6's
+                                      // pulling + and 2 / (1 + r) pulling -; 1: none
   double encoder_delay_ms = 0.0;  // the encoder's reading shows the carriage this long ago (what
                                   // `feedloop ident fit` reports as time_delay delay_ms): the
                                   // loops and e_t compare it with the reference of that instant

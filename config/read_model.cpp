@@ -43,6 +43,8 @@ void read_gantry_axis(MapReader& g, GantryModelConfig& m, Need six, Diagnostics&
   // 0.5 um - 1 mm: the identification fits 1-300 um.
   g.number("friction_bristle_mm", m.friction_bristle_mm, Range::closed(0.0005, 1.0));
   g.number("backlash_mm", m.backlash_mm, Range::closed(0.0, 1.0));
+  // Identification fits 0.4-2.5; a belt ten times stiffer one way than the other is a typo.
+  g.number("belt_direction_ratio", m.belt_direction_ratio, Range::closed(0.1, 10.0));
   // Up to 50 ms: the identification's delays are a few ms; a device loop compares its encoder
   // with a target sent this much later (engine/mcu_bridge.cpp).
   g.number("encoder_delay_ms", m.encoder_delay_ms, Range::closed(0.0, 50.0));

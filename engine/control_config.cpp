@@ -181,6 +181,7 @@ Result<std::unique_ptr<control::Feedforward>> model_inverse(const config::Machin
     m.coulomb_friction_n = g->coulomb_friction_n;
     m.friction_bristle_mm = g->friction_bristle_mm;
     m.backlash_mm = g->backlash_mm;
+    m.direction_ratio = g->belt_direction_ratio;
     if (const config::AxisConfig* ax = cfg.axis(names[a])) {
       m.min_mm = ax->min_mm;
       m.max_mm = ax->max_mm;

@@ -7,12 +7,18 @@
 namespace feedloop::control {
 
 double belt_stiffness_n_m(const GantryAxisLpvModel& m, double x_mm, int direction) {
-  if (!(m.belt_unit_stiffness_n > 0.0)) return m.params.k2_n_m;
+  // A constant ratio r between the directions about their mean (the identified
+  // direction_dependent_stiffness: K+ = 2 r k2 / (1 + r), K- = 2 k2 / (1 + r)).
+  const double r = m.direction_ratio;
+  const double dir_factor = direction > 0   ? 2.0 * r / (1.0 + r)
+                            : direction < 0 ? 2.0 / (1.0 + r)
+                                            : 1.0;
+  if (!(m.belt_unit_stiffness_n > 0.0)) return m.params.k2_n_m * dir_factor;
   const double L = m.pulley_distance_mm * 1e-3;
   const double x = std::clamp(x_mm * 1e-3, -0.8 * L, 0.8 * L);
   // Eq. 6 with x0 = 0: k_hat / (L - x) pulling +, k_hat / (L + x) pulling -; or their mean.
-  if (direction > 0) return m.belt_unit_stiffness_n / (L - x);
-  if (direction < 0) return m.belt_unit_stiffness_n / (L + x);
+  if (direction > 0) return dir_factor * m.belt_unit_stiffness_n / (L - x);
+  if (direction < 0) return dir_factor * m.belt_unit_stiffness_n / (L + x);
   return m.belt_unit_stiffness_n * L / (L * L - x * x);
 }
 
@@ -37,8 +43,11 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
     lo = std::isfinite(lo) ? std::max(lo, -lim) : -lim;
     hi = std::isfinite(hi) ? std::min(hi, lim) : lim;
     if (!(hi >= lo)) return Error{axis + ": empty travel for the feedforward grid", {}};
+    if (!(ax.direction_ratio >= 0.1 && ax.direction_ratio <= 10.0))
+      return Error{axis + ": direction_ratio must be within 0.1-10", {}};
     const bool lpv = ax.belt_unit_stiffness_n > 0.0 && hi > lo;
-    const bool directional = lpv && ax.direction_scheduled;
+    // A position grid for Eq. 6; two directions for Eq. 6 or for a ratio of its own.
+    const bool directional = (lpv || ax.direction_ratio != 1.0) && ax.direction_scheduled;
     if (directional && !(ax.direction_force_n > 0.0 && std::isfinite(ax.direction_force_n)))
       return Error{axis + ": direction_force_n must be > 0 and finite", {}};
     ff->grid_[a] = UniformGrid::span(lo, hi, lpv ? std::max(2, ax.grid_points) : 1);
@@ -56,7 +65,8 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
       return Error{axis + ": direction_force_n must be > 0 and finite", {}};
     ff->models_[a] = ax;
     std::vector<PreviewInverse> table;
-    // Directional: designs 0..G-1 pulling - (K2 = k_hat / (L + x)), G..2G-1 pulling +.
+    // Directional: designs 0..G-1 pulling - (K2 = k_hat / (L + x)), G..2G-1 pulling + (G = 1
+    // without Eq. 6).
     const int directions[2] = {-1, +1};
     for (int dir = 0; dir < (directional ? 2 : 1); ++dir) {
       for (int i = 0; i < ff->grid_[a].count; ++i) {

@@ -37,10 +37,16 @@ struct GantryAxisLpvModel {
   model::GantryAxisParams params;     // Eq. 13; params.k2_n_m is replaced by K2(x) at each grid point
   double belt_unit_stiffness_n = 0;   // k_hat of Eq. 6; <= 0: constant k2 (no position dependence)
   double pulley_distance_mm = 300.0;  // L of Eq. 6
+  // r = K2 pulling + / K2 pulling - beyond Eq. 6 (the identified direction_dependent_stiffness,
+  // a ratio constant along the travel): the belt is 2 r / (1 + r) times Eq. 6's (or k2's)
+  // stiffness pulling + and 2 / (1 + r) times pulling -, so the two directions' mean stays. 1:
+  // none.
+  double direction_ratio = 1.0;
   double min_mm = -100.0;             // travel covered by the grid (clamped to |x| <= 0.8 L)
   double max_mm = 100.0;
   int grid_points = 25;
-  // Schedule on the stretch direction too (needs belt_unit_stiffness_n > 0). false: the
+  // Schedule on the stretch direction too (needs belt_unit_stiffness_n > 0 or a direction_ratio
+  // other than 1). false: the
   // direction-averaged K2 (the F0 -> infinity limit, up to blending designs vs averaging K2).
   bool direction_scheduled = true;
   // F0 of the direction weight, N: the planned belt force at which the blend is 88 % one
@@ -59,7 +65,8 @@ struct GantryAxisLpvModel {
 
 // Eq. 6 at carriage position x_mm, in N/m: direction > 0 for the belt pulling the carriage
 // towards + (stretch x1 - x2 > 0: k_hat / (L - x)), < 0 towards - (k_hat / (L + x)), 0 the mean
-// of the two, k_hat L / (L^2 - x^2). Without k_hat (<= 0): the constant params.k2_n_m.
+// of the two, k_hat L / (L^2 - x^2). Without k_hat (<= 0): the constant params.k2_n_m. Either way
+// times 2 r / (1 + r) pulling + and 2 / (1 + r) pulling - (r = direction_ratio).
 double belt_stiffness_n_m(const GantryAxisLpvModel& m, double x_mm, int direction = 0);
 
 // The planned belt force on the carriage, N (Eq. 13 load side at the plan: m2 a + c2 v), from

@@ -7,6 +7,7 @@
 #include "control/feedforward/gantry_lpv.hpp"
 
 #include <cmath>
+#include <utility>  // std::make_pair
 
 namespace feedloop::calibration {
 namespace {
@@ -38,14 +39,6 @@ TEST(DampingFloor, RaisesOnlyTheSpringWhoseModeIsBarelyDamped) {
   EXPECT_FALSE(apply_damping_floor(thesis, 0.05));
   EXPECT_DOUBLE_EQ(thesis.c1_ns_per_m, copy.c1_ns_per_m);
   EXPECT_DOUBLE_EQ(thesis.c2_ns_per_m, copy.c2_ns_per_m);
-}
-
-TEST(BeltLength, FromTheDirectionRatioOnlyWhenTheBeltSpansTheTravel) {
-  // K2(+)/K2(-) = (L + x)/(L - x): L = x (r + 1)/(r - 1).
-  EXPECT_NEAR(belt_length_from_direction_ratio(1.5, 70.0, 150.0), 350.0, 1e-9);
-  EXPECT_EQ(belt_length_from_direction_ratio(1.01, 70.0, 150.0), 0.0);  // no ratio to speak of
-  EXPECT_EQ(belt_length_from_direction_ratio(3.0, 70.0, 150.0), 0.0);   // L 140 < the travel
-  EXPECT_EQ(belt_length_from_direction_ratio(NAN, 70.0, 150.0), 0.0);
 }
 
 // The gains calibrate chose replace the overlay's (or go, with none), and the model, effects and
@@ -86,7 +79,7 @@ TEST(OverlayFromIdent, TheTimeDelayBecomesTheEncodersDelay) {
   r.augmented.set(ident::Effect::kTimeDelay, true);
   r.augmented.delay_ms = 3.25;
   r.effects = {ident::Effect::kTimeDelay};
-  auto yaml = merge_overlay(base, "", "", r, 100.0, "fit");
+  auto yaml = merge_overlay(base, "", "", r, "fit");
   ASSERT_TRUE(yaml.ok()) << yaml.error().to_string();
   auto a = config::apply_calibration_text(base, yaml.value(), "cal.yaml");
   ASSERT_TRUE(a.ok()) << a.error().to_string() << "\n" << yaml.value();
@@ -98,8 +91,8 @@ TEST(OverlayFromIdent, TheTimeDelayBecomesTheEncodersDelay) {
   // Without the effect: no delay.
   r.augmented.set(ident::Effect::kTimeDelay, false);
   r.effects.clear();
-  auto none = config::apply_calibration_text(
-      base, merge_overlay(base, "", "", r, 100.0, "fit").value(), "cal.yaml");
+  auto none = config::apply_calibration_text(base, merge_overlay(base, "", "", r, "fit").value(),
+                                             "cal.yaml");
   ASSERT_TRUE(none.ok());
   EXPECT_EQ(none.value().config.model.gantry_for("x")->encoder_delay_ms, 0.0);
   // Out of range in an overlay: located.
@@ -111,10 +104,10 @@ TEST(OverlayFromIdent, TheTimeDelayBecomesTheEncodersDelay) {
       << bad.error().to_string();
 }
 
-// The belt the feedforward schedules on (Eq. 6) comes from the data: a uniform belt at the fitted
-// k2 when no direction-dependent stiffness is named (the config's L was an assumption), L from the
-// ratio when one is named and gives a belt beyond the travel, the config's L otherwise.
-TEST(OverlayFromIdent, TheBeltIsUniformUnlessTheDataShowsADirection) {
+// The belt the feedforward schedules on comes from the data: uniform at the fitted k2, and the
+// named direction ratio (above or below 1) as the belt's own, about that mean; the config's Eq. 6
+// geometry (its L) is not the data's and goes.
+TEST(OverlayFromIdent, TheBeltIsTheFittedOneUniformWithTheNamedDirectionRatio) {
   const config::MachineConfig base = config::default_config();
   ASSERT_GT(base.model.gantry_for("x")->stepper.belt_unit_stiffness_n, 0.0);  // Eq. 6 by default
   ident::IdentResult r;
@@ -122,45 +115,51 @@ TEST(OverlayFromIdent, TheBeltIsUniformUnlessTheDataShowsADirection) {
   r.augmented = ident::preset_axis_model("x");
   r.augmented.k2_n_m = 32100.0;
   const auto overlay = [&](const ident::IdentResult& res) {
-    auto yaml = merge_overlay(base, "", "", res, 100.0, "fit");
+    auto yaml = merge_overlay(base, "", "", res, "fit");
     EXPECT_TRUE(yaml.ok()) << yaml.error().to_string();
     auto a = config::apply_calibration_text(base, yaml.value(), "cal.yaml");
     EXPECT_TRUE(a.ok()) << a.error().to_string() << "\n" << yaml.value();
-    return *a.value().config.model.gantry_for("x");
+    return std::make_pair(*a.value().config.model.gantry_for("x"), a.value().effects);
   };
   const auto lpv = [](const config::GantryModelConfig& g) {
     control::GantryAxisLpvModel m;
     m.params.k2_n_m = g.k2_n_per_m;
     m.belt_unit_stiffness_n = g.stepper.belt_unit_stiffness_n;
     m.pulley_distance_mm = g.stepper.pulley_distance_mm;
+    m.direction_ratio = g.belt_direction_ratio;
     return m;
   };
   // None named: k2 in both directions, everywhere.
-  const config::GantryModelConfig uniform = overlay(r);
+  const config::GantryModelConfig uniform = overlay(r).first;
   EXPECT_EQ(uniform.stepper.belt_unit_stiffness_n, 0.0);
+  EXPECT_EQ(uniform.belt_direction_ratio, 1.0);
   for (double x_mm : {-80.0, 0.0, 100.0})
     for (int dir : {-1, 0, 1})
       EXPECT_DOUBLE_EQ(control::belt_stiffness_n_m(lpv(uniform), x_mm, dir), 32100.0);
-  // Named, ratio 1.5 at the trace's mean 100 mm: L = 500 mm, the directions 1.5 apart there,
-  // their mean the fitted k2.
+  // Named, ratios either side of 1 (0.6 is no Eq. 6 belt at any x > 0): the directions that far
+  // apart at every position, their mean the fitted k2, and the effect carried.
   r.augmented.set(ident::Effect::kDirectionStiffness, true);
-  r.augmented.stiffness_ratio = 1.5;
   r.effects = {ident::Effect::kDirectionStiffness};
-  const config::GantryModelConfig belt = overlay(r);
-  EXPECT_NEAR(belt.stepper.pulley_distance_mm, 500.0, 1e-9);
-  const auto m = lpv(belt);
-  EXPECT_NEAR(control::belt_stiffness_n_m(m, 100.0, 1) / control::belt_stiffness_n_m(m, 100.0, -1),
-              1.5, 1e-9);
-  EXPECT_NEAR(control::belt_stiffness_n_m(m, 100.0, 0), 32100.0, 1e-6);
-  // Named, but a ratio no belt beyond the travel gives (L = 200 mm at ratio 3): the config's L,
-  // k-hat scaled so that the mean is the fitted k2 at 100 mm.
-  r.augmented.stiffness_ratio = 3.0;
-  const config::GantryModelConfig kept = overlay(r);
-  EXPECT_EQ(kept.stepper.pulley_distance_mm,
-            base.model.gantry_for("x")->stepper.pulley_distance_mm);
-  EXPECT_GT(kept.stepper.belt_unit_stiffness_n, 0.0);
-  EXPECT_NEAR(control::belt_stiffness_n_m(lpv(kept), 100.0, 0), 32100.0, 1e-6);
-  // In a hand-written overlay 0 is a uniform belt too; below 0 is an error with its place.
+  for (double ratio : {1.5, 0.6}) {
+    r.augmented.stiffness_ratio = ratio;
+    const auto [belt, effects] = overlay(r);
+    EXPECT_EQ(belt.stepper.belt_unit_stiffness_n, 0.0);
+    EXPECT_DOUBLE_EQ(belt.belt_direction_ratio, ratio);
+    const auto m = lpv(belt);
+    for (double x_mm : {-80.0, 0.0, 100.0}) {
+      EXPECT_NEAR(
+          control::belt_stiffness_n_m(m, x_mm, 1) / control::belt_stiffness_n_m(m, x_mm, -1), ratio,
+          1e-12);
+      EXPECT_NEAR(0.5 * (control::belt_stiffness_n_m(m, x_mm, 1) +
+                         control::belt_stiffness_n_m(m, x_mm, -1)),
+                  32100.0, 1e-6);
+      EXPECT_DOUBLE_EQ(control::belt_stiffness_n_m(m, x_mm, 0), 32100.0);
+    }
+    ASSERT_EQ(effects.size(), 1u);
+    EXPECT_TRUE(effects[0].in_model);
+  }
+  // In a hand-written overlay 0 is a uniform belt too; below 0 is an error with its place, and so
+  // is a direction ratio beyond 0.1-10.
   auto bad = config::apply_calibration_text(
       base,
       "calibration_version: 1\nmodel:\n  gantry:\n    x: {stepper: {belt_unit_stiffness_n: -1}}\n",
@@ -168,6 +167,12 @@ TEST(OverlayFromIdent, TheBeltIsUniformUnlessTheDataShowsADirection) {
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().to_string().find("cal.yaml:4"), std::string::npos)
       << bad.error().to_string();
+  auto bad_ratio = config::apply_calibration_text(
+      base, "calibration_version: 1\nmodel:\n  gantry:\n    x: {belt_direction_ratio: 0}\n",
+      "cal.yaml");
+  ASSERT_FALSE(bad_ratio.ok());
+  EXPECT_NE(bad_ratio.error().to_string().find("belt_direction_ratio"), std::string::npos)
+      << bad_ratio.error().to_string();
 }
 
 // The overlay writes the carried model (identification's model without the effects the
@@ -184,7 +189,7 @@ TEST(OverlayFromIdent, TheOverlayWritesTheModelTheFeedforwardCarries) {
   r.carried = ident::preset_axis_model("x");
   r.carried.k2_n_m = 52000.0;
   r.carried.extra_freq_hz = 44.8;
-  auto yaml = merge_overlay(base, "", "", with_carried_model(r), 100.0, "fit");
+  auto yaml = merge_overlay(base, "", "", with_carried_model(r), "fit");
   ASSERT_TRUE(yaml.ok()) << yaml.error().to_string();
   auto a = config::apply_calibration_text(base, yaml.value(), "cal.yaml");
   ASSERT_TRUE(a.ok()) << a.error().to_string();

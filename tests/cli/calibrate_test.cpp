@@ -123,12 +123,15 @@ TEST_F(Calibrate, TheFirstSimulatorsAxesAreFoundAndTheOverlayIsLoaded) {
   ASSERT_TRUE(cfg.ok());
   auto applied = config::apply_calibration_file(cfg.value(), installed);
   ASSERT_TRUE(applied.ok()) << applied.error().to_string();
-  // The simulator's belt (Eq. 6, L = 350 mm, k_hat = 38424 N on X) comes out of the data: its
-  // length from the direction-dependent stiffness the identification names (measured 360 mm),
-  // k_hat from the fitted k2 there (measured 37684 N).
+  // The simulator's belt (Eq. 6, L = 350 mm, k_hat = 38424 N on X) as the identification sees it
+  // over the excitation's positions: the directions' mean k2 (uniform) and their ratio, which
+  // Eq. 6 puts at (L + x) / (L - x) = 1.5-2.1 over x = 70-125 mm (measured k2 117 kN/m, 1.97).
   const config::GantryModelConfig* x = applied.value().config.model.gantry_for("x");
-  EXPECT_NEAR(x->stepper.pulley_distance_mm, 350.0, 0.15 * 350.0);
-  EXPECT_NEAR(x->stepper.belt_unit_stiffness_n, 38424.0, 0.15 * 38424.0);
+  std::printf("first simulator's X belt as calibrated: k2 %.0f N/m, direction ratio %.3f\n",
+              x->k2_n_per_m, x->belt_direction_ratio);
+  EXPECT_EQ(x->stepper.belt_unit_stiffness_n, 0.0);
+  EXPECT_GT(x->belt_direction_ratio, 1.3);
+  EXPECT_LT(x->belt_direction_ratio, 2.5);
   bool direction_in_model = false;
   for (const json& e : report["axes"][0]["effects"])
     direction_in_model |= e["name"] == "direction_dependent_stiffness" && e["in_model"].get<bool>();
