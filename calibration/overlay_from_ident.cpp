@@ -50,13 +50,19 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
   g.coulomb_friction_n = friction ? m.friction_force_n : 0.0;
   if (friction) g.friction_bristle_mm = m.presliding_um * 1e-3;
   g.backlash_mm = m.has(ident::Effect::kBacklash) ? std::max(m.backlash_width_um, 0.0) * 1e-3 : 0.0;
+  // Runout, in the fit's own form: its phase and the measurement count from the trace's start.
+  const bool runout = m.has(ident::Effect::kPeriodicPosition);
+  g.runout_period_mm = runout ? m.period_mm : 0.0;
+  g.runout_sin_um = runout ? m.periodic_sin_um : 0.0;
+  g.runout_cos_um = runout ? m.periodic_cos_um : 0.0;
+  g.runout_reference_mm = runout ? r.start_command_mm : 0.0;
   g.encoder_delay_ms = m.has(ident::Effect::kTimeDelay) ? std::clamp(m.delay_ms, 0.0, 50.0) : 0.0;
   return g;
 }
 
 const std::vector<ident::Effect>& effects_not_in_model() {
-  static const std::vector<ident::Effect> effects = {
-      ident::Effect::kPeriodicPosition, ident::Effect::kExtraResonance, ident::Effect::kScaleError};
+  static const std::vector<ident::Effect> effects = {ident::Effect::kExtraResonance,
+                                                     ident::Effect::kScaleError};
   return effects;
 }
 
@@ -75,7 +81,7 @@ std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResu
     for (const auto& [k, v] : ident::effect_params_report(r.augmented, e)) c.params[k] = v;
     c.in_model =
         e == ident::Effect::kCoulombFriction || e == ident::Effect::kBacklash ||
-        e == ident::Effect::kTimeDelay ||
+        e == ident::Effect::kTimeDelay || e == ident::Effect::kPeriodicPosition ||
         (e == ident::Effect::kDirectionStiffness && direction_ratio_in_model(r.augmented) != 1.0);
     out.push_back(std::move(c));
   }

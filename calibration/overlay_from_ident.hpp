@@ -41,7 +41,7 @@ double direction_ratio_in_model(const ident::AxisModel& m);
 std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r);
 
 // The named effects the feedforward does not carry (recorded in the overlay with in_model false):
-// runout, an extra mode, a scale error. Identification is asked for the model without them
+// an extra mode, a scale error. Identification is asked for the model without them
 // (ident::FitOptions::not_carried), and that model (IdentResult::carried) is what the overlay
 // writes: on the second simulator's seed 5 a 45 Hz and a 29 Hz "resonance" at the damping bound
 // were named, and the baseline fitted beside them tracked the check pattern 0.0109 mm with the

@@ -210,6 +210,10 @@ void write_model(Writer& w, const MachineConfig& c) {
       w.num("friction_bristle_mm", g.friction_bristle_mm);
       w.num("backlash_mm", g.backlash_mm);
       w.num("belt_direction_ratio", g.belt_direction_ratio);
+      w.num("runout_period_mm", g.runout_period_mm);
+      w.num("runout_sin_um", g.runout_sin_um);
+      w.num("runout_cos_um", g.runout_cos_um);
+      w.num("runout_reference_mm", g.runout_reference_mm);
       w.num("encoder_delay_ms", g.encoder_delay_ms);
       const StepperConfig& s = g.stepper;
       w.begin("stepper");

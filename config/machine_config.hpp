@@ -288,6 +288,13 @@ struct GantryModelConfig {
                                       // ident fit` reports as direction_dependent_stiffness
                                       // ratio): the belt's stiffness is 2 r / (1 + r) of Eq. 6's
                                       // pulling + and 2 / (1 + r) pulling -; 1: none
+  // Pulley runout (what `feedloop ident fit` reports as periodic_position): the carriage reads
+  // s sin(phi) + c (cos(phi) - 1) ahead of the motor, phi = 2 pi (x - reference) / period, with
+  // the encoder zeroed at the reference (the calibration trace's start). period 0: none.
+  double runout_period_mm = 0.0;
+  double runout_sin_um = 0.0;
+  double runout_cos_um = 0.0;
+  double runout_reference_mm = 0.0;
   double encoder_delay_ms = 0.0;  // the encoder's reading shows the carriage this long ago (what
                                   // `feedloop ident fit` reports as time_delay delay_ms): the
                                   // loops and e_t compare it with the reference of that instant

@@ -45,6 +45,11 @@ void read_gantry_axis(MapReader& g, GantryModelConfig& m, Need six, Diagnostics&
   g.number("backlash_mm", m.backlash_mm, Range::closed(0.0, 1.0));
   // Identification fits 0.4-2.5; a belt ten times stiffer one way than the other is a typo.
   g.number("belt_direction_ratio", m.belt_direction_ratio, Range::closed(0.1, 10.0));
+  // Identification looks for periods of 2 mm to half the travel and amplitudes of microns.
+  g.number("runout_period_mm", m.runout_period_mm, Range::closed(0.0, 2000.0));
+  g.number("runout_sin_um", m.runout_sin_um, Range::closed(-1000.0, 1000.0));
+  g.number("runout_cos_um", m.runout_cos_um, Range::closed(-1000.0, 1000.0));
+  g.number("runout_reference_mm", m.runout_reference_mm, Range::closed(-1e5, 1e5));
   // Up to 50 ms: the identification's delays are a few ms; a device loop compares its encoder
   // with a target sent this much later (engine/mcu_bridge.cpp).
   g.number("encoder_delay_ms", m.encoder_delay_ms, Range::closed(0.0, 50.0));

@@ -182,6 +182,10 @@ Result<std::unique_ptr<control::Feedforward>> model_inverse(const config::Machin
     m.friction_bristle_mm = g->friction_bristle_mm;
     m.backlash_mm = g->backlash_mm;
     m.direction_ratio = g->belt_direction_ratio;
+    m.runout_period_mm = g->runout_period_mm;
+    m.runout_sin_mm = g->runout_sin_um * 1e-3;
+    m.runout_cos_mm = g->runout_cos_um * 1e-3;
+    m.runout_reference_mm = g->runout_reference_mm;
     if (const config::AxisConfig* ax = cfg.axis(names[a])) {
       m.min_mm = ax->min_mm;
       m.max_mm = ax->max_mm;

@@ -882,6 +882,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   };
   IdentResult out;
   out.axis = axis_name;
+  out.start_command_mm = cmd_mm.empty() ? 0.0 : cmd_mm.front();
   report(0.0, "baseline fit");
   const AxisModel preset = preset_axis_model(axis_name);
   bool cur_converged = false;  // the current model's last fit stopped on convergence

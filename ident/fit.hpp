@@ -75,6 +75,9 @@ struct CandidateResult {
 
 struct IdentResult {
   std::string axis;
+  // The trace's first command, mm: the runout's phase (periodic_position) counts from it, and the
+  // measurement from the carriage's rest there (axis_model.hpp).
+  double start_command_mm = 0.0;
   AxisModel baseline;              // fitted baseline
   AxisModel augmented;             // fitted baseline + kept effects (== baseline when none)
   std::vector<Effect> effects;     // kept effects, in the order found

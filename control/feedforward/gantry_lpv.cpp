@@ -3,6 +3,7 @@
 
 #include <algorithm>  // std::max, std::min
 #include <cmath>      // std::exp, std::isfinite, std::tanh
+#include <numbers>    // std::numbers::pi
 
 namespace feedloop::control {
 
@@ -20,6 +21,12 @@ double belt_stiffness_n_m(const GantryAxisLpvModel& m, double x_mm, int directio
   if (direction > 0) return dir_factor * m.belt_unit_stiffness_n / (L - x);
   if (direction < 0) return dir_factor * m.belt_unit_stiffness_n / (L + x);
   return m.belt_unit_stiffness_n * L / (L * L - x * x);
+}
+
+double runout_mm(const GantryAxisLpvModel& m, double x_mm) {
+  if (!(m.runout_period_mm > 0.0)) return 0.0;
+  const double phi = 2.0 * std::numbers::pi * (x_mm - m.runout_reference_mm) / m.runout_period_mm;
+  return m.runout_sin_mm * std::sin(phi) + m.runout_cos_mm * (std::cos(phi) - 1.0);
 }
 
 double planned_belt_force_n(const model::GantryAxisParams& p, double r_prev_mm, double r0_mm, double r_next_mm,
@@ -60,6 +67,10 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
       return Error{axis + ": friction_bristle_mm must be > 0 and finite", {}};
     if (!(ax.backlash_mm >= 0.0 && std::isfinite(ax.backlash_mm)))
       return Error{axis + ": backlash_mm must be >= 0 and finite", {}};
+    if (!(ax.runout_period_mm >= 0.0 && std::isfinite(ax.runout_period_mm) &&
+          std::isfinite(ax.runout_sin_mm) && std::isfinite(ax.runout_cos_mm) &&
+          std::isfinite(ax.runout_reference_mm)))
+      return Error{axis + ": the runout must be finite, its period >= 0", {}};
     if (ax.backlash_mm > 0.0 &&
         !(ax.direction_force_n > 0.0 && std::isfinite(ax.direction_force_n)))
       return Error{axis + ": direction_force_n must be > 0 and finite", {}};
@@ -116,7 +127,8 @@ void GantryLpvFeedforward::schedule_(int axis, double pos_mm, double force_n) {
 bool GantryLpvFeedforward::load_offset(JointArray& mm) const {
   mm = {load_offset_mm_[0], load_offset_mm_[1], 0.0, 0.0};
   return models_[0].coulomb_friction_n > 0.0 || models_[1].coulomb_friction_n > 0.0 ||
-         models_[0].backlash_mm > 0.0 || models_[1].backlash_mm > 0.0;
+         models_[0].backlash_mm > 0.0 || models_[1].backlash_mm > 0.0 ||
+         models_[0].runout_period_mm > 0.0 || models_[1].runout_period_mm > 0.0;
 }
 
 double GantryLpvFeedforward::friction_n_(int axis, double r_mm) {
@@ -179,6 +191,12 @@ void GantryLpvFeedforward::step(const FeedforwardInput& in, JointArray& u_mm) {
       const double friction_mm = friction_n * (1.0 / params_[as].k1_n_m + inv_k2) * 1e3;
       load_offset_mm_[as] += friction_mm;
       u_mm[as] += friction_mm;
+    }
+    if (model.runout_period_mm > 0.0) {
+      // The carriage reads runout(x) ahead of the motor: the motor goes to r - runout(r).
+      const double runout = runout_mm(model, r0);
+      load_offset_mm_[as] -= runout;
+      u_mm[as] -= runout;
     }
     r_prev_[as] = r0;
   }

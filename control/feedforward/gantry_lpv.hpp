@@ -15,6 +15,7 @@
 // F_c z / z_max that the belt must add to m2 a + c2 v; the command moves by it through the
 // chain's static compliance, 1 / k1 + 1 / K2(x, s) (motor and belt in series), and the force
 // joins the planned belt force that picks the stretch direction.
+// Runout (the identified periodic_position): the command moves by -runout(r) (gantry_lpv.hpp).
 // Backlash (the identified backlash effect): a dead band of width w between pulley and belt; the
 // command moves by (w / 2) tanh(F / F0) on the planned belt force F, so that the pulley is across
 // the gap on the side that pulls before the force is needed.
@@ -61,7 +62,15 @@ struct GantryAxisLpvModel {
   // either side, so the command leads by (w / 2) tanh(F / F0) with F the planned belt force
   // (friction included) and F0 = direction_force_n: across the gap as the force reverses.
   double backlash_mm = 0.0;
+  // Pulley runout (the identified periodic_position), quasi-static: the carriage reads
+  // runout(x) = s sin(phi) + c (cos(phi) - 1), phi = 2 pi (x - reference) / period, ahead of the
+  // motor, so the command moves by -runout(r). period 0: none.
+  double runout_period_mm = 0.0;
+  double runout_sin_mm = 0.0, runout_cos_mm = 0.0, runout_reference_mm = 0.0;
 };
+
+// The runout of m at carriage position x_mm, mm (0 without one).
+double runout_mm(const GantryAxisLpvModel& m, double x_mm);
 
 // Eq. 6 at carriage position x_mm, in N/m: direction > 0 for the belt pulling the carriage
 // towards + (stretch x1 - x2 > 0: k_hat / (L - x)), < 0 towards - (k_hat / (L + x)), 0 the mean

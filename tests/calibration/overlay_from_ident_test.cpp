@@ -6,6 +6,7 @@
 #include "config/config.hpp"
 #include "control/feedforward/gantry_lpv.hpp"
 
+#include <algorithm>  // std::find
 #include <cmath>
 #include <utility>  // std::make_pair
 
@@ -175,6 +176,41 @@ TEST(OverlayFromIdent, TheBeltIsTheFittedOneUniformWithTheNamedDirectionRatio) {
       << bad_ratio.error().to_string();
 }
 
+// A named runout flows into the model in the fit's own form: its period, sin and cos, and the
+// trace's start, from which its phase and the measurement count; the effect is carried.
+TEST(OverlayFromIdent, TheRunoutIsCarriedWithThePositionItsPhaseCountsFrom) {
+  const config::MachineConfig base = config::default_config();
+  ident::IdentResult r;
+  r.axis = "x";
+  r.start_command_mm = 117.5;
+  r.augmented = ident::preset_axis_model("x");
+  r.augmented.set(ident::Effect::kPeriodicPosition, true);
+  r.augmented.period_mm = 33.9;
+  r.augmented.periodic_sin_um = 14.2;
+  r.augmented.periodic_cos_um = -6.1;
+  r.effects = {ident::Effect::kPeriodicPosition};
+  auto yaml = merge_overlay(base, "", "", r, "fit");
+  ASSERT_TRUE(yaml.ok()) << yaml.error().to_string();
+  auto a = config::apply_calibration_text(base, yaml.value(), "cal.yaml");
+  ASSERT_TRUE(a.ok()) << a.error().to_string() << "\n" << yaml.value();
+  const config::GantryModelConfig& g = *a.value().config.model.gantry_for("x");
+  EXPECT_DOUBLE_EQ(g.runout_period_mm, 33.9);
+  EXPECT_DOUBLE_EQ(g.runout_sin_um, 14.2);
+  EXPECT_DOUBLE_EQ(g.runout_cos_um, -6.1);
+  EXPECT_DOUBLE_EQ(g.runout_reference_mm, 117.5);
+  ASSERT_EQ(a.value().effects.size(), 1u);
+  EXPECT_TRUE(a.value().effects[0].in_model);
+  EXPECT_TRUE(std::find(effects_not_in_model().begin(), effects_not_in_model().end(),
+                        ident::Effect::kPeriodicPosition) == effects_not_in_model().end());
+  // None named: no runout, whatever the config had.
+  r.augmented.set(ident::Effect::kPeriodicPosition, false);
+  r.effects.clear();
+  auto none = config::apply_calibration_text(
+      base, merge_overlay(base, yaml.value(), "cal.yaml", r, "fit").value(), "cal.yaml");
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(none.value().config.model.gantry_for("x")->runout_period_mm, 0.0);
+}
+
 // The overlay writes the carried model (identification's model without the effects the
 // feedforward does not carry), and still records the effects left out, with their parameters.
 TEST(OverlayFromIdent, TheOverlayWritesTheModelTheFeedforwardCarries) {
@@ -199,8 +235,7 @@ TEST(OverlayFromIdent, TheOverlayWritesTheModelTheFeedforwardCarries) {
   EXPECT_FALSE(a.value().effects[0].in_model);
   EXPECT_NEAR(a.value().effects[0].params.at("freq_hz"), 44.8, 1e-9);
   for (ident::Effect e : effects_not_in_model())
-    EXPECT_TRUE(e == ident::Effect::kPeriodicPosition || e == ident::Effect::kExtraResonance ||
-                e == ident::Effect::kScaleError);
+    EXPECT_TRUE(e == ident::Effect::kExtraResonance || e == ident::Effect::kScaleError);
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <vector>
 
 #include "control/feedforward/gantry_lpv.hpp"
@@ -346,6 +347,54 @@ TEST(GantryLpvFeedforward, UsesThePreviewAndNoMore) {
   EXPECT_LT(first_move, c);
   EXPECT_LT(max_dev, 20.0);
   EXPECT_NEAR(u[0], 1.0, 1e-6);
+}
+
+// Runout (the identified periodic_position): along a slow ramp the command differs from the one
+// without it by -runout(r) at each period's planned position, zero at the reference (where the
+// encoder was zeroed), and the difference is the load offset the lost-step detector takes out.
+TEST(GantryLpvFeedforward, RunoutMovesTheCommandByMinusTheRunoutAtThePlannedPosition) {
+  std::array<GantryAxisLpvModel, 2> plain{axis_model(false), axis_model(true)}, runout = plain;
+  runout[0].runout_period_mm = 33.93;
+  runout[0].runout_sin_mm = 0.012;
+  runout[0].runout_cos_mm = -0.007;
+  runout[0].runout_reference_mm = 50.0;
+  LpvDesignOptions opt;
+  opt.period_s = kT;
+  opt.preview_samples = 20;
+  auto f0 = GantryLpvFeedforward::create(plain, opt),
+       f1 = GantryLpvFeedforward::create(runout, opt);
+  ASSERT_TRUE(f0.ok() && f1.ok());
+  FeedforwardInput at;
+  at.r_mm = {50.0, 50.0, 0.0, 0.0};
+  f0.value()->reset(at);
+  f1.value()->reset(at);
+  const int P = opt.preview_samples;
+  auto r_at = [](int k) {
+    return k < 100 ? 50.0 : 50.0 + 0.02 * (k - 100);
+  };  // 20 mm/s from k = 100
+  JointArray u0{}, u1{};
+  double worst = 0.0, largest = 0.0;
+  for (int k = 0; k < 3000; ++k) {
+    FeedforwardInput in = at;
+    in.r_mm[0] = in.r_mm[1] = r_at(k + P);
+    f0.value()->step(in, u0);
+    f1.value()->step(in, u1);
+    const double r = r_at(k);
+    const double phi = 2.0 * std::numbers::pi * (r - 50.0) / 33.93;
+    const double expected = -(0.012 * std::sin(phi) - 0.007 * (std::cos(phi) - 1.0));
+    EXPECT_NEAR(runout_mm(runout[0], r), -expected, 1e-15);
+    worst = std::max(worst, std::abs(u1[0] - u0[0] - expected));
+    largest = std::max(largest, std::abs(expected));
+    EXPECT_DOUBLE_EQ(u1[1], u0[1]);  // Y has none
+    JointArray load{};
+    ASSERT_TRUE(f1.value()->load_offset(load));
+    EXPECT_NEAR(load[0], expected, 1e-12);
+  }
+  EXPECT_LT(worst, 1e-9);
+  EXPECT_GT(largest, 0.018);  // through the extreme: |c| + hypot(s, c) = 20.9 um
+  // A non-finite runout is refused.
+  runout[0].runout_sin_mm = NAN;
+  EXPECT_FALSE(GantryLpvFeedforward::create(runout, opt).ok());
 }
 
 TEST(GantryLpvFeedforward, FrictionMovesTheCommandByTheForceOverTheChainsCompliance) {
