@@ -10,10 +10,14 @@ table; the reports stay in --keep DIR when given.
 
     python3 bench/calibrate/calibrate_seeds.py [--build build] [--seeds 1-7] [--keep DIR] [--json F]
                                                [--effect KIND] [--ablate KEY] [--simulator plant2|sim]
+                                               [--thesis]
 
 --simulator sim: the first simulator (sim/, in-process, switches and all) instead, its seed the
 row's, with --effect KIND (one of the config's simulated effects, config/README.md) or all of them
 on X and Y, each size drawn from the seed in bench/ident_draws' ranges for that simulator.
+
+--thesis: also the thesis's tests of bench/control (THESIS_CASES), before the calibration, open
+loop and after, e_t measured as the check pattern's; a table per seed and a summary per case.
 
 --ablate KEY (e.g. backlash_mm): after the calibration, every KEY of the installed overlay is set
 to 0, the daemon reloads it, and the check pattern runs once more (`feedloop calibrate
@@ -156,7 +160,112 @@ def ablated_e_t(build, env, work, overlay, key):
     return (float(m.group(1)), "") if m else (None, p.stdout.strip().splitlines()[-1:])
 
 
-def run_seed(build, seed, keep, effect="", ablate="", simulator="plant2"):
+# The thesis's tests of bench/control (bench_control.cpp, gantry_cases(); trajectories.cpp): id,
+# shape, speed mm/s, acceleration mm/s^2, the thesis's corner rule (Sect. 2.2: |v_out - v_in| at
+# most this, mm/s), and whether the case pools four runs at the bed's quadrant centres (Table 1).
+THESIS_CASES = [
+    ("circle_90", "circle", 90.0, 3000.0, 15.0, False),
+    ("small_star_90", "small_star", 90.0, 3000.0, 15.0, False),
+    ("small_star_150_a3000", "small_star", 150.0, 3000.0, 15.0, True),
+    ("small_star_150_a6000", "small_star", 150.0, 6000.0, 15.0, True),
+    ("large_star_150_sc15", "large_star", 150.0, 3000.0, 15.0, False),
+    ("large_star_150_sc300", "large_star", 150.0, 3000.0, 300.0, False),
+]
+BED_CENTRE_MM = (125.0, 125.0)  # the middle of cartesian_sim.yaml's 250 x 250 mm bed
+QUADRANT_CENTRES_MM = [(62.5, 62.5), (187.5, 62.5), (62.5, 187.5), (187.5, 187.5)]
+
+
+def thesis_path(shape, cx, cy):
+    """The vertices of bench/control's paths (trajectories.cpp), closed: the last is the first."""
+    import math
+    if shape == "circle":  # 50 chords of r 20 mm, the first vertex half a chord past 0 deg
+        return [(cx + 20.0 * math.cos(math.pi / 50 + 2 * math.pi * (k % 50) / 50),
+                 cy + 20.0 * math.sin(math.pi / 50 + 2 * math.pi * (k % 50) / 50)) for k in range(51)]
+    outer, inner = (5.0, 2.0) if shape == "small_star" else (35.0, 14.0)
+    return [(cx + (outer if k % 2 == 0 else inner) * math.cos(math.pi / 2 + math.pi / 5 * (k % 10)),
+             cy + (outer if k % 2 == 0 else inner) * math.sin(math.pi / 2 + math.pi / 5 * (k % 10)))
+            for k in range(11)]
+
+
+def with_planner(yaml_text, accel_mm_s2, speed_change_mm_s):
+    """The config with the thesis's corner rule and a case's acceleration (the planner's and the
+    X and Y axes' limits); None when the config's planner block changed shape."""
+    y, n1 = re.subn(r"\n  cornering: junction_deviation\n",
+                    "\n  cornering: speed_change\n  max_speed_change_mm_s: %g\n" % speed_change_mm_s, yaml_text)
+    y, n2 = re.subn(r"(\nplanner:\n  max_velocity_mm_s: [0-9.]+[^\n]*\n  max_accel_mm_s2: )[0-9.]+",
+                    r"\g<1>%g" % accel_mm_s2, y)
+    return y if n1 == 1 and n2 == 1 else None
+
+
+def reload_daemon(sock, open_loop, no_feedforward):
+    reloads = api_call(sock, "status").get("config_reloads", 0)
+    api_call(sock, "config.reload", {"open_loop": open_loop, "no_feedforward": no_feedforward})
+    end = time.time() + 60
+    while True:
+        try:
+            if api_call(sock, "status").get("config_reloads", 0) > reloads:
+                return
+        except OSError:
+            pass  # a reload may drop the connection
+        if time.time() > end:
+            raise RuntimeError("the daemon did not reload its config")
+        time.sleep(0.1)
+
+
+def run_gcode(sock, name, gcode):
+    """One print job, to its end; the status at its end."""
+    api_call(sock, "files.upload", {"filename": name, "content": gcode})
+    api_call(sock, "job.start", {"filename": name})
+    end = time.time() + 900
+    while time.time() < end:
+        j = api_call(sock, "job.status")
+        if j.get("state") == "complete":
+            return api_call(sock, "status")
+        if j.get("state") in ("cancelled", "error", "off"):
+            raise RuntimeError("job %s ended %s: %s" % (name, j.get("state"), j.get("message", "")))
+        time.sleep(0.05)
+    raise RuntimeError("job %s did not end within 15 min" % name)
+
+
+def thesis_tests(sock, cfg, base_yaml, open_loop):
+    """e_t (mm) of every thesis case, {id: e_t}: each path from rest after a travel at 50 mm/s and a
+    300 ms dwell (a job of its own), e_t the daemon's tracking-error counters over the path's job,
+    as the check pattern's (feedloop calibrate). The config's planner takes each case's corner rule
+    and acceleration (rewritten and reloaded); open_loop: no feedforward and no PI."""
+    out = {}
+    for cid, shape, speed, accel, sc, pooled in THESIS_CASES:
+        y = with_planner(base_yaml, accel, sc)
+        if y is None:
+            raise RuntimeError("config/examples/cartesian_sim.yaml changed shape (planner block)")
+        with open(cfg, "w") as f:
+            f.write(y)
+        try:
+            reload_daemon(sock, open_loop, open_loop)  # also clears a fault of the case before
+            st = api_call(sock, "status")
+            if "x" not in st.get("homed_axes", "") or "y" not in st.get("homed_axes", ""):
+                run_gcode(sock, "thesis_home.gcode", "G28\n")
+            total, samples = 0.0, 0.0
+            for cx, cy in (QUADRANT_CENTRES_MM if pooled else [BED_CENTRE_MM]):
+                v = thesis_path(shape, cx, cy)
+                a = run_gcode(sock, "thesis_start.gcode", "G21\nG90\nG1 X%.4f Y%.4f F3000\nG4 P300\nM400\n" % v[0])
+                path = "".join("G1 X%.4f Y%.4f F%.1f\n" % (x, yy, speed * 60.0) for x, yy in v[1:]) + "M400\n"
+                b = run_gcode(sock, "thesis_%s.gcode" % cid, path)
+                if b.get("last_error"):
+                    raise RuntimeError("the machine reported a fault: %s" % b["last_error"])
+                ta, tb = a["motion"]["tracking_error_mm"], b["motion"]["tracking_error_mm"]
+                total += tb["mean"] * tb["samples"] - ta["mean"] * ta["samples"]
+                samples += tb["samples"] - ta["samples"]
+            out[cid] = total / samples if samples > 0 else None
+        except (RuntimeError, OSError, ValueError, KeyError) as e:
+            out[cid] = None
+            print("  %s (%s): %s" % (cid, "open loop" if open_loop else "closed loop", e), file=sys.stderr, flush=True)
+    with open(cfg, "w") as f:
+        f.write(base_yaml)
+    reload_daemon(sock, False, False)
+    return out
+
+
+def run_seed(build, seed, keep, effect="", ablate="", simulator="plant2", thesis=False):
     work = tempfile.mkdtemp(prefix="calibrate_seed%d." % seed)
     env = dict(os.environ, RUNTIME_DIRECTORY=work, STATE_DIRECTORY=work)
     cfg = os.path.join(work, "printer.yaml")
@@ -171,6 +280,11 @@ def run_seed(build, seed, keep, effect="", ablate="", simulator="plant2"):
         if not wait_for(os.path.join(work, "api.sock"), daemon, 30):
             row["error"] = "feedloopd did not start (%s)" % os.path.join(work, "daemon.log")
             return row
+        sock = os.path.join(work, "api.sock")
+        with open(cfg) as f:
+            base_yaml = f.read()
+        if thesis:  # the thesis's tests with the config's model, before the calibration
+            row["thesis_before"] = thesis_tests(sock, cfg, base_yaml, False)
         t0 = time.time()
         out_dir = os.path.join(work, "out")
         p = subprocess.run([os.path.join(build, "cli/feedloop"), "calibrate", "--out", out_dir], env=env,
@@ -183,6 +297,9 @@ def run_seed(build, seed, keep, effect="", ablate="", simulator="plant2"):
         except (OSError, ValueError):
             row["error"] = "no report (exit %d): %s" % (p.returncode, p.stdout.strip().splitlines()[-1:] or "")
         installed = row.get("report", {}).get("installed", "")
+        if thesis and "report" in row:  # open loop, and with the model calibrate left in use
+            row["thesis_open_loop"] = thesis_tests(sock, cfg, base_yaml, True)
+            row["thesis_after"] = thesis_tests(sock, cfg, base_yaml, False)
         if ablate and installed:
             row["ablated"], why = ablated_e_t(build, env, work, installed, ablate)
             if row["ablated"] is None:
@@ -202,6 +319,37 @@ def run_seed(build, seed, keep, effect="", ablate="", simulator="plant2"):
     return row
 
 
+def vs_open(after, open_loop):
+    return 100.0 * (after / open_loop - 1.0) if after is not None and open_loop else None
+
+
+def print_thesis(r):
+    """One seed's thesis tests: e_t open loop, before and after the calibration, mm."""
+    ol, be, af = (r.get("thesis_" + k) or {} for k in ("open_loop", "before", "after"))
+    fmt = lambda v: "%.4f" % v if isinstance(v, (int, float)) else "-"
+    print("       %-22s %10s %10s %10s %14s" % ("thesis case", "open_loop", "before", "after", "after_vs_open"))
+    for cid, *_ in THESIS_CASES:
+        v = vs_open(af.get(cid), ol.get(cid))
+        print("       %-22s %10s %10s %10s %14s" % (cid, fmt(ol.get(cid)), fmt(be.get(cid)), fmt(af.get(cid)),
+                                                    "%+.0f %%" % v if v is not None else "-"), flush=True)
+
+
+def print_thesis_summary(rows):
+    """Per thesis case, after vs open loop over the seeds, and how many reach issue 15's -90 %."""
+    print("\nthesis tests, e_t after the calibration vs open loop (issue 15: -90 % or better)")
+    print("%-22s %-40s %s" % ("case", "after_vs_open per seed", "at -90 % or better"))
+    met = total = 0
+    for cid, *_ in THESIS_CASES:
+        vals = [vs_open((r.get("thesis") or {}).get("after", {}).get(cid),
+                        (r.get("thesis") or {}).get("open_loop", {}).get(cid)) for r in rows if r.get("thesis")]
+        ok = sum(1 for v in vals if v is not None and v <= -90.0)
+        met += ok
+        total += len(vals)
+        print("%-22s %-40s %d of %d" % (cid, " / ".join("%+.0f" % v if v is not None else "-" for v in vals), ok,
+                                       len(vals)))
+    print("all cases: %d of %d at -90 %% or better" % (met, total))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--build", default=os.path.join(ROOT, "build"))
@@ -216,6 +364,9 @@ def main():
     ap.add_argument("--simulator", default="plant2", choices=["plant2", "sim"],
                     help="plant2: the second simulator as an external plant (default); sim: the first, "
                          "in-process, its seed the row's")
+    ap.add_argument("--thesis", action="store_true",
+                    help="also the thesis's tests of bench/control (circle, stars, Table 1), open loop, before "
+                         "and after the calibration; a table per seed and a summary")
     a = ap.parse_args()
     if a.simulator == "sim" and a.effect and a.effect != "all" and a.effect not in FIRST_SIM_EFFECTS:
         sys.exit("calibrate_seeds: --simulator sim knows the effects %s and all" % ", ".join(FIRST_SIM_EFFECTS))
@@ -237,7 +388,7 @@ def main():
                                                         "without", "model", "wall_s", "effects named (x; y)"))
     for seed in seeds_from(a.seeds):
         print("seed %d ..." % seed, file=sys.stderr, flush=True)
-        r = run_seed(a.build, seed, a.keep, a.effect, a.ablate, a.simulator)
+        r = run_seed(a.build, seed, a.keep, a.effect, a.ablate, a.simulator, a.thesis)
         rows.append({"seed": seed, "error": r.get("error", ""), "wall_s": r.get("wall_s"),
                      "e_t_mm": r.get("report", {}).get("e_t_mm"), "kept": bool(r.get("report", {}).get("installed")),
                      "warning": r.get("report", {}).get("warning", ""), "ablated_e_t_mm": r.get("ablated"),
@@ -264,6 +415,11 @@ def main():
                                                               r["wall_s"], named), flush=True)
         if r.get("ablate_error"):
             print("       without: %s" % r["ablate_error"], flush=True)
+        if a.thesis:
+            rows[-1]["thesis"] = {k: r.get("thesis_" + k) for k in ("open_loop", "before", "after")}
+            print_thesis(r)
+    if a.thesis:
+        print_thesis_summary(rows)
     if a.json:
         with open(a.json, "w") as f:
             json.dump({"bench": "calibrate_seeds", "rows": rows}, f, indent=2)
