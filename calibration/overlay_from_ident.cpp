@@ -46,6 +46,9 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
   // is no Eq. 6 belt with its anchor at 0 at any x > 0.
   g.stepper.belt_unit_stiffness_n = 0.0;
   g.belt_direction_ratio = direction_ratio_in_model(m);
+  // Along the travel: the compliance's slope the fit kept (ident/fit.cpp), about its reference.
+  g.belt_compliance_slope_per_m = std::clamp(m.compliance_slope_per_m, -50.0, 50.0);
+  g.belt_stiffness_reference_mm = m.compliance_slope_per_m != 0.0 ? m.stiffness_reference_mm : 0.0;
   const bool friction = m.has(ident::Effect::kCoulombFriction);
   g.coulomb_friction_n = friction ? m.friction_force_n : 0.0;
   if (friction) g.friction_bristle_mm = m.presliding_um * 1e-3;

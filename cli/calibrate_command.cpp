@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <optional>
 #include <sstream>
 #include <thread>
@@ -345,9 +346,13 @@ struct AxisOutcome {
 
 // carriage_mass_kg: the config's m2 of the axis (0: none configured), the mass identification
 // reads forces through (position data fix a force only per unit mass: docs/ident.md, "The force
-// needs the carriage's mass").
+// needs the carriage's mass"). start_mm: where the job started, in the machine's frame (the
+// daemon's position_mm); the recording's commands count from the job's start, and the trace is
+// moved to that frame, so that what the overlay places along the travel (the belt's reference,
+// the runout's phase) is where the feedforward reads it. NaN: left in the recording's frame.
 Result<AxisOutcome> identify_recording(const std::string& axis, const std::string& last_part,
-                                       const std::string& dir, double carriage_mass_kg) {
+                                       const std::string& dir, double carriage_mass_kg,
+                                       double start_mm) {
   auto trace = recorder::build_trace(recorder::print_log_parts(last_part), recorder::ExportOptions{});
   if (!trace) return trace.error();
   const recorder::TraceColumns& t = trace.value();
@@ -387,7 +392,12 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
   // The encoder counts from wherever it powered on: its reading is put in the steps' frame at the
   // recording's first sample, where the machine stands still (a job starts from rest).
   std::vector<double>& meas = trace.value().meas_mm[j];
-  const double offset_mm = meas.empty() ? 0.0 : meas.front() - t.cmd_mm[j].front();
+  std::vector<double>& cmd = trace.value().cmd_mm[j];
+  if (std::isfinite(start_mm) && !cmd.empty()) {
+    const double to_machine_mm = start_mm - cmd.front();
+    for (double& u : cmd) u += to_machine_mm;
+  }
+  const double offset_mm = meas.empty() ? 0.0 : meas.front() - cmd.front();
   for (double& y : meas) y -= offset_mm;
   const std::string csv = dir + "/trace.csv";
   if (Status s = recorder::write_trace_csv(t, csv); !s) return s.error();
@@ -668,6 +678,12 @@ int calibrate(const std::vector<std::string>& args) {
       excited = h;
       break;
     }
+    // Where the program starts, in the machine's frame (the recording counts from there).
+    double start_mm = std::numeric_limits<double>::quiet_NaN();
+    if (auto st = api.call("status"); st && st.value().contains("position_mm")) {
+      const json& p = st.value()["position_mm"];
+      if (p.contains(axes[i]) && p[axes[i]].is_number()) start_mm = p[axes[i]].get<double>();
+    }
     auto rec = run_job(api, "feedloop_calibrate_" + axes[i] + ".gcode", plan.value().programs[i],
                        "calibration program, axis " + axes[i]);
     if (!rec) {
@@ -680,7 +696,8 @@ int calibrate(const std::vector<std::string>& args) {
     // The mass the user's config gives the carriage (the base config: an overlay's m2 is a
     // calibration's, not a weighing).
     const config::GantryModelConfig* g = cfg.model.gantry_for(axes[i]);
-    auto got = identify_recording(axes[i], rec.value(), dir, g != nullptr ? g->m2_kg : 0.0);
+    auto got =
+        identify_recording(axes[i], rec.value(), dir, g != nullptr ? g->m2_kg : 0.0, start_mm);
     if (!got) {
       excited = got.error();
       break;

@@ -210,6 +210,8 @@ void write_model(Writer& w, const MachineConfig& c) {
       w.num("friction_bristle_mm", g.friction_bristle_mm);
       w.num("backlash_mm", g.backlash_mm);
       w.num("belt_direction_ratio", g.belt_direction_ratio);
+      w.num("belt_compliance_slope_per_m", g.belt_compliance_slope_per_m);
+      w.num("belt_stiffness_reference_mm", g.belt_stiffness_reference_mm);
       w.num("runout_period_mm", g.runout_period_mm);
       w.num("runout_sin_um", g.runout_sin_um);
       w.num("runout_cos_um", g.runout_cos_um);

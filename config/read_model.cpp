@@ -45,6 +45,10 @@ void read_gantry_axis(MapReader& g, GantryModelConfig& m, Need six, Diagnostics&
   g.number("backlash_mm", m.backlash_mm, Range::closed(0.0, 1.0));
   // Identification fits 0.4-2.5; a belt ten times stiffer one way than the other is a typo.
   g.number("belt_direction_ratio", m.belt_direction_ratio, Range::closed(0.1, 10.0));
+  // A compliance that doubles or halves within 100 mm is not a belt (calibrate fits -10..10).
+  g.number("belt_compliance_slope_per_m", m.belt_compliance_slope_per_m,
+           Range::closed(-50.0, 50.0));
+  g.number("belt_stiffness_reference_mm", m.belt_stiffness_reference_mm, Range::closed(-1e5, 1e5));
   // Identification looks for periods of 2 mm to half the travel and amplitudes of microns.
   g.number("runout_period_mm", m.runout_period_mm, Range::closed(0.0, 2000.0));
   g.number("runout_sin_um", m.runout_sin_um, Range::closed(-1000.0, 1000.0));

@@ -182,6 +182,8 @@ Result<std::unique_ptr<control::Feedforward>> model_inverse(const config::Machin
     m.friction_bristle_mm = g->friction_bristle_mm;
     m.backlash_mm = g->backlash_mm;
     m.direction_ratio = g->belt_direction_ratio;
+    m.compliance_slope_per_m = g->belt_compliance_slope_per_m;
+    m.stiffness_reference_mm = g->belt_stiffness_reference_mm;
     m.runout_period_mm = g->runout_period_mm;
     m.runout_sin_mm = g->runout_sin_um * 1e-3;
     m.runout_cos_mm = g->runout_cos_um * 1e-3;

@@ -126,7 +126,8 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
   const bool backlash = m.has(Effect::kBacklash);
   const bool direction = m.has(Effect::kDirectionStiffness);
   const bool friction = m.has(Effect::kCoulombFriction);
-  const bool nonlinear = periodic || backlash || direction || friction;
+  const bool positional = m.compliance_slope_per_m != 0.0;
+  const bool nonlinear = periodic || backlash || direction || friction || positional;
   const double scale = m.has(Effect::kScaleError) ? m.scale : 1.0;
   const double k2 = m.k2_n_m;
   const double period_m = std::max(m.period_mm, 1e-3) * 1e-3;
@@ -204,7 +205,8 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
             s += ps * sn + pc * cs;
           }
           if (backlash) s = s > half_w ? s - half_w : (s < -half_w ? s + half_w : 0.0);
-          const double kb = direction ? (s > 0.0 ? k_pos : k_neg) : k2;
+          double kb = direction ? (s > 0.0 ? k_pos : k_neg) : k2;
+          if (positional) kb *= belt_position_factor(m, (xc - rest_m) * 1e3 + u0);
           const double df = kb * s - k2 * (x1 - xc);  // correction to the linear belt force
           double f_fric = 0.0;
           if (friction) {
@@ -227,6 +229,11 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
 
 }  // namespace
 
+double belt_position_factor(const AxisModel& m, double x_mm) {
+  const double c = 1.0 + m.compliance_slope_per_m * (x_mm - m.stiffness_reference_mm) * 1e-3;
+  return 1.0 / std::clamp(c, 0.2, 5.0);
+}
+
 model::StateSpace axis_state_space(const AxisModel& m) {
   Mat6 A;
   Mat63 B;
@@ -242,15 +249,26 @@ model::StateSpace axis_state_space(const AxisModel& m) {
 }
 
 Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double period_s, std::vector<double>* y_mm) {
-  const double vals[] = {m.m1_kg,           m.m2_kg,
-                         m.k1_n_m,          m.k2_n_m,
-                         m.c1_n_s_m,        m.c2_n_s_m,
-                         m.scale,           m.delay_ms,
-                         m.period_mm,       m.extra_freq_hz,
-                         m.extra_damping,   m.extra_mass_kg,
-                         m.stiffness_ratio, m.friction_force_n,
-                         m.presliding_um,   m.backlash_width_um,
-                         m.periodic_sin_um, m.periodic_cos_um};
+  const double vals[] = {m.m1_kg,
+                         m.m2_kg,
+                         m.k1_n_m,
+                         m.k2_n_m,
+                         m.c1_n_s_m,
+                         m.c2_n_s_m,
+                         m.scale,
+                         m.delay_ms,
+                         m.period_mm,
+                         m.extra_freq_hz,
+                         m.extra_damping,
+                         m.extra_mass_kg,
+                         m.stiffness_ratio,
+                         m.friction_force_n,
+                         m.presliding_um,
+                         m.backlash_width_um,
+                         m.periodic_sin_um,
+                         m.periodic_cos_um,
+                         m.compliance_slope_per_m,
+                         m.stiffness_reference_mm};
   for (double v : vals)
     if (!std::isfinite(v)) return Error{"axis model has a non-finite parameter", {}};
   if (!(period_s > 0.0)) return Error{"sample period must be > 0", {}};

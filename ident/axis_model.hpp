@@ -47,11 +47,21 @@ struct AxisModel {
   double extra_freq_hz = 60.0, extra_damping = 0.05, extra_mass_kg = 0.15;  // extra_resonance
   double delay_ms = 0.0;             // time_delay of the measurement
   double scale = 1.0;                // scale_error: true travel / commanded travel
+  // The belt's compliance along the travel, the LPV baseline's position dependence (thesis Eq. 6
+  // makes it the span's length; here without a geometry): 1 / K2(x) = (1 / k2) (1 + s (x - x_ref))
+  // at carriage position x, so k2 is the stiffness at x_ref. s in 1/m, 0: a uniform belt. Not an
+  // effect of the vocabulary: fit.cpp fits it on the carried model (IdentResult::carried).
+  double compliance_slope_per_m = 0.0;
+  double stiffness_reference_mm = 0.0;
 
   bool has(Effect e) const { return enabled[static_cast<int>(e)]; }
   void set(Effect e, bool on) { enabled[static_cast<int>(e)] = on; }
   double periodic_amplitude_um() const;
 };
+
+// K2(x) / k2 for m's compliance slope at carriage position x_mm: 1 / (1 + s (x - x_ref)), held
+// within 0.2-5 (a slope fitted on a part of the travel, read beyond it).
+double belt_position_factor(const AxisModel& m, double x_mm);
 
 // The baseline model of the thesis's X or Y axis (Tables 3-4 as solved in docs/simulator.md);
 // any other axis name gets the X values as the starting point.

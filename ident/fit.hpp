@@ -53,6 +53,10 @@ struct FitOptions {
   // without them, refitted: the baseline fitted beside an effect bends around it, and without
   // the effect that bend is error.
   std::vector<Effect> not_carried;
+  // The carried model takes a belt stiffness that varies along the travel (axis_model.hpp,
+  // compliance_slope_per_m) when that lowers its held-out RMS by more than this (relative);
+  // 1 or more: a uniform belt.
+  double min_slope_improvement = 0.03;
   int max_effects = 3;
   int max_iterations = 20;         // Levenberg-Marquardt iterations per full fit
   int screen_iterations = 8;       // ... per candidate while screening (6 missed a 2 N friction
@@ -84,6 +88,9 @@ struct IdentResult {
   AxisModel carried;  // augmented without FitOptions::not_carried, refitted (== augmented when none
                       // is named)
   double carried_validation_rms_um = 0.0;
+  // The carried model refitted with the belt's compliance slope (fit.cpp), held-out RMS, whether
+  // kept or not (0: not tried).
+  double slope_validation_rms_um = 0.0;
   double baseline_rms_um = 0.0;    // over the whole trace
   double augmented_rms_um = 0.0;
   double baseline_validation_rms_um = 0.0;  // over the held-out part

@@ -91,6 +91,13 @@ std::string report_json(const IdentResult& r) {
     j += "}}";
   }
   j += "],\n";
+  // The carried model's belt along the travel (fit.cpp): its slope (0: uniform) and the held-out
+  // RMS of the fit with a slope, kept or not (0: not tried).
+  j += " \"belt_along_travel\": {\"compliance_slope_per_m\": " +
+       num(r.carried.compliance_slope_per_m, "%.6g") +
+       ", \"reference_mm\": " + num(r.carried.stiffness_reference_mm, "%.6g") +
+       ", \"with_slope_held_out_rms_um\": " + num(r.slope_validation_rms_um, "%.4f") +
+       ", \"carried_held_out_rms_um\": " + num(r.carried_validation_rms_um, "%.4f") + "},\n";
   j += " \"augmented\": {\"model\": \"" + json_escape(augmented_description(r)) +
        "\", \"rms_um\": " + num(r.augmented_rms_um, "%.4f") + "}}\n";
   return j;
@@ -117,6 +124,14 @@ std::string report_markdown(const IdentResult& r, const std::string& trace_name,
   s += "| augmented | " + num(r.augmented_rms_um, "%.3f") + " | " + num(r.augmented_validation_rms_um, "%.3f") +
        " |\n\n";
   s += "## Baseline model\n\n" + baseline_description(r.baseline) + "\n\n";
+  if (r.carried.compliance_slope_per_m != 0.0)
+    s += "The belt along the travel: 1 / K2(x) = (1 / k2) (1 + s (x - x_ref)), s = " +
+         num(r.carried.compliance_slope_per_m, "%.4g") +
+         " /m about x_ref = " + num(r.carried.stiffness_reference_mm, "%.2f") +
+         " mm (held-out RMS " + num(r.slope_validation_rms_um, "%.3f") + " um with it).\n\n";
+  else if (r.slope_validation_rms_um > 0.0)
+    s += "The belt along the travel: uniform (with a compliance slope the held-out RMS was " +
+         num(r.slope_validation_rms_um, "%.3f") + " um, not lower enough).\n\n";
   s += "## Evidence: every candidate tried\n\nEach round fits every effect not yet in the model "
        "(its own parameters, from an initial guess read off the residual) and compares the RMS on "
        "the held-out part of the trace; the best is kept, refitted with all parameters free, if it "

@@ -14,7 +14,10 @@ double belt_stiffness_n_m(const GantryAxisLpvModel& m, double x_mm, int directio
   const double dir_factor = direction > 0   ? 2.0 * r / (1.0 + r)
                             : direction < 0 ? 2.0 / (1.0 + r)
                                             : 1.0;
-  if (!(m.belt_unit_stiffness_n > 0.0)) return m.params.k2_n_m * dir_factor;
+  if (!(m.belt_unit_stiffness_n > 0.0)) {
+    const double c = 1.0 + m.compliance_slope_per_m * (x_mm - m.stiffness_reference_mm) * 1e-3;
+    return m.params.k2_n_m * dir_factor / std::clamp(c, 0.2, 5.0);
+  }
   const double L = m.pulley_distance_mm * 1e-3;
   const double x = std::clamp(x_mm * 1e-3, -0.8 * L, 0.8 * L);
   // Eq. 6 with x0 = 0: k_hat / (L - x) pulling +, k_hat / (L + x) pulling -; or their mean.
@@ -52,8 +55,12 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
     if (!(hi >= lo)) return Error{axis + ": empty travel for the feedforward grid", {}};
     if (!(ax.direction_ratio >= 0.1 && ax.direction_ratio <= 10.0))
       return Error{axis + ": direction_ratio must be within 0.1-10", {}};
-    const bool lpv = ax.belt_unit_stiffness_n > 0.0 && hi > lo;
-    // A position grid for Eq. 6; two directions for Eq. 6 or for a ratio of its own.
+    if (!std::isfinite(ax.compliance_slope_per_m) || !std::isfinite(ax.stiffness_reference_mm))
+      return Error{axis + ": the belt's compliance slope and reference must be finite", {}};
+    // A position grid for Eq. 6 or for the calibrated belt's slope.
+    const bool lpv =
+        (ax.belt_unit_stiffness_n > 0.0 || ax.compliance_slope_per_m != 0.0) && hi > lo;
+    // Two directions for Eq. 6 or for a ratio of its own.
     const bool directional = (lpv || ax.direction_ratio != 1.0) && ax.direction_scheduled;
     if (directional && !(ax.direction_force_n > 0.0 && std::isfinite(ax.direction_force_n)))
       return Error{axis + ": direction_force_n must be > 0 and finite", {}};

@@ -43,6 +43,11 @@ struct GantryAxisLpvModel {
   // stiffness pulling + and 2 / (1 + r) times pulling -, so the two directions' mean stays. 1:
   // none.
   double direction_ratio = 1.0;
+  // The belt's compliance along the travel without Eq. 6's geometry (the calibrated belt):
+  // K2(x) = k2 / (1 + s (x - reference)), s in 1/m (0: none); used when belt_unit_stiffness_n
+  // <= 0, held within 0.2-5 k2 (as identification reads it, ident/axis_model.hpp).
+  double compliance_slope_per_m = 0.0;
+  double stiffness_reference_mm = 0.0;
   double min_mm = -100.0;             // travel covered by the grid (clamped to |x| <= 0.8 L)
   double max_mm = 100.0;
   int grid_points = 25;
@@ -74,7 +79,8 @@ double runout_mm(const GantryAxisLpvModel& m, double x_mm);
 
 // Eq. 6 at carriage position x_mm, in N/m: direction > 0 for the belt pulling the carriage
 // towards + (stretch x1 - x2 > 0: k_hat / (L - x)), < 0 towards - (k_hat / (L + x)), 0 the mean
-// of the two, k_hat L / (L^2 - x^2). Without k_hat (<= 0): the constant params.k2_n_m. Either way
+// of the two, k_hat L / (L^2 - x^2). Without k_hat (<= 0): params.k2_n_m, along the travel by
+// the compliance slope (k2 / (1 + s (x - reference))). Either way
 // times 2 r / (1 + r) pulling + and 2 / (1 + r) pulling - (r = direction_ratio).
 double belt_stiffness_n_m(const GantryAxisLpvModel& m, double x_mm, int direction = 0);
 

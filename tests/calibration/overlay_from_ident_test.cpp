@@ -159,6 +159,30 @@ TEST(OverlayFromIdent, TheBeltIsTheFittedOneUniformWithTheNamedDirectionRatio) {
     ASSERT_EQ(effects.size(), 1u);
     EXPECT_TRUE(effects[0].in_model);
   }
+  // A compliance slope along the travel (ident/fit.cpp): written with its reference, and the
+  // feedforward's belt is k2 there and k2 / (1 + s (x - x_ref)) elsewhere.
+  r.augmented.set(ident::Effect::kDirectionStiffness, false);
+  r.effects.clear();
+  r.augmented.compliance_slope_per_m = 3.0;
+  r.augmented.stiffness_reference_mm = 120.0;
+  {
+    const config::GantryModelConfig sloped = overlay(r).first;
+    EXPECT_DOUBLE_EQ(sloped.belt_compliance_slope_per_m, 3.0);
+    EXPECT_DOUBLE_EQ(sloped.belt_stiffness_reference_mm, 120.0);
+    control::GantryAxisLpvModel m = lpv(sloped);
+    m.compliance_slope_per_m = sloped.belt_compliance_slope_per_m;
+    m.stiffness_reference_mm = sloped.belt_stiffness_reference_mm;
+    EXPECT_NEAR(control::belt_stiffness_n_m(m, 120.0), 32100.0, 1e-6);
+    EXPECT_NEAR(control::belt_stiffness_n_m(m, 170.0), 32100.0 / 1.15, 1e-6);
+  }
+  r.augmented.compliance_slope_per_m = 0.0;
+  EXPECT_EQ(overlay(r).first.belt_stiffness_reference_mm, 0.0);  // no slope, no reference
+  auto steep = config::apply_calibration_text(
+      base, "calibration_version: 1\nmodel:\n  gantry:\n    x: {belt_compliance_slope_per_m: 60}\n",
+      "cal.yaml");
+  ASSERT_FALSE(steep.ok());
+  EXPECT_NE(steep.error().to_string().find("cal.yaml:4"), std::string::npos)
+      << steep.error().to_string();
   // In a hand-written overlay 0 is a uniform belt too; below 0 is an error with its place, and so
   // is a direction ratio beyond 0.1-10.
   auto bad = config::apply_calibration_text(

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numbers>
 #include <vector>
 
@@ -446,6 +447,32 @@ TEST(GantryLpvFeedforward, BeltStiffnessFollowsEq6) {
   EXPECT_NEAR(belt_stiffness_n_m(m, 0.0), m.params.k2_n_m, 1e-6);
   // x = 100 mm of L = 300 mm: mean of k_hat/(L - x) and k_hat/(L + x) = k2 L^2 / (L^2 - x^2).
   EXPECT_NEAR(belt_stiffness_n_m(m, 100.0), m.params.k2_n_m * 9.0 / 8.0, 1e-6);
+}
+
+// The calibrated belt (no Eq. 6 geometry): its compliance along the travel is affine,
+// 1 / K2(x) = (1 / k2) (1 + s (x - reference)), and a direction ratio multiplies it as before.
+TEST(GantryLpvFeedforward, BeltStiffnessAlongTheTravelFollowsTheCompliance) {
+  GantryAxisLpvModel m = axis_model(false);
+  m.belt_unit_stiffness_n = 0.0;
+  m.compliance_slope_per_m = 4.0;
+  m.stiffness_reference_mm = 120.0;
+  const double k2 = m.params.k2_n_m;
+  EXPECT_NEAR(belt_stiffness_n_m(m, 120.0), k2, 1e-6 * k2);
+  EXPECT_NEAR(belt_stiffness_n_m(m, 170.0), k2 / 1.2, 1e-6 * k2);  // 50 mm further: 20 % softer
+  EXPECT_NEAR(belt_stiffness_n_m(m, 70.0), k2 / 0.8, 1e-6 * k2);
+  EXPECT_NEAR(belt_stiffness_n_m(m, 1e4), k2 / 5.0, 1e-6 * k2);  // held within 0.2-5 k2
+  m.direction_ratio = 2.0;
+  EXPECT_NEAR(belt_stiffness_n_m(m, 170.0, +1), k2 / 1.2 * 4.0 / 3.0, 1e-6 * k2);
+  EXPECT_NEAR(belt_stiffness_n_m(m, 170.0, -1), k2 / 1.2 * 2.0 / 3.0, 1e-6 * k2);
+  // A slope gives the feedforward a position grid; a non-finite one is refused.
+  std::array<GantryAxisLpvModel, 2> axes{m, m};
+  axes[0].min_mm = axes[1].min_mm = 0.0;
+  axes[0].max_mm = axes[1].max_mm = 250.0;
+  LpvDesignOptions opt;
+  opt.period_s = 1e-3;
+  EXPECT_TRUE(GantryLpvFeedforward::create(axes, opt).ok());
+  axes[1].compliance_slope_per_m = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(GantryLpvFeedforward::create(axes, opt).ok());
 }
 
 }  // namespace
