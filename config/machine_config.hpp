@@ -288,14 +288,14 @@ struct GantryModelConfig {
                                       // ident fit` reports as direction_dependent_stiffness
                                       // ratio): the belt's stiffness is 2 r / (1 + r) of Eq. 6's
                                       // pulling + and 2 / (1 + r) pulling -; 1: none
-  // Pulley runout (what `feedloop ident fit` reports as periodic_position): the carriage reads
-  // s sin(phi) + c (cos(phi) - 1) ahead of the motor, phi = 2 pi (x - reference) / period, with
-  // the encoder zeroed at the reference (the calibration trace's start). period 0: none.
   // The belt's compliance along the travel (what `feedloop calibrate` fits when the belt's
   // stiffness varies with the carriage's position): K2(x) = k2 / (1 + s (x - reference)), s in
   // 1/m, so k2_n_per_m is the stiffness at the reference; 0: a uniform belt (or Eq. 6's, below).
   double belt_compliance_slope_per_m = 0.0;
   double belt_stiffness_reference_mm = 0.0;
+  // Pulley runout (what `feedloop ident fit` reports as periodic_position): the carriage reads
+  // s sin(phi) + c (cos(phi) - 1) ahead of the motor, phi = 2 pi (x - reference) / period, with
+  // the encoder zeroed at the reference (the calibration trace's start). period 0: none.
   double runout_period_mm = 0.0;
   double runout_sin_um = 0.0;
   double runout_cos_um = 0.0;

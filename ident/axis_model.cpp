@@ -7,6 +7,8 @@
 #include <Eigen/Dense>
 #include <unsupported/Eigen/MatrixFunctions>
 
+#include "model/gantry_axis.hpp"
+
 namespace feedloop::ident {
 namespace {
 
@@ -206,7 +208,9 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
           }
           if (backlash) s = s > half_w ? s - half_w : (s < -half_w ? s + half_w : 0.0);
           double kb = direction ? (s > 0.0 ? k_pos : k_neg) : k2;
-          if (positional) kb *= belt_position_factor(m, (xc - rest_m) * 1e3 + u0);
+          if (positional)
+            kb *= model::belt_stiffness_factor(m.compliance_slope_per_m, m.stiffness_reference_mm,
+                                               (xc - rest_m) * 1e3 + u0);
           const double df = kb * s - k2 * (x1 - xc);  // correction to the linear belt force
           double f_fric = 0.0;
           if (friction) {
@@ -228,11 +232,6 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
 }
 
 }  // namespace
-
-double belt_position_factor(const AxisModel& m, double x_mm) {
-  const double c = 1.0 + m.compliance_slope_per_m * (x_mm - m.stiffness_reference_mm) * 1e-3;
-  return 1.0 / std::clamp(c, 0.2, 5.0);
-}
 
 model::StateSpace axis_state_space(const AxisModel& m) {
   Mat6 A;

@@ -59,10 +59,6 @@ struct AxisModel {
   double periodic_amplitude_um() const;
 };
 
-// K2(x) / k2 for m's compliance slope at carriage position x_mm: 1 / (1 + s (x - x_ref)), held
-// within 0.2-5 (a slope fitted on a part of the travel, read beyond it).
-double belt_position_factor(const AxisModel& m, double x_mm);
-
 // The baseline model of the thesis's X or Y axis (Tables 3-4 as solved in docs/simulator.md);
 // any other axis name gets the X values as the starting point.
 AxisModel preset_axis_model(const std::string& axis_name);

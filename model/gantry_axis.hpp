@@ -49,4 +49,12 @@ struct GantryFittedTf {
 GantryFittedTf thesis_eq18_x();
 GantryFittedTf thesis_eq18_y();
 
+// K2(x) / k2 of a belt whose compliance is affine along the travel (what `feedloop calibrate`
+// fits: ident/axis_model.hpp, control/feedforward/gantry_lpv.hpp): 1 / (1 + s (x - reference)),
+// s in 1/m, held within 0.2-5 (a slope fitted on a part of the travel, read beyond it).
+inline double belt_stiffness_factor(double slope_per_m, double reference_mm, double x_mm) {
+  const double c = 1.0 + slope_per_m * (x_mm - reference_mm) * 1e-3;
+  return 1.0 / (c < 0.2 ? 0.2 : (c > 5.0 ? 5.0 : c));
+}
+
 }  // namespace feedloop::model

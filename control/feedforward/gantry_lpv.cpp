@@ -14,10 +14,9 @@ double belt_stiffness_n_m(const GantryAxisLpvModel& m, double x_mm, int directio
   const double dir_factor = direction > 0   ? 2.0 * r / (1.0 + r)
                             : direction < 0 ? 2.0 / (1.0 + r)
                                             : 1.0;
-  if (!(m.belt_unit_stiffness_n > 0.0)) {
-    const double c = 1.0 + m.compliance_slope_per_m * (x_mm - m.stiffness_reference_mm) * 1e-3;
-    return m.params.k2_n_m * dir_factor / std::clamp(c, 0.2, 5.0);
-  }
+  if (!(m.belt_unit_stiffness_n > 0.0))
+    return m.params.k2_n_m * dir_factor *
+           model::belt_stiffness_factor(m.compliance_slope_per_m, m.stiffness_reference_mm, x_mm);
   const double L = m.pulley_distance_mm * 1e-3;
   const double x = std::clamp(x_mm * 1e-3, -0.8 * L, 0.8 * L);
   // Eq. 6 with x0 = 0: k_hat / (L - x) pulling +, k_hat / (L + x) pulling -; or their mean.
