@@ -36,12 +36,15 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
 // The ratio the overlay writes as belt_direction_ratio: m's direction_dependent_stiffness ratio
 // when it is named (and within the config's 0.1-10), else 1.
 double direction_ratio_in_model(const ident::AxisModel& m);
+// The scale the overlay writes as travel_scale: m's scale_error scale when it is named (and within
+// 5 % of 1), else 1.
+double travel_scale_in_model(const ident::AxisModel& m);
 
 // Every named effect of r, with in_model set as above.
 std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResult& r);
 
 // The named effects the feedforward does not carry (recorded in the overlay with in_model false):
-// an extra mode, a scale error. Identification is asked for the model without them
+// an extra mode. Identification is asked for the model without them
 // (ident::FitOptions::not_carried), and that model (IdentResult::carried) is what the overlay
 // writes: on the second simulator's seed 5 a 45 Hz and a 29 Hz "resonance" at the damping bound
 // were named, and the baseline fitted beside them tracked the check pattern 0.0109 mm with the

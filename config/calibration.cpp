@@ -43,6 +43,7 @@ constexpr NumericKey kKeys[] = {
     {"runout_sin_um", [](const GantryModelConfig& g) { return g.runout_sin_um; }},
     {"runout_cos_um", [](const GantryModelConfig& g) { return g.runout_cos_um; }},
     {"runout_reference_mm", [](const GantryModelConfig& g) { return g.runout_reference_mm; }},
+    {"travel_scale", [](const GantryModelConfig& g) { return g.travel_scale; }},
     {"encoder_delay_ms", [](const GantryModelConfig& g) { return g.encoder_delay_ms; }},
     {"stepper.belt_unit_stiffness_n",
      [](const GantryModelConfig& g) { return g.stepper.belt_unit_stiffness_n; }},

@@ -216,6 +216,7 @@ void write_model(Writer& w, const MachineConfig& c) {
       w.num("runout_sin_um", g.runout_sin_um);
       w.num("runout_cos_um", g.runout_cos_um);
       w.num("runout_reference_mm", g.runout_reference_mm);
+      w.num("travel_scale", g.travel_scale);
       w.num("encoder_delay_ms", g.encoder_delay_ms);
       const StepperConfig& s = g.stepper;
       w.begin("stepper");

@@ -300,6 +300,11 @@ struct GantryModelConfig {
   double runout_sin_um = 0.0;
   double runout_cos_um = 0.0;
   double runout_reference_mm = 0.0;
+  // The carriage's travel per mm of steps (what `feedloop ident fit` reports as scale_error
+  // scale: a pulley or belt pitch off its nominal), counted from where the steps and the encoder
+  // were last referenced to each other (a homing, the machine's start); the LPV feedforward
+  // commands the steps that travel. 1: none.
+  double travel_scale = 1.0;
   double encoder_delay_ms = 0.0;  // the encoder's reading shows the carriage this long ago (what
                                   // `feedloop ident fit` reports as time_delay delay_ms): the
                                   // loops and e_t compare it with the reference of that instant

@@ -54,6 +54,9 @@ void read_gantry_axis(MapReader& g, GantryModelConfig& m, Need six, Diagnostics&
   g.number("runout_sin_um", m.runout_sin_um, Range::closed(-1000.0, 1000.0));
   g.number("runout_cos_um", m.runout_cos_um, Range::closed(-1000.0, 1000.0));
   g.number("runout_reference_mm", m.runout_reference_mm, Range::closed(-1e5, 1e5));
+  // Identification reports scales within 2 % of 1 (a pulley 2 % off its nominal is not a print);
+  // beyond 10 % the steps_per_mm is wrong, not the model.
+  g.number("travel_scale", m.travel_scale, Range::closed(0.9, 1.1));
   // Up to 50 ms: the identification's delays are a few ms; a device loop compares its encoder
   // with a target sent this much later (engine/mcu_bridge.cpp).
   g.number("encoder_delay_ms", m.encoder_delay_ms, Range::closed(0.0, 50.0));

@@ -35,6 +35,10 @@ class Feedforward {
   virtual void reset(const FeedforwardInput& at) = 0;
   // RT-safe. One period: the reference at t_{k+P} in, the motor command for t_k out.
   virtual void step(const FeedforwardInput& in, JointArray& u_mm) = 0;
+  // RT-safe. The steps and the encoders were referenced to each other at `at` (the machine's
+  // start, a homing, a resync after a fault): a model whose motor travel differs from the
+  // carriage's by a factor (the identified scale_error) counts that travel from here.
+  virtual void rereference(const FeedforwardInput& /*at*/) {}
   // RT-safe. When the filter changes the reference it follows (velocity_jump_smoother.hpp): the
   // joint positions at t_k that the last step()'s command aims at, and true. false: the plan's.
   virtual bool target(JointArray& /*r_mm*/) const { return false; }

@@ -188,6 +188,7 @@ Result<std::unique_ptr<control::Feedforward>> model_inverse(const config::Machin
     m.runout_sin_mm = g->runout_sin_um * 1e-3;
     m.runout_cos_mm = g->runout_cos_um * 1e-3;
     m.runout_reference_mm = g->runout_reference_mm;
+    m.travel_scale = g->travel_scale;
     if (const config::AxisConfig* ax = cfg.axis(names[a])) {
       m.min_mm = ax->min_mm;
       m.max_mm = ax->max_mm;

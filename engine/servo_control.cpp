@@ -61,6 +61,7 @@ void ServoControl::reset_feedforward(const control::FeedforwardInput& at) {
 }
 
 void ServoControl::reset_all(const control::FeedforwardInput& at) {
+  ff_->rereference(at);
   ff_->reset(at);
   for (size_t j = 0; j < 4; ++j) {
     pi_[j].reset();

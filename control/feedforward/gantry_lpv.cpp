@@ -77,6 +77,8 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
           std::isfinite(ax.runout_sin_mm) && std::isfinite(ax.runout_cos_mm) &&
           std::isfinite(ax.runout_reference_mm)))
       return Error{axis + ": the runout must be finite, its period >= 0", {}};
+    if (!(ax.travel_scale >= 0.5 && ax.travel_scale <= 2.0))
+      return Error{axis + ": travel_scale must be within 0.5-2", {}};
     if (ax.backlash_mm > 0.0 &&
         !(ax.direction_force_n > 0.0 && std::isfinite(ax.direction_force_n)))
       return Error{axis + ": direction_force_n must be > 0 and finite", {}};
@@ -134,7 +136,12 @@ bool GantryLpvFeedforward::load_offset(JointArray& mm) const {
   mm = {load_offset_mm_[0], load_offset_mm_[1], 0.0, 0.0};
   return models_[0].coulomb_friction_n > 0.0 || models_[1].coulomb_friction_n > 0.0 ||
          models_[0].backlash_mm > 0.0 || models_[1].backlash_mm > 0.0 ||
-         models_[0].runout_period_mm > 0.0 || models_[1].runout_period_mm > 0.0;
+         models_[0].runout_period_mm > 0.0 || models_[1].runout_period_mm > 0.0 ||
+         models_[0].travel_scale != 1.0 || models_[1].travel_scale != 1.0;
+}
+
+void GantryLpvFeedforward::rereference(const FeedforwardInput& at) {
+  for (size_t a = 0; a < 2; ++a) scale_origin_mm_[a] = at.r_mm[a];
 }
 
 double GantryLpvFeedforward::friction_n_(int axis, double r_mm) {
@@ -203,6 +210,13 @@ void GantryLpvFeedforward::step(const FeedforwardInput& in, JointArray& u_mm) {
       const double runout = runout_mm(model, r0);
       load_offset_mm_[as] -= runout;
       u_mm[as] -= runout;
+    }
+    if (model.travel_scale != 1.0) {
+      // The carriage travels s mm per mm of steps from p: the motor goes to p + (u - p) / s.
+      const double p = scale_origin_mm_[as];
+      const double scaled = p + (u_mm[as] - p) / model.travel_scale;
+      load_offset_mm_[as] += scaled - u_mm[as];
+      u_mm[as] = scaled;
     }
     r_prev_[as] = r0;
   }

@@ -19,6 +19,9 @@
 // Backlash (the identified backlash effect): a dead band of width w between pulley and belt; the
 // command moves by (w / 2) tanh(F / F0) on the planned belt force F, so that the pulley is across
 // the gap on the side that pulls before the force is needed.
+// Scale (the identified scale_error): the carriage travels s mm per mm of steps, counted from
+// where the steps and the encoder were last referenced to each other (rereference()), so the
+// command is p + (u - p) / s with u the inverse's command for the carriage and p that point.
 // Z and E pass through, delayed by P periods so every joint's command is for the same t_k.
 #pragma once
 
@@ -72,6 +75,9 @@ struct GantryAxisLpvModel {
   // motor, so the command moves by -runout(r). period 0: none.
   double runout_period_mm = 0.0;
   double runout_sin_mm = 0.0, runout_cos_mm = 0.0, runout_reference_mm = 0.0;
+  // The carriage's travel per mm of steps (the identified scale_error's scale; 1: none), counted
+  // from the point where the steps and the encoder were last referenced to each other.
+  double travel_scale = 1.0;
 };
 
 // The runout of m at carriage position x_mm, mm (0 without one).
@@ -99,6 +105,7 @@ class GantryLpvFeedforward final : public Feedforward {
   int preview_samples() const override { return P_; }
   void reset(const FeedforwardInput& at) override;
   void step(const FeedforwardInput& in, JointArray& u_mm) override;
+  void rereference(const FeedforwardInput& at) override;
   bool load_offset(JointArray& mm) const override;
   bool inverts_model() const override { return true; }
 
@@ -118,6 +125,7 @@ class GantryLpvFeedforward final : public Feedforward {
   std::array<double, 2> bristle_mm_{};      // Dahl state z
   std::array<double, 2> load_offset_mm_{};  // friction's and backlash's share of the last command
   std::array<double, 2> r_prev_{};          // r_{k-1}
+  std::array<double, 2> scale_origin_mm_{};  // p: where steps and encoder were last referenced
   std::vector<JointArray> delay_;  // ring of the last P+1 inputs (pass-through joints)
   int head_ = 0;
 };

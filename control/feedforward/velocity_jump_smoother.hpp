@@ -51,6 +51,7 @@ class VelocityJumpSmoother final : public Feedforward {
   void step(const FeedforwardInput& in, JointArray& u_mm) override;
   bool target(JointArray& r_mm) const override;
   bool load_offset(JointArray& mm) const override { return inner_->load_offset(mm); }
+  void rereference(const FeedforwardInput& at) override { inner_->rereference(at); }
   bool inverts_model() const override { return inner_->inverts_model(); }
 
   // Jumps seen so far (samples where the reference's acceleration exceeded a_max); for tests.

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <utility>  // std::make_pair
 #include <vector>
 
 #include "control/feedforward/gantry_lpv.hpp"
@@ -396,6 +397,61 @@ TEST(GantryLpvFeedforward, RunoutMovesTheCommandByMinusTheRunoutAtThePlannedPosi
   // A non-finite runout is refused.
   runout[0].runout_sin_mm = NAN;
   EXPECT_FALSE(GantryLpvFeedforward::create(runout, opt).ok());
+}
+
+// Scale (the identified scale_error): the carriage travels s mm per mm of steps from where the
+// steps and the encoder were last referenced (rereference()), so every command is p + (u - p) / s
+// of the command without it, through a move and at rest after it; a motion that starts again from
+// rest (reset() without rereference) keeps p, so the motor does not jump between jobs; the
+// difference is the load offset the lost-step detector takes out.
+TEST(GantryLpvFeedforward, TravelScaleCountsTheCommandFromWhereStepsAndEncoderWereReferenced) {
+  std::array<GantryAxisLpvModel, 2> plain{axis_model(false), axis_model(true)}, scaled = plain;
+  const double s = 1.0063;
+  scaled[1].travel_scale = s;
+  LpvDesignOptions opt;
+  opt.period_s = kT;
+  opt.preview_samples = 20;
+  auto f0 = GantryLpvFeedforward::create(plain, opt),
+       f1 = GantryLpvFeedforward::create(scaled, opt);
+  ASSERT_TRUE(f0.ok() && f1.ok());
+  FeedforwardInput at;
+  at.r_mm = {10.0, 20.0, 0.0, 0.0};
+  f1.value()->rereference(at);  // homed at y = 20
+  const int P = opt.preview_samples;
+  // Two jobs from rest: y 20 -> 140 mm, then 140 -> 60 mm (150 mm/s, 3000 mm/s^2 trapezoids).
+  for (const auto& [from, to] : {std::make_pair(20.0, 140.0), std::make_pair(140.0, 60.0)}) {
+    at.r_mm[1] = from;
+    f0.value()->reset(at);
+    f1.value()->reset(at);
+    const double d = to - from, v = 150.0, a = 3000.0;
+    const double ta = v / a, tc = std::abs(d) / v - ta;
+    auto y_at = [&](double t) {
+      const double sg = d > 0 ? 1.0 : -1.0;
+      if (t <= 0) return from;
+      if (t < ta) return from + sg * 0.5 * a * t * t;
+      if (t < ta + tc) return from + sg * (0.5 * a * ta * ta + v * (t - ta));
+      if (t < 2 * ta + tc) return to - sg * 0.5 * a * (2 * ta + tc - t) * (2 * ta + tc - t);
+      return to;
+    };
+    JointArray u0{}, u1{};
+    double worst = 0.0;
+    for (int k = 0; k < 1500; ++k) {
+      FeedforwardInput in = at;
+      in.r_mm[1] = y_at((k + P) * kT);
+      f0.value()->step(in, u0);
+      f1.value()->step(in, u1);
+      worst = std::max(worst, std::abs(u1[1] - (20.0 + (u0[1] - 20.0) / s)));
+      EXPECT_DOUBLE_EQ(u1[0], u0[0]);  // X has none
+      JointArray load{};
+      ASSERT_TRUE(f1.value()->load_offset(load));
+      EXPECT_NEAR(load[1], u1[1] - u0[1], 1e-12);
+    }
+    EXPECT_LT(worst, 1e-9);
+    // At rest at `to`: the motor stands (to - 20) (1 / s - 1) from the carriage's place.
+    EXPECT_NEAR(u1[1] - to, (to - 20.0) * (1.0 / s - 1.0), 1e-6);
+  }
+  scaled[1].travel_scale = 2.5;
+  EXPECT_FALSE(GantryLpvFeedforward::create(scaled, opt).ok());
 }
 
 TEST(GantryLpvFeedforward, FrictionMovesTheCommandByTheForceOverTheChainsCompliance) {

@@ -243,6 +243,27 @@ TEST(ClosedLoop, AnEncoderDelayInTheModelKeepsThePiOffAPhantomError) {
   EXPECT_LT(mean_mm[2], 0.2 * mean_mm[1]);  // and the model's delay takes most of that away
 }
 
+// Pulleys 0.8 % large (the first simulator's scale_error on X and Y): open loop, the carriage runs
+// 0.8 % of its distance from where the steps and the encoders were referenced (the machine's start
+// here) past the path, 0.3 mm at X 40. With the scale in the model (model.gantry's travel_scale,
+// what the identified scale_error flows into) the LPV feedforward commands the steps for the
+// carriage's travel, and the path is the unscaled plant's again.
+TEST(ClosedLoop, TravelScaleInTheModelRemovesTheScalesTrackingError) {
+  const auto mean_mm = effect_rows(config::ControlMode::open_loop, 100.0,
+                                   [](config::MachineConfig& cfg, bool in_model) {
+                                     config::ScaleErrorConfig scale;
+                                     scale.scale = 1.008;
+                                     cfg.simulator.effects.scale_error = scale;
+                                     if (in_model)
+                                       for (config::GantryModelConfig& g : cfg.model.gantry)
+                                         g.travel_scale = scale.scale;
+                                   },
+                                   {"no scale error, model without", "0.8 % scale, model without",
+                                    "0.8 % scale, model with 0.8 %"});
+  EXPECT_GT(mean_mm[1], 5.0 * mean_mm[0]);  // the scale is most of the error
+  EXPECT_LT(mean_mm[2], 1.5 * mean_mm[0]);  // and the model's scale takes it away
+}
+
 // The lost-step detector's own model is Eq. 15 with a constant belt and no friction. Behind the LPV
 // feedforward it predicts the carriage at the desired position plus its response to the PI's
 // correction only, and leaves out the feedforward's friction share: a small star at 6000 mm/s^2
