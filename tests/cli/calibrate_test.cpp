@@ -344,6 +344,62 @@ TEST_F(Calibrate, AModelThatTracksWorseIsRolledBack) {
   EXPECT_NE(read_text(dir_ + "/out/report.md").find("**Warning:**"), std::string::npos);
 }
 
+// The first simulator with all seven of its effects drawn big (calibrate_seeds.py --simulator sim
+// --effect all, seed 2): its Y carriage (1.07 kg, 3.9 N of friction, a 78 Hz mode) loses steps
+// in the excitation, and no model of the axis describes that recording (2.2 mm RMS held out; the
+// fit put a scale of 0.9 on it). That fit is refused and Y is excited again at half the
+// acceleration and speed, where it keeps its steps and is calibrated; X is calibrated at once,
+// with its 0.82 % scale error as the feedforward's travel_scale.
+TEST_F(Calibrate, AnAxisWhoseRecordingNoModelDescribesIsExcitedAgainGentler) {
+#ifdef FEEDLOOP_SANITIZED
+  GTEST_SKIP() << "two minutes of simulated motion and four fits: optimized build only";
+#endif
+  std::string y = printer_yaml(-1);
+  y = std::regex_replace(y, std::regex("simulator:\n  seed: 1\n"), "simulator:\n  seed: 2\n");
+  y = std::regex_replace(
+      y, std::regex("\n  effects: \\{\\}"),
+      "\n  effects: {coulomb_friction: {force_n: 3.859, axes: [x, y]}, backlash: {width_um: 22.1, "
+      "axes: [x, y]}, periodic_position: {period_mm: 27.28, amplitude_um: 28.5, axes: [x, y]}, "
+      "direction_dependent_stiffness: {ratio: 2.199, axes: [x, y]}, extra_resonance: {freq_hz: "
+      "77.9, damping: 0.041, axes: [x, y]}, time_delay: {delay_ms: 9.23, axes: [x, y]}, "
+      "scale_error: {scale: 1.00818, axes: [x, y]}}");
+  ASSERT_NE(y.find("seed: 2"), std::string::npos);
+  ASSERT_NE(y.find("scale: 1.00818"), std::string::npos);
+  start_daemon(y);
+  std::string out;
+  ASSERT_EQ(calibrate({"--out", dir_ + "/out"}, &out), 0) << out << "\n--- daemon:\n"
+                                                          << daemon_->output();
+  const json report = json::parse(read_text(dir_ + "/out/report.json"), nullptr, false);
+  ASSERT_TRUE(report.is_object());
+  ASSERT_EQ(report["axes"].size(), 2u);
+  const json& ax = report["axes"][0];
+  const json& ay = report["axes"][1];
+  std::printf("all effects, seed 2: held out x %.1f um, y %.1f um\n",
+              ax["held_out_after_um"].get<double>(), ay["held_out_after_um"].get<double>());
+  EXPECT_FALSE(ax.contains("not_calibrated")) << ax.dump();
+  EXPECT_FALSE(ay.contains("not_calibrated")) << ay.dump();
+  EXPECT_FALSE(ax.contains("gentle"));
+  EXPECT_TRUE(ay.contains("gentle")) << ay.dump();
+  ASSERT_TRUE(report.contains("first_attempts")) << report.dump();
+  ASSERT_EQ(report["first_attempts"].size(), 1u);
+  EXPECT_EQ(report["first_attempts"][0]["axis"], "y");
+  EXPECT_GT(report["first_attempts"][0]["held_out_after_um"].get<double>(), 200.0);
+  EXPECT_NE(report["first_attempts"][0]["not_calibrated"].get<std::string>().find("lost steps"),
+            std::string::npos);
+  EXPECT_LT(ay["held_out_after_um"].get<double>(), 200.0);
+  EXPECT_NE(out.find("exciting it again at half the acceleration and speed"), std::string::npos)
+      << out;
+  EXPECT_NE(read_text(dir_ + "/out/report.md").find("**Excited again"), std::string::npos);
+  auto cfg = config::load_config_file(dir_ + "/printer.yaml");
+  ASSERT_TRUE(cfg.ok());
+  auto applied = config::apply_calibration_file(cfg.value(), dir_ + "/out/calibration.yaml");
+  ASSERT_TRUE(applied.ok()) << applied.error().to_string();
+  EXPECT_EQ(applied.value().axes.size(), 2u);
+  const double scale = applied.value().config.model.gantry_for("x")->travel_scale;
+  std::printf("x travel_scale %.5f (drawn 1.00818)\n", scale);
+  EXPECT_NEAR(scale - 1.0, 0.00818, 0.1 * 0.00818);
+}
+
 // A daemon whose answers have another shape (an older feedloopd, a broken reply): every request
 // gets an empty result. calibrate says so and exits 1; it does not abort.
 TEST_F(Calibrate, AnAnswerOfAnotherShapeIsAClearError) {
