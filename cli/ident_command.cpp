@@ -5,11 +5,13 @@
 
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -40,6 +42,14 @@ void usage(std::FILE* out) {
       "                          (--overlay: write the fitted model into a calibration overlay "
       "for\n"
       "                          feedloopd --calibration; other axes already in it are kept)\n"
+      "                          [--start-mm X]   (where the trace's first command is in the "
+      "machine's frame:\n"
+      "                          the daemon's position_mm when the recorded job started; a "
+      "recording's\n"
+      "                          export counts from the job's start. The overlay's positions "
+      "along the\n"
+      "                          travel, the runout's phase and the belt's reference, are then "
+      "the machine's)\n"
       "       feedloop ident frf --trace FILE.csv --out FRF.csv [--axis NAME] [--segment S] "
       "[--overlap F]\n"
       "                          [--window hann|rect]   (H1 and coherence, 2-125 Hz in 0.5 Hz "
@@ -236,6 +246,7 @@ int fit(const std::vector<std::string>& args) {
   ident::ReportOptions report_options;
   ident::FitOptions o;
   o.not_carried = calibration::effects_not_in_model();  // the overlay's model (--overlay)
+  double start_mm = std::numeric_limits<double>::quiet_NaN();  // --start-mm: NaN, the trace's frame
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     const bool has_value = i + 1 < args.size();
@@ -254,6 +265,10 @@ int fit(const std::vector<std::string>& args) {
       out_dir = args[++i];
     } else if (a == "--axis" && has_value) {
       axis_name = args[++i];
+    } else if (a == "--start-mm" && has_value && parse_number(args[i + 1], &v) &&
+               std::abs(v) <= 1e4) {
+      start_mm = v;
+      ++i;
     } else if (a == "--overlay" && has_value) {
       overlay_path = args[++i];
     } else if (a == "--config" && has_value) {
@@ -311,11 +326,20 @@ int fit(const std::vector<std::string>& args) {
     std::fprintf(stderr, "feedloop ident fit: %s: no axis '%s' in the trace\n", trace_path.c_str(), axis_name.c_str());
     return 1;
   }
+  // The trace moved into the machine's frame (--start-mm), as `feedloop calibrate` moves its
+  // recordings: command and measurement by the same offset, so the fit is the same and only the
+  // positions along the travel that the overlay carries change.
+  std::vector<double> cmd_mm = axis->cmd_mm, meas_mm = axis->meas_mm;
+  if (std::isfinite(start_mm) && !cmd_mm.empty()) {
+    const double to_machine_mm = start_mm - cmd_mm.front();
+    for (double& u : cmd_mm) u += to_machine_mm;
+    for (double& y : meas_mm) y += to_machine_mm;
+  }
   Progress progress("ident fit " + axis->name);
   // The progress bar only on a terminal: logs and pipes get the result lines alone.
   const bool tty = ::isatty(2) != 0;
   if (tty) o.progress = [&](double f, const std::string& what) { progress.update(f, what); };
-  auto r = ident::identify_axis(axis->name, axis->cmd_mm, axis->meas_mm, tr.period_s(), o);
+  auto r = ident::identify_axis(axis->name, cmd_mm, meas_mm, tr.period_s(), o);
   if (tty) progress.finish();
   if (!r) {
     std::fprintf(stderr, "feedloop ident fit: %s: axis %s: %s\n", trace_path.c_str(),
@@ -323,8 +347,8 @@ int fit(const std::vector<std::string>& args) {
     return 1;
   }
   ident::ReportExtras extras;
-  if (auto s = ident::write_report(out_dir, r.value(), tr.time_s, axis->cmd_mm, axis->meas_mm, tr.period_s(), trace_path,
-                                   report_options, &extras);
+  if (auto s = ident::write_report(out_dir, r.value(), tr.time_s, cmd_mm, meas_mm, tr.period_s(),
+                                   trace_path, report_options, &extras);
       !s) {
     std::fprintf(stderr, "feedloop ident fit: %s\n", s.error().to_string().c_str());
     return 1;
@@ -358,6 +382,17 @@ int fit(const std::vector<std::string>& args) {
     }
     std::printf("wrote the calibration overlay %s (axis %s)\n", overlay_path.c_str(),
                 res.axis.c_str());
+    const bool placed = res.carried.has(ident::Effect::kPeriodicPosition) ||
+                        res.carried.compliance_slope_per_m != 0.0;
+    if (placed && !std::isfinite(start_mm))
+      std::fprintf(
+          stderr,
+          "feedloop ident fit: note: the overlay places the %s along the travel in the "
+          "trace's frame (its first command at %.4g mm); if the recorded job did not "
+          "start at that machine position, fit again with --start-mm (the daemon's "
+          "position_mm when the job started)\n",
+          res.carried.has(ident::Effect::kPeriodicPosition) ? "runout's phase" : "belt's stiffness",
+          axis->cmd_mm.front());
   }
   return 0;
 }

@@ -88,6 +88,51 @@ TEST(IdentCli, ExciteThenFitFindsThePeriodicEffectAndWritesTheContract) {
   std::filesystem::remove_all(dir);
 }
 
+// The number after "key: " in a YAML text (NaN when absent).
+double yaml_number(const std::string& text, const std::string& key) {
+  const size_t at = text.find(key + ": ");
+  if (at == std::string::npos) return std::nan("");
+  return std::strtod(text.c_str() + at + key.size() + 2, nullptr);
+}
+
+// --start-mm puts the trace in the machine's frame, as `feedloop calibrate` does with a
+// recording: the same fit, the runout's phase reference moved by exactly the offset.
+TEST(IdentCli, StartMmPlacesTheOverlaysRunoutInTheMachinesFrame) {
+  const auto dir = temp_dir("start");
+  const auto trace = dir / "trace.csv";
+  ASSERT_EQ(ident_command({"excite", "--axis", "y", "--effect",
+                           "periodic_position:period_mm=20,amplitude_um=10", "--duration", "12",
+                           "--out", trace.string()}),
+            0);
+  auto t = ident::read_trace_csv(trace.string());
+  ASSERT_TRUE(t.ok()) << t.error().to_string();
+  const double first_cmd_mm = t.value().axes.front().cmd_mm.front();
+  ASSERT_EQ(ident_command({"fit", "--trace", trace.string(), "--out", (dir / "a").string(),
+                           "--no-plots", "--overlay", (dir / "a.yaml").string()}),
+            0);
+  ASSERT_EQ(
+      ident_command({"fit", "--trace", trace.string(), "--out", (dir / "b").string(), "--no-plots",
+                     "--overlay", (dir / "b.yaml").string(), "--start-mm", "87.5"}),
+      0);
+  const std::string a = slurp(dir / "a.yaml"), b = slurp(dir / "b.yaml");
+  const double ref_a = yaml_number(a, "runout_reference_mm"),
+               ref_b = yaml_number(b, "runout_reference_mm");
+  ASSERT_TRUE(std::isfinite(ref_a)) << a;
+  ASSERT_TRUE(std::isfinite(ref_b)) << b;
+  EXPECT_NEAR(ref_a, first_cmd_mm, 1e-9);
+  EXPECT_NEAR(ref_b, 87.5, 1e-9);
+  // The same runout found either way (the fit sees the same motion).
+  for (const char* key : {"runout_period_mm", "runout_sin_um", "runout_cos_um"}) {
+    const double va = yaml_number(a, key), vb = yaml_number(b, key);
+    ASSERT_TRUE(std::isfinite(va) && std::isfinite(vb)) << key << "\n" << a;
+    EXPECT_NEAR(va, vb, 0.02 * std::max(1.0, std::abs(va))) << key;
+  }
+  EXPECT_EQ(
+      ident_command({"fit", "--trace", trace.string(), "--out", dir.string(), "--start-mm", "nan"}),
+      2);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(IdentCli, UserErrorsAreReportedNotCrashes) {
   const auto dir = temp_dir("err");
   EXPECT_EQ(ident_command({"fit", "--trace", (dir / "missing.csv").string(), "--out", dir.string()}), 1);
