@@ -736,7 +736,8 @@ int calibrate(const std::vector<std::string>& args) {
   for (size_t i = 0; i < axes.size() && excited; ++i) {
     auto got = excite(i, false);
     std::string why = got ? incredible_fit(got.value().fit, axes[i]) : "";
-    if (got && !why.empty()) {
+    const bool gentle = got && !why.empty();
+    if (gentle) {
       // Once more, gentler: a carriage that loses steps at the axis's limits may not at half.
       std::fprintf(stderr, "warning: %s; exciting it again at half the acceleration and speed\n",
                    why.c_str());
@@ -761,8 +762,7 @@ int calibrate(const std::vector<std::string>& args) {
                               {"held_out_after_um", r.augmented_validation_rms_um},
                               {"effects", json::array()}});
     report["axes"].back()["warnings"] = r.warnings;
-    if (report.contains("first_attempts") && report["first_attempts"].back()["axis"] == axes[i])
-      report["axes"].back()["gentle"] = kGentle;
+    if (gentle) report["axes"].back()["gentle"] = kGentle;
     std::printf("axis %s: residual RMS %.2f -> %.2f um (held out %.2f -> %.2f um), effects: %zu\n", axes[i].c_str(),
                 r.baseline_rms_um, r.augmented_rms_um, r.baseline_validation_rms_um, r.augmented_validation_rms_um,
                 r.effects.size());
