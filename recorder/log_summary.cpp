@@ -32,6 +32,7 @@ struct Accumulate {
   }
   void operator()(const MoveRecord& r) {
     ++s.moves;
+    if (!s.has_print_time || r.start_time_s < s.first_print_s) s.first_move_start_mm = r.start_mm;
     if (!s.has_print_time) s.first_print_s = r.start_time_s, s.last_print_s = r.start_time_s;
     s.first_print_s = std::min(s.first_print_s, r.start_time_s);
     s.last_print_s = std::max(s.last_print_s, r.start_time_s + r.duration_s);
@@ -128,7 +129,13 @@ std::string format_summary(const LogSummary& s) {
        " s print time (moves)");
   line("g-code:     " + std::to_string(s.gcode_lines) + " lines" +
        (s.truncated_lines ? " (" + std::to_string(s.truncated_lines) + " cut to the text limit)" : std::string()));
-  line("moves:      " + std::to_string(s.moves));
+  line("moves:      " + std::to_string(s.moves) +
+       (s.has_print_time
+            ? ", the first from X " + fmt("%.4f", s.first_move_start_mm[0]) + " Y " +
+                  fmt("%.4f", s.first_move_start_mm[1]) + " Z " +
+                  fmt("%.4f", s.first_move_start_mm[2]) +
+                  " mm (the machine's frame; `feedloop ident fit --start-mm` of an exported trace)"
+            : std::string()));
   for (size_t j = 0; j < s.joints.size(); ++j) {
     const JointInfo& ji = s.header.joints[j];
     const JointSummary& js = s.joints[j];

@@ -46,6 +46,9 @@ struct LogSummary {
   bool has_host_time = false;
   double first_print_s = 0.0, last_print_s = 0.0;
   bool has_print_time = false;
+  // Where the earliest planned move starts (X Y Z E, the machine's frame): a recording's step
+  // positions count from the print's start, and `feedloop ident fit --start-mm` takes this.
+  std::array<double, 4> first_move_start_mm{};
   std::optional<Error> damage;                          // where reading stopped early
 
   double host_duration_s() const { return has_host_time ? 1e-9 * static_cast<double>(last_host_ns - first_host_ns) : 0.0; }

@@ -138,6 +138,16 @@ TEST(RecorderRoundTrip, EveryRecordTypeComesBackExactly) {
   EXPECT_EQ(enc[2], (EncoderRecord{0, 3001, -(int64_t{1} << 50)}));
   EXPECT_EQ(enc[1], (EncoderRecord{0, 2000, 12340}));
   EXPECT_EQ(only<OriginRecord>(all).at(0), (OriginRecord{0, 123456, -800}));
+  // The summary says where the print's first move starts (for `ident fit --start-mm`).
+  {
+    auto sum = summarize_log(logs[0]);
+    ASSERT_TRUE(sum.ok());
+    for (size_t i = 0; i < 4; ++i) EXPECT_EQ(sum->first_move_start_mm[i], pm.start_mm[i]) << i;
+    const std::string text = format_summary(*sum);
+    EXPECT_NE(text.find("moves:      2, the first from X 10.0000 Y 20.0000 Z 0.2000 mm"),
+              std::string::npos)
+        << text;
+  }
 
   const auto events = only<EventRecord>(all);
   ASSERT_EQ(events.size(), 2u);
