@@ -69,10 +69,14 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
   g.runout_reference_mm = runout ? r.start_command_mm : 0.0;
   g.encoder_delay_ms = m.has(ident::Effect::kTimeDelay) ? std::clamp(m.delay_ms, 0.0, 50.0) : 0.0;
   g.travel_scale = travel_scale_in_model(m);
+  const bool mode = m.has(ident::Effect::kExtraResonance);
+  g.extra_resonance_hz = mode ? m.extra_freq_hz : 0.0;
+  g.extra_resonance_damping = mode ? m.extra_damping : 0.0;
+  g.extra_resonance_mass_kg = mode ? m.extra_mass_kg : 0.0;
   return g;
 }
 
-const std::vector<ident::Effect>& effects_not_in_model() {
+const std::vector<ident::Effect>& effects_tried_on_the_machine() {
   static const std::vector<ident::Effect> effects = {ident::Effect::kExtraResonance};
   return effects;
 }
@@ -93,6 +97,7 @@ std::vector<config::CalibrationEffect> effects_from_ident(const ident::IdentResu
     c.in_model =
         e == ident::Effect::kCoulombFriction || e == ident::Effect::kBacklash ||
         e == ident::Effect::kTimeDelay || e == ident::Effect::kPeriodicPosition ||
+        (e == ident::Effect::kExtraResonance && r.augmented.has(e)) ||
         (e == ident::Effect::kDirectionStiffness && direction_ratio_in_model(r.augmented) != 1.0) ||
         (e == ident::Effect::kScaleError && travel_scale_in_model(r.augmented) != 1.0);
     out.push_back(std::move(c));

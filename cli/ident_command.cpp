@@ -245,7 +245,6 @@ int fit(const std::vector<std::string>& args) {
   std::string trace_path, out_dir, axis_name, overlay_path, config_path;
   ident::ReportOptions report_options;
   ident::FitOptions o;
-  o.not_carried = calibration::effects_not_in_model();  // the overlay's model (--overlay)
   double start_mm = std::numeric_limits<double>::quiet_NaN();  // --start-mm: NaN, the trace's frame
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];

@@ -217,6 +217,9 @@ void write_model(Writer& w, const MachineConfig& c) {
       w.num("runout_cos_um", g.runout_cos_um);
       w.num("runout_reference_mm", g.runout_reference_mm);
       w.num("travel_scale", g.travel_scale);
+      w.num("extra_resonance_hz", g.extra_resonance_hz);
+      w.num("extra_resonance_damping", g.extra_resonance_damping);
+      w.num("extra_resonance_mass_kg", g.extra_resonance_mass_kg);
       w.num("encoder_delay_ms", g.encoder_delay_ms);
       const StepperConfig& s = g.stepper;
       w.begin("stepper");

@@ -305,6 +305,12 @@ struct GantryModelConfig {
   // were last referenced to each other (a homing, the machine's start); the LPV feedforward
   // commands the steps that travel. 1: none.
   double travel_scale = 1.0;
+  // A mode the two masses lack (what `feedloop ident fit` reports as extra_resonance): a mass on a
+  // spring-damper on the carriage, its natural frequency and damping ratio there; the LPV
+  // feedforward's model carries it. mass 0: none.
+  double extra_resonance_hz = 0.0;
+  double extra_resonance_damping = 0.0;
+  double extra_resonance_mass_kg = 0.0;
   double encoder_delay_ms = 0.0;  // the encoder's reading shows the carriage this long ago (what
                                   // `feedloop ident fit` reports as time_delay delay_ms): the
                                   // loops and e_t compare it with the reference of that instant

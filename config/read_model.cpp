@@ -57,6 +57,14 @@ void read_gantry_axis(MapReader& g, GantryModelConfig& m, Need six, Diagnostics&
   // Identification reports scales within 2 % of 1 (a pulley 2 % off its nominal is not a print);
   // beyond 10 % the steps_per_mm is wrong, not the model.
   g.number("travel_scale", m.travel_scale, Range::closed(0.9, 1.1));
+  // Identification fits modes of 10-300 Hz, damped 0.001-0.19, of a fraction of the carriage.
+  g.number("extra_resonance_hz", m.extra_resonance_hz, Range::closed(0.0, 1000.0));
+  g.number("extra_resonance_damping", m.extra_resonance_damping, Range::closed(0.0, 1.0));
+  g.number("extra_resonance_mass_kg", m.extra_resonance_mass_kg, Range::closed(0.0, 100.0));
+  if (m.extra_resonance_mass_kg > 0.0 && !(m.extra_resonance_hz > 0.0))
+    diag.add(g.key_mark("extra_resonance_hz"),
+             "extra_resonance_hz must be > 0 when extra_resonance_mass_kg is (" +
+                 format_number(m.extra_resonance_mass_kg) + " kg): the mode's natural frequency");
   // Up to 50 ms: the identification's delays are a few ms; a device loop compares its encoder
   // with a target sent this much later (engine/mcu_bridge.cpp).
   g.number("encoder_delay_ms", m.encoder_delay_ms, Range::closed(0.0, 50.0));

@@ -189,6 +189,8 @@ Result<std::unique_ptr<control::Feedforward>> model_inverse(const config::Machin
     m.runout_cos_mm = g->runout_cos_um * 1e-3;
     m.runout_reference_mm = g->runout_reference_mm;
     m.travel_scale = g->travel_scale;
+    m.carriage_mode = {g->extra_resonance_hz, g->extra_resonance_damping,
+                       g->extra_resonance_mass_kg};
     if (const config::AxisConfig* ax = cfg.axis(names[a])) {
       m.min_mm = ax->min_mm;
       m.max_mm = ax->max_mm;

@@ -1,7 +1,8 @@
 // Thesis gantry axis model (see gantry_axis.hpp).
 #include "model/gantry_axis.hpp"
 
-#include <cmath>  // std::isfinite
+#include <cmath>    // std::isfinite
+#include <numbers>  // std::numbers::pi
 
 namespace feedloop::model {
 
@@ -46,6 +47,41 @@ StateSpace gantry_state_space(const GantryAxisParams& p) {
   s.B = Eigen::MatrixXd::Zero(4, 1);
   s.B(1, 0) = p.k1_n_m / p.m1_kg;
   s.C = Eigen::MatrixXd::Zero(1, 4);
+  s.C(0, 2) = 1.0;
+  s.D = Eigen::MatrixXd::Zero(1, 1);
+  return s;
+}
+
+Status validate(const CarriageMode& mode) {
+  if (!(std::isfinite(mode.freq_hz) && std::isfinite(mode.damping) && std::isfinite(mode.mass_kg)))
+    return Error{"carriage mode: frequency, damping and mass must be finite", {}};
+  if (!(mode.mass_kg >= 0.0)) return Error{"carriage mode: mass_kg must be >= 0", {}};
+  if (mode.present() && !(mode.freq_hz > 0.0 && mode.damping >= 0.0))
+    return Error{"carriage mode: freq_hz must be > 0 and damping >= 0", {}};
+  return {};
+}
+
+StateSpace gantry_state_space(const GantryAxisParams& p, const CarriageMode& mode) {
+  StateSpace base = gantry_state_space(p);
+  if (!mode.present()) return base;
+  const double w = 2.0 * std::numbers::pi * mode.freq_hz;
+  const double m3 = mode.mass_kg, k3 = m3 * w * w, c3 = 2.0 * mode.damping * m3 * w;
+  StateSpace s;
+  s.A = Eigen::MatrixXd::Zero(6, 6);
+  s.A.topLeftCorner(4, 4) = base.A;
+  // The mount's force on the carriage, k3 (x3 - x2) + c3 (x3' - x2'); the opposite on m3.
+  s.A(3, 2) -= k3 / p.m2_kg;
+  s.A(3, 3) -= c3 / p.m2_kg;
+  s.A(3, 4) = k3 / p.m2_kg;
+  s.A(3, 5) = c3 / p.m2_kg;
+  s.A(4, 5) = 1.0;
+  s.A(5, 2) = k3 / m3;
+  s.A(5, 3) = c3 / m3;
+  s.A(5, 4) = -k3 / m3;
+  s.A(5, 5) = -c3 / m3;
+  s.B = Eigen::MatrixXd::Zero(6, 1);
+  s.B(1, 0) = base.B(1, 0);
+  s.C = Eigen::MatrixXd::Zero(1, 6);
   s.C(0, 2) = 1.0;
   s.D = Eigen::MatrixXd::Zero(1, 1);
   return s;

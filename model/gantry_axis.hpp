@@ -33,6 +33,23 @@ Status validate(const GantryAxisParams& p);
 // Eq. 15 with state q = [x1, x1', x2, x2'], input u, output y = x2 (SI: m, m/s).
 StateSpace gantry_state_space(const GantryAxisParams& p);
 
+// A mode the two masses lack (what `feedloop ident fit` reports as extra_resonance): a mass m3 on
+// a spring-damper on the carriage, k3 = m3 w^2 and c3 = 2 zeta m3 w with w = 2 pi freq_hz (its
+// natural frequency clamped to the carriage). mass_kg 0: none.
+struct CarriageMode {
+  double freq_hz = 0.0;
+  double damping = 0.0;
+  double mass_kg = 0.0;
+  bool present() const { return mass_kg > 0.0; }
+};
+// freq_hz, damping, mass_kg finite, freq_hz > 0, damping >= 0, mass_kg >= 0.
+Status validate(const CarriageMode& mode);
+
+// Eq. 15 with the mode's mass on the carriage: q = [x1, x1', x2, x2', x3, x3'] (x3 the mode's
+// mass), the carriage's equation gaining k3 (x3 - x2) + c3 (x3' - x2'); output y = x2. Without a
+// mode: gantry_state_space(p).
+StateSpace gantry_state_space(const GantryAxisParams& p, const CarriageMode& mode);
+
 // Eq. 16 generalised to any e (Eq. 16 is the case e = 1):
 //   G(s) = k1 k2 / { m1 m2 s^4 + (c1 m2 + c2 m1) s^3 + (c1 c2 + (k1 + k2/e) m2 + k2 m1) s^2
 //                    + (c1 k2 + c2 (k1 + k2/e)) s + k1 k2 },

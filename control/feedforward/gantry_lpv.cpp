@@ -79,6 +79,8 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
       return Error{axis + ": the runout must be finite, its period >= 0", {}};
     if (!(ax.travel_scale >= 0.5 && ax.travel_scale <= 2.0))
       return Error{axis + ": travel_scale must be within 0.5-2", {}};
+    if (Status st = model::validate(ax.carriage_mode); !st)
+      return Error{axis + ": " + st.error().message, {}};
     if (ax.backlash_mm > 0.0 &&
         !(ax.direction_force_n > 0.0 && std::isfinite(ax.direction_force_n)))
       return Error{axis + ": direction_force_n must be > 0 and finite", {}};
@@ -92,7 +94,8 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
         model::GantryAxisParams p = ax.params;
         // Eq. 6 at this grid point (and direction, or the mean of both).
         p.k2_n_m = belt_stiffness_n_m(ax, ff->grid_[a].at(i), directional ? directions[dir] : 0);
-        auto d = discretize_for_hold(model::gantry_state_space(p), opt.period_s, opt.hold);  // Eq. 15
+        auto d = discretize_for_hold(model::gantry_state_space(p, ax.carriage_mode), opt.period_s,
+                                     opt.hold);  // Eq. 15
         if (!d) return Error{axis + ": " + d.error().message, {}};
         auto inv = design_preview_inverse(d.value(), opt.preview_samples, ref_offset, opt.weights);
         if (!inv) return Error{axis + ": " + inv.error().message, {}};

@@ -22,6 +22,9 @@
 // Scale (the identified scale_error): the carriage travels s mm per mm of steps, counted from
 // where the steps and the encoder were last referenced to each other (rereference()), so the
 // command is p + (u - p) / s with u the inverse's command for the carriage and p that point.
+// Extra mode (the identified extra_resonance): a mass on a spring-damper on the carriage joins
+// the model of every design (six states), so the inverse also commands what holds that mass on
+// the path.
 // Z and E pass through, delayed by P periods so every joint's command is for the same t_k.
 #pragma once
 
@@ -78,6 +81,10 @@ struct GantryAxisLpvModel {
   // The carriage's travel per mm of steps (the identified scale_error's scale; 1: none), counted
   // from the point where the steps and the encoder were last referenced to each other.
   double travel_scale = 1.0;
+  // A mode on the carriage that the two masses lack (the identified extra_resonance): its mass
+  // on a spring-damper, in the model every design inverts (model::gantry_state_space). mass 0:
+  // none.
+  model::CarriageMode carriage_mode;
 };
 
 // The runout of m at carriage position x_mm, mm (0 without one).

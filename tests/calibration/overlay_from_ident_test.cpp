@@ -253,8 +253,9 @@ TEST(OverlayFromIdent, TheRunoutIsCarriedWithThePositionItsPhaseCountsFrom) {
   EXPECT_DOUBLE_EQ(g.runout_reference_mm, 117.5);
   ASSERT_EQ(a.value().effects.size(), 1u);
   EXPECT_TRUE(a.value().effects[0].in_model);
-  EXPECT_TRUE(std::find(effects_not_in_model().begin(), effects_not_in_model().end(),
-                        ident::Effect::kPeriodicPosition) == effects_not_in_model().end());
+  EXPECT_TRUE(std::find(effects_tried_on_the_machine().begin(),
+                        effects_tried_on_the_machine().end(),
+                        ident::Effect::kPeriodicPosition) == effects_tried_on_the_machine().end());
   // None named: no runout, whatever the config had.
   r.augmented.set(ident::Effect::kPeriodicPosition, false);
   r.effects.clear();
@@ -264,9 +265,13 @@ TEST(OverlayFromIdent, TheRunoutIsCarriedWithThePositionItsPhaseCountsFrom) {
   EXPECT_EQ(none.value().config.model.gantry_for("x")->runout_period_mm, 0.0);
 }
 
-// The overlay writes the carried model (identification's model without the effects the
-// feedforward does not carry), and still records the effects left out, with their parameters.
-TEST(OverlayFromIdent, TheOverlayWritesTheModelTheFeedforwardCarries) {
+// A named mode (extra_resonance) is in the model the overlay writes: the feedforward's designs
+// carry the mass on the carriage (model.gantry.<axis>.extra_resonance_*). A carried model without
+// it (identification asked to leave it out, FitOptions::not_carried) records the effect with its
+// parameters, in_model false, and writes no mode.
+TEST(OverlayFromIdent, TheNamedModeIsInTheModelTheOverlayWrites) {
+  EXPECT_EQ(effects_tried_on_the_machine(),
+            std::vector<ident::Effect>{ident::Effect::kExtraResonance});
   const config::MachineConfig base = config::default_config();
   ident::IdentResult r;
   r.axis = "x";
@@ -274,20 +279,49 @@ TEST(OverlayFromIdent, TheOverlayWritesTheModelTheFeedforwardCarries) {
   r.augmented.k2_n_m = 61000.0;
   r.augmented.set(ident::Effect::kExtraResonance, true);
   r.augmented.extra_freq_hz = 44.8;
+  r.augmented.extra_damping = 0.04;
+  r.augmented.extra_mass_kg = 0.11;
   r.effects = {ident::Effect::kExtraResonance};
-  r.carried = ident::preset_axis_model("x");
-  r.carried.k2_n_m = 52000.0;
-  r.carried.extra_freq_hz = 44.8;
+  r.carried = r.augmented;
   auto yaml = merge_overlay(base, "", "", with_carried_model(r), "fit");
   ASSERT_TRUE(yaml.ok()) << yaml.error().to_string();
   auto a = config::apply_calibration_text(base, yaml.value(), "cal.yaml");
-  ASSERT_TRUE(a.ok()) << a.error().to_string();
-  EXPECT_EQ(a.value().config.model.gantry_for("x")->k2_n_per_m, 52000.0);
+  ASSERT_TRUE(a.ok()) << a.error().to_string() << "\n" << yaml.value();
+  const config::GantryModelConfig& g = *a.value().config.model.gantry_for("x");
+  EXPECT_EQ(g.k2_n_per_m, 61000.0);
+  EXPECT_DOUBLE_EQ(g.extra_resonance_hz, 44.8);
+  EXPECT_DOUBLE_EQ(g.extra_resonance_damping, 0.04);
+  EXPECT_DOUBLE_EQ(g.extra_resonance_mass_kg, 0.11);
   ASSERT_EQ(a.value().effects.size(), 1u);
   EXPECT_EQ(a.value().effects[0].name, "extra_resonance");
-  EXPECT_FALSE(a.value().effects[0].in_model);
+  EXPECT_TRUE(a.value().effects[0].in_model);
   EXPECT_NEAR(a.value().effects[0].params.at("freq_hz"), 44.8, 1e-9);
-  for (ident::Effect e : effects_not_in_model()) EXPECT_EQ(e, ident::Effect::kExtraResonance);
+
+  // Carried without the mode: recorded only, and the config's mode is cleared.
+  r.carried = ident::preset_axis_model("x");
+  r.carried.k2_n_m = 52000.0;
+  r.carried.extra_freq_hz = 44.8;  // the fit's field, reported, not enabled
+  auto yaml2 = merge_overlay(base, yaml.value(), "cal.yaml", with_carried_model(r), "fit");
+  ASSERT_TRUE(yaml2.ok()) << yaml2.error().to_string();
+  auto b = config::apply_calibration_text(base, yaml2.value(), "cal.yaml");
+  ASSERT_TRUE(b.ok()) << b.error().to_string();
+  EXPECT_EQ(b.value().config.model.gantry_for("x")->k2_n_per_m, 52000.0);
+  EXPECT_EQ(b.value().config.model.gantry_for("x")->extra_resonance_mass_kg, 0.0);
+  ASSERT_EQ(b.value().effects.size(), 1u);
+  EXPECT_FALSE(b.value().effects[0].in_model);
+  EXPECT_NEAR(b.value().effects[0].params.at("freq_hz"), 44.8, 1e-9);
+}
+
+// A mode's mass without its frequency is a located config error, not a feedforward design.
+TEST(OverlayFromIdent, AModeWithoutAFrequencyIsRefusedWithItsKey) {
+  const config::MachineConfig base = config::default_config();
+  const std::string overlay =
+      "calibration_version: 1\nmodel:\n  gantry:\n    x:\n      extra_resonance_mass_kg: 0.2\n";
+  auto a = config::apply_calibration_text(base, overlay, "cal.yaml");
+  ASSERT_FALSE(a.ok());
+  EXPECT_NE(a.error().to_string().find("extra_resonance_hz"), std::string::npos)
+      << a.error().to_string();
+  EXPECT_NE(a.error().to_string().find("cal.yaml"), std::string::npos) << a.error().to_string();
 }
 
 }  // namespace

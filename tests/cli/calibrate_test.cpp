@@ -37,13 +37,15 @@ std::string read_text(const std::string& path) {
 
 // The embedded simulated printer with the LPV feedforward (the model the calibration changes is
 // the one it inverts); `plant2_seed` >= 0: its X and Y on the second simulator, without switches.
-std::string printer_yaml(int plant2_seed) {
+std::string printer_yaml(int plant2_seed, const std::string& plant2_effect = "") {
   std::string y(config::default_config_yaml());
   y = std::regex_replace(y, std::regex("feedforward:\n  type: none"), "feedforward:\n  type: lpv");
   if (plant2_seed >= 0) {
     y = std::regex_replace(y, std::regex("simulator:\n  seed: 1"),
-                           std::string("simulator:\n  seed: 1\n  external_plant: {command: \"") + FEEDLOOP_PLANT2_PATH +
-                               " --seed " + std::to_string(plant2_seed) + "\", axes: [x, y], period_us: 100}");
+                           std::string("simulator:\n  seed: 1\n  external_plant: {command: \"") +
+                               FEEDLOOP_PLANT2_PATH + " --seed " + std::to_string(plant2_seed) +
+                               (plant2_effect.empty() ? "" : " --effect " + plant2_effect) +
+                               "\", axes: [x, y], period_us: 100}");
     // An external plant's carriages have no simulated switches: G28 is a move (docs/homing.md).
     y = std::regex_replace(y, std::regex("\n    homing: \\{direction: min[^\n]*"), "");
   }
@@ -88,8 +90,8 @@ class Calibrate : public ::testing::Test {
     return line ? json::parse(*line)["result"] : json();
   }
   // Runs the whole calibration; the report.
-  json run(int plant2_seed) {
-    start_daemon(printer_yaml(plant2_seed));
+  json run(int plant2_seed, const std::string& plant2_effect = "") {
+    start_daemon(printer_yaml(plant2_seed, plant2_effect));
     std::string out;
     const int rc = calibrate({"--out", dir_ + "/out"}, &out);
     EXPECT_EQ(rc, 0) << out << "\n--- daemon:\n" << daemon_->output();
@@ -226,6 +228,47 @@ TEST_F(Calibrate, OnTheSecondSimulatorTheCalibratedModelCutsTheTrackingError) {
     EXPECT_GT(configured->stepper.belt_unit_stiffness_n, 0.0) << axis;
     EXPECT_EQ(calibrated->stepper.belt_unit_stiffness_n, 0.0) << axis;
   }
+}
+
+// Second simulator, seed 1, with a mode drawn on both carriages (a mass of 15-35 % of the carriage
+// on a spring-damper at 40-150 Hz, plant2/draw.cpp): identification names it on both axes, the
+// overlay is installed without it first (the model fitted without the mode), the PI gains are
+// chosen on it, and the model with the mode (a mass on the carriage in every feedforward design)
+// is tried on the check pattern with those gains and kept because it tracks better. Measured:
+// 0.0064 mm without, 0.0052 with (-92 % against open loop). On the clean machines whose
+// distributed belt identification reads as a mode (seeds 5 and 6) the trial keeps the model
+// without it (0.0078 against 0.0090, 0.0065 against 0.0090: docs/calibration.md).
+TEST_F(Calibrate, ANamedCarriageModeIsKeptWhenTheMachineTracksBetterWithIt) {
+#ifdef FEEDLOOP_SANITIZED
+  GTEST_SKIP() << "the external plant in lock-step for two minutes of motion: optimized build only";
+#endif
+  const json report = run(1, "extra_resonance");
+  ASSERT_TRUE(report.is_object());
+  ASSERT_TRUE(report.contains("mode_trial")) << report.dump(1);
+  const json& t = report["mode_trial"];
+  std::printf(
+      "second simulator (seed 1, extra_resonance): without the mode %.4f mm, with it %s mm\n",
+      t["e_t_without_mm"].get<double>(), t["e_t_with_mm"].dump().c_str());
+  EXPECT_EQ(t["axes"].size(), 2u);
+  ASSERT_TRUE(t["e_t_with_mm"].is_number());
+  EXPECT_TRUE(t["kept"].get<bool>());
+  EXPECT_LT(t["e_t_with_mm"].get<double>(), 0.95 * t["e_t_without_mm"].get<double>());
+  EXPECT_DOUBLE_EQ(report["e_t_mm"]["after"].get<double>(), t["e_t_with_mm"].get<double>());
+  EXPECT_LT(report["e_t_mm"]["after"].get<double>(),
+            0.1 * report["e_t_mm"]["open_loop"].get<double>());
+  auto cfg = config::load_config_file(dir_ + "/printer.yaml");
+  ASSERT_TRUE(cfg.ok());
+  auto applied = config::apply_calibration_file(cfg.value(), dir_ + "/calibration.yaml");
+  ASSERT_TRUE(applied.ok()) << applied.error().to_string();
+  for (const char* axis : {"x", "y"}) {
+    const config::GantryModelConfig* g = applied.value().config.model.gantry_for(axis);
+    ASSERT_NE(g, nullptr);
+    EXPECT_GT(g->extra_resonance_mass_kg, 0.0) << axis;
+    EXPECT_GE(g->extra_resonance_hz, 30.0) << axis;
+    EXPECT_LE(g->extra_resonance_hz, 200.0) << axis;
+  }
+  const std::string md = read_text(dir_ + "/out/report.md");
+  EXPECT_NE(md.find("## The named mode on the machine"), std::string::npos) << md;
 }
 
 // Second simulator, seed 1 (X: drawn machine 1, a clean machine whose carriage mode is at 34 Hz):

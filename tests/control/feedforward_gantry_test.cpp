@@ -454,6 +454,59 @@ TEST(GantryLpvFeedforward, TravelScaleCountsTheCommandFromWhereStepsAndEncoderWe
   EXPECT_FALSE(GantryLpvFeedforward::create(scaled, opt).ok());
 }
 
+// Extra mode (the identified extra_resonance): a mass on a spring-damper on each carriage (X 60 Hz,
+// Y 45 Hz, lightly damped) rings on every move of a plant that has it. The inverse of the model
+// with the mode commands what holds that mass on the path; the inverse without it leaves the
+// ringing (and the two-mass inverse is what every earlier overlay carried).
+TEST(GantryLpvFeedforward, ACarriageModeInTheModelTakesOutItsRinging) {
+  std::array<GantryAxisLpvModel, 2> plain{axis_model(false), axis_model(true)};
+  for (auto& a : plain) a.belt_unit_stiffness_n = 0.0;  // a uniform belt: the mode is the point
+  std::array<GantryAxisLpvModel, 2> moded = plain;
+  moded[0].carriage_mode = {60.0, 0.04, 0.12};
+  moded[1].carriage_mode = {45.0, 0.05, 0.30};
+  LpvDesignOptions opt;
+  opt.period_s = kT;
+  opt.preview_samples = 20;
+  auto f_plain = GantryLpvFeedforward::create(plain, opt);
+  auto f_moded = GantryLpvFeedforward::create(moded, opt);
+  ASSERT_TRUE(f_plain.ok() && f_moded.ok());
+  auto plant_with_mode = [&] {
+    return fftest::FineSim(
+        [moded](const Eigen::VectorXd&) {
+          model::StateSpace s;
+          s.A = Eigen::MatrixXd::Zero(12, 12);
+          s.B = Eigen::MatrixXd::Zero(12, 2);
+          s.C = Eigen::MatrixXd::Zero(2, 12);
+          s.D = Eigen::MatrixXd::Zero(2, 2);
+          for (int a = 0; a < 2; ++a) {
+            const GantryAxisLpvModel& m = moded[static_cast<size_t>(a)];
+            const model::StateSpace g = model::gantry_state_space(m.params, m.carriage_mode);
+            s.A.block(6 * a, 6 * a, 6, 6) = g.A;
+            s.B.block(6 * a, a, 6, 1) = g.B;
+            s.C.block(a, 6 * a, 1, 6) = g.C;
+          }
+          return s;
+        },
+        kT);
+  };
+  auto s0 = plant_with_mode(), s1 = plant_with_mode(), s2 = plant_with_mode();
+  const fftest::TrackingError open = fftest::run(nullptr, s0, 2, kSteps, plan_at);
+  const fftest::TrackingError without = fftest::run(f_plain.value().get(), s1, 2, kSteps, plan_at);
+  const fftest::TrackingError with = fftest::run(f_moded.value().get(), s2, 2, kSteps, plan_at);
+  std::printf(
+      "carriage mode in the plant: u=r rms %.2f um | two-mass inverse rms %.3f max %.3f um | "
+      "with the mode rms %.4f max %.4f um\n",
+      open.rms_um, without.rms_um, without.max_um, with.rms_um, with.max_um);
+  EXPECT_GT(without.rms_um, 5.0);  // the mode the two masses lack shows
+  EXPECT_LT(with.rms_um, 0.1 * without.rms_um);
+  EXPECT_LT(with.max_um, 0.1 * without.max_um);
+  // 0.12 s after the moves end the command still holds the lightly damped mass (~0.3 um).
+  EXPECT_LT(with.final_u_minus_r_mm, 1e-3);
+  // A mode with a mass and no frequency is refused.
+  moded[0].carriage_mode = {0.0, 0.05, 0.1};
+  EXPECT_FALSE(GantryLpvFeedforward::create(moded, opt).ok());
+}
+
 TEST(GantryLpvFeedforward, FrictionMovesTheCommandByTheForceOverTheChainsCompliance) {
   // A slow ramp (10 mm/s: the inertial terms are 1e-4 of the friction term) out and back, with
   // and without a 2 N friction model: the difference is F_c (1/k1 + 1/K2) once the Dahl bristle
