@@ -492,9 +492,8 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
       continue;
     }
     f.value().axis = axis;
-    // With the mode, the start whose model with it predicts better (the two can differ: on the
-    // second simulator's seed 1 with a mode drawn, the start chosen without the mode named it too,
-    // but the other start's model with it tracked the check pattern 0.0055 mm against 0.0064).
+    // With the mode, the start whose model with it predicts the held-out part best (it need not
+    // be the start whose model without it does).
     if (names_tried(f.value()) &&
         (!tried || f.value().augmented_validation_rms_um < tried->augmented_validation_rms_um)) {
       tried = f.value();
