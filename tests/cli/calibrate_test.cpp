@@ -91,10 +91,15 @@ class Calibrate : public ::testing::Test {
   }
   // Runs the whole calibration; the report.
   json run(int plant2_seed, const std::string& plant2_effect = "") {
-    start_daemon(printer_yaml(plant2_seed, plant2_effect));
+    return run_yaml(printer_yaml(plant2_seed, plant2_effect));
+  }
+  // The same on a printer config of the test's own; *out_text (when given): what calibrate said.
+  json run_yaml(const std::string& yaml, std::string* out_text = nullptr) {
+    start_daemon(yaml);
     std::string out;
     const int rc = calibrate({"--out", dir_ + "/out"}, &out);
     EXPECT_EQ(rc, 0) << out << "\n--- daemon:\n" << daemon_->output();
+    if (out_text != nullptr) *out_text = out;
     return json::parse(read_text(dir_ + "/out/report.json"), nullptr, false);
   }
   std::string dir_;
@@ -165,11 +170,7 @@ TEST_F(Calibrate, TheFirstSimulatorsEncoderDelayIsNamedAndTheModelCarriesIt) {
       std::regex_replace(y, std::regex("\n  effects: \\{\\}"),
                          "\n  effects: {time_delay: {delay_ms: 8.31, axes: [x, y]}}");
   ASSERT_NE(with_delay, y);
-  start_daemon(with_delay);
-  std::string out;
-  ASSERT_EQ(calibrate({"--out", dir_ + "/out"}, &out), 0) << out << "\n--- daemon:\n"
-                                                          << daemon_->output();
-  const json report = json::parse(read_text(dir_ + "/out/report.json"), nullptr, false);
+  const json report = run_yaml(with_delay);
   ASSERT_TRUE(report.is_object());
   ASSERT_EQ(report["axes"].size(), 2u);
   for (const json& a : report["axes"]) {
@@ -408,11 +409,8 @@ TEST_F(Calibrate, AnAxisWhoseRecordingNoModelDescribesIsExcitedAgainGentler) {
       "scale_error: {scale: 1.00818, axes: [x, y]}}");
   ASSERT_NE(y.find("seed: 2"), std::string::npos);
   ASSERT_NE(y.find("scale: 1.00818"), std::string::npos);
-  start_daemon(y);
   std::string out;
-  ASSERT_EQ(calibrate({"--out", dir_ + "/out"}, &out), 0) << out << "\n--- daemon:\n"
-                                                          << daemon_->output();
-  const json report = json::parse(read_text(dir_ + "/out/report.json"), nullptr, false);
+  const json report = run_yaml(y, &out);
   ASSERT_TRUE(report.is_object());
   ASSERT_EQ(report["axes"].size(), 2u);
   const json& ax = report["axes"][0];
