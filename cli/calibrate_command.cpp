@@ -307,6 +307,17 @@ Result<std::string> try_effects_on_the_machine(
     if (Status s = write_text_file(target, text); !s) return s;
     return reload(api, false);
   };
+  // A fitted mode outside the config's ranges (a mass of hundreds of kilograms) is no model to
+  // try: the daemon would refuse to reload it. Not tried; the model without it stays.
+  if (auto valid = config::apply_calibration_text(cfg, with, overlay_path); !valid) {
+    report["mode_trial"] = {{"axes", axes},
+                            {"e_t_without_mm", e_t_without},
+                            {"e_t_with_mm", nullptr},
+                            {"error", valid.error().to_string()},
+                            {"kept", false}};
+    std::printf("with the named mode: not tried: %s\n", valid.error().to_string().c_str());
+    return overlay;
+  }
   if (Status s = install(with); !s) return s.error();
   auto e = check_et(api, plan, "check pattern (with the named mode)");
   json trial = {{"axes", axes}, {"e_t_without_mm", e_t_without}};

@@ -312,6 +312,27 @@ TEST(OverlayFromIdent, TheNamedModeIsInTheModelTheOverlayWrites) {
   EXPECT_NEAR(b.value().effects[0].params.at("freq_hz"), 44.8, 1e-9);
 }
 
+// A fitted mode beyond the config's ranges is refused with its key (calibrate then does not try
+// it on the machine: the daemon would not reload it).
+TEST(OverlayFromIdent, AModeBeyondTheConfigsRangesIsRefusedWithItsKey) {
+  const config::MachineConfig base = config::default_config();
+  ident::IdentResult r;
+  r.axis = "x";
+  r.augmented = ident::preset_axis_model("x");
+  r.augmented.set(ident::Effect::kExtraResonance, true);
+  r.augmented.extra_freq_hz = 80.0;
+  r.augmented.extra_damping = 0.05;
+  r.augmented.extra_mass_kg = 500.0;
+  r.effects = {ident::Effect::kExtraResonance};
+  r.carried = r.augmented;
+  auto yaml = merge_overlay(base, "", "", with_carried_model(r), "fit");
+  ASSERT_TRUE(yaml.ok()) << yaml.error().to_string();
+  auto a = config::apply_calibration_text(base, yaml.value(), "cal.yaml");
+  ASSERT_FALSE(a.ok());
+  EXPECT_NE(a.error().to_string().find("extra_resonance_mass_kg"), std::string::npos)
+      << a.error().to_string();
+}
+
 // A mode's mass without its frequency is a located config error, not a feedforward design.
 TEST(OverlayFromIdent, AModeWithoutAFrequencyIsRefusedWithItsKey) {
   const config::MachineConfig base = config::default_config();
