@@ -977,7 +977,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   };
   AxisModel cur = out.baseline;
   double cur_val = out.baseline_validation_rms_um;
-  const int rounds = std::max(o.max_effects, 0);
+  int rounds = std::max(o.max_effects, 0);
   for (int round = 1; round <= rounds; ++round) {
     // The null candidate: the current model refitted a little longer, so a candidate is compared
     // with a converged model and not credited for the iterations it was given (not needed when
@@ -1118,6 +1118,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
       if (!cur.has(static_cast<Effect>(i))) todo.push_back(static_cast<Effect>(i));
     std::vector<Screened> screened = screen_all(cur, y_cur, todo, "round " + std::to_string(round));
     int best = -1;
+    Screened* drag = nullptr;  // the friction's screening when it is below the naming threshold
     AxisModel best_model;
     double best_val = cur_val;
     std::vector<double> best_y;
@@ -1128,6 +1129,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
       Screened& sc = screened[static_cast<size_t>(it - todo.begin())];
       if (!sc.done) continue;
       out.candidates.push_back(CandidateResult{e, sc.val, false, round});
+      if (e == Effect::kCoulombFriction && !resolvable(sc.model, e, pb, o, cur_val)) drag = &sc;
       if (sc.val < best_val && resolvable(sc.model, e, pb, o, cur_val)) {
         best_val = sc.val;
         best = i;
@@ -1209,6 +1211,35 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
         }
       }
     }
+    if (!significant && !frf_resonance && drag != nullptr && !out.drag_in_baseline) {
+      // Every carriage drags a little (the second simulator draws 0.05-0.25 N into every
+      // machine): a friction below the naming threshold is no finding, but where the held-out part
+      // needs it by the same margin as a finding, it is part of this machine's baseline. It is
+      // carried unnamed (IdentResult::drag_in_baseline), and the round is screened again on top
+      // of it. Checked after the mode read off the FRF, which a drag does not explain (two modes
+      // of 77 and 83 Hz were lost when the drag came first). The look-ahead below takes the drag
+      // as the second of a pair too. docs/ident.md, "The carriage's own drag".
+      const double explained_um =
+          std::sqrt(std::max(cur_val * cur_val - drag->val * drag->val, 0.0));
+      if (drag->val <= (1.0 - o.min_improvement) * cur_val && explained_um >= o.min_explained_um) {
+        report((static_cast<double>(round) - 0.1) / rounds, "refit with the carriage's drag");
+        bool drag_converged = false;
+        AxisModel refit = levenberg_marquardt(drag->model, free_params(drag->model), pb,
+                                              o.max_iterations, fit_end, true, &drag_converged);
+        bool kept_converged = false;
+        keep_if_better(refit, drag_converged, &drag->model, &drag->val, &drag->y, &kept_converged);
+        for (auto& c : out.candidates)
+          if (c.round == round && c.with < 0 && c.effect == Effect::kCoulombFriction)
+            c.kept = c.unnamed = true;
+        cur = drag->model;
+        cur_val = drag->val;
+        cur_converged = kept_converged;
+        y_cur = std::move(drag->y);
+        out.drag_in_baseline = true;
+        ++rounds;  // the drag is not one of the max_effects findings
+        continue;
+      }
+    }
     if (!significant && !frf_resonance) {
       // Look-ahead by one effect. Forward selection adds one effect at a time, and two effects
       // can each need the other in the model before they pay: a measurement delay of several ms
@@ -1243,6 +1274,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
       });
       if (leaders.size() > 2) leaders.resize(2);
       int pair_first = -1, pair_second = -1;
+      bool pair_drag = false;  // the second is the carriage's drag, carried unnamed
       Screened pair;
       pair.val = std::min((1.0 - o.min_improvement) * best_single,
                           (1.0 - o.min_improvement) * (1.0 - o.min_improvement) * cur_val);
@@ -1260,11 +1292,19 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
           if (!sc.done) continue;
           out.candidates.push_back(
               CandidateResult{rest[j], sc.val, false, round + 1, static_cast<int>(first)});
-          if (sc.val < pair.val && resolvable(sc.model, rest[j], pb, o, start_val(lead)) &&
+          // The second may be the carriage's drag (a friction below the naming threshold,
+          // carried unnamed as above): beside a microstep error of 5 um a drag took the held-out
+          // RMS from 9.4 to 3.8 um where neither alone passed the margin (seed 1002).
+          const bool second_is_drag = rest[j] == Effect::kCoulombFriction &&
+                                      !out.drag_in_baseline &&
+                                      !resolvable(sc.model, rest[j], pb, o, start_val(lead));
+          if (sc.val < pair.val &&
+              (second_is_drag || resolvable(sc.model, rest[j], pb, o, start_val(lead))) &&
               resolvable(sc.model, first, pb, o, cur_val)) {
             pair = std::move(sc);
             pair_first = static_cast<int>(first);
             pair_second = static_cast<int>(rest[j]);
+            pair_drag = second_is_drag;
           }
         }
       }
@@ -1281,15 +1321,20 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
       for (auto& c : out.candidates)
         if ((c.round == round && c.with < 0 && static_cast<int>(c.effect) == pair_first) ||
             (c.round == round + 1 && c.with == pair_first &&
-             static_cast<int>(c.effect) == pair_second))
+             static_cast<int>(c.effect) == pair_second)) {
           c.kept = true;
+          c.unnamed = pair_drag && c.round == round + 1;
+        }
       cur = pair.model;
       cur_val = pair.val;
       cur_converged = kept_converged;
       y_cur = std::move(pair.y);
       out.effects.push_back(static_cast<Effect>(pair_first));
-      out.effects.push_back(static_cast<Effect>(pair_second));
-      ++round;  // two effects: two of the rounds
+      if (pair_drag)
+        out.drag_in_baseline = true;
+      else
+        out.effects.push_back(static_cast<Effect>(pair_second));
+      ++round;  // two effects (or one and the drag): two of the rounds
       continue;
     }
     for (auto& c : out.candidates)

@@ -75,6 +75,9 @@ struct CandidateResult {
   int with = -1;  // screened on top of this effect (fit.cpp's look-ahead by one effect); -1: alone
   // A mode read off the measured FRF (fit.cpp's frf_mode_guess), not screened.
   bool from_frf = false;
+  // Kept but not named: a friction below FitOptions::min_friction_n carried in the baseline
+  // (IdentResult::drag_in_baseline).
+  bool unnamed = false;
 };
 
 struct IdentResult {
@@ -85,6 +88,9 @@ struct IdentResult {
   AxisModel baseline;              // fitted baseline
   AxisModel augmented;             // fitted baseline + kept effects (== baseline when none)
   std::vector<Effect> effects;     // kept effects, in the order found
+  // The augmented model carries a friction below the naming threshold (FitOptions::min_friction_n)
+  // that is not in `effects`: the carriage's own drag, which the held-out part needed (fit.cpp).
+  bool drag_in_baseline = false;
   AxisModel carried;  // augmented without FitOptions::not_carried, refitted (== augmented when none
                       // is named)
   double carried_validation_rms_um = 0.0;

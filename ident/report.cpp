@@ -72,6 +72,9 @@ std::string baseline_description(const AxisModel& m) {
 std::string augmented_description(const IdentResult& r) {
   std::string s = baseline_description(r.augmented);
   for (Effect e : r.effects) s += std::string(" + ") + effect_name(e);
+  if (r.drag_in_baseline)
+    s += " + the carriage's drag " + num(r.augmented.friction_force_n, "%.3g") +
+         " N (Dahl friction below the naming threshold, not an effect found)";
   return s;
 }
 
@@ -119,6 +122,12 @@ std::string report_markdown(const IdentResult& r, const std::string& trace_name,
     }
     s += "\n";
   }
+  if (r.drag_in_baseline)
+    s += "The model also carries the carriage's own drag, a friction of " +
+         num(r.augmented.friction_force_n, "%.3g") + " N (presliding " +
+         num(r.augmented.presliding_um, "%.3g") +
+         " um): below what `coulomb_friction` names, but the held-out part needed it by the same "
+         "margin as an effect (the candidate marked \"carried, unnamed\" below).\n\n";
   s += "| model | RMS residual, whole trace (um) | RMS residual, held-out part (um) |\n|---|---|---|\n";
   s += "| baseline | " + num(r.baseline_rms_um, "%.3f") + " | " + num(r.baseline_validation_rms_um, "%.3f") + " |\n";
   s += "| augmented | " + num(r.augmented_rms_um, "%.3f") + " | " + num(r.augmented_validation_rms_um, "%.3f") +
@@ -147,7 +156,11 @@ std::string report_markdown(const IdentResult& r, const std::string& trace_name,
          (c.with >= 0 ? std::string(" after ") + effect_name(static_cast<Effect>(c.with))
                       : std::string()) +
          (c.from_frf ? " (read off the FRF)" : "") + " | " + num(c.validation_rms_um, "%.3f") +
-         " | " + (c.kept ? "yes" : "") + " |\n";
+         " | " +
+         (c.unnamed ? "carried, unnamed"
+          : c.kept  ? "yes"
+                    : "") +
+         " |\n";
   s += "\n## Measured frequency response\n\n";
   s += extras.frf_summary.empty() ? std::string("No FRF estimate.\n") : extras.frf_summary;
   s += "\n## Plots\n\n";

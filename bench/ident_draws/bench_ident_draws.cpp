@@ -11,6 +11,7 @@
 //                     [--verbose] [--candidates] [--json FILE] [--save-traces DIR]
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -84,6 +85,10 @@ struct Outcome {
   double baseline_rms_um = 0, augmented_rms_um = 0;
   double cpu_s = 0;
   double mass_kg = 0;  // the carriage mass identification is told (0: the preset's)
+  // The carriage's own drag: drawn (the second simulator's F_c in every machine, in the carriage's
+  // newtons scaled to the mass identification is told, so comparable) and carried unnamed by
+  // identification (NaN: none carried, or the first simulator).
+  double drag_true_n = NAN, drag_found_n = NAN;
   std::string error;
   std::string rounds;  // every candidate's held-out RMS per round (--candidates)
 };
@@ -99,6 +104,8 @@ struct Plant2Case {
   char axis = 'x';
   double key_true = NAN;
   double weighed_mass_kg = 0.0;  // the carriage's drawn mass with a weighing error of +-10 %
+  double carriage_mass_kg = 0.0;  // drawn
+  double drag_n = 0.0;            // the drawn carriage's F_c (LuGre)
   Result<ident::Trace> trace{Error{"not run", {}}};
 };
 
@@ -132,6 +139,8 @@ Plant2Case record_plant2(const Kind& kind, uint64_t seed, const std::vector<doub
   c.axis = d.params.carriage.mass_kg < 0.5 * (0.45 + 1.07) ? 'x' : 'y';
   if (kind.effect && !d.effects.empty())
     c.key_true = d.effects[0].param(judged_param(*kind.effect));
+  c.carriage_mass_kg = d.params.carriage.mass_kg;
+  c.drag_n = d.params.carriage.coulomb_n;
   std::mt19937_64 weighing(seed ^ 0x5eedULL);
   c.weighed_mass_kg =
       d.params.carriage.mass_kg * std::uniform_real_distribution<double>(0.9, 1.1)(weighing);
@@ -162,6 +171,10 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
     o.axis = c.axis;
     o.key_true = c.key_true;
     if (weighed_mass) o.mass_kg = c.weighed_mass_kg;
+    // A force is fixed by position data per unit mass (docs/ident.md): the drawn drag in the
+    // newtons of the carriage identification is told of.
+    const double told_kg = o.mass_kg > 0.0 ? o.mass_kg : (c.axis == 'x' ? 0.45 : 1.07);
+    o.drag_true_n = c.drag_n * told_kg / c.carriage_mass_kg;
     trace = std::move(c.trace);
   } else {
     o.axis = d.axis;
@@ -204,6 +217,16 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
     }
   }
   if (o.found.empty()) o.found = o.found_values = "none";
+  if (res.drag_in_baseline) {  // carried unnamed (ident/fit.cpp): not judged
+    o.drag_found_n = res.augmented.friction_force_n;
+    char value[64];
+    if (std::isnan(o.drag_true_n))
+      std::snprintf(value, sizeof value, " (+drag %.2g N)", o.drag_found_n);
+    else
+      std::snprintf(value, sizeof value, " (+drag %.2g N, drawn F_c %.2g)", o.drag_found_n,
+                    o.drag_true_n);
+    o.found_values += value;
+  }
   {
     char line[96];
     std::snprintf(line, sizeof line, "      held-out %.2f um", res.baseline_validation_rms_um);
@@ -218,7 +241,10 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
       std::snprintf(line, sizeof line, " %s%s%s%s %.2f%s", ident::effect_name(c.effect),
                     c.from_frf ? "~frf" : "", c.with >= 0 ? "@" : "",
                     c.with >= 0 ? ident::effect_name(static_cast<ident::Effect>(c.with)) : "",
-                    c.validation_rms_um, c.kept ? "*" : "");
+                    c.validation_rms_um,
+                    c.unnamed ? "+"
+                    : c.kept  ? "*"
+                              : "");
       o.rounds += line;
     }
   }
@@ -396,6 +422,10 @@ int main(int argc, char** argv) {
            {"key_true", std::isnan(o.key_true) ? nlohmann::json() : nlohmann::json(o.key_true)},
            {"key_found", std::isnan(o.key_found) ? nlohmann::json() : nlohmann::json(o.key_found)},
            {"baseline_rms_um", o.baseline_rms_um},
+           {"drag_found_n",
+            std::isnan(o.drag_found_n) ? nlohmann::json() : nlohmann::json(o.drag_found_n)},
+           {"drag_true_n",
+            std::isnan(o.drag_true_n) ? nlohmann::json() : nlohmann::json(o.drag_true_n)},
            {"augmented_rms_um", o.augmented_rms_um},
            {"cpu_s", o.cpu_s},
            {"error", o.error}});
@@ -417,6 +447,27 @@ int main(int argc, char** argv) {
   }
   std::printf("%-30s %6d %7d %3.0f%% %9d %3.0f%%   (wall %.0f s)\n", "all", total, total_right,
               100.0 * total_right / total, total_key, 100.0 * total_key / total, wall_s);
+  {
+    // The carriage's drag that identification carried unnamed (ident/fit.cpp), against the drawn
+    // F_c of the second simulator's carriage (in the newtons of the mass identification is told).
+    std::vector<double> ratios;
+    int carried = 0;
+    for (const Outcome& o : outcomes) {
+      if (std::isnan(o.drag_found_n)) continue;
+      ++carried;
+      if (!std::isnan(o.drag_true_n) && o.drag_true_n > 0.0)
+        ratios.push_back(o.drag_found_n / o.drag_true_n);
+    }
+    std::sort(ratios.begin(), ratios.end());
+    if (ratios.empty())
+      std::printf("carriage drag carried unnamed in %d of %d draws\n", carried, total);
+    else
+      std::printf(
+          "carriage drag carried unnamed in %d of %d draws; found / drawn F_c: median %.2f, middle "
+          "half %.2f-%.2f, all %.2f-%.2f\n",
+          carried, total, ratios[ratios.size() / 2], ratios[ratios.size() / 4],
+          ratios[3 * ratios.size() / 4], ratios.front(), ratios.back());
+  }
   if (!json_path.empty()) {
     nlohmann::json j{{"benchmark", "ident_draws"},
                      {"simulator", plant2 ? "plant2" : "sim"},
