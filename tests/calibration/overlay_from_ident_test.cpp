@@ -265,6 +265,20 @@ TEST(OverlayFromIdent, TheRunoutIsCarriedWithThePositionItsPhaseCountsFrom) {
   EXPECT_EQ(none.value().config.model.gantry_for("x")->runout_period_mm, 0.0);
 }
 
+// An identification of the preset X axis that named an extra resonance, carried as fitted.
+ident::IdentResult x_axis_with_a_named_mode(double freq_hz, double damping, double mass_kg) {
+  ident::IdentResult r;
+  r.axis = "x";
+  r.augmented = ident::preset_axis_model("x");
+  r.augmented.set(ident::Effect::kExtraResonance, true);
+  r.augmented.extra_freq_hz = freq_hz;
+  r.augmented.extra_damping = damping;
+  r.augmented.extra_mass_kg = mass_kg;
+  r.effects = {ident::Effect::kExtraResonance};
+  r.carried = r.augmented;
+  return r;
+}
+
 // A named mode (extra_resonance) is in the model the overlay writes: the feedforward's designs
 // carry the mass on the carriage (model.gantry.<axis>.extra_resonance_*). A carried model without
 // it (identification asked to leave it out, FitOptions::not_carried) records the effect with its
@@ -273,15 +287,8 @@ TEST(OverlayFromIdent, TheNamedModeIsInTheModelTheOverlayWrites) {
   EXPECT_EQ(effects_tried_on_the_machine(),
             std::vector<ident::Effect>{ident::Effect::kExtraResonance});
   const config::MachineConfig base = config::default_config();
-  ident::IdentResult r;
-  r.axis = "x";
-  r.augmented = ident::preset_axis_model("x");
+  ident::IdentResult r = x_axis_with_a_named_mode(44.8, 0.04, 0.11);
   r.augmented.k2_n_m = 61000.0;
-  r.augmented.set(ident::Effect::kExtraResonance, true);
-  r.augmented.extra_freq_hz = 44.8;
-  r.augmented.extra_damping = 0.04;
-  r.augmented.extra_mass_kg = 0.11;
-  r.effects = {ident::Effect::kExtraResonance};
   r.carried = r.augmented;
   auto yaml = merge_overlay(base, "", "", with_carried_model(r), "fit");
   ASSERT_TRUE(yaml.ok()) << yaml.error().to_string();
@@ -316,15 +323,7 @@ TEST(OverlayFromIdent, TheNamedModeIsInTheModelTheOverlayWrites) {
 // it on the machine: the daemon would not reload it).
 TEST(OverlayFromIdent, AModeBeyondTheConfigsRangesIsRefusedWithItsKey) {
   const config::MachineConfig base = config::default_config();
-  ident::IdentResult r;
-  r.axis = "x";
-  r.augmented = ident::preset_axis_model("x");
-  r.augmented.set(ident::Effect::kExtraResonance, true);
-  r.augmented.extra_freq_hz = 80.0;
-  r.augmented.extra_damping = 0.05;
-  r.augmented.extra_mass_kg = 500.0;
-  r.effects = {ident::Effect::kExtraResonance};
-  r.carried = r.augmented;
+  const ident::IdentResult r = x_axis_with_a_named_mode(80.0, 0.05, 500.0);
   auto yaml = merge_overlay(base, "", "", with_carried_model(r), "fit");
   ASSERT_TRUE(yaml.ok()) << yaml.error().to_string();
   auto a = config::apply_calibration_text(base, yaml.value(), "cal.yaml");
