@@ -78,6 +78,11 @@ struct CandidateResult {
   // Kept but not named: a friction below FitOptions::min_friction_n carried in the baseline
   // (IdentResult::drag_in_baseline).
   bool unnamed = false;
+  // The backward check (fit.cpp): the model refitted without this kept effect; its held-out RMS.
+  bool without = false;
+  // Kept, then taken out again by the backward check: the other effects alone predicted the
+  // held-out part within the margin (set on the candidate that had been kept).
+  bool dropped = false;
 };
 
 struct IdentResult {

@@ -149,17 +149,21 @@ std::string report_markdown(const IdentResult& r, const std::string& trace_name,
        "they lower it by the margin twice and by the margin over the best single effect. A "
        "resonance \"read off the FRF\" is a mode fitted to the measured frequency response (the "
        "baseline refitted around it), kept when the current model misses the held-out FRF near "
-       "its frequency and the mode at least halves that.\n\n"
+       "its frequency and the mode at least halves that. With two or more kept, each is taken "
+       "out in turn and the rest refitted (rows \"without X\"): the one whose absence costs least "
+       "is dropped when the rest predict the held-out part within the margin.\n\n"
        "| round | candidate | held-out RMS (um) | kept |\n|---|---|---|---|\n";
   for (const auto& c : r.candidates)
-    s += "| " + std::to_string(c.round) + " | " + effect_name(c.effect) +
+    s += "| " + std::to_string(c.round) + " | " + (c.without ? "without " : "") +
+         effect_name(c.effect) +
          (c.with >= 0 ? std::string(" after ") + effect_name(static_cast<Effect>(c.with))
                       : std::string()) +
          (c.from_frf ? " (read off the FRF)" : "") + " | " + num(c.validation_rms_um, "%.3f") +
          " | " +
-         (c.unnamed ? "carried, unnamed"
-          : c.kept  ? "yes"
-                    : "") +
+         (c.unnamed   ? "carried, unnamed"
+          : c.dropped ? "kept, then dropped"
+          : c.kept    ? "yes"
+                      : "") +
          " |\n";
   s += "\n## Measured frequency response\n\n";
   s += extras.frf_summary.empty() ? std::string("No FRF estimate.\n") : extras.frf_summary;

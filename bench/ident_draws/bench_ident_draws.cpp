@@ -238,13 +238,14 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
         std::snprintf(line, sizeof line, "\n      round %d:", round);
         o.rounds += line;
       }
-      std::snprintf(line, sizeof line, " %s%s%s%s %.2f%s", ident::effect_name(c.effect),
-                    c.from_frf ? "~frf" : "", c.with >= 0 ? "@" : "",
+      std::snprintf(line, sizeof line, " %s%s%s%s%s %.2f%s", c.without ? "-" : "",
+                    ident::effect_name(c.effect), c.from_frf ? "~frf" : "", c.with >= 0 ? "@" : "",
                     c.with >= 0 ? ident::effect_name(static_cast<ident::Effect>(c.with)) : "",
                     c.validation_rms_um,
-                    c.unnamed ? "+"
-                    : c.kept  ? "*"
-                              : "");
+                    c.unnamed   ? "+"
+                    : c.dropped ? "*x"
+                    : c.kept    ? "*"
+                                : "");
       o.rounds += line;
     }
   }
