@@ -1354,6 +1354,46 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   // more named, each is taken out in turn and the rest refitted; the one whose absence costs
   // least goes when the rest alone predict the held-out part within the margin a finding needs
   // (15 %, 0.6 um explained), and the check repeats on what is left.
+  //
+  // First, a friction named in an early round can shrink below the naming threshold as later
+  // effects join (a backlash's lost motion taken for friction first, then the backlash beside it:
+  // 0.29-0.38 N left on seeds 1015, 1023, 1031 of the second simulator's backlash). Below 0.5 N it
+  // is the carriage's drag, not a finding: carried unnamed when the held-out part needs it by
+  // the margin (as the drag above), taken out otherwise.
+  if (const auto it = std::find(out.effects.begin(), out.effects.end(), Effect::kCoulombFriction);
+      it != out.effects.end() && cur.friction_force_n < o.min_friction_n) {
+    report(1.0, "backward check: the friction shrank to a drag");
+    out.effects.erase(it);
+    AxisModel m = cur;
+    m.set(Effect::kCoulombFriction, false);
+    bool converged = false;
+    const AxisModel fitted =
+        levenberg_marquardt(m, free_params(m), pb, o.max_iterations, fit_end, true, &converged);
+    std::vector<double> ys;
+    double v = 1e300;
+    if (run(fitted, pb, &ys)) v = residual_rms_um(ys, meas_mm, pb.train_end, n);
+    if (v < 1e300) {
+      CandidateResult c{Effect::kCoulombFriction, v, false, rounds + 1};
+      c.without = true;
+      out.candidates.push_back(c);
+    }
+    const double explained_um = std::sqrt(std::max(v * v - cur_val * cur_val, 0.0));
+    const bool needed =
+        cur_val <= (1.0 - o.min_improvement) * v && explained_um >= o.min_explained_um;
+    for (auto& c : out.candidates)
+      if (c.kept && !c.unnamed && c.effect == Effect::kCoulombFriction) {
+        c.unnamed = needed;
+        c.dropped = !needed;
+      }
+    if (needed) {
+      out.drag_in_baseline = true;
+    } else {
+      cur = fitted;
+      cur_val = v;
+      cur_converged = converged;
+      y_cur = std::move(ys);
+    }
+  }
   while (out.effects.size() >= 2) {
     report(1.0, "backward check");
     double best_without = 1e300;
