@@ -29,6 +29,7 @@
 #include <thread>
 #include <vector>
 
+#include "ident/axis_model.hpp"
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
 #include "plant2/draw.hpp"
@@ -136,7 +137,9 @@ Plant2Case record_plant2(const Kind& kind, uint64_t seed, const std::vector<doub
   const plant2::Draw d = plant2::draw_axis(seed, k ? *k : plant2::EffectKind::none);
   // The axis named for the preset whose carriage mass is nearer (a user knows which axis is
   // the light extruder carriage and which the heavy gantry; identification fixes that mass).
-  c.axis = d.params.carriage.mass_kg < 0.5 * (0.45 + 1.07) ? 'x' : 'y';
+  const double x_kg = ident::preset_axis_model("x").m2_kg,
+               y_kg = ident::preset_axis_model("y").m2_kg;
+  c.axis = d.params.carriage.mass_kg < 0.5 * (x_kg + y_kg) ? 'x' : 'y';
   if (kind.effect && !d.effects.empty())
     c.key_true = d.effects[0].param(judged_param(*kind.effect));
   c.carriage_mass_kg = d.params.carriage.mass_kg;
@@ -173,7 +176,8 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
     if (weighed_mass) o.mass_kg = c.weighed_mass_kg;
     // A force is fixed by position data per unit mass (docs/ident.md): the drawn drag in the
     // newtons of the carriage identification is told of.
-    const double told_kg = o.mass_kg > 0.0 ? o.mass_kg : (c.axis == 'x' ? 0.45 : 1.07);
+    const double told_kg =
+        o.mass_kg > 0.0 ? o.mass_kg : ident::preset_axis_model(std::string(1, c.axis)).m2_kg;
     o.drag_true_n = c.drag_n * told_kg / c.carriage_mass_kg;
     trace = std::move(c.trace);
   } else {
