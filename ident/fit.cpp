@@ -1360,81 +1360,72 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
   // 0.29-0.38 N left on seeds 1015, 1023, 1031 of the second simulator's backlash). Below 0.5 N it
   // is the carriage's drag, not a finding: carried unnamed when the held-out part needs it by
   // the margin (as the drag above), taken out otherwise.
+  // The current model refitted without effect e (a "without" row of the evidence), and whether
+  // what e explains passes the margin a finding needs.
+  struct Without {
+    bool ok = false;
+    AxisModel model;
+    std::vector<double> y;
+    double val = 0.0;
+    bool converged = false;
+  };
+  auto refit_without = [&](Effect e) {
+    Without w;
+    AxisModel m = cur;
+    m.set(e, false);
+    w.model =
+        levenberg_marquardt(m, free_params(m), pb, o.max_iterations, fit_end, true, &w.converged);
+    w.ok = run(w.model, pb, &w.y);
+    if (!w.ok) return w;
+    w.val = residual_rms_um(w.y, meas_mm, pb.train_end, n);
+    CandidateResult c{e, w.val, false, rounds + 1};
+    c.without = true;
+    out.candidates.push_back(c);
+    return w;
+  };
+  auto earns_margin = [&](const Without& w) {
+    const double explained_um = std::sqrt(std::max(w.val * w.val - cur_val * cur_val, 0.0));
+    return cur_val <= (1.0 - o.min_improvement) * w.val && explained_um >= o.min_explained_um;
+  };
+  auto adopt = [&](Without& w) {
+    cur = w.model;
+    cur_val = w.val;
+    cur_converged = w.converged;
+    y_cur = std::move(w.y);
+  };
   if (const auto it = std::find(out.effects.begin(), out.effects.end(), Effect::kCoulombFriction);
       it != out.effects.end() && cur.friction_force_n < o.min_friction_n) {
     report(1.0, "backward check: the friction shrank to a drag");
     out.effects.erase(it);
-    AxisModel m = cur;
-    m.set(Effect::kCoulombFriction, false);
-    bool converged = false;
-    const AxisModel fitted =
-        levenberg_marquardt(m, free_params(m), pb, o.max_iterations, fit_end, true, &converged);
-    std::vector<double> ys;
-    double v = 1e300;
-    if (run(fitted, pb, &ys)) v = residual_rms_um(ys, meas_mm, pb.train_end, n);
-    if (v < 1e300) {
-      CandidateResult c{Effect::kCoulombFriction, v, false, rounds + 1};
-      c.without = true;
-      out.candidates.push_back(c);
-    }
-    const double explained_um = std::sqrt(std::max(v * v - cur_val * cur_val, 0.0));
-    const bool needed =
-        cur_val <= (1.0 - o.min_improvement) * v && explained_um >= o.min_explained_um;
+    Without w = refit_without(Effect::kCoulombFriction);
+    const bool needed = !w.ok || earns_margin(w);
     for (auto& c : out.candidates)
       if (c.kept && !c.unnamed && c.effect == Effect::kCoulombFriction) {
         c.unnamed = needed;
         c.dropped = !needed;
       }
-    if (needed) {
+    if (needed)
       out.drag_in_baseline = true;
-    } else {
-      cur = fitted;
-      cur_val = v;
-      cur_converged = converged;
-      y_cur = std::move(ys);
-    }
+    else
+      adopt(w);
   }
   while (out.effects.size() >= 2) {
     report(1.0, "backward check");
-    double best_without = 1e300;
-    size_t weakest = 0;
-    AxisModel weakest_model;
-    std::vector<double> weakest_y;
-    bool weakest_converged = false;
+    Without weakest;
+    size_t weakest_i = 0;
     for (size_t i = 0; i < out.effects.size(); ++i) {
-      AxisModel m = cur;
-      m.set(out.effects[i], false);
-      bool converged = false;
-      const AxisModel fitted =
-          levenberg_marquardt(m, free_params(m), pb, o.max_iterations, fit_end, true, &converged);
-      std::vector<double> ys;
-      if (!run(fitted, pb, &ys)) continue;
-      const double v = residual_rms_um(ys, meas_mm, pb.train_end, n);
-      CandidateResult c{out.effects[i], v, false, rounds + 1};
-      c.without = true;
-      out.candidates.push_back(c);
-      if (v < best_without) {
-        best_without = v;
-        weakest = i;
-        weakest_model = fitted;
-        weakest_y = std::move(ys);
-        weakest_converged = converged;
+      Without w = refit_without(out.effects[i]);
+      if (w.ok && (!weakest.ok || w.val < weakest.val)) {
+        weakest = std::move(w);
+        weakest_i = i;
       }
     }
-    if (best_without >= 1e300) break;
-    const double explained_um =
-        std::sqrt(std::max(best_without * best_without - cur_val * cur_val, 0.0));
-    const bool earns =
-        cur_val <= (1.0 - o.min_improvement) * best_without && explained_um >= o.min_explained_um;
-    if (earns) break;
-    const Effect gone = out.effects[weakest];
+    if (!weakest.ok || earns_margin(weakest)) break;
+    const Effect gone = out.effects[weakest_i];
     for (auto& c : out.candidates)
       if (c.kept && !c.unnamed && c.effect == gone) c.dropped = true;
-    out.effects.erase(out.effects.begin() + static_cast<long>(weakest));
-    cur = weakest_model;
-    cur_val = best_without;
-    cur_converged = weakest_converged;
-    y_cur = std::move(weakest_y);
+    out.effects.erase(out.effects.begin() + static_cast<long>(weakest_i));
+    adopt(weakest);
   }
   report(1.0, "done");
   out.augmented = cur;
