@@ -101,7 +101,7 @@ Range baseline_range(Param p) {
       // 44.5 Hz at 0.81 where the plant's mode is 111 Hz at a few percent).
       return {1e-3, 0.19};
     case Param::kExtraF:
-      // The FRF and the calibration sweep reach 200 and 150 Hz: beyond this a mode is not
+      // The FRF and the calibration sweep reach 200 Hz: beyond this a mode is not
       // measured but a spare mass the fit moves out of the way (1e-12 and 1.9e5 Hz were fitted).
       return {10.0, 300.0};
     default:
@@ -333,8 +333,8 @@ struct FrfData {
   FrfEstimate est;
 };
 // The identification's FRF grid: the delta paper's 0.5 Hz steps from 2 Hz up to a fifth of the
-// sampling rate (200 Hz at 1 kHz, where the first-order-hold model is still exact and above the
-// calibration sweep's 150 Hz), not the paper's 125 Hz: a hot end or frame mode of 125-150 Hz is
+// sampling rate (200 Hz at 1 kHz, where the first-order-hold model is still exact and where the
+// calibration sweep ends), not the paper's 125 Hz: a hot end or frame mode of 125-150 Hz is
 // within what printers show and what the sweep excites. Where nothing excites it the coherence
 // leaves it out.
 model::FrequencyGrid ident_grid(double period_s) {
