@@ -768,7 +768,7 @@ bool resolvable(const AxisModel& m, Effect e, const Problem& pb, const FitOption
     // fit bending a spare mass-spring-damper around what the baseline lacks (the second
     // simulator's clean axes: field lag, LuGre presliding, a distributed belt; 0.26-2.5 fitted).
     // And a mode is measured only where its notch and peak both lie within the FRF's grid (200 Hz
-    // at 1 kHz; the calibration sweep reaches 150): beside a friction whose shape the Dahl model
+    // at 1 kHz; the calibration sweep reaches 200): beside a friction whose shape the Dahl model
     // misses, the time-domain fit put a "mode" at 195-277 Hz on six of 50 second-simulator draws.
     case Effect::kExtraResonance:
       return m.extra_damping < kMaxModeDamping &&
