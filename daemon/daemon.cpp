@@ -363,6 +363,14 @@ void Daemon::remove_client(uint64_t id) {
     owner_ = 0;  // commands already queued still run: a vanished client never stalls motion
     spdlog::info("print owner {} disconnected; ownership released", it->second.session->name());
   }
+  // A line waiting for room in the machine's queue never reached it: it goes with its client, as
+  // the lines behind it do. Its ticket would otherwise stay pending for good, and with it the
+  // print's end and every rebuild that waits for nothing pending (M999, SIGHUP).
+  if (const auto& parked = it->second.parked) {
+    pending_.erase(parked->ticket);
+    spdlog::info("{} disconnected with a line waiting for queue room; it is dropped",
+                 it->second.session->name());
+  }
   clients_.erase(it);
 }
 
@@ -580,6 +588,10 @@ std::string Daemon::firmware_info() const {
 std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_view text,
                            recorder::GcodeSource source, std::function<void(const Status&)> done) {
   const uint64_t cid = c.id;
+  if (cmd.is('M', 112)) {  // from whichever channel: an emergency stop, never a queued no-op
+    emergency_stop("M112 from " + c.session->name());
+    return "Printer halted by M112 (emergency stop); send M999 or restart feedloopd to clear";
+  }
   if (cmd.is('M', 999)) {
     // Marlin's M999 (Marlin/src/gcode/control/M999.cpp: back to running after a stop), done as
     // Klipper's FIRMWARE_RESTART: the machine is rebuilt from the config once it is idle, which
@@ -674,6 +686,16 @@ void Daemon::run_script(ClientSession& client, std::string script,
     b = e + 1;
   }
   s->done = std::move(done);
+  // An M112 anywhere in the script stops the machine now, ahead of the lines before it (as on the
+  // Marlin socket: it bypasses every queue); nothing of the script runs.
+  for (const std::string& line : s->lines)
+    if (gcode::HostProtocol::is_emergency_stop(line)) {
+      emergency_stop("M112 from " + client.name());
+      json halted = {
+          {"line", line}, {"ok", true}, {"reply", std::string(gcode::HostProtocol::kHalted)}};
+      s->done({{"results", json::array({std::move(halted)})}}, "");
+      return;
+    }
   run_script_step(s);
 }
 

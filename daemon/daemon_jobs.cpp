@@ -117,6 +117,11 @@ std::string Daemon::owner_name() const {
 
 JobSink::Offer Daemon::offer(const gcode::Command& cmd, std::string_view text,
                              std::function<void(const Status&)> done, std::string* why) {
+  if (cmd.is('M', 112)) {  // an M112 in the job's file stops the machine when the job reaches it
+    emergency_stop("M112 in the print job '" + (job_ ? job_->file() : std::string()) + "'");
+    *why = "M112: emergency stop";
+    return Offer::kRefused;
+  }
   if (machine_->status().state == engine::MachineState::kEmergencyStopped) {
     *why = "Printer halted (emergency stop); send M999 or restart feedloopd to clear";
     return Offer::kRefused;

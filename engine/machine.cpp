@@ -201,7 +201,11 @@ MachineStatus Machine::status() const {
   // The published state is the planner thread's as of its last publish, which a long command
   // (G28, M109) holds off; a command queued or running since is busy now (a status request right
   // after a G28 was sent read "idle" with the G28 homing).
-  if (s.state == MachineState::kIdle && (!queue_.empty() || executing_.load()))
+  // An emergency stop is live too: the line after an M112 is refused whether or not the planner
+  // thread has published since (a job's next line, in virtual time, read "busy").
+  if (estop_.load())
+    s.state = MachineState::kEmergencyStopped;
+  else if (s.state == MachineState::kIdle && (!queue_.empty() || executing_.load()))
     s.state = MachineState::kBusy;
   // And the other way: the planner thread publishes before it clears its flags (a command's end,
   // a flush's end), so a machine idle now has its position published; its state is idle now too.

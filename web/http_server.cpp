@@ -6,6 +6,7 @@
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <deque>
 #include <filesystem>
@@ -295,7 +296,11 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
   void read() {
     parser_.emplace();
     parser_->header_limit(16 * 1024);
-    parser_->body_limit(shared_->options.max_body_bytes);
+    // The parser checks a Content-Length against its limit while it reads the header, before
+    // on_header can tell an upload from another request: it reads with the larger limit, and
+    // on_header applies the request's own.
+    parser_->body_limit(
+        std::max(shared_->options.max_body_bytes, shared_->options.max_upload_bytes));
     stream_.expires_after(std::chrono::seconds(shared_->options.read_timeout_s));
     http::async_read_header(
         stream_, buffer_, *parser_,
@@ -305,8 +310,11 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
   void on_header(beast::error_code ec) {
     if (ec) return fail(ec);
     const auto& req = parser_->get();
-    if (req.target() == "/server/files/upload")
-      parser_->body_limit(shared_->options.max_upload_bytes);
+    const size_t limit = req.target() == "/server/files/upload" ? shared_->options.max_upload_bytes
+                                                                : shared_->options.max_body_bytes;
+    if (const auto length = parser_->content_length(); length && *length > limit)
+      return fail(http::error::body_limit);
+    parser_->body_limit(limit);  // a chunked body counts against it as it is read
     if (parser_->is_done()) return on_request();
     http::async_read(stream_, buffer_, *parser_,
                      [self = shared_from_this()](beast::error_code ec2, size_t) {
@@ -395,11 +403,11 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
     if (api) {
       r.content_type = std::string(req[http::field::content_type]);
       r.body = std::move(req.body());
-      std::weak_ptr<HttpSession> weak = shared_from_this();
+      // The reply may come later (a G-code script answers when the machine has run it): the
+      // callback holds the session until then. With a weak reference nothing did, and every
+      // deferred reply found the connection closed (an empty reply to POST /printer/gcode/script).
       try {
-        shared_->api->on_http(r, [weak, version, keep_alive](HttpReply reply) {
-          auto self = weak.lock();
-          if (!self) return;
+        shared_->api->on_http(r, [self = shared_from_this(), version, keep_alive](HttpReply reply) {
           if (!reply.file_path.empty())
             return self->send_file(version, keep_alive, reply.file_path, reply.content_type);
           self->send(text_response(version, keep_alive, static_cast<http::status>(reply.status),

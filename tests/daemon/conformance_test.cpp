@@ -119,6 +119,66 @@ TEST_F(Conformance, M999AfterAnEmergencyStopRebuildsTheMachine) {
   EXPECT_EQ(pos->rfind("X:30.00 Y:5.00", 0), 0u) << *pos;
 }
 
+// A client that leaves with a line still waiting for room in the machine's queue (a host that
+// streamed slow moves, then vanished): that line goes with it. Its ticket stayed pending, and
+// M999 after an M112 from another client waited for nothing pending for good: no answer, the
+// machine halted until the daemon restarted (found by a hostile client, 300 lines at F60).
+TEST_F(Conformance, M999AfterAClientLeftWithALineWaitingForQueueRoom) {
+  {
+    LineClient a;
+    ASSERT_TRUE(a.connect_unix(daemon_->socket_path()));
+    ASSERT_TRUE(a.send_line("G28"));
+    ASSERT_EQ(a.read_until("ok", 20000), "ok");
+    for (int i = 0; i < 300; ++i) ASSERT_TRUE(a.send_line(i % 2 ? "G1 X10 F60" : "G1 X200 F60"));
+    // Until the queue is full: the oks stop coming (a line parked) after fewer than 300.
+    int oks = 0;
+    while (a.read_until("ok", 1000)) ++oks;
+    ASSERT_LT(oks, 300);
+  }  // a leaves
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  LineClient b;
+  ASSERT_TRUE(b.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(b.send_line("M112"));
+  EXPECT_EQ(b.read_line(), "Error:Printer halted. kill() called!");
+  ASSERT_TRUE(b.send_line("M999"));
+  EXPECT_EQ(b.read_until("ok", 20000), "ok");
+  ASSERT_TRUE(b.send_line("G28"));
+  EXPECT_EQ(b.read_until("ok", 20000), "ok");
+}
+
+// M112 is an emergency stop from every channel, not only the Marlin socket: a JSON script (the
+// web's console goes the same way) stops the machine at once, ahead of the script's lines before
+// it, and runs none of them. It was taken for a queued no-op and answered ok, the moves after it
+// ran.
+TEST_F(Conformance, M112InAJsonScriptStopsTheMachine) {
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  auto call = [&api](const nlohmann::json& req) {
+    EXPECT_TRUE(api.send_line(req.dump()));
+    for (int i = 0; i < 100; ++i) {
+      auto line = api.read_line(10000);
+      if (!line) break;
+      nlohmann::json r = nlohmann::json::parse(*line);
+      if (r.contains("id") && r["id"] == req["id"]) return r;
+    }
+    return nlohmann::json();
+  };
+  const nlohmann::json run = call({{"jsonrpc", "2.0"},
+                                   {"id", 1},
+                                   {"method", "gcode"},
+                                   {"params", {{"script", "G1 X40 F6000\nm112\nG1 X50 F6000"}}}});
+  ASSERT_TRUE(run.contains("result")) << run.dump();
+  ASSERT_EQ(run["result"]["results"].size(), 1u) << run.dump();
+  EXPECT_EQ(run["result"]["results"][0]["reply"], "Error:Printer halted. kill() called!");
+  const nlohmann::json st = call({{"jsonrpc", "2.0"}, {"id", 2}, {"method", "status"}});
+  EXPECT_EQ(st["result"]["state"], "emergency_stopped") << st.dump();
+  EXPECT_DOUBLE_EQ(st["result"]["position_mm"]["x"].get<double>(), 0.0);
+  const nlohmann::json after =
+      call({{"jsonrpc", "2.0"}, {"id", 3}, {"method", "gcode"}, {"params", {{"script", "G1 X5"}}}});
+  ASSERT_TRUE(after.contains("error")) << after.dump();
+  EXPECT_NE(after["error"]["message"].get<std::string>().find("M999"), std::string::npos);
+}
+
 // Marlin/src/gcode/feature/advance/M900.cpp: "M900 K<k>" sets the linear advance factor (0..10)
 // and answers ok; "M900" alone reports "Advance K=<k>" (one extruder). Klipper's
 // SET_PRESSURE_ADVANCE (klippy/kinematics/extruder.py) sets both values; a bad value is refused

@@ -181,6 +181,25 @@ TEST_F(Jobs, AFileFromTheFolderRunsStartToEndThroughTheDaemon) {
   auto idle = marlin.read_until("Not SD printing", 5000);
   EXPECT_TRUE(idle);
 }
+// An M112 in a job's file stops the machine when the job reaches it (Marlin's M112 from the SD
+// card kills the printer); the job ends in error at that line and the move after it never runs.
+// It was taken for a no-op: the job ran on to its end.
+TEST_F(Jobs, AnM112InTheFileStopsTheMachine) {
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  const std::string text = "G28\nG1 X20 F6000\nM112\nG1 X50 F6000\n";
+  ASSERT_TRUE(call(api, "files.upload", {{"filename", "stop.gcode"}, {"content", text}})
+                  .contains("result"));
+  ASSERT_TRUE(call(api, "job.start", {{"filename", "stop.gcode"}}).contains("result"));
+  const json done = wait_job(
+      api, [](const json& j) { return j["state"] != "printing"; }, 60);
+  EXPECT_EQ(done["state"], "error") << done.dump();
+  EXPECT_NE(done.dump().find("stop.gcode:3"), std::string::npos) << done.dump();
+  const json st = call(api, "status")["result"];
+  EXPECT_EQ(st["state"], "emergency_stopped") << st.dump();
+  EXPECT_LT(st["position_mm"]["x"].get<double>(), 20.0 + 1e-9);
+}
+
 #else
 TEST_F(Jobs, PauseResumeInTheMiddleOfTheBenchyAndCancel) {
   const std::string src = std::string(FEEDLOOP_SHARED_DIR) + "/gcode/benchy_cartesian.gcode";

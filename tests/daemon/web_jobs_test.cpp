@@ -276,6 +276,29 @@ TEST_F(WebJobsVirtual, AFileInASubfolderPrintsAndEscapesAreRefused) {
   EXPECT_EQ(hist.body["result"]["jobs"][0]["status"], "completed");
 }
 
+// Moonraker's HTTP form of a G-code script (POST /printer/gcode/script, the script in the query or
+// a JSON body): answered when the machine has run it. The reply comes later than the request's
+// handler returns, and the connection was closed first (an empty reply to every script). An M112
+// there stops the machine, and M999 brings it back.
+TEST_F(WebJobs, AGcodeScriptOverHttpIsAnsweredWhenItHasRun) {
+  Reply home = request(port(), http::verb::post, "/printer/gcode/script?script=G28");
+  EXPECT_EQ(home.status, 200);
+  EXPECT_EQ(home.body["result"], "ok") << home.body.dump();
+  Reply move = request(port(), http::verb::post, "/printer/gcode/script",
+                       json{{"script", "G1 X10 F6000\nM400"}}.dump());
+  EXPECT_EQ(move.status, 200);
+  EXPECT_EQ(move.body["result"], "ok") << move.body.dump();
+  EXPECT_DOUBLE_EQ(objects("toolhead")["toolhead"]["position"][0].get<double>(), 10.0);
+  Reply stop = request(port(), http::verb::post, "/printer/gcode/script?script=M112");
+  EXPECT_EQ(stop.status, 200);
+  EXPECT_EQ(request(port(), http::verb::get, "/server/info").body["result"]["klippy_state"],
+            "shutdown");
+  Reply restart = request(port(), http::verb::post, "/printer/gcode/script?script=M999");
+  EXPECT_EQ(restart.status, 200) << restart.body.dump();
+  EXPECT_EQ(request(port(), http::verb::get, "/server/info").body["result"]["klippy_state"],
+            "ready");
+}
+
 TEST_F(WebJobs, FanPowerConsoleEchoAndAStreamedPrint) {
   LineClient marlin;
   ASSERT_TRUE(marlin.connect_unix(daemon_->socket_path()));
