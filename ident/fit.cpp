@@ -765,7 +765,9 @@ bool resolvable(const AxisModel& m, Effect e, const Problem& pb, const FitOption
     // (0.4-0.65 ms found on drawn X axes with the calibration program, bench_ident_draws).
     case Effect::kTimeDelay:
       return m.delay_ms >= pb.period_s * 1e3;
-    case Effect::kDirectionStiffness: return std::abs(std::log(m.stiffness_ratio)) >= 0.02;
+    case Effect::kDirectionStiffness:
+      return std::abs(std::log(m.stiffness_ratio)) >=
+             std::log(std::max(o.min_direction_ratio, 1.0));
     // A resonance is a lightly damped mode: a hot end, fan duct or frame member on its own
     // spring rings with a damping ratio of a few percent. A fitted third mass damped at 0.2 of
     // critical or more (a quality factor below 2.5, no peak at all from 0.71) is no mode but the
@@ -1159,8 +1161,10 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
       // Significant: a relative drop of the held-out RMS, and an explained part (the RMS that the
       // effect removes, in quadrature) above the encoder's resolution.
       const double explained_um = std::sqrt(std::max(cur_val * cur_val - best_val * best_val, 0.0));
-      significant =
-          best_val <= (1.0 - o.min_improvement) * cur_val && explained_um >= o.min_explained_um;
+      const double margin = static_cast<Effect>(best) == Effect::kDirectionStiffness
+                                ? std::min(o.min_improvement, o.min_improvement_direction)
+                                : o.min_improvement;
+      significant = best_val <= (1.0 - margin) * cur_val && explained_um >= o.min_explained_um;
     }
     bool frf_resonance = false;
     bool frf_mode = false;  // the resonance kept is the one read off the FRF

@@ -245,6 +245,31 @@ TEST(CalibrationProgram, SecondSimulatorsCleanAxisNamesNoScaleOfAFewPpm) {
   EXPECT_FALSE(r.augmented.has(Effect::kScaleError));  // nor carried unnamed
 }
 
+// A belt 1.43 times stiffer pulling + than pulling - on the light X axis (second simulator, seed
+// 1041): the ratio, fitted at 1.42, lowered the held-out RMS by 14 %, under the 15 % a finding
+// needs, and nothing was named. A ratio that large is named at 8 %
+// (FitOptions::min_improvement_direction); the clean draws fit 0.85-1.20, under the 1.22 it takes.
+TEST(CalibrationProgram, SecondSimulatorsLightAxisNamesItsDirectionRatio) {
+  double ratio_true = 0.0;
+  const IdentResult r = identify_plant2(1041, plant2::EffectKind::direction_dependent_stiffness,
+                                        &ratio_true, "ratio");
+  std::printf("drawn %.3f; found %.3f; held out %.2f -> %.2f um\n", ratio_true,
+              r.augmented.stiffness_ratio, r.baseline_validation_rms_um,
+              r.augmented_validation_rms_um);
+  ASSERT_EQ(r.effects.size(), 1u);
+  EXPECT_EQ(r.effects[0], Effect::kDirectionStiffness);
+  EXPECT_NEAR(r.augmented.stiffness_ratio, ratio_true, 0.25 * ratio_true);
+}
+
+// A clean X axis (second simulator, seed 1033) whose fit gives the uniform baseline a ratio of
+// 0.92 for 9 % on the held-out part: under the ratio a finding takes, so not named at the
+// direction's lower margin.
+TEST(CalibrationProgram, SecondSimulatorsCleanAxisNamesNoSmallDirectionRatio) {
+  const IdentResult r = identify_plant2(1033, plant2::EffectKind::none, nullptr);
+  EXPECT_TRUE(r.effects.empty());
+  EXPECT_FALSE(r.augmented.has(Effect::kDirectionStiffness));
+}
+
 // A 3.2 N friction on the light X axis (second simulator, seed 1008). The baseline fitted without
 // it bends around it (k2 561 kN/m, c1 12 kN s/m; the clean draw of the seed: 65 kN/m, 8 N s/m),
 // and the friction screened from there stayed in that valley: 13.1 N, read through a k2 of
