@@ -403,11 +403,18 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
     if (api) {
       r.content_type = std::string(req[http::field::content_type]);
       r.body = std::move(req.body());
-      // The reply may come later (a G-code script answers when the machine has run it): the
-      // callback holds the session until then. With a weak reference nothing did, and every
-      // deferred reply found the connection closed (an empty reply to POST /printer/gcode/script).
+      // The reply may come later (a G-code script answers when the machine has run it). Until
+      // then the session is held by a wait on its socket (watch_while_deferred), not by the
+      // callback: a client that goes away frees its connection slot at once, whatever the script
+      // still does (64 dropped `G4 P30000` requests held every slot for half an hour), and a
+      // reply that finds the session gone is dropped.
+      const uint64_t request = ++request_count_;
+      std::weak_ptr<HttpSession> weak = shared_from_this();
       try {
-        shared_->api->on_http(r, [self = shared_from_this(), version, keep_alive](HttpReply reply) {
+        shared_->api->on_http(r, [weak, request, version, keep_alive](HttpReply reply) {
+          auto self = weak.lock();
+          if (!self) return;
+          self->replied_ = request;
           if (!reply.file_path.empty())
             return self->send_file(version, keep_alive, reply.file_path, reply.content_type);
           self->send(text_response(version, keep_alive, static_cast<http::status>(reply.status),
@@ -417,7 +424,9 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
         send(text_response(version, keep_alive, http::status::internal_server_error,
                            "application/json",
                            error_json(500, std::string("internal error: ") + e.what())));
+        replied_ = request;
       }
+      if (replied_ != request) watch_while_deferred(request);
       return;
     }
     if (req.method() != http::verb::get && req.method() != http::verb::head)
@@ -450,6 +459,25 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
     send(std::move(res));
   }
 
+  // While a reply is deferred: waits for the socket to become readable. Readable with nothing to
+  // read is the client gone (end of stream): the session closes and, once the wait's handler
+  // returns, is freed. Bytes of a next request (pipelining) are taken into the read buffer, up to
+  // the header limit, and the wait goes on.
+  void watch_while_deferred(uint64_t request) {
+    stream_.socket().async_wait(
+        tcp::socket::wait_read, [self = shared_from_this(), request](beast::error_code ec) {
+          if (ec || self->replied_ == request || !self->stream_.socket().is_open()) return;
+          beast::error_code ec2;
+          const size_t available = self->stream_.socket().available(ec2);
+          if (ec2 || available == 0 || self->buffer_.size() + available > 16 * 1024)
+            return self->close();
+          const size_t n = self->stream_.socket().read_some(self->buffer_.prepare(available), ec2);
+          if (ec2) return self->close();
+          self->buffer_.commit(n);
+          self->watch_while_deferred(request);
+        });
+  }
+
   template <class Response>
   void send(Response&& res) {
     auto sp = std::make_shared<std::decay_t<Response>>(std::forward<Response>(res));
@@ -466,6 +494,8 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
   std::shared_ptr<HttpServer::Shared> shared_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
+  uint64_t request_count_ = 0;  // API requests on this connection
+  uint64_t replied_ = 0;        // the last of them whose reply was sent
 };
 
 }  // namespace
