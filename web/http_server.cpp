@@ -282,6 +282,8 @@ class WsSession final : public SessionBase, public std::enable_shared_from_this<
 
 class HttpSession final : public SessionBase, public std::enable_shared_from_this<HttpSession> {
  public:
+  static constexpr size_t kHeaderLimitBytes = 16 * 1024;  // a request's header (docs/web.md)
+
   HttpSession(tcp::socket socket, std::shared_ptr<HttpServer::Shared> shared)
       : stream_(std::move(socket)), shared_(std::move(shared)) {}
 
@@ -295,7 +297,7 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
  private:
   void read() {
     parser_.emplace();
-    parser_->header_limit(16 * 1024);
+    parser_->header_limit(kHeaderLimitBytes);
     // The parser checks a Content-Length against its limit while it reads the header, before
     // on_header can tell an upload from another request: it reads with the larger limit, and
     // on_header applies the request's own.
@@ -469,7 +471,7 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
           if (ec || self->replied_ == request || !self->stream_.socket().is_open()) return;
           beast::error_code ec2;
           const size_t available = self->stream_.socket().available(ec2);
-          if (ec2 || available == 0 || self->buffer_.size() + available > 16 * 1024)
+          if (ec2 || available == 0 || self->buffer_.size() + available > kHeaderLimitBytes)
             return self->close();
           const size_t n = self->stream_.socket().read_some(self->buffer_.prepare(available), ec2);
           if (ec2) return self->close();
