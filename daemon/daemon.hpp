@@ -136,6 +136,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   web::JobStatus job_status() const override;
   void run_gcode(std::string script, std::function<void(bool ok, std::string response)> done) override;
   std::string start_job(const std::string& path, const std::string& filename) override;
+  std::string job_name_error(const std::string& filename) const override;
   std::string pause_job() override;
   std::string resume_job() override;
   std::string cancel_job() override;

@@ -72,6 +72,7 @@ Status Daemon::open_web() {
   so.ui_dir = cfg_.web.ui_dir;
   so.page_dir = cfg_.web.page_dir;
   so.uplot_dir = cfg_.web.uplot_dir;
+  so.upload_dir = web_files_->root_dir("gcodes");  // the uploads' own file system
   web_server_ = std::make_unique<web::HttpServer>(io_, *web_api_, std::move(*access), so);
   if (Status s = web_server_->start(); !s) return s;
   // The internal client the web's commands and jobs run as.
@@ -209,6 +210,11 @@ void Daemon::run_gcode(std::string script,
 std::string Daemon::start_job(const std::string& /*path*/, const std::string& filename) {
   Status st = job_start(filename, web_client_id_);
   snapshot_.stale = true;
+  return st ? std::string() : st.error().to_string();
+}
+
+std::string Daemon::job_name_error(const std::string& filename) const {
+  const Status st = JobFiles::validate_path(filename);
   return st ? std::string() : st.error().to_string();
 }
 

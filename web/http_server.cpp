@@ -12,6 +12,7 @@
 #include <filesystem>
 
 #include "core/clock.hpp"
+#include "web/spooled_body.hpp"
 
 namespace feedloop::web {
 
@@ -283,6 +284,8 @@ class WsSession final : public SessionBase, public std::enable_shared_from_this<
 class HttpSession final : public SessionBase, public std::enable_shared_from_this<HttpSession> {
  public:
   static constexpr size_t kHeaderLimitBytes = 16 * 1024;  // a request's header (docs/web.md)
+  static constexpr size_t kUploadChunkBytes = 64 * 1024;  // an upload is read and spooled in these
+  static constexpr std::string_view kUploadPath = "/server/files/upload";
 
   HttpSession(tcp::socket socket, std::shared_ptr<HttpServer::Shared> shared)
       : stream_(std::move(socket)), shared_(std::move(shared)) {}
@@ -296,6 +299,8 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
 
  private:
   void read() {
+    upload_parser_.reset();
+    spool_.reset();
     parser_.emplace();
     parser_->header_limit(kHeaderLimitBytes);
     // The parser checks a Content-Length against its limit while it reads the header, before
@@ -312,17 +317,60 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
   void on_header(beast::error_code ec) {
     if (ec) return fail(ec);
     const auto& req = parser_->get();
-    const size_t limit = req.target() == "/server/files/upload" ? shared_->options.max_upload_bytes
-                                                                : shared_->options.max_body_bytes;
+    const std::string_view target(req.target().data(), req.target().size());
+    const bool upload = target.substr(0, target.find('?')) == kUploadPath;
+    const size_t limit =
+        upload ? shared_->options.max_upload_bytes : shared_->options.max_body_bytes;
     if (const auto length = parser_->content_length(); length && *length > limit)
       return fail(http::error::body_limit);
     parser_->body_limit(limit);  // a chunked body counts against it as it is read
     if (parser_->is_done()) return on_request();
+    if (upload) return start_upload(limit);
     http::async_read(stream_, buffer_, *parser_,
                      [self = shared_from_this()](beast::error_code ec2, size_t) {
                        if (ec2) return self->fail(ec2);
                        self->on_request();
                      });
+  }
+
+  // An upload's body goes to a temporary file (web/spooled_body.hpp), read in chunks, each with
+  // its own read deadline: memory stays one chunk whatever the announced length, and a large file
+  // over a slow link is not cut by a deadline meant for one request's header.
+  void start_upload(size_t limit) {
+    auto spool = SpooledBody::create(shared_->options.upload_dir);
+    if (!spool) return refuse_upload(spool.error().message);
+    spool_ = std::move(*spool);
+    upload_parser_.emplace(std::move(*parser_));
+    upload_parser_->body_limit(limit);
+    if (!chunk_) chunk_ = std::make_unique<char[]>(kUploadChunkBytes);
+    read_upload_chunk();
+  }
+
+  void read_upload_chunk() {
+    auto& body = upload_parser_->get().body();
+    body.data = chunk_.get();
+    body.size = kUploadChunkBytes;
+    body.more = true;
+    stream_.expires_after(std::chrono::seconds(shared_->options.read_timeout_s));
+    http::async_read(stream_, buffer_, *upload_parser_,
+                     [self = shared_from_this()](beast::error_code ec, size_t) {
+                       if (ec == http::error::need_buffer) ec = {};
+                       if (ec) return self->fail(ec);
+                       const size_t got =
+                           kUploadChunkBytes - self->upload_parser_->get().body().size;
+                       if (Status s = self->spool_->append(self->chunk_.get(), got); !s)
+                         return self->refuse_upload(s.error().message);
+                       if (self->upload_parser_->is_done()) return self->on_request();
+                       self->read_upload_chunk();
+                     });
+  }
+
+  // The server could not keep an upload (no temporary file, disk full): 507, and the connection
+  // closes (the rest of the body is not read).
+  void refuse_upload(const std::string& message) {
+    spdlog::warn("web: {}", message);
+    send(text_response(11, false, http::status::insufficient_storage, "application/json",
+                       error_json(507, message)));
   }
 
   void fail(beast::error_code ec) {
@@ -345,7 +393,8 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
   void on_request() {
     ++shared_->stats.http_requests;
     stream_.expires_never();
-    auto& req = parser_->get();
+    // An upload's header is in its own parser (start_upload moved the first parser's into it).
+    auto& req = upload_parser_ ? upload_parser_->get().base() : parser_->get().base();
     const std::string target(req.target());
     const size_t q = target.find('?');
     HttpRequest r;
@@ -366,7 +415,7 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
       }
     }
     const unsigned version = req.version();
-    const bool keep_alive = req.keep_alive();
+    const bool keep_alive = upload_parser_ ? upload_parser_->keep_alive() : parser_->keep_alive();
     const bool api = MoonrakerApi::is_api_path(r.path);
     if (api) {
       beast::error_code ec;
@@ -391,7 +440,7 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
                                   "not found\n"));
       return send_file(version, keep_alive, file, HttpServer::mime_type(file));
     }
-    if (r.path == "/websocket") {
+    if (r.path == "/websocket" && !upload_parser_) {
       if (!websocket::is_upgrade(req)) {
         return send(text_response(version, keep_alive, http::status::bad_request,
                                   "application/json",
@@ -404,7 +453,13 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
     }
     if (api) {
       r.content_type = std::string(req[http::field::content_type]);
-      r.body = std::move(req.body());
+      if (spool_) {
+        auto bytes = spool_->bytes();
+        if (!bytes) return refuse_upload(bytes.error().message);
+        r.spooled = *bytes;
+      } else {
+        r.body = std::move(parser_->get().body());
+      }
       // The reply may come later (a G-code script answers when the machine has run it). Until
       // then the session is held by a wait on its socket (watch_while_deferred), not by the
       // callback: a client that goes away frees its connection slot at once, whatever the script
@@ -496,6 +551,9 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
   std::shared_ptr<HttpServer::Shared> shared_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
+  std::optional<http::request_parser<http::buffer_body>> upload_parser_;  // while uploading
+  std::unique_ptr<SpooledBody> spool_;                                    // the upload's body
+  std::unique_ptr<char[]> chunk_;  // kUploadChunkBytes, allocated at a session's first upload
   uint64_t request_count_ = 0;  // API requests on this connection
   uint64_t replied_ = 0;        // the last of them whose reply was sent
 };

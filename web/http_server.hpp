@@ -6,9 +6,10 @@
 // threads: the API reads snapshots and submits G-code through the daemon like any client.
 //
 // Hostile input is bounded: at most max_connections at once (more are closed at accept), request
-// headers 16 KiB, request bodies 1 MiB (uploads max_upload_bytes), WebSocket messages
-// max_ws_message_bytes, a read must finish within 30 s, and each WebSocket has a bounded send
-// queue: a client that does not read (its queue over max_ws_queue_bytes) is dropped with a log
+// headers 16 KiB, request bodies 1 MiB (uploads max_upload_bytes, spooled to an unnamed file in
+// upload_dir as they arrive, never held in memory), WebSocket messages max_ws_message_bytes, a
+// read must finish within 30 s (an upload: each 64 KiB of it), and each WebSocket has a bounded
+// send queue: a client that does not read (its queue over max_ws_queue_bytes) is dropped with a log
 // line instead of growing the daemon's memory.
 #pragma once
 
@@ -33,6 +34,7 @@ struct ServerOptions {
   size_t max_connections = 64;
   size_t max_body_bytes = 1 << 20;
   size_t max_upload_bytes = 256u << 20;
+  std::string upload_dir;  // where uploads are spooled while they arrive ("": the system's /tmp)
   size_t max_ws_message_bytes = 1 << 20;
   size_t max_ws_queue_bytes = 4u << 20;
   int read_timeout_s = 30;

@@ -484,7 +484,7 @@ void MoonrakerApi::upload(const HttpRequest& req, std::function<void(HttpReply)>
     r.body = wire(json{{"error", {{"code", status}, {"message", valid_utf8(message)}}}});
     done(std::move(r));
   };
-  auto form = parse_multipart(req.content_type, req.body);
+  auto form = parse_multipart(req.content_type, req.bytes());
   if (!form) return error(400, form.error().message);
   if (!form->has_file) return error(400, "No file part in the upload (field 'file')");
   auto field = [&](const char* k, std::string fallback) {
@@ -499,6 +499,10 @@ void MoonrakerApi::upload(const HttpRequest& req, std::function<void(HttpReply)>
     name = name.substr(slash + 1);
   if (name.empty()) return error(400, "the uploaded file has no name");
   const std::string rel = dir.empty() ? name : dir + "/" + name;
+  if (root == "gcodes") {
+    if (const std::string why = printer_.job_name_error(rel); !why.empty())
+      return error(400, "cannot print '" + rel + "': " + why);
+  }
   auto item = files_.write(root, rel, form->file);
   if (!item) return error(400, item.error().message);
   spdlog::info("web: uploaded {}/{} ({} bytes)", root, rel, form->file.size());

@@ -33,7 +33,9 @@ struct HttpRequest {
   std::string path;    // without the query
   std::map<std::string, std::string> query;
   std::string content_type;
-  std::string body;
+  std::string body;          // an ordinary request's body
+  std::string_view spooled;  // an upload's body, mapped from its temporary file (web/spooled_body)
+  std::string_view bytes() const { return spooled.empty() ? std::string_view(body) : spooled; }
 };
 
 struct HttpReply {

@@ -52,6 +52,9 @@ class PrinterBackend {
                          std::function<void(bool ok, std::string response)> done) = 0;
   // Print jobs. Each returns an error text ("" on success).
   virtual std::string start_job(const std::string& path, const std::string& filename) = 0;
+  // Why a file of this name (relative to the gcodes root) could not be printed, "" when it could:
+  // an upload is refused then, rather than kept as a file that job.start refuses.
+  virtual std::string job_name_error(const std::string& /*filename*/) const { return {}; }
   virtual std::string pause_job() = 0;
   virtual std::string resume_job() = 0;
   virtual std::string cancel_job() = 0;

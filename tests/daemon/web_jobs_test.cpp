@@ -253,6 +253,22 @@ TEST_F(WebJobsVirtual, AFileInASubfolderPrintsAndEscapesAreRefused) {
                 r.body["error"]["message"].get<std::string>().c_str());
   }
   EXPECT_EQ(objects("print_stats")["print_stats"]["state"], "standby");
+  // An upload that no job could print is refused by the same rules, and no file is kept (it was
+  // kept, and then job.start refused it).
+  for (const auto& [dir, name] : std::vector<std::pair<std::string, std::string>>{
+           {"", ".hidden.gcode"}, {"sub//x", "x.gcode"}, {"", "notes.txt"}, {".h", "y.gcode"}}) {
+    std::string bad_form = multipart(name, "G28\n");
+    if (!dir.empty())
+      bad_form = "--XyZ\r\nContent-Disposition: form-data; name=\"path\"\r\n\r\n" + dir + "\r\n" +
+                 bad_form;
+    Reply r = request(port(), http::verb::post, "/server/files/upload", bad_form,
+                      "multipart/form-data; boundary=XyZ");
+    EXPECT_EQ(r.status, 400) << dir << "/" << name << ": " << r.body.dump();
+    std::printf("upload %s/%s -> %d %s\n", dir.c_str(), name.c_str(), r.status,
+                r.body["error"]["message"].get<std::string>().c_str());
+    EXPECT_FALSE(
+        std::filesystem::exists(dir_ + "/gcodes/" + (dir.empty() ? "" : dir + "/") + name));
+  }
   // The job folder's own check (M23, M32, job.start take the same path): '..' is refused there too.
   for (const char* bad : {"../outside.gcode", "parts/../../outside.gcode", "/abs.gcode",
                           "parts\\cube.gcode", "parts/cube.txt"})

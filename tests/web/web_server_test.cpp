@@ -10,10 +10,13 @@
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 
+#include <malloc.h>
+
 #include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <thread>
 
 #include "tests/web/fake_printer.hpp"
@@ -30,7 +33,7 @@ using tcp = asio::ip::tcp;
 using nlohmann::json;
 
 struct Server {
-  Server() {
+  explicit Server(int read_timeout_s = 30) {
     dir =
         std::filesystem::temp_directory_path() / ("web_server_test_" + std::to_string(::getpid()));
     std::filesystem::remove_all(dir);
@@ -45,6 +48,7 @@ struct Server {
     o.ui_dir = (dir / "ui").string();
     o.max_connections = 32;
     o.max_ws_queue_bytes = 256 * 1024;
+    o.read_timeout_s = read_timeout_s;
     server = std::make_unique<HttpServer>(io, *api, *AccessPolicy::create({}, "key"), o);
     EXPECT_TRUE(server->start());
     // The I/O loop's delay: a 1 ms timer, its worst lateness.
@@ -144,6 +148,111 @@ TEST(WebServer, ServesTheUiWithMainsailsFallbackAndTheApi) {
   EXPECT_EQ(
       c.call("server.connection.identify", {{"client_name", "test"}}, 0)["result"]["connection_id"],
       1);
+}
+
+// A multipart upload of `gcode` as "name", as a browser sends it (Content-Length).
+std::string upload_request(const std::string& name, const std::string& gcode, bool chunked) {
+  http::request<http::string_body> req{http::verb::post, "/server/files/upload", 11};
+  req.set(http::field::host, "x");
+  req.set(http::field::content_type, "multipart/form-data; boundary=XyZ");
+  req.body() = "--XyZ\r\nContent-Disposition: form-data; name=\"file\"; filename=\"" + name +
+               "\"\r\nContent-Type: application/octet-stream\r\n\r\n" + gcode + "\r\n--XyZ--\r\n";
+  req.chunked(chunked);
+  req.prepare_payload();
+  std::ostringstream out;
+  out << req;
+  return out.str();
+}
+
+std::string some_gcode(size_t bytes) {
+  std::string gcode;
+  while (gcode.size() < bytes) gcode += "G1 X10.5 Y20.25 E0.0123 F1800\n";
+  return gcode;
+}
+
+// An upload is spooled to an unnamed file as it arrives (web/spooled_body.hpp): a slow upload is
+// not cut by the read deadline (each 64 KiB gets its own), a stalled one holds no heap for the
+// length it announced, and a chunked one is taken as well.
+TEST(WebServer, AnUploadIsSpooledToDiskWithADeadlinePerChunk) {
+  Server s(/*read_timeout_s=*/1);
+  const uint16_t port = s.server->port();
+  auto reply_to = [](tcp::socket& sock) {
+    beast::flat_buffer b;
+    http::response<http::string_body> res;
+    boost::system::error_code ec;
+    http::read(sock, b, res, ec);
+    return res;
+  };
+  // 3 MiB sent over 3 s in 256 KiB pieces, against a 1 s read deadline.
+  {
+    const std::string gcode = some_gcode(3u << 20);
+    const std::string wire = upload_request("slow.gcode", gcode, false);
+    asio::io_context ctx;
+    tcp::socket sock(ctx);
+    sock.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+    const auto start = std::chrono::steady_clock::now();
+    boost::system::error_code wec;
+    for (size_t at = 0; at < wire.size() && !wec; at += 256 * 1024) {
+      asio::write(sock,
+                  asio::buffer(wire.data() + at, std::min<size_t>(256 * 1024, wire.size() - at)),
+                  wec);
+      std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    }
+    const auto res = reply_to(sock);
+    EXPECT_EQ(res.result_int(), 201) << res.body();
+    EXPECT_GT(std::chrono::steady_clock::now() - start, std::chrono::seconds(2));
+    std::error_code fec;
+    EXPECT_EQ(std::filesystem::file_size(s.dir / "files" / "gcodes" / "slow.gcode", fec),
+              gcode.size());
+  }
+  // Chunked transfer encoding.
+  {
+    const std::string gcode = some_gcode(200000);
+    asio::io_context ctx;
+    tcp::socket sock(ctx);
+    sock.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+    asio::write(sock, asio::buffer(upload_request("chunked.gcode", gcode, true)));
+    const auto res = reply_to(sock);
+    EXPECT_EQ(res.result_int(), 201) << res.body();
+    std::error_code fec;
+    EXPECT_EQ(std::filesystem::file_size(s.dir / "files" / "gcodes" / "chunked.gcode", fec),
+              gcode.size());
+  }
+  // 200 MiB announced, 16 MiB sent, then nothing: the heap grows by a chunk, not by the length
+  // (Beast's string body reserved all 200 MiB at the first body byte). glibc's count of what
+  // malloc handed out; a sanitizer's allocator does not keep it.
+  {
+    const auto heap_bytes = [] {
+      const struct mallinfo2 m = ::mallinfo2();
+      return static_cast<double>(m.uordblks + m.hblkhd);
+    };
+    const double before = heap_bytes();
+    asio::io_context ctx;
+    tcp::socket sock(ctx);
+    sock.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+    asio::write(sock, asio::buffer(std::string("POST /server/files/upload HTTP/1.1\r\nHost: x\r\n"
+                                               "Content-Type: multipart/form-data; boundary=XyZ\r\n"
+                                               "Content-Length: 209715200\r\n\r\n")));
+    const std::string piece(1 << 20, 'G');
+    for (int i = 0; i < 16; ++i) asio::write(sock, asio::buffer(piece));
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the server reads it all
+    const double grown_mib = (heap_bytes() - before) / (1 << 20);
+    std::printf("heap grown by a stalled 200 MiB upload after 16 MiB: %.2f MiB\n", grown_mib);
+#if !defined(__SANITIZE_ADDRESS__)
+    EXPECT_LT(grown_mib, 8.0);
+#endif
+    // Stalled: the read deadline (1 s here) closes it.
+    const auto res = reply_to(sock);
+    EXPECT_NE(res.result_int(), 201);
+  }
+  // Nothing of the spooled bodies is left among the files, and the server goes on.
+  size_t entries = 0;
+  for (const auto& e : std::filesystem::directory_iterator(s.dir / "files" / "gcodes")) {
+    ++entries;
+    EXPECT_NE(e.path().filename().string().rfind(".upload", 0), 0u) << e.path();
+  }
+  EXPECT_EQ(entries, 2u);
+  EXPECT_EQ(get(port, "/server/info").result_int(), 200);
 }
 
 TEST(WebServer, HostileClientsAreRefusedAndTheServerGoesOn) {
