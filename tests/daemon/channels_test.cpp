@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "tests/daemon/daemon_fixture.hpp"
+#include "tests/daemon/json_call.hpp"
 #include "tests/daemon/line_client.hpp"
 
 namespace feedloop::testing {
@@ -28,17 +29,6 @@ class Channels : public DaemonFixture {
     }
   }
 };
-
-json call(LineClient& c, const json& req) {
-  EXPECT_TRUE(c.send_line(req.dump()));
-  for (int i = 0; i < 100; ++i) {  // skip notifications
-    auto line = c.read_line(5000);
-    if (!line) return json();
-    json r = json::parse(*line);
-    if (r.contains("id")) return r;
-  }
-  return json();
-}
 
 TEST_F(Channels, UnixSocketSpeaksTheMarlinHostProtocol) {
   LineClient c;

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "tests/daemon/daemon_fixture.hpp"
+#include "tests/daemon/json_call.hpp"
 #include "tests/daemon/line_client.hpp"
 
 namespace feedloop::testing {
@@ -67,20 +68,6 @@ class Clients : public DaemonFixture {
   }
   std::shared_ptr<CaptureSink> sink_;
 };
-
-json call(LineClient& c, const json& req, std::string* raw = nullptr) {
-  EXPECT_TRUE(c.send_line(req.dump()));
-  for (int i = 0; i < 100; ++i) {  // skip notifications
-    auto line = c.read_line(5000);
-    if (!line) return json();
-    json r = json::parse(*line);
-    if (r.contains("id")) {
-      if (raw) *raw = *line;
-      return r;
-    }
-  }
-  return json();
-}
 
 const json kStatus = {{"jsonrpc", "2.0"}, {"id", 1}, {"method", "status"}};
 

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/daemon/daemon_fixture.hpp"
+#include "tests/daemon/json_call.hpp"
 #include "tests/daemon/line_client.hpp"
 
 namespace feedloop::testing {
@@ -153,28 +154,14 @@ TEST_F(Conformance, M999AfterAClientLeftWithALineWaitingForQueueRoom) {
 TEST_F(Conformance, M112InAJsonScriptStopsTheMachine) {
   LineClient api;
   ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
-  auto call = [&api](const nlohmann::json& req) {
-    EXPECT_TRUE(api.send_line(req.dump()));
-    for (int i = 0; i < 100; ++i) {
-      auto line = api.read_line(10000);
-      if (!line) break;
-      nlohmann::json r = nlohmann::json::parse(*line);
-      if (r.contains("id") && r["id"] == req["id"]) return r;
-    }
-    return nlohmann::json();
-  };
-  const nlohmann::json run = call({{"jsonrpc", "2.0"},
-                                   {"id", 1},
-                                   {"method", "gcode"},
-                                   {"params", {{"script", "G1 X40 F6000\nm112\nG1 X50 F6000"}}}});
+  const nlohmann::json run = call(api, "gcode", {{"script", "G1 X40 F6000\nm112\nG1 X50 F6000"}});
   ASSERT_TRUE(run.contains("result")) << run.dump();
   ASSERT_EQ(run["result"]["results"].size(), 1u) << run.dump();
   EXPECT_EQ(run["result"]["results"][0]["reply"], "Error:Printer halted. kill() called!");
-  const nlohmann::json st = call({{"jsonrpc", "2.0"}, {"id", 2}, {"method", "status"}});
+  const nlohmann::json st = call(api, "status");
   EXPECT_EQ(st["result"]["state"], "emergency_stopped") << st.dump();
   EXPECT_DOUBLE_EQ(st["result"]["position_mm"]["x"].get<double>(), 0.0);
-  const nlohmann::json after =
-      call({{"jsonrpc", "2.0"}, {"id", 3}, {"method", "gcode"}, {"params", {{"script", "G1 X5"}}}});
+  const nlohmann::json after = call(api, "gcode", {{"script", "G1 X5"}});
   ASSERT_TRUE(after.contains("error")) << after.dump();
   EXPECT_NE(after["error"]["message"].get<std::string>().find("M999"), std::string::npos);
 }

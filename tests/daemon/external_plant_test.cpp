@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "tests/daemon/daemon_fixture.hpp"
+#include "tests/daemon/json_call.hpp"
 #include "tests/daemon/line_client.hpp"
 
 namespace feedloop::testing {
@@ -18,17 +19,6 @@ namespace {
 using nlohmann::json;
 
 const std::string kPlant = "python3 " + std::string(FEEDLOOP_SOURCE_DIR) + "/tests/sim/plants/lag_plant.py";
-
-json call(LineClient& c, const json& req) {
-  EXPECT_TRUE(c.send_line(req.dump()));
-  for (int i = 0; i < 100; ++i) {  // skip notifications
-    auto line = c.read_line(10000);
-    if (!line) return json();
-    json r = json::parse(*line);
-    if (r.contains("id")) return r;
-  }
-  return json();
-}
 
 json status(LineClient& api) { return call(api, {{"jsonrpc", "2.0"}, {"id", 9}, {"method", "status"}})["result"]; }
 

@@ -15,26 +15,13 @@
 
 #include "daemon_fixture.hpp"
 #include "gcode/parser.hpp"
-#include "line_client.hpp"
+#include "tests/daemon/json_call.hpp"
+#include "tests/daemon/line_client.hpp"
 
 namespace feedloop::testing {
 namespace {
 
 using nlohmann::json;
-
-json call(LineClient& c, const std::string& method, const json& params = json::object()) {
-  static int next_id = 1;
-  const int id = next_id++;
-  EXPECT_TRUE(c.send_line(
-      json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump()));
-  for (int i = 0; i < 1000; ++i) {  // skip notifications
-    auto line = c.read_line(10000);
-    if (!line) return json();
-    json r = json::parse(*line);
-    if (r.contains("id") && r["id"] == id) return r;
-  }
-  return json();
-}
 
 [[maybe_unused]] std::string read_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

@@ -21,7 +21,8 @@
 #include "../planner/planner_test_util.hpp"
 #include "daemon/job_files.hpp"
 #include "daemon_fixture.hpp"
-#include "line_client.hpp"
+#include "tests/daemon/json_call.hpp"
+#include "tests/daemon/line_client.hpp"
 
 namespace feedloop::testing {
 namespace {
@@ -61,20 +62,6 @@ Reply request(uint16_t port, http::verb verb, const std::string& target,
   http::response<http::string_body> res;
   http::read(s, buf, res);
   return {static_cast<int>(res.result_int()), json::parse(res.body(), nullptr, false)};
-}
-
-json call(LineClient& c, const std::string& method, const json& params = json::object()) {
-  static int next_id = 1;
-  const int id = next_id++;
-  EXPECT_TRUE(c.send_line(
-      json{{"jsonrpc", "2.0"}, {"id", id}, {"method", method}, {"params", params}}.dump()));
-  for (int i = 0; i < 1000; ++i) {
-    auto line = c.read_line(10000);
-    if (!line) return json();
-    json r = json::parse(*line);
-    if (r.contains("id") && r["id"] == id) return r;
-  }
-  return json();
 }
 
 class WebJobs : public DaemonFixture {
