@@ -325,10 +325,26 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
       return fail(http::error::body_limit);
     parser_->body_limit(limit);  // a chunked body counts against it as it is read
     if (parser_->is_done()) return on_request();
+    // A client that asked to be told to go on (libcurl does for bodies over 1 MiB, so slicers'
+    // uploads) waited a second for it before sending the body.
+    if (beast::iequals(req[http::field::expect], "100-continue")) {
+      auto go_on = std::make_shared<http::response<http::empty_body>>(http::status::continue_,
+                                                                      req.version());
+      return http::async_write(
+          stream_, *go_on,
+          [self = shared_from_this(), go_on, upload, limit](beast::error_code ec2, size_t) {
+            if (ec2) return self->fail(ec2);
+            self->read_body(upload, limit);
+          });
+    }
+    read_body(upload, limit);
+  }
+
+  void read_body(bool upload, size_t limit) {
     if (upload) return start_upload(limit);
     http::async_read(stream_, buffer_, *parser_,
-                     [self = shared_from_this()](beast::error_code ec2, size_t) {
-                       if (ec2) return self->fail(ec2);
+                     [self = shared_from_this()](beast::error_code ec, size_t) {
+                       if (ec) return self->fail(ec);
                        self->on_request();
                      });
   }

@@ -11,6 +11,7 @@
 #include <boost/beast/websocket.hpp>
 
 #include <malloc.h>
+#include <poll.h>
 
 #include <atomic>
 #include <chrono>
@@ -205,6 +206,22 @@ TEST(WebServer, AnUploadIsSpooledToDiskWithADeadlinePerChunk) {
     EXPECT_EQ(std::filesystem::file_size(s.dir / "files" / "gcodes" / "slow.gcode", fec),
               gcode.size());
   }
+  // A client that asks to be told to go on (libcurl for bodies over 1 MiB, so a slicer's upload)
+  // is told so before it sends the body (it waited a second for it).
+  {
+    const std::string wire = upload_request("expect.gcode", some_gcode(100000), false);
+    const size_t body_at = wire.find("\r\n\r\n") + 4;
+    asio::io_context ctx;
+    tcp::socket sock(ctx);
+    sock.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), port));
+    asio::write(sock, asio::buffer(wire.substr(0, body_at - 2) + "Expect: 100-continue\r\n\r\n"));
+    std::string interim(64, '\0');
+    pollfd readable{sock.native_handle(), POLLIN, 0};
+    interim.resize(::poll(&readable, 1, 3000) == 1 ? sock.read_some(asio::buffer(interim)) : 0);
+    EXPECT_EQ(interim.rfind("HTTP/1.1 100 Continue\r\n", 0), 0u) << interim;
+    asio::write(sock, asio::buffer(wire.substr(body_at)));
+    EXPECT_EQ(reply_to(sock).result_int(), 201);
+  }
   // Chunked transfer encoding.
   {
     const std::string gcode = some_gcode(200000);
@@ -251,7 +268,7 @@ TEST(WebServer, AnUploadIsSpooledToDiskWithADeadlinePerChunk) {
     ++entries;
     EXPECT_NE(e.path().filename().string().rfind(".upload", 0), 0u) << e.path();
   }
-  EXPECT_EQ(entries, 2u);
+  EXPECT_EQ(entries, 3u);
   EXPECT_EQ(get(port, "/server/info").result_int(), 200);
 }
 
