@@ -285,7 +285,6 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
  public:
   static constexpr size_t kHeaderLimitBytes = 16 * 1024;  // a request's header (docs/web.md)
   static constexpr size_t kUploadChunkBytes = 64 * 1024;  // an upload is read and spooled in these
-  static constexpr std::string_view kUploadPath = "/server/files/upload";
 
   HttpSession(tcp::socket socket, std::shared_ptr<HttpServer::Shared> shared)
       : stream_(std::move(socket)), shared_(std::move(shared)) {}
@@ -318,7 +317,7 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
     if (ec) return fail(ec);
     const auto& req = parser_->get();
     const std::string_view target(req.target().data(), req.target().size());
-    const bool upload = target.substr(0, target.find('?')) == kUploadPath;
+    const bool upload = MoonrakerApi::is_upload_path(target.substr(0, target.find('?')));
     const size_t limit =
         upload ? shared_->options.max_upload_bytes : shared_->options.max_body_bytes;
     if (const auto length = parser_->content_length(); length && *length > limit)

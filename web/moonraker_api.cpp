@@ -398,6 +398,7 @@ void MoonrakerApi::on_http(const HttpRequest& req, std::function<void(HttpReply)
   auto error = [reply_json](int status, const std::string& message) {
     reply_json(status, json{{"error", {{"code", status}, {"message", valid_utf8(message)}}}});
   };
+  if (req.path.rfind("/api/", 0) == 0) return octoprint(req, done);
   // Files: GET /server/files/<root>/<path> downloads, DELETE deletes, POST upload uploads.
   if (req.path == "/server/files/upload" && req.method == "POST") {
     upload(req, done);
@@ -478,48 +479,55 @@ void MoonrakerApi::on_http(const HttpRequest& req, std::function<void(HttpReply)
 }
 
 void MoonrakerApi::upload(const HttpRequest& req, std::function<void(HttpReply)> done) {
-  auto error = [done](int status, const std::string& message) {
+  auto stored = store_upload(req);
+  if (!stored) {
     HttpReply r;
-    r.status = status;
-    r.body = wire(json{{"error", {{"code", status}, {"message", valid_utf8(message)}}}});
-    done(std::move(r));
-  };
+    r.status = 400;
+    r.body =
+        wire(json{{"error", {{"code", 400}, {"message", valid_utf8(stored.error().message)}}}});
+    return done(std::move(r));
+  }
+  HttpReply r;
+  r.status = 201;
+  r.body = wire(json{{"result",
+                      {{"item", stored->item},
+                       {"print_started", stored->print_started},
+                       {"print_queued", false},
+                       {"action", "create_file"}}}});
+  done(std::move(r));
+}
+
+Result<MoonrakerApi::StoredUpload> MoonrakerApi::store_upload(const HttpRequest& req,
+                                                              const std::string& forced_root) {
   auto form = parse_multipart(req.content_type, req.bytes());
-  if (!form) return error(400, form.error().message);
-  if (!form->has_file) return error(400, "No file part in the upload (field 'file')");
+  if (!form) return form.error();
+  if (!form->has_file) return Error{"No file part in the upload (field 'file')"};
   auto field = [&](const char* k, std::string fallback) {
     auto it = form->fields.find(k);
     return it == form->fields.end() ? fallback : it->second;
   };
-  const std::string root = field("root", "gcodes");
+  const std::string root = forced_root.empty() ? field("root", "gcodes") : forced_root;
   std::string dir = field("path", "");
   while (!dir.empty() && dir.back() == '/') dir.pop_back();
   std::string name = form->file_name;
   if (const size_t slash = name.find_last_of("/\\"); slash != std::string::npos)
     name = name.substr(slash + 1);
-  if (name.empty()) return error(400, "the uploaded file has no name");
+  if (name.empty()) return Error{"the uploaded file has no name"};
   const std::string rel = dir.empty() ? name : dir + "/" + name;
   if (root == "gcodes") {
     if (const std::string why = printer_.job_name_error(rel); !why.empty())
-      return error(400, "cannot print '" + rel + "': " + why);
+      return Error{"cannot print '" + rel + "': " + why};
   }
   auto item = files_.write(root, rel, form->file);
-  if (!item) return error(400, item.error().message);
+  if (!item) return item.error();
   spdlog::info("web: uploaded {}/{} ({} bytes)", root, rel, form->file.size());
-  bool print_started = false;
+  StoredUpload out{*item, rel, false};
   if (field("print", "false") == "true" && root == "gcodes") {
     auto path = files_.resolve(root, rel);
-    if (path && printer_.start_job(*path, rel).empty()) print_started = true;
+    if (path && printer_.start_job(*path, rel).empty()) out.print_started = true;
   }
   broadcast("notify_filelist_changed", json::array({{{"action", "create_file"}, {"item", *item}}}));
-  HttpReply r;
-  r.status = 201;
-  r.body = wire(json{{"result",
-                      {{"item", *item},
-                       {"print_started", print_started},
-                       {"print_queued", false},
-                       {"action", "create_file"}}}});
-  done(std::move(r));
+  return out;
 }
 
 json MoonrakerApi::proc_stats(double now_s) {

@@ -72,6 +72,10 @@ class MoonrakerApi {
 
   // The HTTP API routes (/server/..., /printer/..., /machine/..., /access/...).
   static bool is_api_path(std::string_view path);
+  // The routes whose body is a file upload (spooled to disk by the server, not held in memory).
+  static bool is_upload_path(std::string_view path) {
+    return path == "/server/files/upload" || path == "/api/files/local";
+  }
   void on_http(const HttpRequest& req, std::function<void(HttpReply)> done);
 
   // Periodic (the server calls it every 50-100 ms): status notifications, proc stats, the
@@ -104,6 +108,17 @@ class MoonrakerApi {
   void gcode_response(const std::string& text);
   void run_script(std::vector<std::string> lines, size_t next, Done done);
   void upload(const HttpRequest& req, std::function<void(HttpReply)> done);
+  // A multipart upload stored (and its print started when the form asks): what both
+  // /server/files/upload and OctoPrint's /api/files/local answer from.
+  struct StoredUpload {
+    nlohmann::json item;  // {path, root, modified, size, permissions}
+    std::string rel;      // relative to its root
+    bool print_started = false;
+  };
+  // `root`: the root to store in whatever the form says ("": the form's "root", else gcodes).
+  Result<StoredUpload> store_upload(const HttpRequest& req, const std::string& root = {});
+  // OctoPrint's REST API as slicers use it (web/octoprint_compat.cpp).
+  void octoprint(const HttpRequest& req, std::function<void(HttpReply)> done);
   void track_jobs(double now_s);
   nlohmann::json filtered(const nlohmann::json& all, const nlohmann::json& wanted) const;
   nlohmann::json proc_stats(double now_s);

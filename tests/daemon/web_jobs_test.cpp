@@ -279,6 +279,82 @@ TEST_F(WebJobsVirtual, AFileInASubfolderPrintsAndEscapesAreRefused) {
   EXPECT_EQ(hist.body["result"]["jobs"][0]["status"], "completed");
 }
 
+// A slicer's "send to printer" (PrusaSlicer, SuperSlicer, OrcaSlicer set up as an OctoPrint host;
+// Cura's OctoPrint plugin), as Moonraker's octoprint_compat answers it: the connection test, the
+// upload into a folder with print=true, the job's state and progress, G-code, cancel.
+TEST_F(WebJobsVirtual, ASlicerSendsAPrintThroughOctoPrintsApi) {
+  Reply version = request(port(), http::verb::get, "/api/version");
+  ASSERT_EQ(version.status, 200) << version.body.dump();
+  EXPECT_EQ(version.body["text"].get<std::string>().rfind("OctoPrint", 0),
+            0u);  // PrusaSlicer's check
+  EXPECT_EQ(request(port(), http::verb::get, "/api/printer").body["state"]["text"], "Operational");
+
+  const std::string text =
+      read_file(std::string(FEEDLOOP_SOURCE_DIR) + "/examples/gcode/cube20_3layers.gcode");
+  const std::string form =
+      "--XyZ\r\nContent-Disposition: form-data; name=\"print\"\r\n\r\ntrue\r\n"
+      "--XyZ\r\nContent-Disposition: form-data; name=\"path\"\r\n\r\nfrom_slicer\r\n" +
+      multipart("cube.gcode", text);
+  Reply up = request(port(), http::verb::post, "/api/files/local", form,
+                     "multipart/form-data; boundary=XyZ");
+  ASSERT_EQ(up.status, 201) << up.body.dump();
+  EXPECT_EQ(up.body["files"]["local"]["path"], "from_slicer/cube.gcode");
+  EXPECT_EQ(up.body["effectivePrint"], true);
+  EXPECT_EQ(read_file(dir_ + "/gcodes/from_slicer/cube.gcode"), text);
+
+  Reply job = request(port(), http::verb::get, "/api/job");
+  ASSERT_EQ(job.status, 200);
+  EXPECT_EQ(job.body["job"]["file"]["name"], "from_slicer/cube.gcode");
+  EXPECT_EQ(job.body["job"]["file"]["size"], text.size());
+  json done = wait_objects(
+      "print_stats", [](const json& o) { return o["print_stats"]["state"] != "printing"; }, 300);
+  EXPECT_EQ(done["print_stats"]["state"], "complete") << done.dump();
+  job = request(port(), http::verb::get, "/api/job");
+  EXPECT_EQ(job.body["state"], "Operational") << job.body.dump();
+  EXPECT_DOUBLE_EQ(job.body["progress"]["completion"].get<double>(), 100.0);
+
+  // Started again from the upload, then cancelled through /api/job.
+  Reply again = request(port(), http::verb::post, "/api/files/local", form,
+                        "multipart/form-data; boundary=XyZ");
+  ASSERT_EQ(again.status, 201) << again.body.dump();
+  EXPECT_EQ(request(port(), http::verb::get, "/api/job").body["state"], "Printing");
+  EXPECT_EQ(request(port(), http::verb::post, "/api/job", R"({"command": "cancel"})").status, 204);
+  json cancelled = wait_objects(
+      "print_stats", [](const json& o) { return o["print_stats"]["state"] == "cancelled"; }, 60);
+  EXPECT_EQ(cancelled["print_stats"]["state"], "cancelled") << cancelled.dump();
+  EXPECT_EQ(request(port(), http::verb::post, "/api/job", R"({"command": "cancel"})").status, 409);
+
+  // G-code, once the job is over: 204 once it ran; a line the machine refuses is 409 with its
+  // reason.
+  Reply cmd = request(port(), http::verb::post, "/api/printer/command",
+                      R"({"commands": ["G28", "G1 X12 Y7 F3000"]})");
+  EXPECT_EQ(cmd.status, 204);
+  json pos = objects("toolhead")["toolhead"]["position"];
+  EXPECT_NEAR(pos[0].get<double>(), 12.0, 1e-9) << pos.dump();
+  EXPECT_NEAR(pos[1].get<double>(), 7.0, 1e-9) << pos.dump();
+  EXPECT_EQ(request(port(), http::verb::post, "/api/printer/command", R"({"command": "G1 X9999"})")
+                .status,
+            409);
+  EXPECT_EQ(request(port(), http::verb::post, "/api/printer/command", R"({"commands": 3})").status,
+            400);
+
+  // What no job could print, a root the slicer may not choose, and routes OctoPrint has and
+  // feedloop does not.
+  Reply hidden = request(port(), http::verb::post, "/api/files/local",
+                         multipart(".hidden.gcode", "G28\n"), "multipart/form-data; boundary=XyZ");
+  EXPECT_EQ(hidden.status, 400) << hidden.body.dump();
+  const std::string config_form =
+      "--XyZ\r\nContent-Disposition: form-data; name=\"root\"\r\n\r\nconfig\r\n"
+      "--XyZ\r\nContent-Disposition: form-data; name=\"file\"; filename=\"x.gcode\"\r\n\r\n"
+      "G28\n\r\n--XyZ--\r\n";
+  EXPECT_EQ(request(port(), http::verb::post, "/api/files/local", config_form,
+                    "multipart/form-data; boundary=XyZ")
+                .status,
+            201);
+  EXPECT_TRUE(std::filesystem::exists(dir_ + "/gcodes/x.gcode"));
+  EXPECT_EQ(request(port(), http::verb::get, "/api/timelapse").status, 404);
+}
+
 // Moonraker's HTTP form of a G-code script (POST /printer/gcode/script, the script in the query or
 // a JSON body): answered when the machine has run it. The reply comes later than the request's
 // handler returns, and the connection was closed first (an empty reply to every script). An M112
