@@ -286,6 +286,11 @@ bool Machine::is_machine_command(const gcode::Command& cmd) const {
 
 Status Machine::wait_for(const std::function<bool(double now_s)>& done, const char* what,
                          double until_s) {
+  executor_->release_lookahead();
+  struct MotionWait {  // cleared however the wait ends
+    CommandExecutor& e;
+    ~MotionWait() { e.set_waiting_for_motion(false); }
+  } motion_wait{*executor_};
   for (;;) {
     if (thermal_)
       if (auto f = thermal_->fault()) return Error{*f};
@@ -296,7 +301,9 @@ Status Machine::wait_for(const std::function<bool(double now_s)>& done, const ch
     if (clock_.is_virtual()) {
       // Virtual time is the wait's own while nothing moves (the servo thread advances it only for
       // motion): 20 ms per step, the heaters following the clock.
-      if (!executor_->motion_pending() && !executor_->settling()) {
+      const bool motion = executor_->motion_pending() || executor_->settling();
+      executor_->set_waiting_for_motion(motion);
+      if (!motion) {
         const int64_t until_ns = clock_.now_ns() + static_cast<int64_t>(std::ceil(step_s * 1e9));
         if (servo_carries_heaters_ && started_) {
           // The heaters' messages ride on the motion MCUs' sessions: the servo thread runs this

@@ -116,6 +116,16 @@ class CommandExecutor {
   virtual void homed_axes(char out[4]) const { std::memcpy(out, "xyz", 4); }
   // Planner thread, when idle: e.g. release the lookahead's tail after a pause in the input.
   virtual void idle_tick(const std::atomic<bool>& /*cancel*/) {}
+  // Planner thread, when a wait begins (M109/M190/M303, G4 at rest): the moves the lookahead
+  // holds go to the motion now, as a pause in the input would release them (Klipper flushes its
+  // lookahead before a heater wait too). Held, they waited for the wait's end in real time, and
+  // in virtual time the wait waited for them (no time passed: a job started right after a move
+  // never heated).
+  virtual void release_lookahead() {}
+  // Planner thread, virtual time, while such a wait has motion still to run: the servo side may
+  // advance the clock through that motion (nothing more comes from the planner meanwhile), as it
+  // does for M400.
+  virtual void set_waiting_for_motion(bool /*waiting*/) {}
   // Servo thread, once per period. RT-safe.
   virtual void servo_cycle(int64_t /*now_ns*/, bool /*cancel*/) {}
   // Servo thread, once, after its last cycle (the machine stopping): a request that waits for a

@@ -194,6 +194,13 @@ void ManeuverExecutor::idle_tick(const std::atomic<bool>& cancel) {
   release();
 }
 
+void ManeuverExecutor::release_lookahead() {
+  if (planner_.queued() == 0) return;
+  planner_.flush();
+  planner_queued_.store(planner_.queued());
+  release();
+}
+
 bool ManeuverExecutor::motion_pending() const {
   return planner_queued_.load() > 0 || pushed_.load() != popped_.load() ||
          !telemetry_.holding.load(std::memory_order_relaxed);

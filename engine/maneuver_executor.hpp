@@ -75,6 +75,8 @@ class ManeuverExecutor final : public CommandExecutor, private planner::MoveSink
   void position(double out_mm[4]) const override;
   void homed_axes(char out[4]) const override { interp_->homed_axes(out); }
   void idle_tick(const std::atomic<bool>& cancel) override;
+  void release_lookahead() override;
+  void set_waiting_for_motion(bool waiting) override { waiting_.store(waiting); }
   void servo_cycle(int64_t now_ns, bool cancel) override;
   bool motion_pending() const override;
   bool may_advance_virtual(bool planner_busy) const override;

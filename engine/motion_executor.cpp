@@ -86,6 +86,12 @@ void MotionExecutor::idle_tick(const std::atomic<bool>& cancel) {
   planner_queued_.store(planner_.queued());
 }
 
+void MotionExecutor::release_lookahead() {
+  if (planner_.queued() == 0) return;
+  planner_.flush();
+  planner_queued_.store(planner_.queued());
+}
+
 bool MotionExecutor::faulted() const {
   return control_fault_.load() || (backend_ != nullptr && backend_->fault());
 }

@@ -94,6 +94,8 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   void position(double out_mm[4]) const override;
   void homed_axes(char out[4]) const override { interp_->homed_axes(out); }
   void idle_tick(const std::atomic<bool>& cancel) override;
+  void release_lookahead() override;
+  void set_waiting_for_motion(bool waiting) override { waiting_.store(waiting); }
   void servo_cycle(int64_t now_ns, bool cancel) override;
   void servo_stopped() override { servo_stopped_.store(true, std::memory_order_release); }
   bool faulted() const override;

@@ -171,6 +171,26 @@ TEST_F(Jobs, AFileFromTheFolderRunsStartToEndThroughTheDaemon) {
 // An M112 in a job's file stops the machine when the job reaches it (Marlin's M112 from the SD
 // card kills the printer); the job ends in error at that line and the move after it never runs.
 // It was taken for a no-op: the job ran on to its end.
+// A job started right after a console move, the move still in the lookahead, heats and runs:
+// the heater wait (M190, M109) releases the lookahead first. Before, in virtual time, the wait
+// waited for the move and the move for the wait's end (no time passed: stuck at M190 for good).
+TEST_F(Jobs, AJobStartedRightAfterAMoveHeatsAndRuns) {
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  const std::string text =
+      read_file(std::string(FEEDLOOP_SOURCE_DIR) + "/examples/gcode/cube20_3layers.gcode");
+  ASSERT_NE(text.find("M190 S60"), std::string::npos);
+  ASSERT_TRUE(call(api, "files.upload", {{"filename", "cube.gcode"}, {"content", text}})
+                  .contains("result"));
+  const json moved = call(api, "gcode", {{"script", "G28\nG1 X12 Y7 F3000"}});
+  ASSERT_TRUE(moved.contains("result")) << moved.dump();
+  ASSERT_TRUE(call(api, "job.start", {{"filename", "cube.gcode"}}).contains("result"));
+  const json done = wait_job(
+      api, [](const json& j) { return j["state"] != "printing"; }, 60);
+  EXPECT_EQ(done["state"], "complete") << done.dump();
+  EXPECT_GT(done["print_time_s"].get<double>(), 10.0) << done.dump();
+}
+
 TEST_F(Jobs, AnM112InTheFileStopsTheMachine) {
   LineClient api;
   ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
