@@ -10,6 +10,7 @@
 #include <chrono>
 #include <deque>
 #include <filesystem>
+#include <map>
 
 #include "core/clock.hpp"
 #include "web/spooled_body.hpp"
@@ -38,6 +39,28 @@ struct HttpServer::Shared {
   bool stopped = false;
   int64_t last_refusal_log_ns = 0;
 };
+
+namespace {
+// "/a?x=1&y=%20" -> {x: "1", y: " "}.
+std::map<std::string, std::string> query_of(std::string_view target) {
+  std::map<std::string, std::string> query;
+  const size_t q = target.find('?');
+  if (q == std::string_view::npos) return query;
+  const std::string_view qs = target.substr(q + 1);
+  size_t b = 0;
+  while (b < qs.size()) {
+    size_t e = qs.find('&', b);
+    if (e == std::string_view::npos) e = qs.size();
+    const std::string_view kv = qs.substr(b, e - b);
+    const size_t eq = kv.find('=');
+    if (!kv.empty())
+      query[url_decode(kv.substr(0, eq), true)] =
+          eq == std::string_view::npos ? "" : url_decode(kv.substr(eq + 1), true);
+    b = e + 1;
+  }
+  return query;
+}
+}  // namespace
 
 std::string url_decode(std::string_view s, bool plus_is_space) {
   std::string out;
@@ -324,6 +347,8 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
       return fail(http::error::body_limit);
     parser_->body_limit(limit);  // a chunked body counts against it as it is read
     if (parser_->is_done()) return on_request();
+    // An upload from a client that may not upload is refused before any of its body is stored.
+    if (upload && !authorized(req, query_of(target))) return refuse_unauthorized(req.version());
     // A client that asked to be told to go on (libcurl does for bodies over 1 MiB, so slicers'
     // uploads) waited a second for it before sending the body.
     if (beast::iequals(req[http::field::expect], "100-continue")) {
@@ -380,6 +405,24 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
                      });
   }
 
+  // The API's access check (web/access.hpp): the X-Api-Key header, or ?token= in the URL.
+  bool authorized(const http::request_header<>& req,
+                  const std::map<std::string, std::string>& query) {
+    beast::error_code ec;
+    const auto remote = stream_.socket().remote_endpoint(ec);
+    std::string key(req["X-Api-Key"]);
+    if (key.empty()) {
+      if (auto it = query.find("token"); it != query.end()) key = it->second;
+    }
+    return !ec && shared_->access.allowed(remote.address(), key);
+  }
+
+  void refuse_unauthorized(unsigned version) {
+    ++shared_->stats.unauthorized;
+    send(text_response(version, false, http::status::unauthorized, "application/json",
+                       error_json(401, "Unauthorized")));
+  }
+
   // The server could not keep an upload (no temporary file, disk full): 507, and the connection
   // closes (the rest of the body is not read).
   void refuse_upload(const std::string& message) {
@@ -415,36 +458,11 @@ class HttpSession final : public SessionBase, public std::enable_shared_from_thi
     HttpRequest r;
     r.method = std::string(req.method_string());
     r.path = url_decode(target.substr(0, q), false);
-    if (q != std::string::npos) {
-      const std::string qs = target.substr(q + 1);
-      size_t b = 0;
-      while (b < qs.size()) {
-        size_t e = qs.find('&', b);
-        if (e == std::string::npos) e = qs.size();
-        const std::string kv = qs.substr(b, e - b);
-        const size_t eq = kv.find('=');
-        if (!kv.empty())
-          r.query[url_decode(kv.substr(0, eq), true)] =
-              eq == std::string::npos ? "" : url_decode(kv.substr(eq + 1), true);
-        b = e + 1;
-      }
-    }
+    r.query = query_of(target);
     const unsigned version = req.version();
     const bool keep_alive = upload_parser_ ? upload_parser_->keep_alive() : parser_->keep_alive();
     const bool api = MoonrakerApi::is_api_path(r.path);
-    if (api) {
-      beast::error_code ec;
-      const auto remote = stream_.socket().remote_endpoint(ec);
-      std::string key(req["X-Api-Key"]);
-      if (key.empty()) {
-        if (auto it = r.query.find("token"); it != r.query.end()) key = it->second;
-      }
-      if (ec || !shared_->access.allowed(remote.address(), key)) {
-        ++shared_->stats.unauthorized;
-        return send(text_response(version, false, http::status::unauthorized, "application/json",
-                                  error_json(401, "Unauthorized")));
-      }
-    }
+    if (api && !authorized(req, r.query)) return refuse_unauthorized(version);
     if (r.path.rfind(kPagePrefix, 0) == 0 ||
         r.path == kPagePrefix.substr(0, kPagePrefix.size() - 1)) {
       if (r.path.size() < kPagePrefix.size())

@@ -10,7 +10,9 @@
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 
+#include <ifaddrs.h>
 #include <malloc.h>
+#include <netinet/in.h>
 #include <poll.h>
 
 #include <atomic>
@@ -34,7 +36,7 @@ using tcp = asio::ip::tcp;
 using nlohmann::json;
 
 struct Server {
-  explicit Server(int read_timeout_s = 30) {
+  explicit Server(int read_timeout_s = 30, const std::string& address = "127.0.0.1") {
     dir =
         std::filesystem::temp_directory_path() / ("web_server_test_" + std::to_string(::getpid()));
     std::filesystem::remove_all(dir);
@@ -50,6 +52,7 @@ struct Server {
     o.max_connections = 32;
     o.max_ws_queue_bytes = 256 * 1024;
     o.read_timeout_s = read_timeout_s;
+    o.address = address;
     server = std::make_unique<HttpServer>(io, *api, *AccessPolicy::create({}, "key"), o);
     EXPECT_TRUE(server->start());
     // The I/O loop's delay: a 1 ms timer, its worst lateness.
@@ -270,6 +273,68 @@ TEST(WebServer, AnUploadIsSpooledToDiskWithADeadlinePerChunk) {
   }
   EXPECT_EQ(entries, 3u);
   EXPECT_EQ(get(port, "/server/info").result_int(), 200);
+}
+
+// This machine's first IPv4 address that is not loopback ("" when it has none).
+std::string non_loopback_ipv4() {
+  ifaddrs* list = nullptr;
+  if (::getifaddrs(&list) != 0) return {};
+  std::string found;
+  for (ifaddrs* a = list; a != nullptr && found.empty(); a = a->ifa_next) {
+    if (a->ifa_addr == nullptr || a->ifa_addr->sa_family != AF_INET) continue;
+    const auto* in = reinterpret_cast<const sockaddr_in*>(a->ifa_addr);
+    const auto addr = asio::ip::address_v4(ntohl(in->sin_addr.s_addr));
+    if (!addr.is_loopback()) found = addr.to_string();
+  }
+  ::freeifaddrs(list);
+  return found;
+}
+
+// A client outside the trusted ranges without the API key (web/access.hpp) is refused: an upload
+// before any of its body is stored, and OctoPrint's routes too; with the key it is taken.
+TEST(WebServer, AnUntrustedClientIsRefusedBeforeItsUploadIsStored) {
+  const std::string address = non_loopback_ipv4();
+  if (address.empty()) GTEST_SKIP() << "no non-loopback IPv4 address to connect from";
+  Server s(30, "0.0.0.0");
+  const uint16_t port = s.server->port();
+  auto post_upload = [&](const std::string& target, const std::string& key) {
+    asio::io_context ctx;
+    beast::tcp_stream st(ctx);
+    st.connect(tcp::endpoint(asio::ip::make_address(address), port));
+    http::request<http::string_body> req{http::verb::post, target, 11};
+    req.set(http::field::host, address);
+    if (!key.empty()) req.set("X-Api-Key", key);
+    req.set(http::field::content_type, "multipart/form-data; boundary=XyZ");
+    req.body() =
+        "--XyZ\r\nContent-Disposition: form-data; name=\"file\"; filename=\"u.gcode\"\r\n\r\n" +
+        some_gcode(2u << 20) + "\r\n--XyZ--\r\n";
+    req.prepare_payload();
+    boost::system::error_code ec;
+    http::write(st, req, ec);  // the server may close before the whole body went
+    beast::flat_buffer b;
+    http::response<http::string_body> res;
+    http::read(st, b, res, ec);
+    return static_cast<int>(res.result_int());
+  };
+  EXPECT_EQ(post_upload("/server/files/upload", ""), 401);
+  // Refused at its header: the answer comes before any of the body is sent.
+  {
+    asio::io_context ctx;
+    tcp::socket sock(ctx);
+    sock.connect(tcp::endpoint(asio::ip::make_address(address), port));
+    asio::write(sock, asio::buffer(std::string("POST /api/files/local HTTP/1.1\r\nHost: x\r\n"
+                                               "Content-Type: multipart/form-data; boundary=XyZ\r\n"
+                                               "Content-Length: 2000000\r\n\r\n")));
+    std::string reply(64, '\0');
+    pollfd readable{sock.native_handle(), POLLIN, 0};
+    reply.resize(::poll(&readable, 1, 3000) == 1 ? sock.read_some(asio::buffer(reply)) : 0);
+    EXPECT_EQ(reply.rfind("HTTP/1.1 401", 0), 0u) << reply;
+  }
+  EXPECT_EQ(post_upload("/api/files/local", "wrong"), 401);
+  EXPECT_FALSE(std::filesystem::exists(s.dir / "files" / "gcodes" / "u.gcode"));
+  EXPECT_EQ(post_upload("/api/files/local", "key"), 201);
+  EXPECT_TRUE(std::filesystem::exists(s.dir / "files" / "gcodes" / "u.gcode"));
+  EXPECT_EQ(s.on_io([&] { return s.server->stats().unauthorized; }), 3u);
 }
 
 TEST(WebServer, HostileClientsAreRefusedAndTheServerGoesOn) {
