@@ -29,6 +29,18 @@ std::string wire(const json& j) {
   return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
+HttpReply json_reply(int status, const json& body) {
+  HttpReply r;
+  r.status = status;
+  r.body = wire(body);
+  return r;
+}
+
+// Moonraker's HTTP error: {"error": {"code", "message"}} with that status.
+HttpReply error_reply(int status, const std::string& message) {
+  return json_reply(status, json{{"error", {{"code", status}, {"message", valid_utf8(message)}}}});
+}
+
 double wall_s() {
   timespec t{};
   clock_gettime(CLOCK_REALTIME, &t);
@@ -389,14 +401,9 @@ bool MoonrakerApi::is_api_path(std::string_view path) {
 void MoonrakerApi::on_http(const HttpRequest& req, std::function<void(HttpReply)> done) {
   ++requests_;
   track_jobs(now_s_);  // as in on_message
-  auto reply_json = [done](int status, const json& body) {
-    HttpReply r;
-    r.status = status;
-    r.body = wire(body);
-    done(std::move(r));
-  };
-  auto error = [reply_json](int status, const std::string& message) {
-    reply_json(status, json{{"error", {{"code", status}, {"message", valid_utf8(message)}}}});
+  auto reply_json = [done](int status, const json& body) { done(json_reply(status, body)); };
+  auto error = [done](int status, const std::string& message) {
+    done(error_reply(status, message));
   };
   if (req.path.rfind("/api/", 0) == 0) return octoprint(req, done);
   // Files: GET /server/files/<root>/<path> downloads, DELETE deletes, POST upload uploads.
@@ -480,21 +487,12 @@ void MoonrakerApi::on_http(const HttpRequest& req, std::function<void(HttpReply)
 
 void MoonrakerApi::upload(const HttpRequest& req, std::function<void(HttpReply)> done) {
   auto stored = store_upload(req);
-  if (!stored) {
-    HttpReply r;
-    r.status = 400;
-    r.body =
-        wire(json{{"error", {{"code", 400}, {"message", valid_utf8(stored.error().message)}}}});
-    return done(std::move(r));
-  }
-  HttpReply r;
-  r.status = 201;
-  r.body = wire(json{{"result",
-                      {{"item", stored->item},
-                       {"print_started", stored->print_started},
-                       {"print_queued", false},
-                       {"action", "create_file"}}}});
-  done(std::move(r));
+  if (!stored) return done(error_reply(400, stored.error().message));
+  done(json_reply(201, json{{"result",
+                             {{"item", stored->item},
+                              {"print_started", stored->print_started},
+                              {"print_queued", false},
+                              {"action", "create_file"}}}}));
 }
 
 Result<MoonrakerApi::StoredUpload> MoonrakerApi::store_upload(const HttpRequest& req,

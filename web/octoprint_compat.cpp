@@ -92,16 +92,18 @@ void MoonrakerApi::octoprint(const HttpRequest& req, std::function<void(HttpRepl
     return done(reply(200, json{{"plugins", json::object()},
                                 {"feature", {{"sdSupport", false}, {"temperatureGraph", false}}},
                                 {"webcam", {{"webcamEnabled", false}}}}));
-  if (p == "/api/printerprofiles" && get)
+  if (p == "/api/printerprofiles" && get) {
+    const PrinterInfo info = printer_.printer_info();
     return done(reply(200, json{{"profiles",
                                  {{"_default",
                                    {{"id", "_default"},
-                                    {"name", printer_.printer_info().name},
-                                    {"model", printer_.printer_info().kinematics},
+                                    {"name", info.name},
+                                    {"model", info.kinematics},
                                     {"default", true},
                                     {"current", true},
                                     {"heatedBed", true},
                                     {"heatedChamber", false}}}}}}));
+  }
   if (p == "/api/files/local" && post) {
     auto stored = store_upload(req, "gcodes");
     if (!stored) return done(error(400, stored.error().message));
