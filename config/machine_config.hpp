@@ -382,7 +382,7 @@ struct ModelConfig {
 struct StepgenConfig {
   double max_step_error_us = 5.0;        // compressed step times within this of the exact ones
   std::int64_t mcu_clock_hz = 72000000;  // default MCU clock; an MCU may override it
-  double queue_ahead_ms = 100.0;         // how far ahead of its execution a step batch is sent
+  double queue_ahead_ms = 250.0;         // how far ahead of its execution a step batch is sent
   bool operator==(const StepgenConfig&) const = default;
 };
 

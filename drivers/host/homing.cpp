@@ -181,7 +181,9 @@ void HomingSequence::begin_move(double distance_mm, double speed_mm_s, double no
   move_.d_mm = std::abs(distance_mm);
   move_.v = speed_mm_s;
   move_.a = p_.accel_mm_s2;
-  move_.t0 = now_s + p_.queue_ahead_s;
+  // Each phase starts at most kHomingStartLead_s ahead (three phases of a G28 would wait the whole
+  // lead each); its steps are then streamed up to the full lead ahead.
+  move_.t0 = now_s + std::min(p_.queue_ahead_s, kHomingStartLead_s);
   move_start_steps_ = pos_steps_;
   f_move_start_steps_ = f_pos_steps_;
   move_steps_total_ = static_cast<int64_t>(std::floor(move_.d_mm / p_.mm_per_step));
@@ -194,7 +196,11 @@ void HomingSequence::begin_move(double distance_mm, double speed_mm_s, double no
 
 void HomingSequence::stream(double now_s) {
   if (!streaming_) return;
-  const double horizon_s = now_s + p_.queue_ahead_s;
+  // Single-step runs: a long queue_ahead at homing speed would be more runs than the MCU holds
+  // (4716 steps/s at 50 mm/s x 94.3 steps/mm, 4096 runs per motor: a 1 s lead overflowed it).
+  // The homing lead is at most kHomingRunBudget steps of the fast approach.
+  const double step_rate_hz = std::max(move_.v, p_.homing_speed_mm_s) / p_.mm_per_step;
+  const double horizon_s = now_s + std::min(p_.queue_ahead_s, kHomingRunBudget / step_rate_hz);
   const int dir = move_.dir * p_.motor_sign;
   const int fdir = move_.dir * p_.follower_sign;
   // A run takes at most this many bytes (RunEncoder::append's scratch): a batch stops before

@@ -29,6 +29,12 @@
 
 namespace feedloop::drivers {
 
+// At most this many of a homing's single-step runs are queued on the MCU ahead of its clock: half
+// the run queue of a motor (docs/protocol.md: 4096), whatever stepgen.queue_ahead_ms is.
+inline constexpr double kHomingRunBudget = 2048.0;
+// A homing phase's first step is due at most this long after it is started.
+inline constexpr double kHomingStartLead_s = 0.1;
+
 struct HomingParams {
   std::string axis_name = "x";       // in messages
   uint8_t motor = 0;                 // motor index on the MCU
@@ -43,7 +49,7 @@ struct HomingParams {
   double accel_mm_s2 = 1000.0;
   double sample_period_s = 50e-6;  // endstop sampling on the MCU
   int sample_count = 4;  // consecutive samples to confirm (Klipper: ENDSTOP_SAMPLE_COUNT 4)
-  double queue_ahead_s = 0.1;
+  double queue_ahead_s = 0.1;  // bounded by kHomingRunBudget single-step runs in flight
   bool second_touch = true;  // false: only the fast approach (Klipper: retract_dist 0)
   // The motor's steps per step of the homed axis: +1, or -1 when the motor turns the other way
   // (CoreXY Y through motor B: B = x - y).

@@ -330,6 +330,29 @@ TEST(HomingPipeline, TwentyG28XRepeatWithinTheSwitchSigma) {
   }
 }
 
+// A long stepgen.queue_ahead_ms (a busy host wants more of it) must not overflow the MCU's run
+// queue while homing: its steps go as single-step runs, 4716 a second at 50 mm/s on Y, and a
+// motor holds 4096 runs. With a 1 s lead the first G28 ended "step queue overflow"; the homing's
+// lead is now bounded by kHomingRunBudget runs, and each phase still starts within 100 ms.
+TEST(HomingPipeline, ALongQueueAheadDoesNotOverflowTheRunQueue) {
+  config::MachineConfig cfg = homing_config(2.0);
+  cfg.stepgen.queue_ahead_ms = 1000.0;
+  PipelineRig rig(cfg);
+  ASSERT_TRUE(rig.machine);
+  const double t0_s = rig.seconds();
+  ASSERT_EQ(rig.run("G28"), "");
+  const double homing_s = rig.seconds() - t0_s;
+  ASSERT_EQ(rig.run("G1 X30 Y20 F6000"), "");
+  ASSERT_EQ(rig.run("G28 X Y"), "");
+  const HomingReport r = rig.bridge->homing_report(1);
+  std::printf(
+      "queue_ahead 1000 ms: G28 took %.2f s; after two, Y homed %.4f mm, carriage at %.4f mm\n",
+      homing_s, r.homed_mm, r.true_carriage_mm);
+  EXPECT_EQ(r.count, 2u);
+  EXPECT_LT(std::abs(r.true_carriage_mm - r.homed_mm), 0.02);
+  EXPECT_LT(homing_s, 2.6);  // as with the default lead: the phases do not wait the lead
+}
+
 // Issue 16: encoder-index homing. The switch (sigma 20 um here) picks the mark; the encoder's
 // index mark (every 2 mm, the AS5311's pole pair) is the reference: the homed position repeats
 // within the encoder's reading (0.49 um counts, 0.3 um noise), not the switch's scatter.
