@@ -111,6 +111,32 @@ void check_machine(const MachineConfig& cfg, const Marks& marks, Diagnostics& di
                                 format_number(2.0 * period_ms) + " ms at servo.rate_hz " +
                                 format_number(cfg.servo.rate_hz) + ")");
 
+  // Device loop: each MCU holds kDeviceTargetKnots knots of r(t) per motor. Knots within a
+  // tolerance e of r lie at least sqrt(8 e / a) apart where r accelerates at a (a chord's sag is
+  // a dt^2 / 8), so a lead that covers more knots than that at the planner's acceleration would
+  // overflow the queue on a tight curve: a controlled stop mid-print ("target queue full").
+  // Measured on the circles plate at 1500 mm/s^2 (docs/decisions.md): 735 ms of r(t) fit, 1035 ms
+  // did not; this bound says 836 ms. A CoreXY motor's r is x + y (up to sqrt 2 a); a delta's
+  // carriage accelerates up to about twice the nozzle near the edge of its disc.
+  if (cfg.control.mode == ControlMode::pi && cfg.control.loop == ControlLoop::device) {
+    const double factor = cfg.kinematics == Kinematics::corexy  ? std::numbers::sqrt2
+                          : cfg.kinematics == Kinematics::delta ? 2.0
+                                                                : 1.0;
+    const double accel_mm_s2 = factor * cfg.planner.max_accel_mm_s2;
+    const double knots_per_s = std::sqrt(accel_mm_s2 / (8.0 * kDeviceTargetToleranceMm));
+    const double usable_knots = kDeviceTargetKnots - 16.0;  // a message of knots in flight
+    const double max_lead_ms = usable_knots / knots_per_s * 1e3 - kDeviceTargetMarginMs;
+    if (accel_mm_s2 > 0.0 && cfg.stepgen.queue_ahead_ms > max_lead_ms)
+      diag.add(
+          marks.stepgen,
+          "stepgen.queue_ahead_ms (" + format_number(cfg.stepgen.queue_ahead_ms) +
+              ") is more of r(t) than the device loop's MCUs hold: at planner.max_accel_mm_s2 " +
+              format_number(cfg.planner.max_accel_mm_s2) + " its knots come up to " +
+              format_number(std::round(knots_per_s)) + " a second and an MCU holds " +
+              std::to_string(kDeviceTargetKnots) + " per motor: at most " +
+              format_number(std::floor(max_lead_ms)) + " ms");
+  }
+
   if (cfg.control.mode == ControlMode::pi) {
     bool any_encoder = false;
     for (const AxisConfig& a : cfg.axes) any_encoder = any_encoder || a.encoder.has_value();

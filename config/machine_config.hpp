@@ -379,6 +379,15 @@ struct ModelConfig {
 
 // ---- step generation and MCUs -------------------------------------------------------------------
 
+// What a device-loop MCU holds of the desired trajectory r(t): knots within this of r
+// (engine/device_loop_link.cpp), this many per motor (drivers/device/target_queue.hpp; the
+// engine asserts both), and r streamed this much further ahead than stepgen.queue_ahead_ms
+// (the device's horizon margin and a knot's 10 ms in the compressor). The config check bounds
+// queue_ahead_ms by them.
+inline constexpr double kDeviceTargetToleranceMm = 0.5e-3;
+inline constexpr int kDeviceTargetKnots = 512;
+inline constexpr double kDeviceTargetMarginMs = 35.0;
+
 struct StepgenConfig {
   double max_step_error_us = 5.0;        // compressed step times within this of the exact ones
   std::int64_t mcu_clock_hz = 72000000;  // default MCU clock; an MCU may override it

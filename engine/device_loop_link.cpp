@@ -6,9 +6,14 @@
 #include <cstdio>
 #include <numbers>
 
+#include "drivers/device/target_queue.hpp"
 #include "engine/control_config.hpp"
 
 namespace feedloop::engine {
+
+// The config check bounds stepgen.queue_ahead_ms by the device's knot queue
+// (config/check_machine.cpp).
+static_assert(config::kDeviceTargetKnots == device::TargetQueue::kCapacity);
 
 namespace {
 uint32_t q16(double nm) {
@@ -117,7 +122,8 @@ void DeviceLoopLink::configure(int joint, drivers::McuSession& session, int64_t 
   if (!j.params.enabled) return;
   send_configure_loop(session, j.motor, j.params, activation_clock);
   const double ticks_per_ms = static_cast<double>(session.mcu_clock_hz()) * 1e-3;
-  j.compressor.configure(500.0, static_cast<int64_t>(10.0 * ticks_per_ms));
+  j.compressor.configure(config::kDeviceTargetToleranceMm * 1e6,
+                         static_cast<int64_t>(10.0 * ticks_per_ms));
   j.pending_count = 0;
   j.last_clock = INT64_MIN;
   j.telemetry = DeviceLoopTelemetry{};  // the MCU's loop starts afresh (its counters too)

@@ -299,7 +299,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   // far ahead as the steps (the MCUs must hold r(t) for a stall of that length).
   // The device stops when r's queue ends within its 20 ms horizon margin, and a knot may wait 10 ms
   // in the compressor: the lead covers that on top of lead_s, so a stall up to lead_s is harmless.
-  static constexpr double kDeviceHorizonSlack_s = 0.035;
+  static constexpr double kDeviceHorizonSlack_s = config::kDeviceTargetMarginMs * 1e-3;
   double command_lead_s() const {
     return device_loop_ ? std::max(options_.control_lead_s, options_.lead_s + kDeviceHorizonSlack_s)
                         : options_.control_lead_s;

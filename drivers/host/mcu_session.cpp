@@ -422,6 +422,15 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       if (!r.ok() || s.axes.empty()) return;
       s.enabled = flags & protocol::kStatusEnabled;
       s.stopped = flags & protocol::kStatusStopped;
+      // A backstop for a stop whose error report this side did not act on: a stopped MCU takes
+      // no steps until it is identified again.
+      if (s.stopped && state_ == McuState::kReady) {
+        status_ = s;
+        fail(
+            "MCU '" + p_.name + "' (" + transport_.describe() +
+            ") reports in its status that it is stopped; it takes no steps until identified again");
+        return;
+      }
       s.steps_executed = s.axes[0].steps_executed;
       s.position_steps = s.axes[0].position_steps;
       s.queued_runs = s.axes[0].queued_runs;
@@ -541,8 +550,15 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       } else if (code == McuError::kQueueUnderrun || code == McuError::kWatchdog ||
                  code == McuError::kEmergencyStop || code == McuError::kBatchOverlap ||
                  code == McuError::kQueueOverflow || code == McuError::kFollowingError ||
-                 code == McuError::kEncoderFault || code == McuError::kTargetUnderrun) {
+                 code == McuError::kEncoderFault || code == McuError::kTargetUnderrun ||
+                 code == McuError::kTargetOverflow) {
+        // kTargetOverflow: r(t) lost a knot, so the device loop brakes to rest and the MCU stops
+        // (it was an event only: the host streamed on to an MCU that no longer took its steps).
         fail(msg + io_stall_note() + "; the MCU stopped its motor");
+      } else if (code == McuError::kNotIdentified && state_ == McuState::kReady) {
+        // An identified MCU never says this: it restarted or stopped, and every step sent since
+        // is lost.
+        fail(msg + ": the MCU no longer knows this session (it restarted or stopped)");
       } else {
         events_.push_back(std::move(msg));
       }

@@ -281,6 +281,27 @@ TEST(ConfigErrors, StepQueueShorterThanTwoServoPeriods) {
                pos_of(y, "stepgen:"));
 }
 
+// The device loop's MCUs hold 512 knots of r(t) per motor; at 3000 mm/s^2 they come up to 866 a
+// second (knots within 0.5 um): a lead past 537 ms would overflow the queue on a tight curve.
+TEST(ConfigErrors, AStepLeadLongerThanTheDeviceHoldsOfTheTrajectory) {
+  const std::string base = std::string(kMinimal) + "planner: {max_accel_mm_s2: 3000}\n";
+  const std::string y = base + "control:\n  mode: pi\nstepgen:\n  queue_ahead_ms: 700\n";
+  expect_error(
+      y,
+      "stepgen.queue_ahead_ms (700) is more of r(t) than the device loop's MCUs hold: at "
+      "planner.max_accel_mm_s2 3000 its knots come up to 866 a second and an MCU holds 512 "
+      "per motor: at most 537 ms",
+      pos_of(y, "stepgen:"));
+  // The PI on the host streams no r(t); a lead within the bound is taken.
+  EXPECT_TRUE(
+      load_config_text(
+          base + "control:\n  mode: pi\n  loop: host\nstepgen:\n  queue_ahead_ms: 700\n", "t.yaml")
+          .ok());
+  EXPECT_TRUE(
+      load_config_text(base + "control:\n  mode: pi\nstepgen:\n  queue_ahead_ms: 500\n", "t.yaml")
+          .ok());
+}
+
 // ---- delta ----
 
 std::string delta_yaml() {

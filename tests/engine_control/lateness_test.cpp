@@ -1,8 +1,8 @@
 // Issue 13: with the PI on the MCUs (control.loop: device), a host stall shorter than the queue
-// lead (100 ms) changes nothing in the print; a longer one ends in a controlled stop with a
-// message that names the stall. Virtual time, so the stalls are exact and the runs comparable:
-// the planner and the motion stage stop (no servo cycle) while the MCUs and the plant go on.
-// The carriage trajectories (the plant's ground truth, every servo period both runs sampled)
+// lead (stepgen.queue_ahead_ms) changes nothing in the print; a longer one ends in a controlled
+// stop with a message that names the stall. Virtual time, so the stalls are exact and the runs
+// comparable: the planner and the motion stage stop (no servo cycle) while the MCUs and the plant
+// go on. The carriage trajectories (the plant's ground truth, every servo period both runs sampled)
 // are compared against the stall-free run's: equal within one encoder count (see below).
 #include <gtest/gtest.h>
 
@@ -162,6 +162,32 @@ TEST(Lateness, AStallLongerThanTheLeadEndsInAControlledStopThatNamesIt) {
   }
   std::printf("largest carriage speed around the stop: %.1f mm/s\n", max_v);
   EXPECT_LT(max_v, 300.0);  // x's max_velocity_mm_s
+}
+
+// An MCU that refused a knot of r(t) (its queue full: a lead longer than the config check allows,
+// set here past it) brakes its loop to rest and stops. The host used to take that report as an
+// event only and stream on to an MCU that no longer took its steps: the print ran to its end with
+// no error while the carriages stood (the daemon reported e_t 23 mm mean, state idle). Now the
+// MCU's report stops the motion with its cause.
+TEST(Lateness, AnMcuThatRefusedAKnotStopsThePrintWithItsCause) {
+  config::MachineConfig cfg = device_loop_config();
+  cfg.stepgen.queue_ahead_ms = 1500.0;  // > the config check's 537 ms (the check is not run here)
+  std::vector<std::string> p = {"G90", "G1 X50 Y50 F6000"};
+  for (int loop = 0; loop < 12; ++loop)  // tight circles, r = 4 mm: a knot every ~1.2 ms
+    for (int k = 1; k <= 72; ++k) {
+      const double a = 2.0 * 3.14159265358979 * k / 72.0;
+      char line[64];
+      std::snprintf(line, sizeof line, "G1 X%.4f Y%.4f F6000", 46.0 + 4.0 * std::cos(a),
+                    50.0 + 4.0 * std::sin(a));
+      p.push_back(line);
+    }
+  auto run = run_simulated(cfg, p);
+  ASSERT_TRUE(run.ok()) << run.error().message;
+  std::printf("1500 ms lead on tight circles: %s (%llu lines run)\n", run.value().error.c_str(),
+              static_cast<unsigned long long>(run.value().commands));
+  EXPECT_NE(run.value().error.find("target queue full"), std::string::npos) << run.value().error;
+  EXPECT_NE(run.value().error.find("the MCU stopped its motor"), std::string::npos)
+      << run.value().error;
 }
 
 }  // namespace
