@@ -422,20 +422,17 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
       if (!r.ok() || s.axes.empty()) return;
       s.enabled = flags & protocol::kStatusEnabled;
       s.stopped = flags & protocol::kStatusStopped;
-      // A backstop for a stop whose error report this side did not act on: a stopped MCU takes
-      // no steps until it is identified again.
-      if (s.stopped && state_ == McuState::kReady) {
-        status_ = s;
-        fail(
-            "MCU '" + p_.name + "' (" + transport_.describe() +
-            ") reports in its status that it is stopped; it takes no steps until identified again");
-        return;
-      }
       s.steps_executed = s.axes[0].steps_executed;
       s.position_steps = s.axes[0].position_steps;
       s.queued_runs = s.axes[0].queued_runs;
       s.step_hash = s.axes[0].step_hash;
       if (status_) *status_ = s; else status_ = s;
+      // A backstop for a stop whose error report this side did not act on: a stopped MCU takes
+      // no steps until it is identified again.
+      if (s.stopped && state_ == McuState::kReady)
+        fail(
+            "MCU '" + p_.name + "' (" + transport_.describe() +
+            ") reports in its status that it is stopped; it takes no steps until identified again");
       return;
     }
     case MsgType::kLoopReport: {
