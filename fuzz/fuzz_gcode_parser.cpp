@@ -41,6 +41,15 @@ void check_command(const Command& c) {
     for (char p = 'A'; p <= 'Z'; ++p) check(!c.has(p) || p == 'K' || p == 'S');
     return;
   }
+  // Klipper's object labels, translated into M486 with the form as subcode (gcode/command.hpp):
+  // flags C (CURRENT=1) and R (RESET=1) only, the name valid UTF-8 text.
+  if (c.letter == 'M' && c.code == 486) {
+    check(c.subcode >= kObjectDefine && c.subcode <= kObjectExclude);
+    for (char p = 'A'; p <= 'Z'; ++p)
+      check(!c.has(p) || ((p == 'C' || p == 'R') && !c.has_value(p)));
+    check(c.subcode != kObjectStart || !c.text.empty());
+    return;
+  }
   const CodeRule* rule = find_code_rule(c.letter, c.code);
   check(rule != nullptr);
   for (char p = 'A'; p <= 'Z'; ++p) {

@@ -11,6 +11,16 @@
 
 namespace feedloop::gcode {
 
+// Object labels (Klipper's EXCLUDE_OBJECT family, gcode/parser.cpp): M486 with one of these
+// subcodes, the object's name in `text`. The parser gives them only for the Klipper forms (a
+// literal "M486.2" is an unknown command).
+enum ObjectLabelForm : int {
+  kObjectDefine = 1,
+  kObjectStart = 2,
+  kObjectEnd = 3,
+  kObjectExclude = 4
+};
+
 struct Command {
   char letter = 0;    // 'G', 'M' or 'T'; 0 for a line with no command (blank, comment only)
   int code = -1;      // 1 for G1, 104 for M104, 0 for T0

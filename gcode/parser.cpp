@@ -83,6 +83,9 @@ class LineParser {
   Status reject_extended_command(size_t word) const;
   // Klipper's SET_PRESSURE_ADVANCE: true when the word is that command (then *st is the outcome).
   bool parse_pressure_advance(size_t word, Status* st);
+  // Klipper's EXCLUDE_OBJECT_DEFINE / _START / _END and EXCLUDE_OBJECT: true when the word is one
+  // of them (then *st is the outcome).
+  bool parse_exclude_object(size_t word, Status* st);
   Status validate() const;
   Status check_parameter(const CodeRule& rule, const ParamRule& p, char letter) const;
   void keep_as_text();  // an unknown command whose argument is not G-code words
@@ -157,6 +160,7 @@ Status LineParser::parse_words() {
       } else {
         Status pa;
         if (parse_pressure_advance(word, &pa)) return pa;
+        if (parse_exclude_object(word, &pa)) return pa;
         if (Status st = reject_extended_command(word); !st) return st;
         return fail(word, std::string("parameter ") + letter +
                               " before any command (expected G, M or T first)");
@@ -275,6 +279,121 @@ Status LineParser::reject_extended_command(size_t word) const {
   else if (upper == "PAUSE" || upper == "RESUME" || upper == "CANCEL_PRINT")
     message += " (the host pauses or cancels by not sending; M112 stops at once)";
   return fail(word, message);
+}
+
+// Klipper's object labels (Klipper docs G-Codes.md, [exclude_object]), which slicers write for a
+// Klipper printer ("label objects: firmware-specific"), parsed into M486 with a subcode for the
+// form (gcode/command.hpp, ObjectLabelForm) and the object's NAME, upper-cased as Klipper does, in
+// `text`:
+//   EXCLUDE_OBJECT_DEFINE NAME=n [CENTER=x,y] [POLYGON=[[x,y],...]] | RESET=1   M486.1 (R: reset)
+//   EXCLUDE_OBJECT_START NAME=n                                                 M486.2
+//   EXCLUDE_OBJECT_END [NAME=n]                                                 M486.3
+//   EXCLUDE_OBJECT [NAME=n | CURRENT=1 | RESET=1]                                M486.4 (C, R)
+// CENTER and POLYGON are checked for form only (the web map is not drawn from them). A value may
+// be quoted ('a b' or "a b"); a POLYGON's brackets may hold blanks.
+bool LineParser::parse_exclude_object(size_t word, Status* st) {
+  const size_t n = s_.size();
+  size_t end = word;
+  while (end < n && (is_alpha(s_[end]) || is_digit(s_[end]) || s_[end] == '_')) ++end;
+  std::string upper;
+  for (size_t k = word; k < end; ++k) upper.push_back(is_alpha(s_[k]) ? to_upper(s_[k]) : s_[k]);
+  int form = 0;
+  if (upper == "EXCLUDE_OBJECT_DEFINE")
+    form = kObjectDefine;
+  else if (upper == "EXCLUDE_OBJECT_START")
+    form = kObjectStart;
+  else if (upper == "EXCLUDE_OBJECT_END")
+    form = kObjectEnd;
+  else if (upper == "EXCLUDE_OBJECT")
+    form = kObjectExclude;
+  if (form == 0) return false;
+  out_.letter = 'M';
+  out_.code = 486;
+  out_.subcode = form;
+  command_pos_ = word;
+  extended_ = true;
+  i_ = end;
+  bool have_name = false;
+  while (i_ < n) {
+    if (is_space(s_[i_])) {
+      ++i_;
+      continue;
+    }
+    if (s_[i_] == ';') break;
+    if (s_[i_] == '*') {
+      *st = check_checksum_tail(i_);
+      if (!*st) return true;
+      break;
+    }
+    const size_t key = i_;
+    while (i_ < n && (is_alpha(s_[i_]) || s_[i_] == '_')) ++i_;
+    std::string name;
+    for (size_t k = key; k < i_; ++k) name.push_back(to_upper(s_[k]));
+    if (name.empty() || i_ >= n || s_[i_] != '=') {
+      *st = fail(key, upper + " takes NAME=value parameters");
+      return true;
+    }
+    ++i_;
+    // The value: quoted, or up to a blank outside brackets.
+    std::string value;
+    const size_t v = i_;
+    if (i_ < n && (s_[i_] == '\'' || s_[i_] == '"')) {
+      const char q = s_[i_];
+      const size_t close = s_.find(q, i_ + 1);
+      if (close == std::string_view::npos) {
+        *st = fail(v, upper + ": unclosed quote in " + name);
+        return true;
+      }
+      value.assign(s_.substr(i_ + 1, close - i_ - 1));
+      i_ = close + 1;
+    } else {
+      int depth = 0;
+      while (i_ < n && s_[i_] != ';' && (depth > 0 || (!is_space(s_[i_]) && s_[i_] != '*'))) {
+        depth += s_[i_] == '[' ? 1 : s_[i_] == ']' ? -1 : 0;
+        ++i_;
+      }
+      value.assign(s_.substr(v, i_ - v));
+    }
+    const bool known =
+        name == "NAME" ||
+        (form == kObjectDefine && (name == "CENTER" || name == "POLYGON" || name == "RESET")) ||
+        (form == kObjectExclude && (name == "CURRENT" || name == "RESET"));
+    if (!known) {
+      *st = fail(key, upper + ": unknown parameter " + name);
+      return true;
+    }
+    if (name == "NAME") {
+      if (have_name) {
+        *st = fail(key, upper + ": NAME given twice");
+        return true;
+      }
+      if (value.empty()) {
+        *st = fail(v, upper + ": NAME needs a value");
+        return true;
+      }
+      for (char& c : value)
+        if (is_alpha(c)) c = to_upper(c);
+      assign_valid_utf8(out_.text, value);  // the outside-string boundary
+      have_name = true;
+    } else if (name == "CURRENT" || name == "RESET") {
+      if (value != "1" && value != "0") {
+        *st = fail(v, upper + ": " + name + " takes 1 or 0");
+        return true;
+      }
+      if (value == "1") out_.set_flag(name == "CURRENT" ? 'C' : 'R');
+    }
+  }
+  const bool needs_name = form == kObjectStart || (form == kObjectDefine && !out_.has('R'));
+  if (needs_name && !have_name) {
+    *st = fail(word, upper + " needs NAME=<object>");
+    return true;
+  }
+  if (form == kObjectExclude && have_name + out_.has('C') + out_.has('R') > 1) {
+    *st = fail(word, "EXCLUDE_OBJECT takes one of NAME=, CURRENT=1 and RESET=1");
+    return true;
+  }
+  *st = Status::Ok();
+  return true;
 }
 
 // Klipper's SET_PRESSURE_ADVANCE [EXTRUDER=extruder] [ADVANCE=<s>] [SMOOTH_TIME=<s>] (Klipper

@@ -76,17 +76,26 @@ Status Interpreter::execute(const gcode::Command& c) {
   if (!all_finite(c)) return fail(c, "parameter is not a finite number");
   if (c.letter == 'G') {
     switch (c.code) {
-      case 0: case 1: return linear(c);
-      case 2: return arc(c, true);
-      case 3: return arc(c, false);
+      case 0:
+      case 1:
+        return objects_.excluding() ? skip_excluded(c) : linear(c);
+      case 2:
+        return objects_.excluding() ? skip_excluded(c) : arc(c, true);
+      case 3:
+        return objects_.excluding() ? skip_excluded(c) : arc(c, false);
       case 4: {
         const double s = c.has('S') ? c.get('S') : c.get('P') / 1000.0;
         if (s < 0.0) return fail(c, "dwell time must be >= 0");
         planner_.dwell(s, c.where.line);
         return {};
       }
-      case 10: return retract(c, false);
-      case 11: return retract(c, true);
+      case 10:
+      case 11:
+        if (objects_.excluding() && !c.has('L') && !c.has('P')) {
+          ++skipped_lines_;  // the excluded object's retraction: neither made nor recovered
+          return {};
+        }
+        return retract(c, c.code == 11);
       case 17: return {};
       case 18: case 19: return fail(c, "only the XY plane (G17) is supported for arcs");
       case 20: st_.unit_mm = 25.4; return {};
@@ -120,6 +129,11 @@ Status Interpreter::execute(const gcode::Command& c) {
       case 201: case 203: case 204: case 205: case 207: case 208: return limits(c);
       case 900:
         return pressure_advance(c);
+      case 486:
+        if (c.subcode >= gcode::kObjectDefine && c.subcode <= gcode::kObjectExclude && !c.unknown)
+          return object_label(c);
+        ++ignored_;
+        return {};
       default: ++ignored_; return {};
     }
   }
@@ -227,6 +241,53 @@ Status Interpreter::arc(const gcode::Command& c, bool clockwise) {
   return {};
 }
 
+Status Interpreter::skip_excluded(const gcode::Command& c) {
+  double feed = st_.feedrate_mm_s;
+  if (c.has('F')) {
+    if (!(c.get('F') > 0.0)) return fail(c, "feedrate F must be > 0");
+    feed = c.get('F') * st_.unit_mm / 60.0;
+  }
+  st_.feedrate_mm_s = feed;
+  // machine_mm stays where the machine is; the next kept move starts there, and its E delta
+  // counts from this logical E (to_machine), so the skipped extrusion is dropped.
+  st_.logical_mm = logical_target(c);
+  ++skipped_lines_;
+  return {};
+}
+
+Status Interpreter::object_label(const gcode::Command& c) {
+  const std::string& name = c.text;
+  switch (c.subcode) {
+    case gcode::kObjectDefine:
+      if (c.has('R')) {
+        objects_.reset_all();
+        return {};
+      }
+      if (!objects_.define(name)) return fail(c, "too many objects (at most 1024 defined)");
+      return {};
+    case gcode::kObjectStart:
+      if (!objects_.start(name)) return fail(c, "too many objects (at most 1024 defined)");
+      return {};
+    case gcode::kObjectEnd:
+      objects_.end();
+      return {};
+    default:  // kObjectExclude
+      if (c.has('R')) {
+        objects_.reset_excluded();
+        return {};
+      }
+      if (c.has('C')) {
+        if (objects_.current().empty())
+          return fail(c, "EXCLUDE_OBJECT CURRENT=1: no object is being printed");
+        objects_.exclude(objects_.current());
+        return {};
+      }
+      if (name.empty()) return {};  // the list: the status reports it
+      if (!objects_.exclude(name)) return fail(c, "too many objects (at most 1024 excluded)");
+      return {};
+  }
+}
+
 Status Interpreter::home(const gcode::Command& c) {
   const bool any = c.has('X') || c.has('Y') || c.has('Z');
   Vec4 to = st_.machine_mm;
@@ -328,7 +389,11 @@ Status Interpreter::set_position(const gcode::Command& c) {
   for (int i = 0; i < kAxes; ++i) {
     if (!c.has(kAxisLetter[i])) continue;
     const double v = c.get(kAxisLetter[i]) * st_.unit_mm;
-    if (i < 3) st_.offset_mm[i] = st_.machine_mm[i] - st_.hop_mm * (i == kZ) - v;
+    // Inside an excluded object the machine did not follow the G-code: the offset counts from
+    // where the G-code is (machine = logical + offset + hop elsewhere).
+    if (i < 3)
+      st_.offset_mm[i] = objects_.excluding() ? st_.logical_mm[i] + st_.offset_mm[i] - v
+                                              : st_.machine_mm[i] - st_.hop_mm * (i == kZ) - v;
     st_.logical_mm[i] = v;  // E: the machine E is unchanged, only the logical origin moves
   }
   return {};

@@ -12,6 +12,11 @@
 //   SMOOTH_TIME= (the parser turns it into M900 with text "SET_PRESSURE_ADVANCE", K and S): the
 //   values travel with every move (planner/pressure_advance.hpp applies them); a new smooth time
 //   acts from the next start from rest.
+//   Object labels (Klipper's EXCLUDE_OBJECT_DEFINE / _START / _END and EXCLUDE_OBJECT, which the
+//   parser gives as M486.1-.4, planner/object_labels.hpp): while the current object is excluded,
+//   its G0-G3 and G10/G11 change the G-code position only (nothing moves, its extrusion is not
+//   made up later); the first move after it goes straight from where the machine is. Marlin's
+//   own M486 (index form) is ignored.
 // Travel limits act only on homed axes: before G28 a move of an unhomed X/Y/Z axis is refused with
 // a clear error (Klipper's "Must home axis first"; on a delta every tower must be homed), unless
 // config.allow_moves_before_homing (then the machine starts homed, the old behaviour). E needs no
@@ -28,6 +33,7 @@
 #include "gcode/command.hpp"
 #include "planner/kinematics.hpp"
 #include "planner/lookahead.hpp"
+#include "planner/object_labels.hpp"
 
 namespace feedloop::planner {
 
@@ -68,6 +74,9 @@ class Interpreter {
   const MachineState& state() const { return st_; }
   uint64_t ignored() const { return ignored_; }
   uint64_t moves() const { return moves_; }
+  // The object labels, and the G0-G3/G10/G11 lines skipped because their object is excluded.
+  const ObjectLabels& objects() const { return objects_; }
+  uint64_t skipped_lines() const { return skipped_lines_; }
   // The homed axes as lower-case letters in xyz order ("" .. "xyz"): out holds 4 chars.
   void homed_axes(char out[4]) const;
   // G28 through the endstops (the executor homed the axes, engine/motion_executor.cpp): the axes
@@ -95,6 +104,9 @@ class Interpreter {
   Status check_homed(const Vec4& from, const Vec4& to, const gcode::Command& c) const;
   Status limits(const gcode::Command& c);
   Status pressure_advance(const gcode::Command& c);
+  Status object_label(const gcode::Command& c);
+  // A G0-G3 line of an excluded object: the G-code position follows it, nothing moves.
+  Status skip_excluded(const gcode::Command& c);
   // Logical target of a G0-G3 line (unchanged axes stay), and its machine coordinates.
   Vec4 logical_target(const gcode::Command& c) const;
   Vec4 to_machine(const Vec4& logical) const;
@@ -107,7 +119,8 @@ class Interpreter {
   const Kinematics& kin_;
   Planner& planner_;
   MachineState st_;
-  uint64_t ignored_ = 0, moves_ = 0;
+  ObjectLabels objects_;
+  uint64_t ignored_ = 0, moves_ = 0, skipped_lines_ = 0;
 };
 
 }  // namespace feedloop::planner

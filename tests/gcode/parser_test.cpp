@@ -136,6 +136,42 @@ TEST(Parser, FreeTextCommandsKeepTheirText) {
   EXPECT_EQ(c.text, "E1 busy: processing");
 }
 
+TEST(Parser, KlippersObjectLabelsBecomeM486WithTheFormAndTheName) {
+  // As PrusaSlicer and OrcaSlicer write them for a Klipper printer (label objects: firmware).
+  Command c =
+      ok("EXCLUDE_OBJECT_DEFINE NAME='Shape-Box id:0 copy 0' CENTER=110,110 "
+         "POLYGON=[[100,100],[120,100],[120, 120]] ; comment");
+  EXPECT_TRUE(c.is('M', 486));
+  EXPECT_FALSE(c.unknown);
+  EXPECT_EQ(c.subcode, kObjectDefine);
+  EXPECT_EQ(c.text, "SHAPE-BOX ID:0 COPY 0");  // upper-cased, as Klipper does
+  c = ok("exclude_object_start name=part_1");
+  EXPECT_EQ(c.subcode, kObjectStart);
+  EXPECT_EQ(c.text, "PART_1");
+  c = ok("EXCLUDE_OBJECT_END");
+  EXPECT_EQ(c.subcode, kObjectEnd);
+  EXPECT_TRUE(c.text.empty());
+  c = ok("EXCLUDE_OBJECT CURRENT=1");
+  EXPECT_EQ(c.subcode, kObjectExclude);
+  EXPECT_TRUE(c.has('C'));
+  c = ok("EXCLUDE_OBJECT_DEFINE RESET=1");
+  EXPECT_TRUE(c.has('R'));
+  c = ok("M486.2 X");  // typed literally: not the Klipper form
+  EXPECT_TRUE(c.unknown);
+  auto bad = parse_line("EXCLUDE_OBJECT_START", SourceLocation{"t", 4, 0});
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("needs NAME="), std::string::npos) << bad.error().message;
+  bad = parse_line("EXCLUDE_OBJECT_START NAME=a COLOR=red", SourceLocation{"t", 4, 0});
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.error().where.column, 29);
+  EXPECT_NE(bad.error().message.find("unknown parameter COLOR"), std::string::npos);
+  bad = parse_line("EXCLUDE_OBJECT NAME=a CURRENT=1", SourceLocation{"t", 4, 0});
+  ASSERT_FALSE(bad.ok());
+  bad = parse_line("EXCLUDE_OBJECT_DEFINE NAME='open", SourceLocation{"t", 4, 0});
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("unclosed quote"), std::string::npos);
+}
+
 TEST(Parser, KlippersSetPressureAdvanceBecomesM900) {
   Command c = ok("SET_PRESSURE_ADVANCE ADVANCE=0.05 SMOOTH_TIME=0.03 ; comment");
   EXPECT_FALSE(c.unknown);

@@ -58,6 +58,55 @@ TEST(Interpreter, InchUnitsScaleCoordinatesAndFeedrate) {
   EXPECT_NEAR(r.rec.moves[0].v_cruise_mm_s, 254.0, 1e-9);  // reachable: sqrt(a L / 2) = 276 > 254
 }
 
+// Two objects on the plate, labelled as a slicer labels them for Klipper; B is excluded before
+// its turn (as from the web or the file). B's moves and retractions are skipped; the first move
+// after it goes straight from where A ended; A's extrusion is whole and B's is not made up.
+TEST(Interpreter, AnExcludedObjectsMovesAreSkippedAndItsExtrusionIsNotMadeUp) {
+  Rig r(test::cartesian_config());
+  ASSERT_TRUE(r.run("G28"));
+  ASSERT_TRUE(r.run("M82"));
+  ASSERT_TRUE(r.run("EXCLUDE_OBJECT_DEFINE NAME=a CENTER=50,50"));
+  ASSERT_TRUE(r.run("EXCLUDE_OBJECT_DEFINE NAME=b CENTER=150,150"));
+  ASSERT_TRUE(r.run("EXCLUDE_OBJECT NAME=B"));  // names compare upper-cased
+  ASSERT_TRUE(r.run("G1 Z0.3 F600"));
+  ASSERT_TRUE(r.run("EXCLUDE_OBJECT_START NAME=a"));
+  ASSERT_TRUE(r.run("G1 X40 Y40 F6000"));
+  ASSERT_TRUE(r.run("G1 X60 Y40 E1.0 F1800"));
+  ASSERT_TRUE(r.run("G2 X60 Y60 I0 J10 E2.0"));
+  ASSERT_TRUE(r.run("G10"));
+  ASSERT_TRUE(r.run("EXCLUDE_OBJECT_END NAME=a"));
+  const uint64_t moves_after_a = r.planner.moves_added();
+  const double e_after_a = r.interp.state().machine_mm[kE];
+  ASSERT_TRUE(r.run("EXCLUDE_OBJECT_START NAME=b"));
+  ASSERT_TRUE(r.run("G11"));
+  ASSERT_TRUE(r.run("G1 X140 Y140 F6000"));
+  ASSERT_TRUE(r.run("G1 X160 Y140 E3.0 F1800"));
+  ASSERT_TRUE(r.run("G92 E0"));
+  ASSERT_TRUE(r.run("G1 X160 Y160 E1.5"));
+  ASSERT_TRUE(r.run("G10"));
+  ASSERT_TRUE(r.run("EXCLUDE_OBJECT_END NAME=b"));
+  EXPECT_EQ(r.planner.moves_added(), moves_after_a);         // nothing of B moved
+  EXPECT_EQ(r.interp.skipped_lines(), 5u);                   // G11, three G1, G10
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 60.0);   // the machine is where A ended
+  EXPECT_DOUBLE_EQ(r.interp.state().logical_mm[kX], 160.0);  // the G-code is where B ended
+  ASSERT_TRUE(r.run("G11"));  // A's retraction recovered; B's was neither made nor recovered
+  ASSERT_TRUE(r.run("G1 X20 Y20 E2.5 F1800"));  // +1.0 after B's E1.5 (G92 E0 inside B)
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 20.0);
+  EXPECT_NEAR(
+      r.interp.state().machine_mm[kE],
+      e_after_a + r.interp.state().retract_length_mm + r.interp.state().unretract_extra_mm + 1.0,
+      1e-12);
+  EXPECT_EQ(r.interp.objects().defined().size(), 2u);
+  ASSERT_EQ(r.interp.objects().excluded().size(), 1u);
+  EXPECT_EQ(r.interp.objects().excluded()[0], "B");
+  // CURRENT=1 without a current object is an error naming it; RESET=1 prints every object again.
+  auto s = r.run("EXCLUDE_OBJECT CURRENT=1");
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("no object is being printed"), std::string::npos);
+  ASSERT_TRUE(r.run("EXCLUDE_OBJECT RESET=1"));
+  EXPECT_TRUE(r.interp.objects().excluded().empty());
+}
+
 TEST(Interpreter, M204SelectsPrintRetractAndTravelAcceleration) {
   Rig r(test::cartesian_config());
   ASSERT_TRUE(r.run("M204 P1000 R500 T2000"));
