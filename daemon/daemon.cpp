@@ -610,13 +610,19 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
   }
   if (machine_->status().state == engine::MachineState::kEmergencyStopped)
     return "Printer halted (emergency stop); send M999 or restart feedloopd to clear";
-  if (owner_ != 0 && owner_ != cid) return "busy: the print is owned by " + owner_name();
-  if (owner_ != cid) {
+  // EXCLUDE_OBJECT from any client while another owns the print (Mainsail's "exclude object"
+  // during a job, as Klipper takes it from any): it moves nothing, it only tells the planner which
+  // of the print's objects to skip, behind the print's commands already queued. It takes no
+  // ownership.
+  const bool exclusion = cmd.is('M', 486) && cmd.subcode == gcode::kObjectExclude && !cmd.unknown;
+  if (owner_ != 0 && owner_ != cid && !exclusion)
+    return "busy: the print is owned by " + owner_name();
+  if (owner_ != cid && !exclusion) {
     owner_ = cid;
     owner_since_ns_ = clock_.now_ns();
     spdlog::info("{} owns the print", c.session->name());
   }
-  owner_last_activity_ns_ = clock_.now_ns();
+  if (owner_ == cid) owner_last_activity_ns_ = clock_.now_ns();
   if (recorder_) {
     start_print(c.session->name());
     recorder_->writer(recorder::Stream::io).gcode_line(machine_clock_->now_ns(), source, text);

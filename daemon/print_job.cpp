@@ -187,6 +187,7 @@ Status PrintJob::start(std::string_view name) {
   cancel_after_pause_ = false;
   resume_after_pause_ = false;
   parked_ = false;
+  reset_objects_ = sink_.has_object_labels();
   message_.clear();
   started_ns_ = sink_.now_ns();
   ended_ns_ = 0;
@@ -321,6 +322,10 @@ void PrintJob::track_modes(const gcode::Command& c) {
     }
   } else if (c.letter == 'M' && (c.code == 82 || c.code == 83)) {
     modes_.e_mode = c.code == 82 ? 1 : 2;
+  } else if (c.is('M', 486) && !c.unknown && c.subcode == gcode::kObjectStart) {
+    modes_.object = c.text;
+  } else if (c.is('M', 486) && !c.unknown && c.subcode == gcode::kObjectEnd) {
+    modes_.object.clear();
   }
 }
 
@@ -329,6 +334,22 @@ void PrintJob::feed() {
     if (options_.read_ahead_s > 0.0) {
       const engine::MachineStatus ms = sink_.machine_status();
       if (ms.moving && ms.planned_until_s - ms.print_time_s > options_.read_ahead_s) return;
+    }
+    if (reset_objects_) {
+      // A new print's objects: none labelled, none excluded (Klipper resets exclude_object when a
+      // print starts): an object excluded in the last print is not skipped in this one.
+      static constexpr const char* kReset = "EXCLUDE_OBJECT_DEFINE RESET=1";
+      const auto reset = gcode::parse_line(kReset, SourceLocation{"job", 0, 0});
+      std::string why;
+      const auto offer = reset ? sink_.offer(*reset, kReset, completion(false, 0, kReset), &why)
+                               : JobSink::Offer::kRefused;
+      if (offer == JobSink::Offer::kFull) return;
+      reset_objects_ = false;
+      if (offer == JobSink::Offer::kRefused) {
+        fail(file_ + ": the print's object labels could not be reset: " + why);
+        return;
+      }
+      ++in_flight_;
     }
     if (!held_) {
       if (!read_line()) {
@@ -488,6 +509,9 @@ void PrintJob::on_phase_done() {
       const engine::MachineStatus s = sink_.machine_status();
       exclude_from_s_ = s.planned_until_s;
       phase_ = Phase::kPauseParked;
+      // Paused inside a labelled object: the park (and the resume's way back) must move even
+      // when that object is excluded; the resume enters it again (kResumeBack).
+      if (!saved_modes_.object.empty()) add_sequence("EXCLUDE_OBJECT_END");
       park_lines(s, true);
       parked_ = true;
       pump();
@@ -518,6 +542,10 @@ void PrintJob::on_phase_done() {
       if (saved_modes_.e_mode == 2) add_sequence("M83");
       if (saved_modes_.inches) add_sequence("G20");
       if (saved_modes_.feed_units_min) add_sequence("G1 F" + num(*saved_modes_.feed_units_min));
+      if (!saved_modes_.object.empty()) {
+        const char q = saved_modes_.object.find('\'') == std::string::npos ? '\'' : '"';
+        add_sequence("EXCLUDE_OBJECT_START NAME=" + std::string(1, q) + saved_modes_.object + q);
+      }
       pump();
       return;
     }
@@ -532,6 +560,7 @@ void PrintJob::on_phase_done() {
       // Everything of the file that was queued has executed: heaters off behind it, then park.
       sink_.all_heaters_off();
       phase_ = Phase::kCancelParked;
+      if (!modes_.object.empty()) add_sequence("EXCLUDE_OBJECT_END");  // the park moves
       if (!parked_) park_lines(sink_.machine_status(), true);
       parked_ = true;
       pump();

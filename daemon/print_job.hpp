@@ -79,6 +79,9 @@ class JobSink {
   // Whether the job has more lines of its file to hand over (printing, not at the file's end):
   // engine::Machine::set_input_coming. Default: nothing.
   virtual void set_input_coming(bool /*coming*/) {}
+  // Whether the machine holds object labels (planner/object_labels.hpp) from an earlier print: a
+  // job then starts by resetting them. Default: none.
+  virtual bool has_object_labels() const { return false; }
 };
 
 struct JobOptions {
@@ -176,6 +179,7 @@ class PrintJob {
     int e_mode = 0;  // 0: follows G90/G91, 1: M82 absolute, 2: M83 relative
     bool inches = false;
     std::optional<double> feed_units_min;  // last F word
+    std::string object;  // the labelled object the file is in (EXCLUDE_OBJECT_START), upper-case
   };
   Status open_file(uint64_t start_byte);
   void close_file();
@@ -228,6 +232,7 @@ class PrintJob {
   bool cancel_after_pause_ = false;
   bool resume_after_pause_ = false;
   bool parked_ = false;
+  bool reset_objects_ = false;  // the start's EXCLUDE_OBJECT_DEFINE RESET=1 is still to be sent
   std::string message_;
   int64_t started_ns_ = 0, ended_ns_ = 0, paused_since_ns_ = 0, paused_total_ns_ = 0;
   uint64_t pauses_ = 0;

@@ -31,6 +31,7 @@
 #include "engine/shared_heater_port.hpp"
 #include "engine/thermal_loop.hpp"
 #include "gcode/command.hpp"
+#include "planner/object_labels.hpp"
 
 namespace feedloop::engine {
 
@@ -150,6 +151,9 @@ class CommandExecutor {
   }
   // Fills the motion fields of a status snapshot. Any thread.
   virtual void motion_status(MachineStatus& /*s*/) const {}
+  // Any thread: the G-code's object labels (Klipper's exclude_object status; a copy taken when an
+  // object label command ran). Default: none.
+  virtual planner::ObjectLabels object_labels() const { return {}; }
   // The heater ports of the motion MCUs that drive heaters too (make_thermal_loop's `ports`;
   // engine/shared_heater_port.hpp); nullptr: none. Fixed at construction.
   virtual const SharedHeaterPorts* heater_ports() const { return nullptr; }
@@ -243,6 +247,10 @@ class Machine {
   void inject_stall(int64_t duration_ns);
 
   MachineStatus status() const;
+  // Any thread: the objects the G-code labelled, the excluded ones, the current one.
+  planner::ObjectLabels object_labels() const {
+    return executor_ ? executor_->object_labels() : planner::ObjectLabels{};
+  }
   ServoStatus servo_status() const { return servo_status_.load(); }
   // True while the servo thread completed a cycle within the last 100 periods and no fatal
   // error is latched: what the systemd watchdog pets on.

@@ -56,6 +56,10 @@ Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool
   if (motion && cancel.load()) return Error{"cancelled before it was planned", cmd.where};
   Status st = interp_->execute(cmd);
   if (st && (cmd.is('M', 18) || cmd.is('M', 84))) motors_off(cmd, cancel);
+  if (cmd.is('M', 486)) {
+    std::lock_guard<std::mutex> lock(objects_mu_);
+    objects_ = interp_->objects();
+  }
   planner_queued_.store(planner_.queued());
   pa_advance_s_.store(interp_->state().pressure_advance_s, std::memory_order_relaxed);
   pa_smooth_time_s_.store(interp_->state().pressure_advance_smooth_time_s,
@@ -680,7 +684,11 @@ void MotionExecutor::flush_motion(const std::atomic<bool>& cancel) {
     }
     pause_for_machine();
   }
-  if (stop_pos_valid_) interp_->set_machine_position(stop_pos_mm_);
+  if (stop_pos_valid_) {
+    interp_->set_machine_position(stop_pos_mm_);
+    std::lock_guard<std::mutex> lock(objects_mu_);
+    objects_ = interp_->objects();
+  }
   stop_req_.store(kNoStop, std::memory_order_release);
 }
 

@@ -37,6 +37,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <utility>
 #include <vector>
 
@@ -93,6 +94,10 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   Status execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) override;
   void position(double out_mm[4]) const override;
   void homed_axes(char out[4]) const override { interp_->homed_axes(out); }
+  planner::ObjectLabels object_labels() const override {
+    std::lock_guard<std::mutex> lock(objects_mu_);
+    return objects_;
+  }
   void idle_tick(const std::atomic<bool>& cancel) override;
   void release_lookahead() override;
   void set_waiting_for_motion(bool waiting) override { waiting_.store(waiting); }
@@ -226,6 +231,10 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   std::atomic<double> planned_end_s_{0.0};  // end of the last segment handed to the servo
   std::atomic<uint64_t> pushed_{0};
   std::atomic<uint64_t> moves_emitted_{0};
+  // The interpreter's object labels, copied after each object label command (planner thread) for
+  // object_labels() on other threads.
+  mutable std::mutex objects_mu_;
+  planner::ObjectLabels objects_;
   std::atomic<bool> waiting_{false};  // the planner thread waits for the machine (M400, room)
   std::atomic<size_t> planner_queued_{0};  // mirror of planner_.queued() for the other threads
 

@@ -345,6 +345,9 @@ void Interpreter::set_machine_position(const Vec4& at_mm) {
   st_.logical_mm[kE] += st_.flow_factor > 0.0 ? de_mm / st_.flow_factor : de_mm;
   st_.machine_mm[kE] = at_mm[kE];
   planner_.set_position(st_.machine_mm);
+  // The flush ended the file's object too: a console move after a cancel inside an excluded
+  // object is not skipped.
+  objects_.end();
 }
 
 void Interpreter::set_unhomed(const bool axes[3]) {

@@ -87,8 +87,8 @@ class Interpreter {
   void set_homed(const bool axes[3], const Vec4& at_mm);
   // A flush stopped the motion short of what was planned (engine::Machine::flush): the machine is
   // at machine position at_mm (X Y Z E, planner coordinates). The logical position follows it
-  // (the G92 offsets, a Z hop and the modes are kept); the planner continues from there. The
-  // planner must hold no moves.
+  // (the G92 offsets, a Z hop and the modes are kept; no object is current any more); the planner
+  // continues from there. The planner must hold no moves.
   void set_machine_position(const Vec4& at_mm);
   // A failed homing: the axes in `axes` are no longer homed.
   void set_unhomed(const bool axes[3]);

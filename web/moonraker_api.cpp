@@ -292,7 +292,8 @@ json MoonrakerApi::all_objects() const {
   const engine::ServoStatus v = printer_.servo_status();
   const JobStatus job = printer_.job_status();
   const std::string gcodes = files_.root_dir("gcodes");
-  return printer_objects(ObjectInputs{info, s, v, job, telemetry_, gcodes});
+  const planner::ObjectLabels objects = printer_.object_labels();
+  return printer_objects(ObjectInputs{info, s, v, job, telemetry_, gcodes, objects});
 }
 
 json MoonrakerApi::filtered(const json& all, const json& wanted) const {

@@ -46,6 +46,8 @@ class PrinterBackend {
   virtual engine::MachineStatus machine_status() const = 0;
   virtual engine::ServoStatus servo_status() const = 0;
   virtual JobStatus job_status() const = 0;
+  // The G-code's object labels (Klipper's exclude_object object). Default: none.
+  virtual planner::ObjectLabels object_labels() const { return {}; }
   // Runs G-code lines one after the other; `done(ok, response)` once all have run (or the first
   // failed): response holds the lines the printer answered (M105, M114...) or the error.
   virtual void run_gcode(std::string script,

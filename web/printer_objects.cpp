@@ -66,6 +66,10 @@ const json& gcode_commands() {
       {"CANCEL_PRINT", {{"help", "Cancel the print"}}},
       {"SDCARD_PRINT_FILE", {{"help", "Print a file from the gcodes folder (FILENAME=)"}}},
       {"SDCARD_RESET_FILE", {{"help", "Clear the finished print (print_stats back to standby)"}}},
+      {"EXCLUDE_OBJECT", {{"help", "Skip an object of the print (NAME=, CURRENT=1, RESET=1)"}}},
+      {"EXCLUDE_OBJECT_DEFINE", {{"help", "Label an object of the print (the slicer's)"}}},
+      {"EXCLUDE_OBJECT_START", {{"help", "The object's moves start (the slicer's)"}}},
+      {"EXCLUDE_OBJECT_END", {{"help", "The object's moves end (the slicer's)"}}},
       {"RESTART", {{"help", "Rebuild the machine (clears an emergency stop)"}}},
       {"FIRMWARE_RESTART", {{"help", "Same as RESTART"}}},
   };
@@ -220,6 +224,15 @@ json printer_objects(const ObjectInputs& in) {
       {"file_position", job.file_position},
       {"file_size", job.file_size}};
   o["pause_resume"] = {{"is_paused", paused}};
+  // Klipper's exclude_object (klippy/extras/exclude_object.py): Mainsail and Fluidd list the
+  // objects and send EXCLUDE_OBJECT NAME=... (no CENTER or POLYGON kept: the UIs draw no map).
+  json labelled = json::array();
+  for (const std::string& name : in.objects.defined()) labelled.push_back({{"name", name}});
+  o["exclude_object"] = {
+      {"objects", labelled},
+      {"excluded_objects", in.objects.excluded()},
+      {"current_object",
+       in.objects.current().empty() ? json(nullptr) : json(in.objects.current())}};
   o["display_status"] = {{"progress", progress}, {"message", nullptr}};
   o["idle_timeout"] = {{"state", printing || busy ? "Printing" : "Ready"},
                        {"printing_time", job.print_duration_s}};
@@ -258,8 +271,6 @@ json printer_objects(const ObjectInputs& in) {
       {"sysload", load[0]},
       {"cputime", static_cast<double>(cpu.tv_sec) + static_cast<double>(cpu.tv_nsec) * 1e-9},
       {"memavail", static_cast<double>(si.freeram) * si.mem_unit / 1024.0}};
-  o["exclude_object"] = {
-      {"objects", json::array()}, {"excluded_objects", json::array()}, {"current_object", nullptr}};
   o["gcode"] = {{"commands", gcode_commands()}};
   // feedloop's own.
   o["feedloop_servo"] = {

@@ -18,6 +18,7 @@ struct ObjectInputs {
   const JobStatus& job;
   const TrackingTelemetry& tracking;
   const std::string& gcodes_dir;  // virtual_sdcard.file_path is absolute in Klipper
+  const planner::ObjectLabels& objects;  // exclude_object
 };
 
 nlohmann::json printer_objects(const ObjectInputs& in);

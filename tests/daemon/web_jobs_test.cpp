@@ -214,6 +214,131 @@ TEST_F(WebJobsVirtual, OnePrintJobWhicheverChannelStartsPausesOrCancelsIt) {
   EXPECT_NEAR(jobs[1]["filament_used"].get<double>(), filament, 1e-6);
 }
 
+// Two labelled objects, as PrusaSlicer and OrcaSlicer label them for a Klipper printer, and a
+// pause in the file (M601) after their definitions. While the job is paused, the web (Mainsail's
+// "exclude object") excludes B although the print job owns the print; the web's exclude_object
+// lists both objects and B excluded. Resumed, the job completes and B's moves are not planned:
+// the machine planned as many moves as the planner's own interpreter plans for the rest of the file
+// with B excluded, 24 fewer than with B, plus the job's own: the first resume's way back (3 moves)
+// and a second pause in the file inside B (excluded): its park (3) and way back (3) move although
+// B's moves are skipped, and B's moves after it stay skipped. The next print starts with no
+// object excluded.
+std::string two_objects_gcode() {
+  std::string g = "G28\nM83\nG1 Z0.3 F600\n";
+  g += "EXCLUDE_OBJECT_DEFINE NAME='part a' CENTER=60,60 POLYGON=[[50,50],[70,50],[70,70]]\n";
+  g += "EXCLUDE_OBJECT_DEFINE NAME=part_b CENTER=150,150\nM601\n";
+  for (int layer = 0; layer < 3; ++layer) {
+    const double z = 0.3 + 0.2 * layer;
+    g += "G1 Z" + std::to_string(z) + " F600\n";
+    for (const auto& [name, x0] : {std::pair<std::string, int>{"'part a'", 50}, {"part_b", 140}}) {
+      g += "EXCLUDE_OBJECT_START NAME=" + name + "\n";
+      g += "G1 X" + std::to_string(x0) + " Y" + std::to_string(x0) + " F9000\n";
+      for (int k = 1; k <= 7; ++k) {
+        g += "G1 X" + std::to_string(x0 + (k % 2 ? 20 : 0)) + " Y" + std::to_string(x0 + 2 * k) +
+             " E0.8 F1800\n";
+        if (layer == 1 && x0 == 140 && k == 3) g += "M601\n";  // paused inside B
+      }
+      g += "EXCLUDE_OBJECT_END NAME=" + name + "\n";
+    }
+  }
+  return g + "G1 X10 Y200 F9000\n";
+}
+
+// Moves the planner's own interpreter plans for the lines after the M601, with `exclude` first.
+uint64_t moves_after_pause(const std::string& text, const std::string& exclude) {
+  planner::test::Rig rig{planner::test::cartesian_config()};
+  std::istringstream in(text);
+  bool after = false;
+  uint64_t start = 0;
+  for (std::string l; std::getline(in, l);) {
+    if (l == "M601") {
+      if (after) continue;  // the second pause
+      after = true;
+      if (!exclude.empty()) {
+        EXPECT_TRUE(rig.run(exclude).ok());
+      }
+      start = rig.planner.moves_added();
+      continue;
+    }
+    EXPECT_TRUE(rig.run(l).ok()) << l;
+  }
+  EXPECT_TRUE(after);
+  return rig.planner.moves_added() - start;
+}
+
+TEST_F(WebJobsVirtual, TheWebExcludesAnObjectOfARunningPrint) {
+  const std::string text = two_objects_gcode();
+  { std::ofstream(dir_ + "/gcodes/plate.gcode") << text; }
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  auto moves_planned = [&] {
+    return call(api, "status")["result"]["motion"]["moves_planned"].get<uint64_t>();
+  };
+  ASSERT_EQ(request(port(), http::verb::post, "/printer/print/start?filename=plate.gcode").status,
+            200);
+  json s = wait_objects(
+      "print_stats&exclude_object",
+      [](const json& o) {
+        return o["print_stats"]["state"] == "paused" && o["exclude_object"]["objects"].size() == 2;
+      },
+      30);
+  ASSERT_EQ(s["print_stats"]["state"], "paused") << s.dump();
+  ASSERT_EQ(s["exclude_object"]["objects"].size(), 2u) << s.dump();
+  EXPECT_EQ(s["exclude_object"]["objects"][0]["name"], "PART A");
+  EXPECT_EQ(s["exclude_object"]["objects"][1]["name"], "PART_B");
+  EXPECT_TRUE(s["exclude_object"]["excluded_objects"].empty());
+  EXPECT_TRUE(s["exclude_object"]["current_object"].is_null());
+  // Another client's command is refused while the job owns the print; the exclusion is not.
+  Reply busy = request(port(), http::verb::post, "/printer/gcode/script?script=G1%20X5");
+  EXPECT_NE(busy.status, 200) << busy.body.dump();
+  Reply ex = request(port(), http::verb::post, "/printer/gcode/script",
+                     json{{"script", "EXCLUDE_OBJECT NAME=part_b"}}.dump());
+  ASSERT_EQ(ex.status, 200) << ex.body.dump();
+  s = objects("exclude_object");
+  ASSERT_EQ(s["exclude_object"]["excluded_objects"].size(), 1u) << s.dump();
+  EXPECT_EQ(s["exclude_object"]["excluded_objects"][0], "PART_B");
+  const uint64_t before = moves_planned();
+  ASSERT_EQ(request(port(), http::verb::post, "/printer/print/resume").status, 200);
+  // The second pause, inside B: the job is parked, B is the file's object.
+  s = wait_objects(
+      "print_stats&exclude_object",
+      [](const json& o) { return o["print_stats"]["state"] == "paused"; }, 60);
+  ASSERT_EQ(s["print_stats"]["state"], "paused") << s.dump();
+  for (int i = 0; i < 200 && call(api, "job.status")["result"]["state"] != "paused"; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_EQ(call(api, "job.status")["result"]["state"], "paused");
+  EXPECT_TRUE(objects("exclude_object")["exclude_object"]["current_object"].is_null());
+  ASSERT_EQ(request(port(), http::verb::post, "/printer/print/resume").status, 200);
+  s = wait_objects(
+      "print_stats", [](const json& o) { return o["print_stats"]["state"] == "complete"; }, 120);
+  ASSERT_EQ(s["print_stats"]["state"], "complete") << s.dump();
+  const uint64_t planned = moves_planned() - before;
+  const uint64_t with_b = moves_after_pause(text, "");
+  const uint64_t without_b = moves_after_pause(text, "EXCLUDE_OBJECT NAME=part_b");
+  std::printf("moves after the pause: %llu planned; the interpreter: %llu without B, %llu with B\n",
+              static_cast<unsigned long long>(planned), static_cast<unsigned long long>(without_b),
+              static_cast<unsigned long long>(with_b));
+  EXPECT_EQ(with_b - without_b, 24u);
+  // The job's own: 3 back after the first pause, 3 to park and 3 back at the second, and up to
+  // two of its settle dwells (a G4 while the machine still moves is a standstill move; measured:
+  // 11). Were the park and the way back skipped inside B, 6 fewer; were
+  // B's 12 moves after the second pause not skipped, 12 more.
+  EXPECT_GE(planned, without_b + 9);
+  EXPECT_LE(planned, without_b + 11);
+  // The next print starts with nothing excluded.
+  ASSERT_EQ(request(port(), http::verb::post, "/printer/print/start?filename=plate.gcode").status,
+            200);
+  s = wait_objects(
+      "print_stats&exclude_object",
+      [](const json& o) {
+        return o["print_stats"]["state"] == "paused" && o["exclude_object"]["objects"].size() == 2;
+      },
+      30);
+  EXPECT_TRUE(s["exclude_object"]["excluded_objects"].empty()) << s.dump();
+  EXPECT_EQ(s["exclude_object"]["objects"].size(), 2u) << s.dump();
+  ASSERT_TRUE(call(api, "job.cancel").contains("result"));
+}
+
 // Wall clock: the heaters and the fan's kick-start run on the machine's time.
 // A file in a subfolder of gcodes (uploaded with Moonraker's `path` field, as both UIs do in a
 // folder) is printed by its relative path; a path out of the folder, or through a hidden folder,
