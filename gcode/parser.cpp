@@ -86,6 +86,12 @@ class LineParser {
   // Klipper's EXCLUDE_OBJECT_DEFINE / _START / _END and EXCLUDE_OBJECT: true when the word is one
   // of them (then *st is the outcome).
   bool parse_exclude_object(size_t word, Status* st);
+  // The next NAME= of a Klipper extended command's parameters: skips blanks, reads the name
+  // (upper-cased) and the '='. False at the line's end: a comment, or a checksum tail (*st then
+  // says whether it was right), else *st is Ok; also false, with *st failed ("<command> takes
+  // NAME=value parameters<hint>"), on a word that is not NAME=.
+  bool next_extended_key(std::string_view command, std::string_view hint, size_t* key,
+                         std::string* name, Status* st);
   Status validate() const;
   Status check_parameter(const CodeRule& rule, const ParamRule& p, char letter) const;
   void keep_as_text();  // an unknown command whose argument is not G-code words
@@ -281,6 +287,28 @@ Status LineParser::reject_extended_command(size_t word) const {
   return fail(word, message);
 }
 
+bool LineParser::next_extended_key(std::string_view command, std::string_view hint, size_t* key,
+                                   std::string* name, Status* st) {
+  const size_t n = s_.size();
+  while (i_ < n && is_space(s_[i_])) ++i_;
+  *st = Status::Ok();
+  if (i_ >= n || s_[i_] == ';') return false;
+  if (s_[i_] == '*') {
+    *st = check_checksum_tail(i_);
+    return false;
+  }
+  *key = i_;
+  while (i_ < n && (is_alpha(s_[i_]) || s_[i_] == '_')) ++i_;
+  name->clear();
+  for (size_t k = *key; k < i_; ++k) name->push_back(to_upper(s_[k]));
+  if (name->empty() || i_ >= n || s_[i_] != '=') {
+    *st = fail(*key, std::string(command) + " takes NAME=value parameters" + std::string(hint));
+    return false;
+  }
+  ++i_;
+  return true;
+}
+
 // Klipper's object labels (Klipper docs G-Codes.md, [exclude_object]), which slicers write for a
 // Klipper printer ("label objects: firmware-specific"), parsed into M486 with a subcode for the
 // form (gcode/command.hpp, ObjectLabelForm) and the object's NAME, upper-cased as Klipper does, in
@@ -295,18 +323,19 @@ bool LineParser::parse_exclude_object(size_t word, Status* st) {
   const size_t n = s_.size();
   size_t end = word;
   while (end < n && (is_alpha(s_[end]) || is_digit(s_[end]) || s_[end] == '_')) ++end;
-  std::string upper;
-  for (size_t k = word; k < end; ++k) upper.push_back(is_alpha(s_[k]) ? to_upper(s_[k]) : s_[k]);
+  // Indexed by ObjectLabelForm. Compared in place, case-insensitively: no allocation.
+  static constexpr std::string_view kForms[] = {"", "EXCLUDE_OBJECT_DEFINE", "EXCLUDE_OBJECT_START",
+                                                "EXCLUDE_OBJECT_END", "EXCLUDE_OBJECT"};
   int form = 0;
-  if (upper == "EXCLUDE_OBJECT_DEFINE")
-    form = kObjectDefine;
-  else if (upper == "EXCLUDE_OBJECT_START")
-    form = kObjectStart;
-  else if (upper == "EXCLUDE_OBJECT_END")
-    form = kObjectEnd;
-  else if (upper == "EXCLUDE_OBJECT")
-    form = kObjectExclude;
+  for (int f = kObjectDefine; f <= kObjectExclude && form == 0; ++f) {
+    const std::string_view candidate = kForms[f];
+    bool same = end - word == candidate.size();
+    for (size_t k = 0; same && k < candidate.size(); ++k)
+      same = (is_alpha(s_[word + k]) ? to_upper(s_[word + k]) : s_[word + k]) == candidate[k];
+    if (same) form = f;
+  }
   if (form == 0) return false;
+  const std::string_view upper = kForms[form];
   out_.letter = 'M';
   out_.code = 486;
   out_.subcode = form;
@@ -314,37 +343,20 @@ bool LineParser::parse_exclude_object(size_t word, Status* st) {
   extended_ = true;
   i_ = end;
   bool have_name = false;
-  while (i_ < n) {
-    if (is_space(s_[i_])) {
-      ++i_;
-      continue;
-    }
-    if (s_[i_] == ';') break;
-    if (s_[i_] == '*') {
-      *st = check_checksum_tail(i_);
-      if (!*st) return true;
-      break;
-    }
-    const size_t key = i_;
-    while (i_ < n && (is_alpha(s_[i_]) || s_[i_] == '_')) ++i_;
-    std::string name;
-    for (size_t k = key; k < i_; ++k) name.push_back(to_upper(s_[k]));
-    if (name.empty() || i_ >= n || s_[i_] != '=') {
-      *st = fail(key, upper + " takes NAME=value parameters");
-      return true;
-    }
-    ++i_;
+  size_t key = 0;
+  std::string name;
+  while (next_extended_key(upper, "", &key, &name, st)) {
     // The value: quoted, or up to a blank outside brackets.
-    std::string value;
+    std::string_view value;
     const size_t v = i_;
     if (i_ < n && (s_[i_] == '\'' || s_[i_] == '"')) {
       const char q = s_[i_];
       const size_t close = s_.find(q, i_ + 1);
       if (close == std::string_view::npos) {
-        *st = fail(v, upper + ": unclosed quote in " + name);
+        *st = fail(v, std::string(upper) + ": unclosed quote in " + name);
         return true;
       }
-      value.assign(s_.substr(i_ + 1, close - i_ - 1));
+      value = s_.substr(i_ + 1, close - i_ - 1);
       i_ = close + 1;
     } else {
       int depth = 0;
@@ -352,40 +364,41 @@ bool LineParser::parse_exclude_object(size_t word, Status* st) {
         depth += s_[i_] == '[' ? 1 : s_[i_] == ']' ? -1 : 0;
         ++i_;
       }
-      value.assign(s_.substr(v, i_ - v));
+      value = s_.substr(v, i_ - v);
     }
     const bool known =
         name == "NAME" ||
         (form == kObjectDefine && (name == "CENTER" || name == "POLYGON" || name == "RESET")) ||
         (form == kObjectExclude && (name == "CURRENT" || name == "RESET"));
     if (!known) {
-      *st = fail(key, upper + ": unknown parameter " + name);
+      *st = fail(key, std::string(upper) + ": unknown parameter " + name);
       return true;
     }
     if (name == "NAME") {
       if (have_name) {
-        *st = fail(key, upper + ": NAME given twice");
+        *st = fail(key, std::string(upper) + ": NAME given twice");
         return true;
       }
       if (value.empty()) {
-        *st = fail(v, upper + ": NAME needs a value");
+        *st = fail(v, std::string(upper) + ": NAME needs a value");
         return true;
       }
-      for (char& c : value)
-        if (is_alpha(c)) c = to_upper(c);
       assign_valid_utf8(out_.text, value);  // the outside-string boundary
+      for (char& c : out_.text)
+        if (is_alpha(c)) c = to_upper(c);
       have_name = true;
     } else if (name == "CURRENT" || name == "RESET") {
       if (value != "1" && value != "0") {
-        *st = fail(v, upper + ": " + name + " takes 1 or 0");
+        *st = fail(v, std::string(upper) + ": " + name + " takes 1 or 0");
         return true;
       }
       if (value == "1") out_.set_flag(name == "CURRENT" ? 'C' : 'R');
     }
   }
+  if (!*st) return true;
   const bool needs_name = form == kObjectStart || (form == kObjectDefine && !out_.has('R'));
   if (needs_name && !have_name) {
-    *st = fail(word, upper + " needs NAME=<object>");
+    *st = fail(word, std::string(upper) + " needs NAME=<object>");
     return true;
   }
   if (form == kObjectExclude && have_name + out_.has('C') + out_.has('R') > 1) {
@@ -416,26 +429,9 @@ bool LineParser::parse_pressure_advance(size_t word, Status* st) {
   command_pos_ = word;
   extended_ = true;
   i_ = end;
-  while (i_ < n) {
-    if (is_space(s_[i_])) {
-      ++i_;
-      continue;
-    }
-    if (s_[i_] == ';') break;
-    if (s_[i_] == '*') {
-      *st = check_checksum_tail(i_);
-      return true;
-    }
-    const size_t key = i_;
-    while (i_ < n && (is_alpha(s_[i_]) || s_[i_] == '_')) ++i_;
-    std::string name;
-    for (size_t k = key; k < i_; ++k) name.push_back(to_upper(s_[k]));
-    if (name.empty() || i_ >= n || s_[i_] != '=') {
-      *st = fail(
-          key, "SET_PRESSURE_ADVANCE takes NAME=value parameters (ADVANCE, SMOOTH_TIME, EXTRUDER)");
-      return true;
-    }
-    ++i_;
+  size_t key = 0;
+  std::string name;
+  while (next_extended_key(kName, " (ADVANCE, SMOOTH_TIME, EXTRUDER)", &key, &name, st)) {
     if (name == "EXTRUDER") {
       const size_t v = i_;
       while (i_ < n && !is_space(s_[i_]) && s_[i_] != ';' && s_[i_] != '*') ++i_;
@@ -473,8 +469,7 @@ bool LineParser::parse_pressure_advance(size_t word, Status* st) {
     out_.set(letter, num.value);
     i_ = num.end;
   }
-  *st = Status::Ok();
-  return true;
+  return true;  // *st: Ok, or the checksum tail's or a parameter's error
 }
 
 Status LineParser::check_checksum_tail(size_t star) const {

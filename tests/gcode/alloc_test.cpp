@@ -44,6 +44,13 @@ std::vector<std::string> sample_lines() {
     Status st = for_each_file_line(path, [&](const SplitLine& l) { lines.emplace_back(l.text); });
     EXPECT_TRUE(st.ok()) << path;
   }
+  // Klipper's extended commands that slicers write (gcode/parser.cpp).
+  for (const char* l :
+       {"EXCLUDE_OBJECT_DEFINE NAME='Shape-Box id:0 copy 0' CENTER=110,110 "
+        "POLYGON=[[100,100],[120,100],[120,120],[100,120]]",
+        "EXCLUDE_OBJECT_START NAME='Shape-Box id:0 copy 0'", "EXCLUDE_OBJECT_END NAME=part_1",
+        "EXCLUDE_OBJECT NAME=part_1", "SET_PRESSURE_ADVANCE ADVANCE=0.04 SMOOTH_TIME=0.03"})
+    lines.emplace_back(l);
   return lines;
 }
 
