@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdint>
 #include <deque>
+#include <limits>
 
 #include "core/joint_segment.hpp"
 #include "drivers/stepgen/run_codec.hpp"
@@ -153,11 +154,30 @@ class StepChecker final : public planner::JointSink, public stepgen::BatchSink {
     bisect(j, f, best_lo, best_hi, t);
   }
 
+  // The crossing in [lo, hi] (f(lo) <= 0 < f(hi)) to within 1 ps, or 2 ulp of the time where
+  // that is coarser (0.9 ps at an hour): the Illinois form of regula falsi, which keeps the bracket
+  // as bisection does and needs a few evaluations where f is near linear (a step's window of a
+  // smooth motion) instead of 32 halvings; a point that would not shrink the bracket is replaced
+  // by its middle. (Bisection took 152 s of the corpus test's CPU, most of it here.)
   template <class F>
   static void bisect(Joint& j, const F& f, double lo, double hi, double t) {
-    for (int it = 0; it < 32; ++it) {  // 40 us / 2^32: far below a nanosecond
-      const double mid = 0.5 * (lo + hi);
-      (f(mid) > 0.0 ? hi : lo) = mid;
+    const double tol = std::max(1e-12, 4.0 * std::numeric_limits<double>::epsilon() * std::fabs(t));
+    double f_lo = f(lo), f_hi = f(hi);
+    int kept = 0;  // the end kept by the last two steps: -1 lo, +1 hi
+    for (int it = 0; it < 200 && hi - lo > tol; ++it) {
+      double mid = f_hi > f_lo ? lo - f_lo * (hi - lo) / (f_hi - f_lo) : 0.5 * (lo + hi);
+      if (!(mid > lo && mid < hi)) mid = 0.5 * (lo + hi);
+      if (!(mid > lo && mid < hi)) break;  // no double between them
+      const double f_mid = f(mid);
+      if (f_mid > 0.0) {
+        hi = mid, f_hi = f_mid;
+        if (kept == -1) f_lo *= 0.5;  // lo stayed twice: weigh it less (Illinois)
+        kept = -1;
+      } else {
+        lo = mid, f_lo = f_mid;
+        if (kept == 1) f_hi *= 0.5;
+        kept = 1;
+      }
     }
     const double err_us = std::fabs(0.5 * (lo + hi) - t) * 1e6;
     j.result.max_error_us = std::max(j.result.max_error_us, err_us);
