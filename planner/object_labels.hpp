@@ -20,9 +20,11 @@ class ObjectLabels {
 
   // False when the list is full (the name is not added).
   bool define(std::string_view name) { return add(defined_, name); }
+  // False (and nothing changed) when the list is full.
   bool start(std::string_view name) {
+    if (!add(defined_, name)) return false;
     current_.assign(name);
-    return add(defined_, name);
+    return true;
   }
   void end() { current_.clear(); }
   bool exclude(std::string_view name) { return add(excluded_, name); }

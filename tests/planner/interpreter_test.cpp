@@ -105,6 +105,14 @@ TEST(Interpreter, AnExcludedObjectsMovesAreSkippedAndItsExtrusionIsNotMadeUp) {
   EXPECT_NE(s.error().message.find("no object is being printed"), std::string::npos);
   ASSERT_TRUE(r.run("EXCLUDE_OBJECT RESET=1"));
   EXPECT_TRUE(r.interp.objects().excluded().empty());
+  // The lists are bounded: one object too many is refused and changes nothing.
+  for (size_t i = r.interp.objects().defined().size(); i < ObjectLabels::kMaxObjects; ++i)
+    ASSERT_TRUE(r.run("EXCLUDE_OBJECT_DEFINE NAME=o" + std::to_string(i)));
+  s = r.run("EXCLUDE_OBJECT_START NAME=one_too_many");
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("too many objects"), std::string::npos);
+  EXPECT_TRUE(r.interp.objects().current().empty());
+  EXPECT_EQ(r.interp.objects().defined().size(), ObjectLabels::kMaxObjects);
 }
 
 TEST(Interpreter, M204SelectsPrintRetractAndTravelAcceleration) {
