@@ -104,7 +104,9 @@ std::vector<double> calibration_program(const CalibrationProgramOptions& o) {
     append_from(triangle(o.run_mm, o.run_speed_mm_s, 1.0));
   }
   for (size_t k = 0; k < u.size(); ++k) {
-    const double phase = static_cast<double>(k) / static_cast<double>(u.size());
+    const double passes = static_cast<double>(std::max(o.drift_passes, 1));
+    const double phase =
+        std::fmod(passes * static_cast<double>(k) / static_cast<double>(u.size()), 1.0);
     u[k] += o.travel_mm * (phase < 0.5 ? 2.0 * phase : 2.0 * (1.0 - phase));
   }
   return u;

@@ -9,6 +9,9 @@
 // --first-seed / --draws.
 //   bench_ident_draws [--draws N] [--first-seed S] [--kinds k1,k2,..] [--duration S] [--threads N]
 //                     [--verbose] [--candidates] [--json FILE] [--save-traces DIR]
+//                     [--drift-passes N] [--reversal-speeds A,B,C]
+// The last two change the calibration program's drift (passes over the travel) and its three
+// reversal speeds (mm/s) from ident::CalibrationProgramOptions's defaults.
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -152,7 +155,8 @@ Plant2Case record_plant2(const Kind& kind, uint64_t seed, const std::vector<doub
 }
 
 Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibration, bool plant2,
-                bool weighed_mass, const std::string& save_dir) {
+                bool weighed_mass, const std::string& save_dir,
+                const ident::CalibrationProgramOptions& shape) {
   Outcome o;
   o.kind = kind.name;
   o.seed = seed;
@@ -160,7 +164,7 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
   ident::RandomMovesOptions ro;
   ro.duration_s = duration_s;
   ro.seed = seed;
-  ident::CalibrationProgramOptions co;
+  ident::CalibrationProgramOptions co = shape;
   co.seed = seed;
   // The first simulator's anchored belt changes its stiffness with position: its direction draws
   // stay in place (the second simulator's do not).
@@ -285,6 +289,7 @@ int main(int argc, char** argv) {
   bool verbose = false, calibration = false, plant2 = false, candidates = false;
   bool weighed_mass = false;
   std::string json_path, kinds_arg, save_dir;
+  ident::CalibrationProgramOptions shape;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string { return i + 1 < argc ? argv[++i] : ""; };
@@ -314,13 +319,24 @@ int main(int argc, char** argv) {
       json_path = next();
     else if (a == "--save-traces")
       save_dir = next();
+    else if (a == "--drift-passes" && i + 1 < argc && std::atoi(argv[i + 1]) >= 1 &&
+             std::atoi(argv[i + 1]) <= 100)
+      shape.drift_passes = std::atoi(next().c_str());
+    else if (a == "--reversal-speeds" && i + 1 < argc &&
+             std::sscanf(argv[i + 1], "%lf,%lf,%lf", &shape.reversal_speeds_mm_s[0],
+                         &shape.reversal_speeds_mm_s[1], &shape.reversal_speeds_mm_s[2]) == 3 &&
+             std::all_of(std::begin(shape.reversal_speeds_mm_s),
+                         std::end(shape.reversal_speeds_mm_s),
+                         [](double v) { return v > 0.0 && v <= 1000.0; }))
+      ++i;
     else {
       std::fprintf(
           stderr,
           "usage: bench_ident_draws [--draws N] [--first-seed S] [--kinds none,backlash,..] "
           "[--duration S] [--excitation random|calibration] [--simulator sim|plant2] [--threads N] "
           "[--weighed-mass] [--verbose] [--candidates] "
-          "[--json FILE] [--save-traces DIR]\n");
+          "[--json FILE] [--save-traces DIR] [--drift-passes N (1-100)] "
+          "[--reversal-speeds A,B,C (mm/s)]\n");
       return 2;
     }
   }
@@ -354,9 +370,15 @@ int main(int argc, char** argv) {
   std::vector<Job> jobs;
   for (size_t k = 0; k < kinds.size(); ++k)
     for (int i = 0; i < draws; ++i) jobs.push_back({k, first_seed + static_cast<uint64_t>(i)});
+  char shape_text[160];
+  std::snprintf(shape_text, sizeof shape_text,
+                "the calibration program (ident/excitation.hpp, 3 cycles; drift %d pass(es), "
+                "reversals at %g, %g, %g mm/s)",
+                shape.drift_passes, shape.reversal_speeds_mm_s[0], shape.reversal_speeds_mm_s[1],
+                shape.reversal_speeds_mm_s[2]);
   const std::string excitation =
       calibration
-          ? "the calibration program (ident/excitation.hpp, 3 cycles)"
+          ? std::string(shape_text)
           : "random-move excitation of " + std::to_string(static_cast<int>(duration_s)) + " s";
   std::printf(
       "identification on random draws of %s: %d draw(s) per kind, seeds %llu..%llu, %s at 1 kHz, "
@@ -377,7 +399,7 @@ int main(int argc, char** argv) {
   auto worker = [&] {
     for (size_t j; (j = next_job.fetch_add(1)) < jobs.size();) {
       outcomes[j] = run_one(kinds[jobs[j].kind], jobs[j].seed, duration_s, calibration, plant2,
-                            weighed_mass, save_dir);
+                            weighed_mass, save_dir, shape);
       const size_t n = ++done;
       std::lock_guard<std::mutex> lock(print_mutex);
       const Outcome& o = outcomes[j];
@@ -480,6 +502,8 @@ int main(int argc, char** argv) {
                      {"draws_per_kind", draws},
                      {"duration_s", duration_s},
                      {"excitation", calibration ? "calibration" : "random"},
+                     {"drift_passes", shape.drift_passes},
+                     {"reversal_speeds_mm_s", shape.reversal_speeds_mm_s},
                      {"rows", rows}};
     std::ofstream f(json_path);
     if (!f) {

@@ -45,6 +45,28 @@ TEST(CalibrationProgram, CyclesOfFourSectionsJoinedWithoutJumps) {
   EXPECT_GT(reversals, 2 * 6 * 30);  // mean frequency of a 5 -> 200 Hz exponential sweep: ~53 Hz
 }
 
+// drift_passes = 4 crosses the travel there and back four times under the same sections (12.5
+// mm/s instead of 2.9, above a bearing's Stribeck speed: docs/ident.md, "Faster than the
+// Stribeck speed"); the programs differ by the drifts alone.
+TEST(CalibrationProgram, FourDriftPassesCrossTheTravelFourTimes) {
+  CalibrationProgramOptions one;
+  CalibrationProgramOptions four;
+  four.drift_passes = 4;
+  const std::vector<double> u1 = calibration_program(one), u4 = calibration_program(four);
+  ASSERT_EQ(u1.size(), u4.size());
+  const size_t n = u1.size();
+  // At an eighth of the program the four-pass drift is at the travel's end (80 mm), the single
+  // one at a quarter of its way out (20 mm); at a quarter, back at 0 against 40 mm.
+  EXPECT_NEAR(u4[n / 8] - u1[n / 8], 80.0 - 20.0, 0.05);
+  EXPECT_NEAR(u4[n / 4] - u1[n / 4], 0.0 - 40.0, 0.05);
+  EXPECT_NEAR(u4[3 * n / 8] - u1[3 * n / 8], 80.0 - 60.0, 0.05);
+  double max_step = 0.0;
+  for (size_t k = 1; k < n; ++k)
+    max_step = std::max(max_step, std::abs((u4[k] - u1[k]) - (u4[k - 1] - u1[k - 1])));
+  // 4 x 160 mm over the program against 160 mm, in opposite directions on the way back.
+  EXPECT_NEAR(max_step, (4.0 + 1.0) * 2.0 * 80.0 / static_cast<double>(n), 1e-6);
+}
+
 sim::GantryAxisParams y_axis_with_resonance(double freq_hz) {
   sim::GantryAxisParams p = sim::thesis_y_axis();
   p.belt_span_mm = 1e6;  // the linear model's belt everywhere (docs/simulator.md)
