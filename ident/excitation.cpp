@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "core/rng.hpp"
 
@@ -67,6 +68,9 @@ std::vector<double> calibration_program(const CalibrationProgramOptions& o) {
     }
     return s;
   };
+  // Whether the drift moves at each sample (drift_through_all, or the section is random or sweep).
+  std::vector<uint8_t> drifts;
+  auto mark = [&](bool on) { drifts.resize(u.size(), on || o.drift_through_all ? 1 : 0); };
   for (int c = 0; c < o.cycles; ++c) {
     RandomMovesOptions ro;
     ro.duration_s = o.random_s;
@@ -99,15 +103,22 @@ std::vector<double> calibration_program(const CalibrationProgramOptions& o) {
       sw[sw.size() - 1 - i] *= w;
     }
     append_from(sw);
+    mark(true);
     for (double speed : o.reversal_speeds_mm_s)
       append_from(triangle(o.reversal_span_mm, speed, o.reversals_per_speed));
     append_from(triangle(o.run_mm, o.run_speed_mm_s, 1.0));
+    mark(false);
   }
+  size_t drift_samples = 0;
+  for (uint8_t d : drifts) drift_samples += d;
+  const double passes = static_cast<double>(std::max(o.drift_passes, 1));
+  size_t moved = 0;
   for (size_t k = 0; k < u.size(); ++k) {
-    const double passes = static_cast<double>(std::max(o.drift_passes, 1));
-    const double phase =
-        std::fmod(passes * static_cast<double>(k) / static_cast<double>(u.size()), 1.0);
+    const double phase = std::fmod(passes * static_cast<double>(moved) /
+                                       static_cast<double>(std::max<size_t>(drift_samples, 1)),
+                                   1.0);
     u[k] += o.travel_mm * (phase < 0.5 ? 2.0 * phase : 2.0 * (1.0 - phase));
+    moved += drifts[k];
   }
   return u;
 }

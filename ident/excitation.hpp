@@ -72,6 +72,9 @@ struct CalibrationProgramOptions {
   double run_mm = 20.0;              // length of each run (0: none)
   double travel_mm = 80.0;           // the drift under the whole program (0: none) ...
   int drift_passes = 1;              // ... and how many times it goes there and back
+  // false: the drift moves during the random moves and the sweep only, and stands still through
+  // the reversals and the runs (their speeds are then the set ones both ways).
+  bool drift_through_all = true;
   uint64_t seed = 1;
 };
 

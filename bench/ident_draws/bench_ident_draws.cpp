@@ -9,9 +9,10 @@
 // --first-seed / --draws.
 //   bench_ident_draws [--draws N] [--first-seed S] [--kinds k1,k2,..] [--duration S] [--threads N]
 //                     [--verbose] [--candidates] [--json FILE] [--save-traces DIR]
-//                     [--drift-passes N] [--reversal-speeds A,B,C]
-// The last two change the calibration program's drift (passes over the travel) and its three
-// reversal speeds (mm/s) from ident::CalibrationProgramOptions's defaults.
+//                     [--drift-passes N] [--reversal-speeds A,B,C] [--drift-still-in-runs]
+// The last three change the calibration program's drift (passes over the travel; standing still
+// through the reversals and runs) and its three reversal speeds (mm/s) from
+// ident::CalibrationProgramOptions's defaults.
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -319,6 +320,8 @@ int main(int argc, char** argv) {
       json_path = next();
     else if (a == "--save-traces")
       save_dir = next();
+    else if (a == "--drift-still-in-runs")
+      shape.drift_through_all = false;
     else if (a == "--drift-passes" && i + 1 < argc && std::atoi(argv[i + 1]) >= 1 &&
              std::atoi(argv[i + 1]) <= 100)
       shape.drift_passes = std::atoi(next().c_str());
@@ -336,7 +339,7 @@ int main(int argc, char** argv) {
           "[--duration S] [--excitation random|calibration] [--simulator sim|plant2] [--threads N] "
           "[--weighed-mass] [--verbose] [--candidates] "
           "[--json FILE] [--save-traces DIR] [--drift-passes N (1-100)] "
-          "[--reversal-speeds A,B,C (mm/s)]\n");
+          "[--reversal-speeds A,B,C (mm/s)] [--drift-still-in-runs]\n");
       return 2;
     }
   }
@@ -370,11 +373,12 @@ int main(int argc, char** argv) {
   std::vector<Job> jobs;
   for (size_t k = 0; k < kinds.size(); ++k)
     for (int i = 0; i < draws; ++i) jobs.push_back({k, first_seed + static_cast<uint64_t>(i)});
-  char shape_text[160];
+  char shape_text[200];
   std::snprintf(shape_text, sizeof shape_text,
-                "the calibration program (ident/excitation.hpp, 3 cycles; drift %d pass(es), "
+                "the calibration program (ident/excitation.hpp, 3 cycles; drift %d pass(es)%s, "
                 "reversals at %g, %g, %g mm/s)",
-                shape.drift_passes, shape.reversal_speeds_mm_s[0], shape.reversal_speeds_mm_s[1],
+                shape.drift_passes, shape.drift_through_all ? "" : " still in reversals and runs",
+                shape.reversal_speeds_mm_s[0], shape.reversal_speeds_mm_s[1],
                 shape.reversal_speeds_mm_s[2]);
   const std::string excitation =
       calibration
@@ -503,6 +507,7 @@ int main(int argc, char** argv) {
                      {"duration_s", duration_s},
                      {"excitation", calibration ? "calibration" : "random"},
                      {"drift_passes", shape.drift_passes},
+                     {"drift_through_all", shape.drift_through_all},
                      {"reversal_speeds_mm_s", shape.reversal_speeds_mm_s},
                      {"rows", rows}};
     std::ofstream f(json_path);

@@ -67,6 +67,25 @@ TEST(CalibrationProgram, FourDriftPassesCrossTheTravelFourTimes) {
   EXPECT_NEAR(max_step, (4.0 + 1.0) * 2.0 * 80.0 / static_cast<double>(n), 1e-6);
 }
 
+// drift_through_all = false: the drift moves through the random moves and the sweep only; the
+// reversals and the runs go at their own speeds both ways.
+TEST(CalibrationProgram, ADriftThatStandsStillThroughTheRunsLeavesTheirSpeeds) {
+  CalibrationProgramOptions o;
+  o.drift_through_all = false;
+  const std::vector<double> u = calibration_program(o);
+  ASSERT_EQ(u.size(), calibration_program(CalibrationProgramOptions{}).size());
+  // The first cycle's 20 mm run at 10 mm/s starts after 6 s random, 6 s sweep and 3.13 s of
+  // reversals (15.13 s) and turns at 17.13 s: 10 um per sample exactly, in both directions.
+  for (size_t k = 15200; k < 19000; ++k) {
+    if (k >= 17120 && k <= 17150) continue;  // the turn
+    ASSERT_NEAR(std::abs(u[k] - u[k - 1]), 0.010, 1e-9) << "sample " << k;
+  }
+  // The drift still carries the program across the travel and back.
+  const auto [lo, hi] = std::minmax_element(u.begin(), u.end());
+  EXPECT_GE(*hi - *lo, 80.0);
+  EXPECT_NEAR(u.back(), 0.0, 0.1);
+}
+
 sim::GantryAxisParams y_axis_with_resonance(double freq_hz) {
   sim::GantryAxisParams p = sim::thesis_y_axis();
   p.belt_span_mm = 1e6;  // the linear model's belt everywhere (docs/simulator.md)
