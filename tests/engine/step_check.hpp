@@ -1,7 +1,8 @@
 // Test support: rebuilds every step time of a batch-mode run from the compressed QUEUE_STEPS
 // bodies (RunDecoder + the MCU step law) and compares it with the exact step time computed
 // independently from the closed-form joint motion (the JointSegments the planner emitted), by
-// bisection on the segment polynomials — no code of the step generator is used.
+// a bracketed root search (find_crossing) on the segment polynomials — no code of the step
+// generator is used.
 //
 // Step convention (docs/protocol.md): a step in direction d crosses the threshold n + d/2 of
 // s(t) = steps_per_mm * pos_mm(t). For the decoded step at time t the exact time is the nearest
@@ -105,11 +106,11 @@ class StepChecker final : public planner::JointSink, public stepgen::BatchSink {
     }
     // f < 0 before the crossing, > 0 after it. Usually the crossing is bracketed by t +- E
     // (window / 4); otherwise find the sign change of f (from <= 0 to > 0) nearest to t in
-    // [t - window, t + window] on a fine grid. Then bisect the bracket.
+    // [t - window, t + window] on a fine grid. Then narrow the bracket (find_crossing).
     auto f = [&](double tt) { return d * (steps_at(j, joint, tt) - x); };
     const double e = 0.25 * window_s_;
     if (f(t - e) <= 0.0 && f(t + e) > 0.0) {
-      bisect(j, f, t - e, t + e, t);
+      find_crossing(j, f, t - e, t + e, t);
       return;
     }
     constexpr int kGrid = 64;
@@ -129,8 +130,8 @@ class StepChecker final : public planner::JointSink, public stepgen::BatchSink {
     if (best_dist > 1e299) {
       // A reversal right at the threshold: over it and back within one grid cell, anywhere in
       // the step's window (t - E, t + E). Find the extremum of f there (golden section; f is
-      // unimodal there): f rises above 0 before a maximum (bisect [left end, argmax]) or leaves a
-      // minimum <= 0 (bisect [argmin, right end]).
+      // unimodal there): f rises above 0 before a maximum (bracket [left end, argmax]) or leaves a
+      // minimum <= 0 (bracket [argmin, right end]).
       const double left = t - std::max(2.0 * h, 1.25 * e), right = t + std::max(2.0 * h, 1.25 * e);
       auto extremum = [&](double sign) {
         double a = left, b = right;
@@ -151,7 +152,7 @@ class StepChecker final : public planner::JointSink, public stepgen::BatchSink {
         return;
       }
     }
-    bisect(j, f, best_lo, best_hi, t);
+    find_crossing(j, f, best_lo, best_hi, t);
   }
 
   // The crossing in [lo, hi] (f(lo) <= 0 < f(hi)) to within 1 ps, or 2 ulp of the time where
@@ -160,7 +161,7 @@ class StepChecker final : public planner::JointSink, public stepgen::BatchSink {
   // smooth motion) instead of 32 halvings; a point that would not shrink the bracket is replaced
   // by its middle. (Bisection took 152 s of the corpus test's CPU, most of it here.)
   template <class F>
-  static void bisect(Joint& j, const F& f, double lo, double hi, double t) {
+  static void find_crossing(Joint& j, const F& f, double lo, double hi, double t) {
     const double tol = std::max(1e-12, 4.0 * std::numeric_limits<double>::epsilon() * std::fabs(t));
     double f_lo = f(lo), f_hi = f(hi);
     int kept = 0;  // the end kept by the last two steps: -1 lo, +1 hi
