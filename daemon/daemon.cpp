@@ -615,6 +615,9 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
   // of the print's objects to skip, behind the print's commands already queued. It takes no
   // ownership.
   const bool exclusion = cmd.is('M', 486) && cmd.subcode == gcode::kObjectExclude && !cmd.unknown;
+  // A job that has just parked owns nothing any more (the tick would release it next): a jog
+  // right after the pause is not refused as busy.
+  if (owner_ == kJobOwner && (!job_ || !job_->sending())) owner_ = 0;
   if (owner_ != 0 && owner_ != cid && !exclusion)
     return "busy: the print is owned by " + owner_name();
   if (owner_ != cid && !exclusion) {
