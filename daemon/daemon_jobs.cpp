@@ -101,6 +101,10 @@ void Daemon::open_jobs() {
   if (cfg_.kinematics != config::Kinematics::delta && x && y) {
     if (!o.park_x_mm) o.park_x_mm = std::min(x->min_mm + 10.0, x->max_mm);
     if (!o.park_y_mm) o.park_y_mm = std::max(y->max_mm - 10.0, y->min_mm);
+    o.x_min_mm = x->min_mm;
+    o.x_max_mm = x->max_mm;
+    o.y_min_mm = y->min_mm;
+    o.y_max_mm = y->max_mm;
   }
   if (z && std::isfinite(z->max_mm)) o.z_max_mm = z->max_mm;
   job_files_ = std::move(files);

@@ -228,8 +228,11 @@ Status PrintJob::resume() {
   add_sequence("G21");
   add_sequence("G90");
   if (parked_) {
-    add_sequence("G1 X" + num(p.pos_mm[0]) + " Y" + num(p.pos_mm[1]) + " F" +
-                 num(options_.travel_speed_mm_s * 60.0));
+    // Back to where the pause found the nozzle, inside the travel (a pause right after a homing
+    // found it past the limit by the halt's overshoot; the file's next move goes on from there).
+    const double x = std::clamp(p.pos_mm[0], options_.x_min_mm, options_.x_max_mm);
+    const double y = std::clamp(p.pos_mm[1], options_.y_min_mm, options_.y_max_mm);
+    add_sequence("G1 X" + num(x) + " Y" + num(y) + " F" + num(options_.travel_speed_mm_s * 60.0));
     add_sequence("G1 Z" + num(p.pos_mm[2]) + " F" + num(options_.z_speed_mm_s * 60.0));
     const double push = options_.pause_retract_mm + options_.prime_extra_mm;
     if (push > 0.0) {

@@ -93,6 +93,10 @@ struct JobOptions {
   std::optional<double> park_x_mm, park_y_mm;  // XY park point (none: XY stay)
   double travel_speed_mm_s = 100.0;
   double z_max_mm = 1e9;     // travel limit of Z (logical = machine coordinates)
+  // XY travel limits (Cartesian): the resume's way back stays inside them. After a homing
+  // through the endstops the carriage stands a little past its limit (the halt's overshoot,
+  // e.g. X -0.07 mm for X[0, 250]), where a move would be refused.
+  double x_min_mm = -1e9, x_max_mm = 1e9, y_min_mm = -1e9, y_max_mm = 1e9;
   int settle_ms = 1000;      // dwell before a pause/resume position is taken
   int lines_per_pump = 256;  // bounds one pump's work on the I/O thread
   // No line is read while the machine holds more planned motion than this ahead of the motion
