@@ -12,8 +12,8 @@
 namespace feedloop::gcode {
 
 // Object labels (Klipper's EXCLUDE_OBJECT family, gcode/parser.cpp): M486 with one of these
-// subcodes, the object's name in `text`. The parser gives them only for the Klipper forms (a
-// literal "M486.2" is an unknown command).
+// subcodes, the object's name in `text`. The parser gives them for the Klipper forms and for
+// Marlin's M486 T/S/P/C, the index as the name (a literal "M486.2" is an unknown command).
 enum ObjectLabelForm : int {
   kObjectDefine = 1,
   kObjectStart = 2,

@@ -92,6 +92,9 @@ class LineParser {
   // NAME=value parameters<hint>"), on a word that is not NAME=.
   bool next_extended_key(std::string_view command, std::string_view hint, size_t* key,
                          std::string* name, Status* st);
+  // Marlin's own M486 (index form) into the Klipper forms' subcodes: Ok and the command
+  // unchanged when it is not one of them (it stays unknown).
+  Status translate_marlin_object_label();
   Status validate() const;
   Status check_parameter(const CodeRule& rule, const ParamRule& p, char letter) const;
   void keep_as_text();  // an unknown command whose argument is not G-code words
@@ -120,6 +123,11 @@ Status LineParser::run() {
   }
   if (out_.letter == 0) return Status::Ok();  // blank, comment only, or just a line number
   if (extended_) return Status::Ok();
+  if (out_.is('M', 486) && out_.subcode < 0) {
+    Status marlin = translate_marlin_object_label();
+    if (!marlin) out_.clear();
+    return marlin;
+  }
   Status valid = validate();
   if (!valid) out_.clear();
   return valid;
@@ -407,6 +415,57 @@ bool LineParser::parse_exclude_object(size_t word, Status* st) {
   }
   *st = Status::Ok();
   return true;
+}
+
+// Marlin's own object labels (Marlin's M486, CANCEL_OBJECTS), which PrusaSlicer writes for a
+// Marlin printer ("label objects: firmware-specific"), into the Klipper forms above; an
+// object's name is its index ("0", "1", ...):
+//   M486 T<count>   M486.1 R    a new plate: nothing defined or excluded (the count is not kept)
+//   M486 S<i>       M486.2 i    the moves that follow are object i's (defines it)
+//   M486 S-1        M486.3      the moves that follow belong to no object (a purge line, a brim)
+//   M486 P<i>       M486.4 i    object i is skipped from now on
+//   M486 C          M486.4 C    the current object is skipped from now on
+// One of T, S, P and C per line (no slicer writes more). U<i> (Marlin's un-cancel) is refused:
+// an excluded object stays excluded until the print ends, as in Klipper. A line with an A is the
+// object's name, which PrusaSlicer writes after the S in a line of its own ("M486 AShape-Box"):
+// it stays an unknown command, ignored, whatever letters the name holds ("M486 AP2" cancels
+// nothing).
+Status LineParser::translate_marlin_object_label() {
+  if (out_.has('A')) return Status::Ok();
+  if (out_.has('U'))
+    return fail(column_['U' - 'A'],
+                "M486 U (un-cancel an object) is not supported: an excluded object stays "
+                "excluded until the print ends");
+  const int forms = out_.has('T') + out_.has('S') + out_.has('P') + out_.has('C');
+  if (forms == 0) return Status::Ok();  // "M486", "M486 A<name>": nothing to do here
+  if (forms > 1) return fail(command_pos_, "M486: one of T, S, P and C per line");
+  auto index = [&](char letter, int lowest, int* out) -> Status {
+    const double v = out_.get(letter, NAN);
+    if (!out_.has_value(letter) || !(v >= lowest && v <= 1e6) || v != std::floor(v))
+      return fail(column_[letter - 'A'], std::string("M486 ") + letter +
+                                             " takes an object index (" +
+                                             (lowest < 0 ? "-1 or " : "") + "0, 1, 2, ...)");
+    *out = static_cast<int>(v);
+    return Status::Ok();
+  };
+  int i = 0;
+  if (out_.has('T')) {
+    if (Status st = index('T', 0, &i); !st) return st;
+    out_.subcode = kObjectDefine;
+    out_.set_flag('R');
+  } else if (out_.has('S')) {
+    if (Status st = index('S', -1, &i); !st) return st;
+    out_.subcode = i < 0 ? kObjectEnd : kObjectStart;
+    if (i >= 0) out_.text = std::to_string(i);
+  } else if (out_.has('P')) {
+    if (Status st = index('P', 0, &i); !st) return st;
+    out_.subcode = kObjectExclude;
+    out_.text = std::to_string(i);
+  } else {
+    out_.subcode = kObjectExclude;  // C: its flag says "the current object"
+  }
+  out_.unknown = false;
+  return Status::Ok();
 }
 
 // Klipper's SET_PRESSURE_ADVANCE [EXTRUDER=extruder] [ADVANCE=<s>] [SMOOTH_TIME=<s>] (Klipper

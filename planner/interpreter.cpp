@@ -278,7 +278,9 @@ Status Interpreter::object_label(const gcode::Command& c) {
       }
       if (c.has('C')) {
         if (objects_.current().empty())
-          return fail(c, "EXCLUDE_OBJECT CURRENT=1: no object is being printed");
+          return fail(
+              c,
+              "no object is being printed (EXCLUDE_OBJECT CURRENT=1, M486 C: the current object)");
         objects_.exclude(objects_.current());
         return {};
       }

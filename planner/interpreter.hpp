@@ -16,7 +16,7 @@
 //   parser gives as M486.1-.4, planner/object_labels.hpp): while the current object is excluded,
 //   its G0-G3 and G10/G11 change the G-code position only (nothing moves, its extrusion is not
 //   made up later); the first move after it goes straight from where the machine is. Marlin's
-//   own M486 (index form) is ignored.
+//   own M486 (T/S/P/C, the parser gives the same forms) names an object by its index.
 // Travel limits act only on homed axes: before G28 a move of an unhomed X/Y/Z axis is refused with
 // a clear error (Klipper's "Must home axis first"; on a delta every tower must be homed), unless
 // config.allow_moves_before_homing (then the machine starts homed, the old behaviour). E needs no

@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "gcode/parser.hpp"
 
@@ -170,6 +172,49 @@ TEST(Parser, KlippersObjectLabelsBecomeM486WithTheFormAndTheName) {
   bad = parse_line("EXCLUDE_OBJECT_DEFINE NAME='open", SourceLocation{"t", 4, 0});
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().message.find("unclosed quote"), std::string::npos);
+}
+
+// Marlin's own M486 (CANCEL_OBJECTS), as PrusaSlicer writes it for a Marlin printer: the index
+// is the object's name; the name lines (A) are ignored whatever letters they hold.
+TEST(Parser, MarlinsObjectLabelsBecomeTheSameFormsWithTheIndexAsName) {
+  Command c = ok("M486 T3");
+  EXPECT_FALSE(c.unknown);
+  EXPECT_EQ(c.subcode, kObjectDefine);
+  EXPECT_TRUE(c.has('R'));  // a new plate
+  c = ok("M486 S2 ; printing object 2");
+  EXPECT_FALSE(c.unknown);
+  EXPECT_EQ(c.subcode, kObjectStart);
+  EXPECT_EQ(c.text, "2");
+  c = ok("M486 S-1");
+  EXPECT_EQ(c.subcode, kObjectEnd);
+  EXPECT_TRUE(c.text.empty());
+  c = ok("M486 P12");
+  EXPECT_EQ(c.subcode, kObjectExclude);
+  EXPECT_EQ(c.text, "12");
+  EXPECT_FALSE(c.has('C'));
+  c = ok("M486 C");
+  EXPECT_EQ(c.subcode, kObjectExclude);
+  EXPECT_TRUE(c.has('C'));
+  for (const char* name :
+       {"M486 AShape-Box (Instance 1)", "M486 AP2", "M486 AS", "M486 A", "M486", "M486 AT1 S2"}) {
+    c = ok(name);
+    EXPECT_TRUE(c.unknown) << name;
+    EXPECT_EQ(c.subcode, -1) << name;
+  }
+  for (const auto& [line, what] : std::vector<std::pair<std::string, std::string>>{
+           {"M486 S", "S takes an object index"},
+           {"M486 S1.5", "S takes an object index"},
+           {"M486 S-2", "S takes an object index"},
+           {"M486 P-1", "P takes an object index"},
+           {"M486 T", "T takes an object index"},
+           {"M486 S1 P2", "one of T, S, P and C per line"},
+           {"M486 U1", "not supported"}}) {
+    auto bad = parse_line(line, SourceLocation{"t", 7, 0});
+    ASSERT_FALSE(bad.ok()) << line;
+    EXPECT_NE(bad.error().message.find(what), std::string::npos)
+        << line << ": " << bad.error().message;
+    EXPECT_EQ(bad.error().where.line, 7) << line;
+  }
 }
 
 TEST(Parser, KlippersSetPressureAdvanceBecomesM900) {

@@ -115,6 +115,47 @@ TEST(Interpreter, AnExcludedObjectsMovesAreSkippedAndItsExtrusionIsNotMadeUp) {
   EXPECT_EQ(r.interp.objects().defined().size(), ObjectLabels::kMaxObjects);
 }
 
+// The same plate labelled as PrusaSlicer labels it for a Marlin printer (M486 index form): the
+// header defines objects 0 and 1 (with name lines, ignored); object 1 is cancelled by its index
+// (M486 P1, as OctoPrint's Cancelobject or Marlin's menu sends it) and its moves are skipped;
+// M486 C during object 0 skips the rest of it; M486 T starts a new plate.
+TEST(Interpreter, MarlinsObjectIndexesAreExcludedAsKlippersNames) {
+  Rig r(test::cartesian_config());
+  for (const char* l : {"G28", "M83", "M486 T2", "M486 S0", "M486 AShape-Box (Instance 1)",
+                        "M486 S-1", "M486 S1", "M486 AP0", "M486 S-1", "G1 Z0.3 F600"})
+    ASSERT_TRUE(r.run(l)) << l;
+  EXPECT_EQ(r.interp.objects().defined(), (std::vector<std::string>{"0", "1"}));
+  EXPECT_TRUE(r.interp.objects().excluded().empty());  // "M486 AP0" is a name, not a cancel
+  ASSERT_TRUE(r.run("M486 P1"));
+  ASSERT_TRUE(r.run("M486 S0"));
+  ASSERT_TRUE(r.run("G1 X40 Y40 F6000"));
+  ASSERT_TRUE(r.run("G1 X60 Y40 E1.0 F1800"));
+  ASSERT_TRUE(r.run("M486 S-1"));
+  const uint64_t moves_after_0 = r.planner.moves_added();
+  ASSERT_TRUE(r.run("M486 S1"));
+  ASSERT_TRUE(r.run("G1 X140 Y140 F6000"));
+  ASSERT_TRUE(r.run("G1 X160 Y140 E1.0 F1800"));
+  ASSERT_TRUE(r.run("M486 S-1"));
+  EXPECT_EQ(r.planner.moves_added(), moves_after_0);  // nothing of object 1 moved
+  EXPECT_EQ(r.interp.skipped_lines(), 2u);
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 60.0);
+  // M486 C inside object 0: the rest of it is skipped; outside any object it is an error.
+  ASSERT_TRUE(r.run("M486 S0"));
+  ASSERT_TRUE(r.run("G1 X50 Y50 E0.5"));
+  ASSERT_TRUE(r.run("M486 C"));
+  ASSERT_TRUE(r.run("G1 X70 Y50 E0.5"));
+  ASSERT_TRUE(r.run("M486 S-1"));
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 50.0);
+  EXPECT_EQ(r.interp.objects().excluded(), (std::vector<std::string>{"1", "0"}));
+  auto s = r.run("M486 C");
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("no object is being printed"), std::string::npos);
+  // A new plate: nothing defined or excluded.
+  ASSERT_TRUE(r.run("M486 T1"));
+  EXPECT_TRUE(r.interp.objects().defined().empty());
+  EXPECT_TRUE(r.interp.objects().excluded().empty());
+}
+
 TEST(Interpreter, M204SelectsPrintRetractAndTravelAcceleration) {
   Rig r(test::cartesian_config());
   ASSERT_TRUE(r.run("M204 P1000 R500 T2000"));
