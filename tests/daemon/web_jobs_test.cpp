@@ -361,6 +361,73 @@ TEST_F(WebJobsVirtual, TheWebExcludesAnObjectOfARunningPrint) {
   ASSERT_TRUE(call(api, "job.cancel").contains("result"));
 }
 
+// The same kind of plate sliced for a Marlin printer (PrusaSlicer's M486 index form, with its
+// name lines): the web lists the objects by index and excludes object 1 while the job is paused
+// at the file's M601; resumed, nothing of object 1 is planned: as many moves as the planner's
+// own interpreter plans with "M486 P1" (12 fewer than with it), plus the job's way back (3
+// moves) and its settle dwell.
+std::string marlin_objects_gcode() {
+  std::string g = "G28\nM83\nM486 T2\n";
+  for (int i = 0; i < 2; ++i)
+    g += "M486 S" + std::to_string(i) + "\nM486 AShape-Box (Instance " + std::to_string(i + 1) +
+         ")\nM486 S-1\n";
+  g += "G1 Z0.3 F600\nG1 X20 Y20 F9000\nM601\n";
+  for (int layer = 0; layer < 2; ++layer) {
+    g += "G1 Z" + std::to_string(0.3 + 0.2 * layer) + " F600\n";
+    for (int i = 0; i < 2; ++i) {
+      const int x0 = 50 + 90 * i;
+      g += "M486 S" + std::to_string(i) + "\n";
+      g += "G1 X" + std::to_string(x0) + " Y" + std::to_string(x0) + " F9000\n";
+      for (int k = 1; k <= 5; ++k)
+        g += "G1 X" + std::to_string(x0 + (k % 2 ? 20 : 0)) + " Y" + std::to_string(x0 + 2 * k) +
+             " E0.8 F1800\n";
+      g += "M486 S-1\n";
+    }
+  }
+  return g + "G1 X10 Y200 F9000\n";
+}
+
+TEST_F(WebJobsVirtual, TheWebExcludesAMarlinLabelledObjectByItsIndex) {
+  const std::string text = marlin_objects_gcode();
+  { std::ofstream(dir_ + "/gcodes/marlin.gcode") << text; }
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  auto moves_planned = [&] {
+    return call(api, "status")["result"]["motion"]["moves_planned"].get<uint64_t>();
+  };
+  ASSERT_EQ(request(port(), http::verb::post, "/printer/print/start?filename=marlin.gcode").status,
+            200);
+  for (int i = 0; i < 400 && call(api, "job.status")["result"]["state"] != "paused"; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_EQ(call(api, "job.status")["result"]["state"], "paused");
+  json s = objects("exclude_object");
+  ASSERT_EQ(s["exclude_object"]["objects"].size(), 2u) << s.dump();
+  EXPECT_EQ(s["exclude_object"]["objects"][0]["name"], "0");
+  EXPECT_EQ(s["exclude_object"]["objects"][1]["name"], "1");
+  Reply ex = request(port(), http::verb::post, "/printer/gcode/script",
+                     json{{"script", "EXCLUDE_OBJECT NAME=1"}}.dump());
+  ASSERT_EQ(ex.status, 200) << ex.body.dump();
+  s = objects("exclude_object");
+  ASSERT_EQ(s["exclude_object"]["excluded_objects"], json::array({"1"})) << s.dump();
+  const uint64_t before = moves_planned();
+  ASSERT_EQ(request(port(), http::verb::post, "/printer/print/resume").status, 200);
+  s = wait_objects(
+      "print_stats", [](const json& o) { return o["print_stats"]["state"] == "complete"; }, 120);
+  ASSERT_EQ(s["print_stats"]["state"], "complete") << s.dump();
+  const uint64_t planned = moves_planned() - before;
+  const uint64_t with_1 = moves_after_pause(text, "");
+  const uint64_t without_1 = moves_after_pause(text, "M486 P1");
+  std::printf(
+      "Marlin labels: %llu planned after the pause; the interpreter: %llu without object 1, "
+      "%llu with it\n",
+      static_cast<unsigned long long>(planned), static_cast<unsigned long long>(without_1),
+      static_cast<unsigned long long>(with_1));
+  EXPECT_EQ(with_1 - without_1, 12u);
+  EXPECT_GE(planned, without_1 + 3);
+  EXPECT_LE(planned, without_1 + 4);
+  EXPECT_EQ(call(api, "job.status")["result"]["message"], "");
+}
+
 // Wall clock: the heaters and the fan's kick-start run on the machine's time.
 // A file in a subfolder of gcodes (uploaded with Moonraker's `path` field, as both UIs do in a
 // folder) is printed by its relative path; a path out of the folder, or through a hidden folder,
