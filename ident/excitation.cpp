@@ -69,8 +69,11 @@ std::vector<double> calibration_program(const CalibrationProgramOptions& o) {
     return s;
   };
   // Whether the drift moves at each sample (drift_through_all, or the section is random or sweep).
-  std::vector<uint8_t> drifts;
-  auto mark = [&](bool on) { drifts.resize(u.size(), on || o.drift_through_all ? 1 : 0); };
+  std::vector<uint8_t> drifts, in_random;
+  auto mark = [&](bool on) {
+    drifts.resize(u.size(), on || o.drift_through_all ? 1 : 0);
+    in_random.resize(u.size(), on ? 1 : 0);
+  };
   for (int c = 0; c < o.cycles; ++c) {
     RandomMovesOptions ro;
     ro.duration_s = o.random_s;
@@ -108,6 +111,16 @@ std::vector<double> calibration_program(const CalibrationProgramOptions& o) {
       append_from(triangle(o.reversal_span_mm, speed, o.reversals_per_speed));
     append_from(triangle(o.run_mm, o.run_speed_mm_s, 1.0));
     mark(false);
+  }
+  if (o.drift_speed_random_mm_s > 0.0 && o.drift_speed_others_mm_s > 0.0 && o.travel_mm > 0.0) {
+    double x = 0.0, dir = 1.0;
+    for (size_t k = 0; k < u.size(); ++k) {
+      u[k] += x;
+      x += dir * (in_random[k] ? o.drift_speed_random_mm_s : o.drift_speed_others_mm_s) * dt;
+      if (x > o.travel_mm) x = 2.0 * o.travel_mm - x, dir = -1.0;
+      if (x < 0.0) x = -x, dir = 1.0;
+    }
+    return u;
   }
   size_t drift_samples = 0;
   for (uint8_t d : drifts) drift_samples += d;

@@ -75,6 +75,12 @@ struct CalibrationProgramOptions {
   // false: the drift moves during the random moves and the sweep only, and stands still through
   // the reversals and the runs (their speeds are then the set ones both ways).
   bool drift_through_all = true;
+  // Both > 0: the drift moves at these two speeds instead (mm/s; drift_passes and
+  // drift_through_all are then unused): one under the random moves and the sweep, the other
+  // under the reversals and the runs; it turns at 0 and travel_mm. For a program slow where the
+  // periodic errors are read and above the Stribeck speed elsewhere (docs/ident.md).
+  double drift_speed_random_mm_s = 0.0;
+  double drift_speed_others_mm_s = 0.0;
   uint64_t seed = 1;
 };
 

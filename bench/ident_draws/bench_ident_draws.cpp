@@ -10,9 +10,10 @@
 //   bench_ident_draws [--draws N] [--first-seed S] [--kinds k1,k2,..] [--duration S] [--threads N]
 //                     [--verbose] [--candidates] [--json FILE] [--save-traces DIR]
 //                     [--drift-passes N] [--reversal-speeds A,B,C] [--drift-still-in-runs]
-// The last three change the calibration program's drift (passes over the travel; standing still
-// through the reversals and runs) and its three reversal speeds (mm/s) from
-// ident::CalibrationProgramOptions's defaults.
+//                     [--drift-speeds RANDOM,OTHERS]
+// The last four change the calibration program's drift (passes over the travel; standing still
+// through the reversals and runs; two speeds, under the random moves and sweep and under the
+// rest) and its three reversal speeds (mm/s) from ident::CalibrationProgramOptions's defaults.
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -320,6 +321,12 @@ int main(int argc, char** argv) {
       json_path = next();
     else if (a == "--save-traces")
       save_dir = next();
+    else if (a == "--drift-speeds" && i + 1 < argc &&
+             std::sscanf(argv[i + 1], "%lf,%lf", &shape.drift_speed_random_mm_s,
+                         &shape.drift_speed_others_mm_s) == 2 &&
+             shape.drift_speed_random_mm_s > 0.0 && shape.drift_speed_others_mm_s > 0.0 &&
+             shape.drift_speed_random_mm_s <= 500.0 && shape.drift_speed_others_mm_s <= 500.0)
+      ++i;
     else if (a == "--drift-still-in-runs")
       shape.drift_through_all = false;
     else if (a == "--drift-passes" && i + 1 < argc && std::atoi(argv[i + 1]) >= 1 &&
@@ -339,7 +346,8 @@ int main(int argc, char** argv) {
           "[--duration S] [--excitation random|calibration] [--simulator sim|plant2] [--threads N] "
           "[--weighed-mass] [--verbose] [--candidates] "
           "[--json FILE] [--save-traces DIR] [--drift-passes N (1-100)] "
-          "[--reversal-speeds A,B,C (mm/s)] [--drift-still-in-runs]\n");
+          "[--reversal-speeds A,B,C (mm/s)] [--drift-still-in-runs] "
+          "[--drift-speeds RANDOM,OTHERS (mm/s)]\n");
       return 2;
     }
   }
@@ -373,12 +381,19 @@ int main(int argc, char** argv) {
   std::vector<Job> jobs;
   for (size_t k = 0; k < kinds.size(); ++k)
     for (int i = 0; i < draws; ++i) jobs.push_back({k, first_seed + static_cast<uint64_t>(i)});
-  char shape_text[200];
+  char drift_text[120];
+  if (shape.drift_speed_random_mm_s > 0.0)
+    std::snprintf(drift_text, sizeof drift_text,
+                  "drift at %g mm/s under the random moves and sweep, %g under the rest",
+                  shape.drift_speed_random_mm_s, shape.drift_speed_others_mm_s);
+  else
+    std::snprintf(drift_text, sizeof drift_text, "drift %d pass(es)%s", shape.drift_passes,
+                  shape.drift_through_all ? "" : " still in reversals and runs");
+  char shape_text[300];
   std::snprintf(shape_text, sizeof shape_text,
-                "the calibration program (ident/excitation.hpp, 3 cycles; drift %d pass(es)%s, "
+                "the calibration program (ident/excitation.hpp, 3 cycles; %s, "
                 "reversals at %g, %g, %g mm/s)",
-                shape.drift_passes, shape.drift_through_all ? "" : " still in reversals and runs",
-                shape.reversal_speeds_mm_s[0], shape.reversal_speeds_mm_s[1],
+                drift_text, shape.reversal_speeds_mm_s[0], shape.reversal_speeds_mm_s[1],
                 shape.reversal_speeds_mm_s[2]);
   const std::string excitation =
       calibration
@@ -500,16 +515,18 @@ int main(int argc, char** argv) {
           ratios[3 * ratios.size() / 4], ratios.front(), ratios.back());
   }
   if (!json_path.empty()) {
-    nlohmann::json j{{"benchmark", "ident_draws"},
-                     {"simulator", plant2 ? "plant2" : "sim"},
-                     {"first_seed", first_seed},
-                     {"draws_per_kind", draws},
-                     {"duration_s", duration_s},
-                     {"excitation", calibration ? "calibration" : "random"},
-                     {"drift_passes", shape.drift_passes},
-                     {"drift_through_all", shape.drift_through_all},
-                     {"reversal_speeds_mm_s", shape.reversal_speeds_mm_s},
-                     {"rows", rows}};
+    nlohmann::json j{
+        {"benchmark", "ident_draws"},
+        {"simulator", plant2 ? "plant2" : "sim"},
+        {"first_seed", first_seed},
+        {"draws_per_kind", draws},
+        {"duration_s", duration_s},
+        {"excitation", calibration ? "calibration" : "random"},
+        {"drift_passes", shape.drift_passes},
+        {"drift_through_all", shape.drift_through_all},
+        {"drift_speeds_mm_s", {shape.drift_speed_random_mm_s, shape.drift_speed_others_mm_s}},
+        {"reversal_speeds_mm_s", shape.reversal_speeds_mm_s},
+        {"rows", rows}};
     std::ofstream f(json_path);
     if (!f) {
       std::perror(json_path.c_str());

@@ -86,6 +86,25 @@ TEST(CalibrationProgram, ADriftThatStandsStillThroughTheRunsLeavesTheirSpeeds) {
   EXPECT_NEAR(u.back(), 0.0, 0.1);
 }
 
+// Two drift speeds: one under the random moves and the sweep, the other under the reversals and
+// the runs (a program slow where periodic errors are read and above the Stribeck speed elsewhere).
+TEST(CalibrationProgram, TwoDriftSpeedsMoveUnderTheirSections) {
+  CalibrationProgramOptions still, two;
+  still.travel_mm = 0.0;  // the sections alone
+  two.drift_speed_random_mm_s = 6.0;
+  two.drift_speed_others_mm_s = 12.5;
+  const std::vector<double> u0 = calibration_program(still), u = calibration_program(two);
+  ASSERT_EQ(u0.size(), u.size());
+  auto drift_step = [&](size_t k) { return (u[k] - u0[k]) - (u[k - 1] - u0[k - 1]); };
+  // The first cycle: 12 s of random moves and sweep at 6 mm/s (72 mm out), then the reversals
+  // and the run at 12.5 mm/s: the turn at 80 mm comes at 12.64 s, the next at 0 mm at 19.04 s.
+  for (size_t k = 1; k < 12000; ++k) ASSERT_NEAR(drift_step(k), 0.006, 1e-9) << "sample " << k;
+  for (size_t k = 12700; k < 19000; ++k)
+    ASSERT_NEAR(drift_step(k), -0.0125, 1e-9) << "sample " << k;
+  const auto [lo, hi] = std::minmax_element(u.begin(), u.end());
+  EXPECT_GE(*hi - *lo, 80.0);
+}
+
 sim::GantryAxisParams y_axis_with_resonance(double freq_hz) {
   sim::GantryAxisParams p = sim::thesis_y_axis();
   p.belt_span_mm = 1e6;  // the linear model's belt everywhere (docs/simulator.md)
