@@ -617,7 +617,7 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
   const bool exclusion = cmd.is('M', 486) && cmd.subcode == gcode::kObjectExclude && !cmd.unknown;
   // A job that has just parked owns nothing any more (the tick would release it next): a jog
   // right after the pause is not refused as busy.
-  if (owner_ == kJobOwner && (!job_ || !job_->sending())) owner_ = 0;
+  release_ownership_of_a_quiet_job();
   if (owner_ != 0 && owner_ != cid && !exclusion)
     return "busy: the print is owned by " + owner_name();
   if (owner_ != cid && !exclusion) {
@@ -940,7 +940,7 @@ void Daemon::tick() {
   // Ownership ends after the owner has been idle long enough; a job owns the print while it
   // sends commands (printing and its pause/resume/cancel moves; not while paused).
   if (owner_ == kJobOwner) {
-    if (!job_ || !job_->sending()) owner_ = 0;
+    release_ownership_of_a_quiet_job();
   } else if (owner_ != 0 && machine_->idle()) {
     const Client* o = find_client(owner_);
     if (!o || (o->in_flight == 0 && !o->parked &&

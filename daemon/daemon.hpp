@@ -219,6 +219,11 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   void flush_internal();
   // Who owns the print, for an error text.
   std::string owner_name() const;
+  // A job owns the print only while it sends commands (printing, its pause/resume/cancel moves):
+  // once it has parked, been cancelled or finished, the print is free again.
+  void release_ownership_of_a_quiet_job() {
+    if (owner_ == kJobOwner && (!job_ || !job_->sending())) owner_ = 0;
+  }
   // Sends the ready answers at the front of c.replies (queries are answered there).
   void flush_replies(Client& c);
   // Ownership + submit. Returns an error text when refused; parks when the queue is full.
