@@ -41,13 +41,21 @@ void check_command(const Command& c) {
     for (char p = 'A'; p <= 'Z'; ++p) check(!c.has(p) || p == 'K' || p == 'S');
     return;
   }
-  // Klipper's object labels, translated into M486 with the form as subcode (gcode/command.hpp):
-  // flags C (CURRENT=1) and R (RESET=1) only, the name valid UTF-8 text.
+  // Object labels (Klipper's forms, Marlin's and RepRapFirmware's M486), translated into M486
+  // with the form as subcode (gcode/command.hpp): flags C (CURRENT=1) and R (RESET=1) only, and
+  // an object's name with the index S of the object it starts (RepRapFirmware); the name valid
+  // UTF-8 text, for a name without the characters that would end an EXCLUDE_OBJECT NAME= value.
   if (c.letter == 'M' && c.code == 486) {
-    check(c.subcode >= kObjectDefine && c.subcode <= kObjectExclude);
+    check(c.subcode >= kObjectDefine && c.subcode <= kObjectName);
     for (char p = 'A'; p <= 'Z'; ++p)
-      check(!c.has(p) || ((p == 'C' || p == 'R') && !c.has_value(p)));
+      check(!c.has(p) || ((p == 'C' || p == 'R') && !c.has_value(p)) ||
+            (p == 'S' && c.subcode == kObjectName && c.get('S') >= 0));
     check(c.subcode != kObjectStart || !c.text.empty());
+    if (c.subcode == kObjectName) {
+      check(!c.text.empty());
+      for (const char ch : c.text)
+        check(ch != ' ' && ch != '\t' && ch != ';' && ch != '*' && ch != '"' && ch != '\'');
+    }
     return;
   }
   const CodeRule* rule = find_code_rule(c.letter, c.code);

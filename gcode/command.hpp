@@ -13,12 +13,15 @@ namespace feedloop::gcode {
 
 // Object labels (Klipper's EXCLUDE_OBJECT family, gcode/parser.cpp): M486 with one of these
 // subcodes, the object's name in `text`. The parser gives them for the Klipper forms and for
-// Marlin's M486 T/S/P/C, the index as the name (a literal "M486.2" is an unknown command).
+// Marlin's M486 T/S/P/C, the index as the name (a literal "M486.2" is an unknown command), and
+// kObjectName for the name PrusaSlicer gives an indexed object (M486 A<name>: the current
+// object's; RepRapFirmware's M486 S<i> A"name": object i's, which starts, the index in S).
 enum ObjectLabelForm : int {
   kObjectDefine = 1,
   kObjectStart = 2,
   kObjectEnd = 3,
-  kObjectExclude = 4
+  kObjectExclude = 4,
+  kObjectName = 5
 };
 
 struct Command {

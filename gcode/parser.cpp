@@ -95,6 +95,12 @@ class LineParser {
   // Marlin's own M486 (index form) into the Klipper forms' subcodes: Ok and the command
   // unchanged when it is not one of them (it stays unknown).
   Status translate_marlin_object_label();
+  // An object's name (M486 A<name>; RepRapFirmware's M486 S<i> A"name"): true when the line is
+  // one (then *st is the outcome).
+  bool parse_object_name(Status* st);
+  // The command kept (letter, code, line number), its parameters and text dropped: M486 as the
+  // object-label form `subcode`, known.
+  void restart_as_object_label(int subcode);
   Status validate() const;
   Status check_parameter(const CodeRule& rule, const ParamRule& p, char letter) const;
   void keep_as_text();  // an unknown command whose argument is not G-code words
@@ -111,6 +117,15 @@ class LineParser {
 
 Status LineParser::run() {
   Status st = parse_words();
+  // An object's name is free text, whatever letters, quotes or stars it holds: its words are not
+  // parameters (nor is their failure the line's).
+  if (out_.is('M', 486) && out_.subcode < 0 && !extended_) {
+    Status named = Status::Ok();
+    if (parse_object_name(&named)) {
+      if (!named) out_.clear();
+      return named;
+    }
+  }
   if (!st) {
     // An unknown command whose argument is not G-code words (a file name, a message) keeps the
     // argument as text instead of failing: unknown commands are the caller's business.
@@ -426,10 +441,10 @@ bool LineParser::parse_exclude_object(size_t word, Status* st) {
 //   M486 P<i>       M486.4 i    object i is skipped from now on
 //   M486 C          M486.4 C    the current object is skipped from now on
 // One of T, S, P and C per line (no slicer writes more). U<i> (Marlin's un-cancel) is refused:
-// an excluded object stays excluded until the print ends, as in Klipper. A line with an A is the
-// object's name, which PrusaSlicer writes after the S in a line of its own ("M486 AShape-Box"):
-// it stays an unknown command, ignored, whatever letters the name holds ("M486 AP2" cancels
-// nothing).
+// an excluded object stays excluded until the print ends, as in Klipper. The object's name,
+// which PrusaSlicer writes after the S in a line of its own ("M486 AShape-Box id:0 copy 0"), is
+// parse_object_name()'s; an A that is not a word of its own ("M486 S1A") leaves the line unknown.
+// The command keeps no parameter but the Klipper forms' flags (R, C).
 Status LineParser::translate_marlin_object_label() {
   if (out_.has('A')) return Status::Ok();
   if (out_.has('U'))
@@ -451,21 +466,95 @@ Status LineParser::translate_marlin_object_label() {
   int i = 0;
   if (out_.has('T')) {
     if (Status st = index('T', 0, &i); !st) return st;
-    out_.subcode = kObjectDefine;
+    restart_as_object_label(kObjectDefine);
     out_.set_flag('R');
   } else if (out_.has('S')) {
     if (Status st = index('S', -1, &i); !st) return st;
-    out_.subcode = i < 0 ? kObjectEnd : kObjectStart;
+    restart_as_object_label(i < 0 ? kObjectEnd : kObjectStart);
     if (i >= 0) out_.text = std::to_string(i);
   } else if (out_.has('P')) {
     if (Status st = index('P', 0, &i); !st) return st;
-    out_.subcode = kObjectExclude;
+    restart_as_object_label(kObjectExclude);
     out_.text = std::to_string(i);
   } else {
-    out_.subcode = kObjectExclude;  // C: its flag says "the current object"
+    restart_as_object_label(kObjectExclude);
+    out_.set_flag('C');  // the current object
   }
-  out_.unknown = false;
   return Status::Ok();
+}
+
+void LineParser::restart_as_object_label(int subcode) {
+  const int64_t line_number = out_.line_number;
+  out_.clear();
+  out_.letter = 'M';
+  out_.code = 486;
+  out_.subcode = subcode;
+  out_.line_number = line_number;
+}
+
+// An object's name, as PrusaSlicer writes it with "label objects: firmware-specific": for Marlin
+// on a line of its own after the object's S ("M486 AShape-Box id:0 copy 0"), for RepRapFirmware
+// on the S line, quoted ("M486 S3 A\"cube copy 3\""). The name is the rest of the line after the
+// A (a comment and a verified checksum left out; one pair of enclosing quotes taken off); it names
+// the current object, or, with S, object S, which starts (M486.5; the name in `text`, the index
+// in S). The name is upper-cased as Klipper's are, and a blank, quote, star, semicolon or bracket
+// in it becomes '_', so that Mainsail's and Fluidd's "exclude object" sends it back as one
+// EXCLUDE_OBJECT NAME= value. "M486 A" (no name) stays unknown, ignored; "M486 S<i> A" is S<i>.
+bool LineParser::parse_object_name(Status* st) {
+  const size_t semicolon = s_.find(';', code_end_);
+  const std::string_view arg =
+      trim_text(s_.substr(code_end_, semicolon == std::string_view::npos ? std::string_view::npos
+                                                                         : semicolon - code_end_));
+  const size_t arg_pos = static_cast<size_t>(arg.data() - s_.data());
+  size_t a = std::string_view::npos;  // the A word: the argument's first, or after a blank
+  for (size_t k = 0; k < arg.size() && a == std::string_view::npos; ++k)
+    if ((arg[k] == 'A' || arg[k] == 'a') && (k == 0 || is_space(arg[k - 1]))) a = k;
+  if (a == std::string_view::npos) return false;
+  // Before the A: nothing (Marlin), or S<index> (RepRapFirmware).
+  std::string_view before = trim_text(arg.substr(0, a));
+  int index = -2;  // none
+  if (!before.empty()) {
+    const auto bad = [&] {
+      *st = fail(arg_pos, "M486: an object's name (A) goes on a line of its own or after S<index>");
+      return true;
+    };
+    if (before.front() != 'S' && before.front() != 's') return bad();
+    before = trim_text(before.substr(1));
+    const bool negative = !before.empty() && before.front() == '-';
+    if (negative) before.remove_prefix(1);
+    if (before.empty() || before.size() > 7) return bad();
+    int v = 0;
+    for (const char c : before) {
+      if (!is_digit(c)) return bad();
+      v = v * 10 + (c - '0');
+    }
+    if (negative && v != 1) return bad();
+    index = negative ? -1 : v;
+  }
+  std::string_view name = trim_text(arg.substr(a + 1));
+  if (name.size() >= 2 && (name.front() == '"' || name.front() == '\'') &&
+      name.back() == name.front())
+    name = trim_text(name.substr(1, name.size() - 2));
+  if (index == -1) {  // "M486 S-1 A...": no object; a name for none is nothing
+    restart_as_object_label(kObjectEnd);
+    return true;
+  }
+  if (name.empty()) {
+    if (index < 0) return false;  // "M486 A": nothing named
+    restart_as_object_label(kObjectStart);
+    out_.text = std::to_string(index);
+    return true;
+  }
+  restart_as_object_label(kObjectName);
+  assign_valid_utf8(out_.text, name);  // the outside-string boundary
+  for (char& c : out_.text) {
+    if (is_alpha(c))
+      c = to_upper(c);
+    else if (is_space(c) || c == '"' || c == '\'' || c == '*' || c == ';' || c == '[' || c == ']')
+      c = '_';
+  }
+  if (index >= 0) out_.set('S', index);
+  return true;
 }
 
 // Klipper's SET_PRESSURE_ADVANCE [EXTRUDER=extruder] [ADVANCE=<s>] [SMOOTH_TIME=<s>] (Klipper

@@ -130,7 +130,7 @@ Status Interpreter::execute(const gcode::Command& c) {
       case 900:
         return pressure_advance(c);
       case 486:
-        if (c.subcode >= gcode::kObjectDefine && c.subcode <= gcode::kObjectExclude && !c.unknown)
+        if (c.subcode >= gcode::kObjectDefine && c.subcode <= gcode::kObjectName && !c.unknown)
           return object_label(c);
         ++ignored_;
         return {};
@@ -266,10 +266,26 @@ Status Interpreter::object_label(const gcode::Command& c) {
       if (!objects_.define(name)) return fail(c, "too many objects (at most 1024 defined)");
       return {};
     case gcode::kObjectStart:
-      if (!objects_.start(name)) return fail(c, "too many objects (at most 1024 defined)");
+      if (!objects_.start(objects_.resolve(name)))
+        return fail(c, "too many objects (at most 1024 defined)");
       return {};
     case gcode::kObjectEnd:
       objects_.end();
+      return {};
+    case gcode::kObjectName:
+      // RepRapFirmware's M486 S<i> A"name" starts object i too; Marlin's M486 A<name> names the
+      // object its S line started. A name another object has keeps this one's index (no slicer
+      // writes two objects of one name: PrusaSlicer's hold the id and the copy).
+      if (c.has('S')) {
+        const std::string index = std::to_string(static_cast<int>(c.get('S')));
+        if (!objects_.start(objects_.resolve(index)))
+          return fail(c, "too many objects (at most 1024 defined)");
+      }
+      // A name for no object (a stray name line) is nothing to do, as Marlin ignores the A.
+      if (objects_.current().empty())
+        ++ignored_;
+      else
+        objects_.name_current(name);
       return {};
     default:  // kObjectExclude
       if (c.has('R')) {
@@ -285,7 +301,8 @@ Status Interpreter::object_label(const gcode::Command& c) {
         return {};
       }
       if (name.empty()) return {};  // the list: the status reports it
-      if (!objects_.exclude(name)) return fail(c, "too many objects (at most 1024 excluded)");
+      if (!objects_.exclude(objects_.resolve(name)))
+        return fail(c, "too many objects (at most 1024 excluded)");
       return {};
   }
 }

@@ -362,15 +362,15 @@ TEST_F(WebJobsVirtual, TheWebExcludesAnObjectOfARunningPrint) {
 }
 
 // The same kind of plate sliced for a Marlin printer (PrusaSlicer's M486 index form, with its
-// name lines): the web lists the objects by index and excludes object 1 while the job is paused
-// at the file's M601; resumed, nothing of object 1 is planned: as many moves as the planner's
-// own interpreter plans with "M486 P1" (12 fewer than with it), plus the job's way back (3
-// moves) and its settle dwell.
+// name lines): the web lists the objects by their names and excludes object 1 by its name, as
+// Mainsail sends it, while the job is paused at the file's M601; resumed, nothing of object 1 is
+// planned: as many moves as the planner's own interpreter plans with "M486 P1" (12 fewer than
+// with it), plus the job's way back (3 moves) and its settle dwell.
 std::string marlin_objects_gcode() {
   std::string g = "G28\nM83\nM486 T2\n";
   for (int i = 0; i < 2; ++i)
-    g += "M486 S" + std::to_string(i) + "\nM486 AShape-Box (Instance " + std::to_string(i + 1) +
-         ")\nM486 S-1\n";
+    g += "M486 S" + std::to_string(i) + "\nM486 AShape-Box id:" + std::to_string(i) +
+         " copy 0\nM486 S-1\n";
   g += "G1 Z0.3 F600\nG1 X20 Y20 F9000\nM601\n";
   for (int layer = 0; layer < 2; ++layer) {
     g += "G1 Z" + std::to_string(0.3 + 0.2 * layer) + " F600\n";
@@ -387,7 +387,7 @@ std::string marlin_objects_gcode() {
   return g + "G1 X10 Y200 F9000\n";
 }
 
-TEST_F(WebJobsVirtual, TheWebExcludesAMarlinLabelledObjectByItsIndex) {
+TEST_F(WebJobsVirtual, TheWebExcludesAMarlinLabelledObjectByItsName) {
   const std::string text = marlin_objects_gcode();
   { std::ofstream(dir_ + "/gcodes/marlin.gcode") << text; }
   LineClient api;
@@ -402,13 +402,14 @@ TEST_F(WebJobsVirtual, TheWebExcludesAMarlinLabelledObjectByItsIndex) {
   ASSERT_EQ(call(api, "job.status")["result"]["state"], "paused");
   json s = objects("exclude_object");
   ASSERT_EQ(s["exclude_object"]["objects"].size(), 2u) << s.dump();
-  EXPECT_EQ(s["exclude_object"]["objects"][0]["name"], "0");
-  EXPECT_EQ(s["exclude_object"]["objects"][1]["name"], "1");
+  EXPECT_EQ(s["exclude_object"]["objects"][0]["name"], "SHAPE-BOX_ID:0_COPY_0");
+  EXPECT_EQ(s["exclude_object"]["objects"][1]["name"], "SHAPE-BOX_ID:1_COPY_0");
   Reply ex = request(port(), http::verb::post, "/printer/gcode/script",
-                     json{{"script", "EXCLUDE_OBJECT NAME=1"}}.dump());
+                     json{{"script", "EXCLUDE_OBJECT NAME=SHAPE-BOX_ID:1_COPY_0"}}.dump());
   ASSERT_EQ(ex.status, 200) << ex.body.dump();
   s = objects("exclude_object");
-  ASSERT_EQ(s["exclude_object"]["excluded_objects"], json::array({"1"})) << s.dump();
+  ASSERT_EQ(s["exclude_object"]["excluded_objects"], json::array({"SHAPE-BOX_ID:1_COPY_0"}))
+      << s.dump();
   const uint64_t before = moves_planned();
   ASSERT_EQ(request(port(), http::verb::post, "/printer/print/resume").status, 200);
   s = wait_objects(

@@ -175,7 +175,7 @@ TEST(Parser, KlippersObjectLabelsBecomeM486WithTheFormAndTheName) {
 }
 
 // Marlin's own M486 (CANCEL_OBJECTS), as PrusaSlicer writes it for a Marlin printer: the index
-// is the object's name; the name lines (A) are ignored whatever letters they hold.
+// is the object's name until a name line (A) gives it one.
 TEST(Parser, MarlinsObjectLabelsBecomeTheSameFormsWithTheIndexAsName) {
   Command c = ok("M486 T3");
   EXPECT_FALSE(c.unknown);
@@ -195,11 +195,40 @@ TEST(Parser, MarlinsObjectLabelsBecomeTheSameFormsWithTheIndexAsName) {
   c = ok("M486 C");
   EXPECT_EQ(c.subcode, kObjectExclude);
   EXPECT_TRUE(c.has('C'));
-  for (const char* name :
-       {"M486 AShape-Box (Instance 1)", "M486 AP2", "M486 AS", "M486 A", "M486", "M486 AT1 S2"}) {
-    c = ok(name);
-    EXPECT_TRUE(c.unknown) << name;
-    EXPECT_EQ(c.subcode, -1) << name;
+  // The translated forms keep no Marlin parameter (only the Klipper forms' flags).
+  c = ok("M486 P3");
+  EXPECT_FALSE(c.has('P'));
+  EXPECT_FALSE(c.has_any_parameter());
+  // Names (PrusaSlicer's "M486 A<name>" after the S line): free text, whatever letters, stars or
+  // quotes it holds, upper-cased, with '_' for what would end an EXCLUDE_OBJECT NAME= value.
+  for (const auto& [line, name] : std::vector<std::pair<std::string, std::string>>{
+           {"M486 AShape-Box id:0 copy 0", "SHAPE-BOX_ID:0_COPY_0"},
+           {"M486 AShape-Box (Instance 1) ; a comment", "SHAPE-BOX_(INSTANCE_1)"},
+           {"M486 AP2", "P2"},  // a name, not a cancel
+           {"M486 AS", "S"},
+           {"M486 AT1 S2", "T1_S2"},
+           {"M486 A'star*box'", "STAR_BOX"},
+           {"M486 a\"two  words\"", "TWO__WORDS"}}) {
+    c = ok(line);
+    EXPECT_FALSE(c.unknown) << line;
+    EXPECT_EQ(c.subcode, kObjectName) << line;
+    EXPECT_EQ(c.text, name) << line;
+    EXPECT_FALSE(c.has_any_parameter()) << line;
+  }
+  // RepRapFirmware's one-line form: object S starts and is named.
+  c = ok("M486 S3 A\"cube copy 3\"");
+  EXPECT_EQ(c.subcode, kObjectName);
+  EXPECT_EQ(c.text, "CUBE_COPY_3");
+  EXPECT_EQ(c.get('S', -1), 3.0);
+  c = ok("M486 S4 A\"\"");  // no name: S4
+  EXPECT_EQ(c.subcode, kObjectStart);
+  EXPECT_EQ(c.text, "4");
+  c = ok("M486 S-1 A\"x\"");  // no object
+  EXPECT_EQ(c.subcode, kObjectEnd);
+  for (const char* nothing : {"M486 A", "M486", "M486 S1A"}) {
+    c = ok(nothing);
+    EXPECT_TRUE(c.unknown) << nothing;
+    EXPECT_EQ(c.subcode, -1) << nothing;
   }
   for (const auto& [line, what] : std::vector<std::pair<std::string, std::string>>{
            {"M486 S", "S takes an object index"},
@@ -208,7 +237,10 @@ TEST(Parser, MarlinsObjectLabelsBecomeTheSameFormsWithTheIndexAsName) {
            {"M486 P-1", "P takes an object index"},
            {"M486 T", "T takes an object index"},
            {"M486 S1 P2", "one of T, S, P and C per line"},
-           {"M486 U1", "not supported"}}) {
+           {"M486 U1", "not supported"},
+           {"M486 T3 Afoo", "goes on a line of its own or after S<index>"},
+           {"M486 S1.5 Afoo", "goes on a line of its own or after S<index>"},
+           {"M486 S-3 Afoo", "goes on a line of its own or after S<index>"}}) {
     auto bad = parse_line(line, SourceLocation{"t", 7, 0});
     ASSERT_FALSE(bad.ok()) << line;
     EXPECT_NE(bad.error().message.find(what), std::string::npos)

@@ -116,18 +116,22 @@ TEST(Interpreter, AnExcludedObjectsMovesAreSkippedAndItsExtrusionIsNotMadeUp) {
 }
 
 // The same plate labelled as PrusaSlicer labels it for a Marlin printer (M486 index form): the
-// header defines objects 0 and 1 (with name lines, ignored); object 1 is cancelled by its index
-// (M486 P1, as OctoPrint's Cancelobject or Marlin's menu sends it) and its moves are skipped;
-// M486 C during object 0 skips the rest of it; M486 T starts a new plate.
+// header starts objects 0 and 1 and names them (M486 A, upper-cased, blanks as '_'; "M486 AP0" is
+// a name, not a cancel); object 1 is cancelled by its index (M486 P1, as OctoPrint's
+// Cancelobject or Marlin's menu sends it) and its moves are skipped; M486 C during object 0 skips
+// the rest of it; M486 T starts a new plate, where an index is no name's alias any more.
 TEST(Interpreter, MarlinsObjectIndexesAreExcludedAsKlippersNames) {
   Rig r(test::cartesian_config());
-  for (const char* l : {"G28", "M83", "M486 T2", "M486 S0", "M486 AShape-Box (Instance 1)",
+  for (const char* l : {"G28", "M83", "M486 T2", "M486 S0", "M486 AShape-Box id:0 copy 0",
                         "M486 S-1", "M486 S1", "M486 AP0", "M486 S-1", "G1 Z0.3 F600"})
     ASSERT_TRUE(r.run(l)) << l;
-  EXPECT_EQ(r.interp.objects().defined(), (std::vector<std::string>{"0", "1"}));
-  EXPECT_TRUE(r.interp.objects().excluded().empty());  // "M486 AP0" is a name, not a cancel
+  const std::string box = "SHAPE-BOX_ID:0_COPY_0";
+  EXPECT_EQ(r.interp.objects().defined(), (std::vector<std::string>{box, "P0"}));
+  EXPECT_TRUE(r.interp.objects().excluded().empty());
   ASSERT_TRUE(r.run("M486 P1"));
+  EXPECT_EQ(r.interp.objects().excluded(), (std::vector<std::string>{"P0"}));
   ASSERT_TRUE(r.run("M486 S0"));
+  EXPECT_EQ(r.interp.objects().current(), box);  // the index reaches its name
   ASSERT_TRUE(r.run("G1 X40 Y40 F6000"));
   ASSERT_TRUE(r.run("G1 X60 Y40 E1.0 F1800"));
   ASSERT_TRUE(r.run("M486 S-1"));
@@ -146,14 +150,49 @@ TEST(Interpreter, MarlinsObjectIndexesAreExcludedAsKlippersNames) {
   ASSERT_TRUE(r.run("G1 X70 Y50 E0.5"));
   ASSERT_TRUE(r.run("M486 S-1"));
   EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 50.0);
-  EXPECT_EQ(r.interp.objects().excluded(), (std::vector<std::string>{"1", "0"}));
+  EXPECT_EQ(r.interp.objects().excluded(), (std::vector<std::string>{"P0", box}));
   auto s = r.run("M486 C");
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.error().message.find("no object is being printed"), std::string::npos);
-  // A new plate: nothing defined or excluded.
+  // A new plate: nothing defined or excluded, no alias.
   ASSERT_TRUE(r.run("M486 T1"));
   EXPECT_TRUE(r.interp.objects().defined().empty());
   EXPECT_TRUE(r.interp.objects().excluded().empty());
+  ASSERT_TRUE(r.run("M486 S0"));
+  EXPECT_EQ(r.interp.objects().current(), "0");
+}
+
+// A named Marlin object is excluded by the name the web shows (Mainsail's "exclude object" sends
+// EXCLUDE_OBJECT NAME=<name>) as by its index; RepRapFirmware's one-line form starts and names
+// an object; a name another object has leaves the object its index; a stray name is ignored.
+TEST(Interpreter, NamedMarlinObjectsAreExcludedByTheirNames) {
+  Rig r(test::cartesian_config());
+  for (const char* l : {"G28", "M83", "M486 AStray", "M486 T3", "M486 S0", "M486 ACube id:0 copy 0",
+                        "M486 S-1", "M486 S1 A\"Bolt copy 1\"", "M486 S-1", "M486 S2",
+                        "M486 ACube id:0 copy 0", "M486 S-1", "G1 Z0.3 F600"})
+    ASSERT_TRUE(r.run(l)) << l;
+  EXPECT_EQ(r.interp.objects().defined(),
+            (std::vector<std::string>{"CUBE_ID:0_COPY_0", "BOLT_COPY_1", "2"}));
+  ASSERT_TRUE(r.run("EXCLUDE_OBJECT NAME=CUBE_ID:0_COPY_0"));
+  ASSERT_TRUE(r.run("M486 P1"));
+  EXPECT_EQ(r.interp.objects().excluded(),
+            (std::vector<std::string>{"CUBE_ID:0_COPY_0", "BOLT_COPY_1"}));
+  const uint64_t before = r.planner.moves_added();
+  for (const char* l : {"M486 S0", "G1 X40 Y40 F6000", "G1 X60 Y40 E1.0 F1800", "M486 S-1",
+                        "M486 S1", "G1 X140 Y140 F6000", "M486 S-1"})
+    ASSERT_TRUE(r.run(l)) << l;
+  EXPECT_EQ(r.planner.moves_added(), before);  // both skipped, by either name
+  EXPECT_EQ(r.interp.skipped_lines(), 3u);
+  ASSERT_TRUE(r.run("M486 S2"));
+  ASSERT_TRUE(r.run("G1 X100 Y100 F6000"));
+  EXPECT_EQ(r.planner.moves_added(), before + 1);  // object 2 prints
+  // An object excluded by its index before it was named stays excluded under its name.
+  ASSERT_TRUE(r.run("M486 T1"));
+  ASSERT_TRUE(r.run("M486 P0"));
+  ASSERT_TRUE(r.run("M486 S0"));
+  ASSERT_TRUE(r.run("M486 AGear"));
+  EXPECT_EQ(r.interp.objects().excluded(), (std::vector<std::string>{"GEAR"}));
+  EXPECT_EQ(r.interp.objects().defined(), (std::vector<std::string>{"GEAR"}));
 }
 
 TEST(Interpreter, M204SelectsPrintRetractAndTravelAcceleration) {
