@@ -104,6 +104,13 @@ class LineParser {
   Status validate() const;
   Status check_parameter(const CodeRule& rule, const ParamRule& p, char letter) const;
   void keep_as_text();  // an unknown command whose argument is not G-code words
+  // The command's argument as text: from its code to a comment, trimmed (trim_text).
+  std::string_view argument_text() const {
+    const size_t semicolon = s_.find(';', code_end_);
+    return trim_text(s_.substr(code_end_, semicolon == std::string_view::npos
+                                              ? std::string_view::npos
+                                              : semicolon - code_end_));
+  }
 
   std::string_view s_;
   const SourceLocation& where_;
@@ -179,11 +186,7 @@ Status LineParser::parse_words() {
         Status st = parse_command_code(word, letter);
         if (!st) return st;
         if (is_text_command(out_.letter, out_.code)) {
-          const size_t semicolon = s_.find(';', i_);
-          const std::string_view rest =
-              s_.substr(i_, semicolon == std::string_view::npos ? std::string_view::npos
-                                                                : semicolon - i_);
-          assign_valid_utf8(out_.text, trim_text(rest));  // the outside-string boundary
+          assign_valid_utf8(out_.text, argument_text());  // the outside-string boundary
           return Status::Ok();
         }
       } else {
@@ -501,10 +504,7 @@ void LineParser::restart_as_object_label(int subcode) {
 // in it becomes '_', so that Mainsail's and Fluidd's "exclude object" sends it back as one
 // EXCLUDE_OBJECT NAME= value. "M486 A" (no name) stays unknown, ignored; "M486 S<i> A" is S<i>.
 bool LineParser::parse_object_name(Status* st) {
-  const size_t semicolon = s_.find(';', code_end_);
-  const std::string_view arg =
-      trim_text(s_.substr(code_end_, semicolon == std::string_view::npos ? std::string_view::npos
-                                                                         : semicolon - code_end_));
+  const std::string_view arg = argument_text();
   const size_t arg_pos = static_cast<size_t>(arg.data() - s_.data());
   size_t a = std::string_view::npos;  // the A word: the argument's first, or after a blank
   for (size_t k = 0; k < arg.size() && a == std::string_view::npos; ++k)
@@ -643,11 +643,7 @@ void LineParser::keep_as_text() {
   out_.subcode = subcode;
   out_.line_number = line_number;
   out_.unknown = true;
-  const size_t semicolon = s_.find(';', code_end_);
-  assign_valid_utf8(out_.text,
-                    trim_text(s_.substr(code_end_, semicolon == std::string_view::npos
-                                                       ? std::string_view::npos
-                                                       : semicolon - code_end_)));
+  assign_valid_utf8(out_.text, argument_text());
 }
 
 Status LineParser::validate() const {
