@@ -68,11 +68,13 @@ std::vector<double> calibration_program(const CalibrationProgramOptions& o) {
     }
     return s;
   };
-  // Whether the drift moves at each sample (drift_through_all, or the section is random or sweep).
-  std::vector<uint8_t> drifts, in_random;
-  auto mark = [&](bool on) {
-    drifts.resize(u.size(), on || o.drift_through_all ? 1 : 0);
-    in_random.resize(u.size(), on ? 1 : 0);
+  // Whether the drift moves at each sample (drift_through_all, or the section is random or sweep),
+  // and each sample's section.
+  enum Section : uint8_t { kRandomOrSweep, kReversals, kRuns };
+  std::vector<uint8_t> drifts, section;
+  auto mark = [&](Section s) {
+    drifts.resize(u.size(), s == kRandomOrSweep || o.drift_through_all ? 1 : 0);
+    section.resize(u.size(), s);
   };
   for (int c = 0; c < o.cycles; ++c) {
     RandomMovesOptions ro;
@@ -106,17 +108,21 @@ std::vector<double> calibration_program(const CalibrationProgramOptions& o) {
       sw[sw.size() - 1 - i] *= w;
     }
     append_from(sw);
-    mark(true);
+    mark(kRandomOrSweep);
     for (double speed : o.reversal_speeds_mm_s)
       append_from(triangle(o.reversal_span_mm, speed, o.reversals_per_speed));
+    mark(kReversals);
     append_from(triangle(o.run_mm, o.run_speed_mm_s, 1.0));
-    mark(false);
+    mark(kRuns);
   }
   if (o.drift_speed_random_mm_s > 0.0 && o.drift_speed_others_mm_s > 0.0 && o.travel_mm > 0.0) {
+    const double speed_mm_s[3] = {
+        o.drift_speed_random_mm_s, o.drift_speed_others_mm_s,
+        o.drift_speed_runs_mm_s < 0.0 ? o.drift_speed_others_mm_s : o.drift_speed_runs_mm_s};
     double x = 0.0, dir = 1.0;
     for (size_t k = 0; k < u.size(); ++k) {
       u[k] += x;
-      x += dir * (in_random[k] ? o.drift_speed_random_mm_s : o.drift_speed_others_mm_s) * dt;
+      x += dir * speed_mm_s[section[k]] * dt;
       if (x > o.travel_mm) x = 2.0 * o.travel_mm - x, dir = -1.0;
       if (x < 0.0) x = -x, dir = 1.0;
     }

@@ -81,6 +81,9 @@ struct CalibrationProgramOptions {
   // periodic errors are read and above the Stribeck speed elsewhere (docs/ident.md).
   double drift_speed_random_mm_s = 0.0;
   double drift_speed_others_mm_s = 0.0;
+  // With the two above: the drift's speed under the runs alone (0: it stands still there, so the
+  // runs go at run_speed_mm_s both ways; < 0: drift_speed_others_mm_s).
+  double drift_speed_runs_mm_s = -1.0;
   uint64_t seed = 1;
 };
 

@@ -10,10 +10,11 @@
 //   bench_ident_draws [--draws N] [--first-seed S] [--kinds k1,k2,..] [--duration S] [--threads N]
 //                     [--verbose] [--candidates] [--json FILE] [--save-traces DIR]
 //                     [--drift-passes N] [--reversal-speeds A,B,C] [--drift-still-in-runs]
-//                     [--drift-speeds RANDOM,OTHERS]
-// The last four change the calibration program's drift (passes over the travel; standing still
+//                     [--drift-speeds RANDOM,OTHERS[,RUNS]] [--run-speed V]
+// The last five change the calibration program's drift (passes over the travel; standing still
 // through the reversals and runs; two speeds, under the random moves and sweep and under the
-// rest) and its three reversal speeds (mm/s) from ident::CalibrationProgramOptions's defaults.
+// rest, or three, the runs' apart), its three reversal speeds and its runs' speed (mm/s) from
+// ident::CalibrationProgramOptions's defaults.
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -322,11 +323,15 @@ int main(int argc, char** argv) {
     else if (a == "--save-traces")
       save_dir = next();
     else if (a == "--drift-speeds" && i + 1 < argc &&
-             std::sscanf(argv[i + 1], "%lf,%lf", &shape.drift_speed_random_mm_s,
-                         &shape.drift_speed_others_mm_s) == 2 &&
+             std::sscanf(argv[i + 1], "%lf,%lf,%lf", &shape.drift_speed_random_mm_s,
+                         &shape.drift_speed_others_mm_s, &shape.drift_speed_runs_mm_s) >= 2 &&
              shape.drift_speed_random_mm_s > 0.0 && shape.drift_speed_others_mm_s > 0.0 &&
-             shape.drift_speed_random_mm_s <= 500.0 && shape.drift_speed_others_mm_s <= 500.0)
+             shape.drift_speed_random_mm_s <= 500.0 && shape.drift_speed_others_mm_s <= 500.0 &&
+             shape.drift_speed_runs_mm_s <= 500.0)
       ++i;
+    else if (a == "--run-speed" && i + 1 < argc && std::atof(argv[i + 1]) > 0.0 &&
+             std::atof(argv[i + 1]) <= 500.0)
+      shape.run_speed_mm_s = std::atof(next().c_str());
     else if (a == "--drift-still-in-runs")
       shape.drift_through_all = false;
     else if (a == "--drift-passes" && i + 1 < argc && std::atoi(argv[i + 1]) >= 1 &&
@@ -347,7 +352,7 @@ int main(int argc, char** argv) {
           "[--weighed-mass] [--verbose] [--candidates] "
           "[--json FILE] [--save-traces DIR] [--drift-passes N (1-100)] "
           "[--reversal-speeds A,B,C (mm/s)] [--drift-still-in-runs] "
-          "[--drift-speeds RANDOM,OTHERS (mm/s)]\n");
+          "[--drift-speeds RANDOM,OTHERS[,RUNS] (mm/s; RUNS 0: still)] [--run-speed V (mm/s)]\n");
       return 2;
     }
   }
@@ -381,20 +386,26 @@ int main(int argc, char** argv) {
   std::vector<Job> jobs;
   for (size_t k = 0; k < kinds.size(); ++k)
     for (int i = 0; i < draws; ++i) jobs.push_back({k, first_seed + static_cast<uint64_t>(i)});
-  char drift_text[120];
-  if (shape.drift_speed_random_mm_s > 0.0)
+  char drift_text[160];
+  if (shape.drift_speed_random_mm_s > 0.0 && shape.drift_speed_runs_mm_s >= 0.0)
+    std::snprintf(drift_text, sizeof drift_text,
+                  "drift at %g mm/s under the random moves and sweep, %g under the reversals, %g "
+                  "under the runs",
+                  shape.drift_speed_random_mm_s, shape.drift_speed_others_mm_s,
+                  shape.drift_speed_runs_mm_s);
+  else if (shape.drift_speed_random_mm_s > 0.0)
     std::snprintf(drift_text, sizeof drift_text,
                   "drift at %g mm/s under the random moves and sweep, %g under the rest",
                   shape.drift_speed_random_mm_s, shape.drift_speed_others_mm_s);
   else
     std::snprintf(drift_text, sizeof drift_text, "drift %d pass(es)%s", shape.drift_passes,
                   shape.drift_through_all ? "" : " still in reversals and runs");
-  char shape_text[300];
+  char shape_text[400];
   std::snprintf(shape_text, sizeof shape_text,
                 "the calibration program (ident/excitation.hpp, 3 cycles; %s, "
-                "reversals at %g, %g, %g mm/s)",
+                "reversals at %g, %g, %g mm/s, runs at %g mm/s)",
                 drift_text, shape.reversal_speeds_mm_s[0], shape.reversal_speeds_mm_s[1],
-                shape.reversal_speeds_mm_s[2]);
+                shape.reversal_speeds_mm_s[2], shape.run_speed_mm_s);
   const std::string excitation =
       calibration
           ? std::string(shape_text)
@@ -515,18 +526,20 @@ int main(int argc, char** argv) {
           ratios[3 * ratios.size() / 4], ratios.front(), ratios.back());
   }
   if (!json_path.empty()) {
-    nlohmann::json j{
-        {"benchmark", "ident_draws"},
-        {"simulator", plant2 ? "plant2" : "sim"},
-        {"first_seed", first_seed},
-        {"draws_per_kind", draws},
-        {"duration_s", duration_s},
-        {"excitation", calibration ? "calibration" : "random"},
-        {"drift_passes", shape.drift_passes},
-        {"drift_through_all", shape.drift_through_all},
-        {"drift_speeds_mm_s", {shape.drift_speed_random_mm_s, shape.drift_speed_others_mm_s}},
-        {"reversal_speeds_mm_s", shape.reversal_speeds_mm_s},
-        {"rows", rows}};
+    nlohmann::json j{{"benchmark", "ident_draws"},
+                     {"simulator", plant2 ? "plant2" : "sim"},
+                     {"first_seed", first_seed},
+                     {"draws_per_kind", draws},
+                     {"duration_s", duration_s},
+                     {"excitation", calibration ? "calibration" : "random"},
+                     {"drift_passes", shape.drift_passes},
+                     {"drift_through_all", shape.drift_through_all},
+                     {"drift_speeds_mm_s",
+                      {shape.drift_speed_random_mm_s, shape.drift_speed_others_mm_s,
+                       shape.drift_speed_runs_mm_s}},
+                     {"run_speed_mm_s", shape.run_speed_mm_s},
+                     {"reversal_speeds_mm_s", shape.reversal_speeds_mm_s},
+                     {"rows", rows}};
     std::ofstream f(json_path);
     if (!f) {
       std::perror(json_path.c_str());

@@ -105,6 +105,28 @@ TEST(CalibrationProgram, TwoDriftSpeedsMoveUnderTheirSections) {
   EXPECT_GE(*hi - *lo, 80.0);
 }
 
+// A third speed for the runs alone: 0 stands the drift still there, so the runs go at their own
+// speed both ways (docs/ident.md, "Faster than the Stribeck speed").
+TEST(CalibrationProgram, ADriftStillUnderTheRunsLeavesThemTheirSpeed) {
+  CalibrationProgramOptions still, three;
+  still.travel_mm = 0.0;
+  three.drift_speed_random_mm_s = 6.0;
+  three.drift_speed_others_mm_s = 12.5;
+  three.drift_speed_runs_mm_s = 0.0;
+  const std::vector<double> u0 = calibration_program(still), u = calibration_program(three);
+  ASSERT_EQ(u0.size(), u.size());
+  auto drift_step = [&](size_t k) { return (u[k] - u0[k]) - (u[k - 1] - u0[k - 1]); };
+  // The first cycle: random moves and sweep to 12 s at 6 mm/s, the reversals (3.13 s) at 12.5
+  // mm/s back from the turn at 80 mm (12.64 s), then the run (4 s) with the drift still.
+  for (size_t k = 1; k < 12000; ++k) ASSERT_NEAR(drift_step(k), 0.006, 1e-9) << "sample " << k;
+  for (size_t k = 12700; k < 15100; ++k)
+    ASSERT_NEAR(drift_step(k), -0.0125, 1e-9) << "sample " << k;
+  for (size_t k = 15200; k < 19100; ++k) ASSERT_NEAR(drift_step(k), 0.0, 1e-9) << "sample " << k;
+  // The run's speed is the program's run_speed_mm_s both ways.
+  EXPECT_NEAR((u[16500] - u[16000]) / 0.5, three.run_speed_mm_s, 1e-9);
+  EXPECT_NEAR((u[18500] - u[18000]) / 0.5, -three.run_speed_mm_s, 1e-9);
+}
+
 sim::GantryAxisParams y_axis_with_resonance(double freq_hz) {
   sim::GantryAxisParams p = sim::thesis_y_axis();
   p.belt_span_mm = 1e6;  // the linear model's belt everywhere (docs/simulator.md)
