@@ -86,21 +86,35 @@ TEST(CalibrationProgram, ADriftThatStandsStillThroughTheRunsLeavesTheirSpeeds) {
   EXPECT_NEAR(u.back(), 0.0, 0.1);
 }
 
+// The drift a program adds to its sections: the program less the same sections without one.
+std::vector<double> drift_of(const CalibrationProgramOptions& o) {
+  CalibrationProgramOptions still;
+  still.travel_mm = 0.0;  // the sections alone
+  const std::vector<double> u0 = calibration_program(still), u = calibration_program(o);
+  EXPECT_EQ(u0.size(), u.size());
+  std::vector<double> d(std::min(u.size(), u0.size()));
+  for (size_t k = 0; k < d.size(); ++k) d[k] = u[k] - u0[k];
+  return d;
+}
+
+// Samples [k0, k1) of the drift move by step_mm each.
+void expect_drift_steps(const std::vector<double>& d, size_t k0, size_t k1, double step_mm) {
+  ASSERT_LE(k1, d.size());
+  for (size_t k = k0; k < k1; ++k) ASSERT_NEAR(d[k] - d[k - 1], step_mm, 1e-9) << "sample " << k;
+}
+
 // Two drift speeds: one under the random moves and the sweep, the other under the reversals and
 // the runs (a program slow where periodic errors are read and above the Stribeck speed elsewhere).
 TEST(CalibrationProgram, TwoDriftSpeedsMoveUnderTheirSections) {
-  CalibrationProgramOptions still, two;
-  still.travel_mm = 0.0;  // the sections alone
+  CalibrationProgramOptions two;
   two.drift_speed_random_mm_s = 6.0;
   two.drift_speed_others_mm_s = 12.5;
-  const std::vector<double> u0 = calibration_program(still), u = calibration_program(two);
-  ASSERT_EQ(u0.size(), u.size());
-  auto drift_step = [&](size_t k) { return (u[k] - u0[k]) - (u[k - 1] - u0[k - 1]); };
+  const std::vector<double> d = drift_of(two);
   // The first cycle: 12 s of random moves and sweep at 6 mm/s (72 mm out), then the reversals
   // and the run at 12.5 mm/s: the turn at 80 mm comes at 12.64 s, the next at 0 mm at 19.04 s.
-  for (size_t k = 1; k < 12000; ++k) ASSERT_NEAR(drift_step(k), 0.006, 1e-9) << "sample " << k;
-  for (size_t k = 12700; k < 19000; ++k)
-    ASSERT_NEAR(drift_step(k), -0.0125, 1e-9) << "sample " << k;
+  expect_drift_steps(d, 1, 12000, 0.006);
+  expect_drift_steps(d, 12700, 19000, -0.0125);
+  const std::vector<double> u = calibration_program(two);
   const auto [lo, hi] = std::minmax_element(u.begin(), u.end());
   EXPECT_GE(*hi - *lo, 80.0);
 }
@@ -108,21 +122,18 @@ TEST(CalibrationProgram, TwoDriftSpeedsMoveUnderTheirSections) {
 // A third speed for the runs alone: 0 stands the drift still there, so the runs go at their own
 // speed both ways (docs/ident.md, "Faster than the Stribeck speed").
 TEST(CalibrationProgram, ADriftStillUnderTheRunsLeavesThemTheirSpeed) {
-  CalibrationProgramOptions still, three;
-  still.travel_mm = 0.0;
+  CalibrationProgramOptions three;
   three.drift_speed_random_mm_s = 6.0;
   three.drift_speed_others_mm_s = 12.5;
   three.drift_speed_runs_mm_s = 0.0;
-  const std::vector<double> u0 = calibration_program(still), u = calibration_program(three);
-  ASSERT_EQ(u0.size(), u.size());
-  auto drift_step = [&](size_t k) { return (u[k] - u0[k]) - (u[k - 1] - u0[k - 1]); };
+  const std::vector<double> d = drift_of(three);
   // The first cycle: random moves and sweep to 12 s at 6 mm/s, the reversals (3.13 s) at 12.5
   // mm/s back from the turn at 80 mm (12.64 s), then the run (4 s) with the drift still.
-  for (size_t k = 1; k < 12000; ++k) ASSERT_NEAR(drift_step(k), 0.006, 1e-9) << "sample " << k;
-  for (size_t k = 12700; k < 15100; ++k)
-    ASSERT_NEAR(drift_step(k), -0.0125, 1e-9) << "sample " << k;
-  for (size_t k = 15200; k < 19100; ++k) ASSERT_NEAR(drift_step(k), 0.0, 1e-9) << "sample " << k;
+  expect_drift_steps(d, 1, 12000, 0.006);
+  expect_drift_steps(d, 12700, 15100, -0.0125);
+  expect_drift_steps(d, 15200, 19100, 0.0);
   // The run's speed is the program's run_speed_mm_s both ways.
+  const std::vector<double> u = calibration_program(three);
   EXPECT_NEAR((u[16500] - u[16000]) / 0.5, three.run_speed_mm_s, 1e-9);
   EXPECT_NEAR((u[18500] - u[18000]) / 0.5, -three.run_speed_mm_s, 1e-9);
 }
