@@ -68,14 +68,10 @@ std::vector<double> calibration_program(const CalibrationProgramOptions& o) {
     }
     return s;
   };
-  // Whether the drift moves at each sample (drift_through_all, or the section is random or sweep),
-  // and each sample's section.
+  // Each sample's section (mark() after a section is appended).
   enum Section : uint8_t { kRandomOrSweep, kReversals, kRuns };
-  std::vector<uint8_t> drifts, section;
-  auto mark = [&](Section s) {
-    drifts.resize(u.size(), s == kRandomOrSweep || o.drift_through_all ? 1 : 0);
-    section.resize(u.size(), s);
-  };
+  std::vector<uint8_t> section;
+  auto mark = [&](Section s) { section.resize(u.size(), s); };
   for (int c = 0; c < o.cycles; ++c) {
     RandomMovesOptions ro;
     ro.duration_s = o.random_s;
@@ -128,8 +124,13 @@ std::vector<double> calibration_program(const CalibrationProgramOptions& o) {
     }
     return u;
   }
+  // One drift speed: the drift moves under every section (drift_through_all) or under the
+  // random moves and the sweep only.
+  auto drifts = [&](size_t k) -> size_t {
+    return o.drift_through_all || section[k] == kRandomOrSweep ? 1 : 0;
+  };
   size_t drift_samples = 0;
-  for (uint8_t d : drifts) drift_samples += d;
+  for (size_t k = 0; k < u.size(); ++k) drift_samples += drifts(k);
   const double passes = static_cast<double>(std::max(o.drift_passes, 1));
   size_t moved = 0;
   for (size_t k = 0; k < u.size(); ++k) {
@@ -137,7 +138,7 @@ std::vector<double> calibration_program(const CalibrationProgramOptions& o) {
                                        static_cast<double>(std::max<size_t>(drift_samples, 1)),
                                    1.0);
     u[k] += o.travel_mm * (phase < 0.5 ? 2.0 * phase : 2.0 * (1.0 - phase));
-    moved += drifts[k];
+    moved += drifts(k);
   }
   return u;
 }

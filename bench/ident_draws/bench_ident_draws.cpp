@@ -283,6 +283,30 @@ std::vector<std::string> split(const std::string& s) {
   return out;
 }
 
+// --drift-speeds RANDOM,OTHERS[,RUNS]: each in (0, 500] mm/s, RUNS in [0, 500] (0: still).
+bool drift_speeds_read(const char* text, ident::CalibrationProgramOptions& shape) {
+  double v[3] = {0.0, 0.0, -1.0};
+  int n = 0;
+  for (const char* p = text; n < 3; ++n) {  // numbers separated by commas, nothing else
+    char* end = nullptr;
+    v[n] = std::strtod(p, &end);
+    if (end == p) return false;
+    p = end;
+    if (*p == '\0') {
+      ++n;
+      break;
+    }
+    if (*p++ != ',' || n == 2) return false;
+  }
+  const double r = v[0], o = v[1], runs = v[2];
+  if (n < 2 || !(r > 0.0 && r <= 500.0) || !(o > 0.0 && o <= 500.0)) return false;
+  if (n == 3 && !(runs >= 0.0 && runs <= 500.0)) return false;
+  shape.drift_speed_random_mm_s = r;
+  shape.drift_speed_others_mm_s = o;
+  shape.drift_speed_runs_mm_s = n == 3 ? runs : -1.0;
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -322,12 +346,7 @@ int main(int argc, char** argv) {
       json_path = next();
     else if (a == "--save-traces")
       save_dir = next();
-    else if (a == "--drift-speeds" && i + 1 < argc &&
-             std::sscanf(argv[i + 1], "%lf,%lf,%lf", &shape.drift_speed_random_mm_s,
-                         &shape.drift_speed_others_mm_s, &shape.drift_speed_runs_mm_s) >= 2 &&
-             shape.drift_speed_random_mm_s > 0.0 && shape.drift_speed_others_mm_s > 0.0 &&
-             shape.drift_speed_random_mm_s <= 500.0 && shape.drift_speed_others_mm_s <= 500.0 &&
-             shape.drift_speed_runs_mm_s <= 500.0)
+    else if (a == "--drift-speeds" && i + 1 < argc && drift_speeds_read(argv[i + 1], shape))
       ++i;
     else if (a == "--run-speed" && i + 1 < argc && std::atof(argv[i + 1]) > 0.0 &&
              std::atof(argv[i + 1]) <= 500.0)
