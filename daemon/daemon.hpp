@@ -135,10 +135,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   engine::ServoStatus servo_status() const override;
   web::JobStatus job_status() const override;
   planner::ObjectLabels object_labels() const override { return machine_->object_labels(); }
-  bool has_object_labels() const override {
-    const planner::ObjectLabels o = machine_->object_labels();
-    return !o.defined().empty() || !o.excluded().empty() || !o.current().empty();
-  }
+  bool has_object_labels() const override { return !machine_->object_labels().empty(); }
   void run_gcode(std::string script, std::function<void(bool ok, std::string response)> done) override;
   std::string start_job(const std::string& path, const std::string& filename) override;
   std::string job_name_error(const std::string& filename) const override;

@@ -328,7 +328,7 @@ void PrintJob::track_modes(const gcode::Command& c) {
   } else if (c.is('M', 486) && !c.unknown && c.subcode == gcode::kObjectStart) {
     modes_.object = c.text;
   } else if (c.is('M', 486) && !c.unknown && c.subcode == gcode::kObjectName && c.has('S')) {
-    modes_.object = std::to_string(static_cast<int>(c.get('S')));  // RepRapFirmware's start
+    modes_.object = planner::ObjectLabels::index_name(c.get('S'));  // RepRapFirmware's start
   } else if (c.is('M', 486) && !c.unknown && c.subcode == gcode::kObjectEnd) {
     modes_.object.clear();
   }

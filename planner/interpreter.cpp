@@ -277,7 +277,7 @@ Status Interpreter::object_label(const gcode::Command& c) {
       // object its S line started. A name another object has keeps this one's index (no slicer
       // writes two objects of one name: PrusaSlicer's hold the id and the copy).
       if (c.has('S')) {
-        const std::string index = std::to_string(static_cast<int>(c.get('S')));
+        const std::string index = ObjectLabels::index_name(c.get('S'));
         if (!objects_.start(objects_.resolve(index)))
           return fail(c, "too many objects (at most 1024 defined)");
       }

@@ -71,6 +71,12 @@ class ObjectLabels {
   // EXCLUDE_OBJECT RESET=1: every object printed again.
   void reset_excluded() { excluded_.clear(); }
 
+  // An object labelled by its index (M486 S<i>): its name is the index in decimal, as the
+  // parser writes it for M486 S<i> alone (gcode/parser.cpp).
+  static std::string index_name(double index) { return std::to_string(static_cast<int>(index)); }
+
+  // Nothing defined, excluded or being printed: the G-code labels no objects.
+  bool empty() const { return defined_.empty() && excluded_.empty() && current_.empty(); }
   // The moves of the current object are skipped.
   bool excluding() const { return !current_.empty() && contains(excluded_, current_); }
   const std::string& current() const { return current_; }

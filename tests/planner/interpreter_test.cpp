@@ -122,6 +122,7 @@ TEST(Interpreter, AnExcludedObjectsMovesAreSkippedAndItsExtrusionIsNotMadeUp) {
 // the rest of it; M486 T starts a new plate, where an index is no name's alias any more.
 TEST(Interpreter, MarlinsObjectIndexesAreExcludedAsKlippersNames) {
   Rig r(test::cartesian_config());
+  EXPECT_TRUE(r.interp.objects().empty());
   for (const char* l : {"G28", "M83", "M486 T2", "M486 S0", "M486 AShape-Box id:0 copy 0",
                         "M486 S-1", "M486 S1", "M486 AP0", "M486 S-1", "G1 Z0.3 F600"})
     ASSERT_TRUE(r.run(l)) << l;
@@ -158,8 +159,10 @@ TEST(Interpreter, MarlinsObjectIndexesAreExcludedAsKlippersNames) {
   ASSERT_TRUE(r.run("M486 T1"));
   EXPECT_TRUE(r.interp.objects().defined().empty());
   EXPECT_TRUE(r.interp.objects().excluded().empty());
+  EXPECT_TRUE(r.interp.objects().empty());
   ASSERT_TRUE(r.run("M486 S0"));
   EXPECT_EQ(r.interp.objects().current(), "0");
+  EXPECT_FALSE(r.interp.objects().empty());
 }
 
 // A named Marlin object is excluded by the name the web shows (Mainsail's "exclude object" sends
