@@ -1,6 +1,7 @@
 // Host session with one MCU: see mcu_session.hpp.
 #include "drivers/host/mcu_session.hpp"
 
+#include "drivers/device/loop_params.hpp"  // loop_param_error_name
 #include "drivers/device/virtual_mcu.hpp"  // kMaxAxes
 
 #include <cmath>
@@ -552,6 +553,14 @@ void McuSession::on_payload(const uint8_t* p, size_t n) {
         // kTargetOverflow: r(t) lost a knot, so the device loop brakes to rest and the MCU stops
         // (it was an event only: the host streamed on to an MCU that no longer took its steps).
         fail(msg + io_stall_note() + "; the MCU stopped its motor");
+      } else if (code == McuError::kBadLoopConfig) {
+        // The device loop the host configured is not running as configured (the set is refused
+        // whole: docs/protocol.md). Going on would print with the loop off, or on the old
+        // parameters, while the host believes it closed: it was an event only until 2026-12-06.
+        const auto why =
+            static_cast<device::LoopParamError>(detail >= 0 && detail < 256 ? detail : 255);
+        fail(msg + ": " + device::loop_param_error_name(why) +
+             "; the device loop is not running as configured, motion stopped");
       } else if (code == McuError::kNotIdentified && state_ == McuState::kReady) {
         // An identified MCU never says this: it restarted or stopped, and every step sent since
         // is lost.

@@ -99,7 +99,7 @@ struct Rig {
     return true;
   }
 
-  void configure_loop(double t_activate) {
+  void configure_loop(double t_activate, float kp = 0.5f) {
     protocol::ConfigureLoopMsg m;
     device::LoopParams& p = m.params;
     const sim::GantryAxisParams gp = plant_params();
@@ -107,7 +107,7 @@ struct Rig {
     p.period_ticks = static_cast<uint32_t>(kHz / 1000);
     p.nm_per_count_q16 = static_cast<uint32_t>(std::llround(axis->encoder_mm_per_count() * 1e6 * 65536));
     p.nm_per_step_q16 = static_cast<uint32_t>(std::llround(axis->mm_per_step() * 1e6 * 65536));
-    p.kp = 0.5f;  // thesis Sect. 5: P = 0.5, I = 20
+    p.kp = kp;  // thesis Sect. 5: P = 0.5, I = 20
     p.ki_per_s = 20.0f;
     p.slip_cycle_nm = static_cast<float>(4 * gp.microsteps * axis->mm_per_step() * 1e6);
     p.deflection_s2 = static_cast<float>(gp.carriage_mass_kg / gp.belt_stiffness_n_m);
@@ -291,6 +291,23 @@ TEST(VmcuLoop, HostSilentEndsInAControlledStop) {
   EXPECT_NEAR(v[0], 100.0, 10.0);
   EXPECT_LT(max_drop, 10.0);  // an instant stop would drop ~100 mm/s in one ms
   EXPECT_GT(i_stop, 100u);
+}
+
+// A parameter set the device refuses (ERROR_REPORT 12) leaves its loop off: the session fails
+// with the reason, instead of streaming on to an axis the host believes closed.
+TEST(VmcuLoop, RefusedLoopParametersFailTheSessionWithTheReason) {
+  Rig rig;
+  ASSERT_TRUE(rig.start());
+  rig.configure_loop(0.3, -1.0f);  // a negative gain: the device refuses the set
+  while (rig.now < 0.5 && rig.session->state() == McuState::kReady) rig.advance(rig.now + 0.001);
+  EXPECT_EQ(rig.mcu->loop(0).state(), device::LoopState::kIdle);
+  EXPECT_EQ(rig.mcu->status().last_error, protocol::McuError::kBadLoopConfig);
+  ASSERT_EQ(rig.session->state(), McuState::kFailed);
+  ASSERT_TRUE(rig.session->error().has_value());
+  const std::string& m = rig.session->error()->message;
+  EXPECT_NE(m.find("configuration refused"), std::string::npos) << m;
+  EXPECT_NE(m.find("kp or ki negative"), std::string::npos) << m;
+  EXPECT_NE(m.find("motion stopped"), std::string::npos) << m;
 }
 
 TEST(VmcuLoop, VersionOneHostStillWorks) {
