@@ -88,16 +88,21 @@ std::vector<Case> cases() {
 
 class EffectCase : public ::testing::TestWithParam<Case> {};
 
+// The case's plant driven by `command` (mm at 1 kHz), recorded and identified.
+Result<IdentResult> identify_on(const Case& c, const std::vector<double>& command) {
+  auto trace = sim::record_gantry_trace(plant_for(c), command, 1000.0, std::string(1, c.axis));
+  if (!trace.ok()) return trace.error();
+  const AxisTrace& a = trace.value().axes[0];
+  return identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(), FitOptions{});
+}
+
 // 30 s of random moves recorded on the case's plant, identified.
 Result<IdentResult> identify_case(const Case& c) {
   RandomMovesOptions ro;
   ro.duration_s = 30.0;
   ro.seed = 11;
   if (c.belt_direction) ro.travel_mm = 0.0;
-  auto trace = sim::record_gantry_trace(plant_for(c), random_moves(ro), 1000.0, std::string(1, c.axis));
-  if (!trace.ok()) return trace.error();
-  const AxisTrace& a = trace.value().axes[0];
-  return identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(), FitOptions{});
+  return identify_on(c, random_moves(ro));
 }
 
 // The RMS the clean trace of the axis leaves after its fit (once per axis and process).
@@ -172,17 +177,14 @@ INSTANTIATE_TEST_SUITE_P(Gantry, EffectCase, ::testing::ValuesIn(selected_cases(
 // A 120 um dead band on the thesis's X axis, the top of the second simulator's drawn widths (the
 // first simulator draws 15-60), through the calibration program that `feedloop calibrate` runs:
 // named a backlash, its width within 25 %. A bound of 150 um on the fitted width (tried against
-// frictions named as 96-300 um dead bands) named this one a friction: the screening fit's width
-// passes the bound on its way (docs/ident.md, "Friction against backlash").
+// frictions named as 96-300 um dead bands) named this one a friction (docs/ident.md, "Friction
+// against backlash").
 TEST(EffectBounds, ABacklashAtTheTopOfTheDrawnWidthsIsNamed) {
   Case c{"x_wide_backlash", 'x', {}, false, {}};
   c.effects.backlash = {true, 120.0};
   CalibrationProgramOptions o;
   o.seed = 11;
-  auto trace = sim::record_gantry_trace(plant_for(c), calibration_program(o), 1000.0, "x");
-  ASSERT_TRUE(trace.ok());
-  const AxisTrace& a = trace.value().axes[0];
-  auto r = identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(), FitOptions{});
+  auto r = identify_on(c, calibration_program(o));
   ASSERT_TRUE(r.ok()) << r.error().to_string();
   const IdentResult& res = r.value();
   std::printf("120 um drawn: %zu effect(s), width %.2f um, held out %.2f -> %.2f um\n",
