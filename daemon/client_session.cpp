@@ -61,6 +61,7 @@ void ClientSession::write_next() {
     writing_buf_ += out_.front();
     out_.pop_front();
   }
+  if (before_write_) before_write_();
   do_write(writing_buf_);
 }
 

@@ -44,6 +44,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   using LineHandler = std::function<void(ClientSession&, std::string_view line, bool too_long)>;
   using CloseHandler = std::function<void(ClientSession&)>;
   using UrgentTest = std::function<bool(std::string_view line)>;
+  using WriteGuard = std::function<void()>;
 
   ClientSession(uint64_t id, std::string name) : id_(id), name_(std::move(name)) {}
   virtual ~ClientSession() = default;
@@ -59,6 +60,8 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   void set_limits(const InputLimits& limits);
   // Lines for which `urgent` is true are handled as they arrive, ahead of everything.
   void set_urgent(UrgentTest urgent) { urgent_ = std::move(urgent); }
+  // Runs before each write to the client (the pty keeps its slave side from echoing there).
+  void set_before_write(WriteGuard guard) { before_write_ = std::move(guard); }
 
   // Queues `line` plus '\n'. Returns false (and closes the session) when the client has more
   // than max_pending_bytes unread. `droppable` lines (status notifications) are skipped instead
@@ -115,6 +118,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   LineHandler on_line_;
   CloseHandler on_close_;
   UrgentTest urgent_;
+  WriteGuard before_write_;
   std::deque<std::string> out_;
   std::string writing_buf_;  // the lines of the write in progress, coalesced
   size_t pending_bytes_ = 0;

@@ -123,8 +123,23 @@ Status PtyChannel::open(const std::string& link_path, SessionFactory on_session)
   }
   session_ = std::make_shared<StreamSession<asio::posix::stream_descriptor>>(
       0, "pty:" + slave_name_, asio::posix::stream_descriptor(io_, master));
+  session_->set_before_write([this] { keep_slave_from_echoing(); });
   on_session(session_);
   return Status::Ok();
+}
+
+void PtyChannel::keep_slave_from_echoing() {
+  termios tio{};
+  if (slave_fd_ < 0 || ::tcgetattr(slave_fd_, &tio) != 0) return;
+  if ((tio.c_lflag & (ECHO | ECHONL)) == 0) return;
+  tio.c_lflag &= ~static_cast<tcflag_t>(ECHO | ECHONL);
+  ::tcsetattr(slave_fd_, TCSANOW, &tio);
+  // Once, then every 100th time: a host that sets its port up on each open is not an emergency.
+  if (echo_turned_off_++ % 100 == 0)
+    spdlog::warn(
+        "pty {}: a host turned the port's echo on (a terminal's defaults); turned it off again, "
+        "or the port would send every reply back as a command (times: {})",
+        slave_name_, echo_turned_off_);
 }
 
 void PtyChannel::close() {

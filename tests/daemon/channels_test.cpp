@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <vector>
 
 #include "tests/daemon/daemon_fixture.hpp"
 #include "tests/daemon/json_call.hpp"
@@ -132,6 +133,34 @@ TEST_F(Channels, PtyLooksLikeAMarlinSerialPort) {
   auto pos = again.read_until("X:");
   ASSERT_TRUE(pos);
   EXPECT_EQ(pos->rfind("X:4.00 Y:4.00", 0), 0u) << *pos;
+}
+
+// A host that leaves the port as a terminal's defaults (echo on) must not make the pty send the
+// daemon's replies back to it as commands: before the fix one M105 became an endless exchange of
+// errors ("parameter O before any command", 330 kB in 3 s). One question, one answer, and the
+// port's echo is off again.
+TEST_F(Channels, PtyWithATerminalsEchoOnAnswersOnce) {
+  LineClient tty;
+  ASSERT_TRUE(tty.open_tty(daemon_->pty_link())) << daemon_->pty_link();
+  ASSERT_TRUE(tty.set_terminal_defaults());
+  ASSERT_TRUE(tty.echoes());
+  ASSERT_TRUE(tty.send_line("M105"));
+  auto t = tty.read_line();
+  ASSERT_TRUE(t);
+  EXPECT_EQ(t->rfind("ok T:", 0), 0u) << *t;
+  std::vector<std::string> more;
+  while (more.size() < 100)
+    if (auto extra = tty.read_line(1000))
+      more.push_back(*extra);
+    else
+      break;
+  EXPECT_TRUE(more.empty()) << more.size() << " more lines, the first: " << more.front();
+  EXPECT_FALSE(tty.echoes());
+  // The port still serves: the next question gets its one answer.
+  ASSERT_TRUE(tty.send_line("M114"));
+  auto pos = tty.read_until("X:");
+  ASSERT_TRUE(pos);
+  EXPECT_EQ(pos->rfind("X:0.00", 0), 0u) << *pos;
 }
 
 // config.reload: as SIGHUP, and {open_loop: true} rebuilds the machine open loop until the next

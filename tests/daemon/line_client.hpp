@@ -45,6 +45,19 @@ class LineClient {
     ::tcsetattr(fd_, TCSANOW, &tio);
     return true;
   }
+  // The port set up as a terminal's defaults would (`stty sane`): echo and line editing on.
+  bool set_terminal_defaults() {
+    termios tio{};
+    if (::tcgetattr(fd_, &tio) != 0) return false;
+    tio.c_lflag |= ECHO | ECHOE | ECHOK | ICANON | ISIG;
+    tio.c_iflag |= ICRNL;
+    tio.c_oflag |= OPOST | ONLCR;
+    return ::tcsetattr(fd_, TCSANOW, &tio) == 0;
+  }
+  bool echoes() const {
+    termios tio{};
+    return ::tcgetattr(fd_, &tio) == 0 && (tio.c_lflag & ECHO) != 0;
+  }
   void close() {
     if (fd_ >= 0) ::close(fd_);
     fd_ = -1;
