@@ -117,6 +117,11 @@ void write_motion(Writer& w, const MachineConfig& c) {
   w.begin("extruder");
   w.num("pressure_advance", c.extruder.pressure_advance);
   w.num("pressure_advance_smooth_time", c.extruder.pressure_advance_smooth_time);
+  w.num("min_extrude_temp", c.extruder.min_extrude_temp);
+  w.num("max_extrude_only_distance", c.extruder.max_extrude_only_distance);
+  w.num("nozzle_diameter", c.extruder.nozzle_diameter);
+  w.num("filament_diameter", c.extruder.filament_diameter);
+  w.num("max_extrude_cross_section", c.extruder.max_extrude_cross_section);
   w.end();
 
   w.begin("servo");

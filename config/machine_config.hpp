@@ -125,6 +125,14 @@ struct PlannerConfig {
 struct ExtruderConfig {
   double pressure_advance = 0.0;
   double pressure_advance_smooth_time = 0.040;
+  // Klipper's [extruder] bounds, of the same names and defaults: no E move below this hotend
+  // temperature (C; 0: none; M302 changes it), an E-only move of at most this length (mm), and at
+  // most this cross-section of track (mm^2; 4 nozzle_diameter^2 unless given).
+  double min_extrude_temp = 170.0;
+  double max_extrude_only_distance = 50.0;
+  double max_extrude_cross_section = 0.64;
+  double nozzle_diameter = 0.4;
+  double filament_diameter = 1.75;
   bool operator==(const ExtruderConfig&) const = default;
 };
 

@@ -37,12 +37,21 @@ void read_planner(MapReader& root, MachineConfig& cfg, Diagnostics& diag) {
 }
 
 // extruder: Klipper's [extruder] pressure_advance (>= 0; Marlin's M900 bounds K to 10) and
-// pressure_advance_smooth_time (Klipper: above 0, at most 0.200 s), both in seconds.
+// pressure_advance_smooth_time (Klipper: above 0, at most 0.200 s), both in seconds; its
+// extrusion bounds min_extrude_temp, max_extrude_only_distance, max_extrude_cross_section (4
+// nozzle_diameter^2 unless given), nozzle_diameter and filament_diameter.
 void read_extruder(MapReader& root, MachineConfig& cfg, Diagnostics& /*diag*/) {
   MapReader e = root.sub("extruder");
   e.number("pressure_advance", cfg.extruder.pressure_advance, Range::closed(0.0, 10.0));
   e.number("pressure_advance_smooth_time", cfg.extruder.pressure_advance_smooth_time,
            Range::open_closed(0.0, 0.2));
+  ExtruderConfig& x = cfg.extruder;
+  e.number("min_extrude_temp", x.min_extrude_temp, Range::closed(0.0, 500.0));
+  e.number("max_extrude_only_distance", x.max_extrude_only_distance, Range::closed(0.0, 1e4));
+  e.number("nozzle_diameter", x.nozzle_diameter, Range::open_closed(0.0, 5.0));
+  e.number("filament_diameter", x.filament_diameter, Range::open_closed(0.0, 5.0));
+  x.max_extrude_cross_section = 4.0 * x.nozzle_diameter * x.nozzle_diameter;  // Klipper's default
+  e.number("max_extrude_cross_section", x.max_extrude_cross_section, Range::closed(0.0, 100.0));
   e.finish();
 }
 

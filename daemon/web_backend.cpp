@@ -117,6 +117,9 @@ web::PrinterInfo Daemon::printer_info() const {
   p.min_cruise_ratio = cfg_.planner.min_cruise_ratio;
   p.servo_period_s = 1.0 / cfg_.servo.rate_hz;
   p.simulated = cfg_.uses_simulator();
+  p.min_extrude_temp_c = cfg_.extruder.min_extrude_temp;
+  p.nozzle_diameter_mm = cfg_.extruder.nozzle_diameter;
+  p.filament_diameter_mm = cfg_.extruder.filament_diameter;
   return p;
 }
 

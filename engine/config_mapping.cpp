@@ -73,6 +73,10 @@ planner::PlannerConfig planner_config(const config::MachineConfig& cfg) {
   p.allow_moves_before_homing = cfg.planner.allow_moves_before_homing;
   p.pressure_advance_s = cfg.extruder.pressure_advance;
   p.pressure_advance_smooth_time_s = cfg.extruder.pressure_advance_smooth_time;
+  p.max_extrude_only_distance_mm = cfg.extruder.max_extrude_only_distance;
+  p.max_extrude_cross_section_mm2 = cfg.extruder.max_extrude_cross_section;
+  p.filament_diameter_mm = cfg.extruder.filament_diameter;
+  p.nozzle_diameter_mm = cfg.extruder.nozzle_diameter;
   p.servo_period_s = 1.0 / cfg.servo.rate_hz;
   return p;
 }

@@ -77,6 +77,7 @@ MachineOptions machine_options(const config::MachineConfig& cfg) {
   o.servo_rate_hz = cfg.servo.rate_hz;
   o.realtime_priority = cfg.servo.realtime_priority;
   o.lock_memory = cfg.servo.lock_memory;
+  o.min_extrude_temp_c = cfg.extruder.min_extrude_temp;
   return o;
 }
 

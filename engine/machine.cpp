@@ -4,6 +4,7 @@
 
 #include <algorithm>  // std::min
 #include <chrono>     // wait_for
+#include <cmath>      // isnan
 #include <cstdio>     // snprintf
 #include <thread>
 
@@ -31,7 +32,8 @@ Machine::Machine(MachineOptions options, Clock& clock, std::unique_ptr<CommandEx
     : options_(options),
       clock_(clock),
       executor_(std::move(executor)),
-      queue_(options.command_queue_capacity) {
+      queue_(options.command_queue_capacity),
+      min_extrude_temp_c_(options.min_extrude_temp_c) {
   publish_status();
 }
 
@@ -40,6 +42,7 @@ void Machine::set_thermal(std::unique_ptr<ThermalLoop> thermal) {
   const SharedHeaterPorts* ports = executor_ ? executor_->heater_ports() : nullptr;
   servo_carries_heaters_ = thermal_ && ports != nullptr && !ports->empty();
   if (thermal_) thermal_->start(seconds_from_ns(clock_.now_ns()));
+  if (thermal_ && executor_) executor_->set_extrude_guard([this] { return why_not_extrude(); });
   publish_status();
 }
 
@@ -276,9 +279,30 @@ void Machine::fill_thermal(MachineStatus& s) const {
   std::snprintf(s.temp_report, sizeof s.temp_report, "%s", thermal_->marlin_report().c_str());
 }
 
+// Klipper's "Extrude below minimum temp" (extras/heaters.py can_extrude), Marlin's
+// PREVENT_COLD_EXTRUSION: the hotend that extrudes (T0) is below min_extrude_temp.
+std::string Machine::why_not_extrude() const {
+  if (!thermal_ || cold_extrusion_allowed_ || min_extrude_temp_c_ <= 0.0) return {};
+  const int hotend = thermal_->find_heater('T', 0);
+  if (hotend < 0) return {};
+  const double temp_c = thermal_->temp_c(hotend);  // NaN before its first report
+  if (temp_c >= min_extrude_temp_c_) return {};
+  char at[48];
+  if (std::isnan(temp_c))
+    std::snprintf(at, sizeof at, "has no temperature reading yet");
+  else
+    std::snprintf(at, sizeof at, "is at %.1f C", temp_c);
+  char buf[240];
+  std::snprintf(buf, sizeof buf,
+                "Extrude below minimum temp: %s %s, min_extrude_temp is %.0f C (heat it with M109 "
+                "S<temp>; M302 P1 allows cold extrusion)",
+                thermal_->spec(hotend).name.c_str(), at, min_extrude_temp_c_);
+  return buf;
+}
+
 bool Machine::is_machine_command(const gcode::Command& cmd) const {
   if (cmd.is('M', 104) || cmd.is('M', 109) || cmd.is('M', 140) || cmd.is('M', 190) ||
-      cmd.is('M', 303) || (cmd.is('G', 10) && cmd.has('P')))
+      cmd.is('M', 302) || cmd.is('M', 303) || (cmd.is('G', 10) && cmd.has('P')))
     return true;
   // Fans are the machine's when it has any; otherwise the executor takes (and ignores) them.
   return thermal_ && thermal_->num_fans() > 0 && (cmd.is('M', 106) || cmd.is('M', 107));
@@ -330,6 +354,14 @@ Status Machine::wait_for(const std::function<bool(double now_s)>& done, const ch
 // heating or cooling), G10 P<tool> S<active> sets the tool's temperature, M106 P<fan> S<0..255>,
 // M107 P<fan>, M303 E<heater, -1 bed> S<temp> C<cycles> U<use>.
 Status Machine::execute_machine_command(const gcode::Command& cmd) {
+  if (cmd.is('M', 302)) {  // Marlin: S<temp> the minimum, P1 allow cold extrusion, P0 do not
+    if (cmd.has('S')) {
+      if (!(cmd.get('S') >= 0.0)) return Error{"M302: S must be >= 0 C"};
+      min_extrude_temp_c_ = cmd.get('S');
+    }
+    if (cmd.has('P')) cold_extrusion_allowed_ = cmd.get('P') != 0.0;
+    return Status::Ok();
+  }
   if (!thermal_) {
     if (cmd.is('M', 303))
       return Error{"M303: this machine has no heaters (no heaters: section in the config)"};

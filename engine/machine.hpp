@@ -154,6 +154,9 @@ class CommandExecutor {
   // Any thread: the G-code's object labels (Klipper's exclude_object status; a copy taken when an
   // object label command ran). Default: none.
   virtual planner::ObjectLabels object_labels() const { return {}; }
+  // Planner thread, before start(): asked before any move that moves E (the interpreter's
+  // ExtrudeGuard): why the extruder may not move now, "" when it may. Default: not asked.
+  virtual void set_extrude_guard(std::function<std::string()> /*guard*/) {}
   // The heater ports of the motion MCUs that drive heaters too (make_thermal_loop's `ports`;
   // engine/shared_heater_port.hpp); nullptr: none. Fixed at construction.
   virtual const SharedHeaterPorts* heater_ports() const { return nullptr; }
@@ -174,6 +177,8 @@ struct MachineOptions {
   size_t command_queue_capacity = 64;
   int realtime_priority = 80;  // SCHED_FIFO priority of the servo thread (0 = do not try)
   bool lock_memory = true;
+  // No E move while the hotend (T0) is colder (C; 0: none); M302 changes it. Only with heaters.
+  double min_extrude_temp_c = 170.0;
 };
 
 // A finished command, reported through the completion callback on the planner thread.
@@ -314,6 +319,10 @@ class Machine {
   std::unique_ptr<ThermalLoop> thermal_;
   std::thread thermal_thread_;
   std::string autotune_report_;  // planner thread: the last M303 result
+  // Planner thread: M302 S sets the temperature, P1 allows cold extrusion (Marlin's M302).
+  double min_extrude_temp_c_ = 170.0;
+  bool cold_extrusion_allowed_ = false;
+  std::string why_not_extrude() const;  // the executor's extrude guard (planner thread)
   Seqlock<MachineStatus> status_;
   Seqlock<ServoStatus> servo_status_;
   ServoStatus inline_servo_;  // the caller's, in one-thread runs

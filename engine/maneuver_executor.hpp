@@ -74,6 +74,9 @@ class ManeuverExecutor final : public CommandExecutor, private planner::MoveSink
   Status execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) override;
   void position(double out_mm[4]) const override;
   void homed_axes(char out[4]) const override { interp_->homed_axes(out); }
+  void set_extrude_guard(std::function<std::string()> guard) override {
+    interp_->set_extrude_guard(std::move(guard));
+  }
   void idle_tick(const std::atomic<bool>& cancel) override;
   void release_lookahead() override;
   void set_waiting_for_motion(bool waiting) override { waiting_.store(waiting); }

@@ -94,6 +94,9 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   Status execute(const gcode::Command& cmd, const std::atomic<bool>& cancel) override;
   void position(double out_mm[4]) const override;
   void homed_axes(char out[4]) const override { interp_->homed_axes(out); }
+  void set_extrude_guard(std::function<std::string()> guard) override {
+    interp_->set_extrude_guard(std::move(guard));
+  }
   planner::ObjectLabels object_labels() const override {
     std::lock_guard<std::mutex> lock(objects_mu_);
     return objects_;

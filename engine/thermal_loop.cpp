@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 
 #include "drivers/protocol/heater_messages.hpp"
 
@@ -87,9 +88,11 @@ double ThermalLoop::target_c(int heater) const {
   std::lock_guard lock(mu_);
   return h_[static_cast<size_t>(heater)].target_c;
 }
+// NaN until the heater's first report: "0 C" before it would read as a frozen hotend.
 double ThermalLoop::temp_c(int heater) const {
   std::lock_guard lock(mu_);
-  return h_[static_cast<size_t>(heater)].temp_c;
+  const Heater& h = h_[static_cast<size_t>(heater)];
+  return h.have_temp ? h.temp_c : std::numeric_limits<double>::quiet_NaN();
 }
 
 bool ThermalLoop::reached(int heater, bool heating_only, double now_s) {

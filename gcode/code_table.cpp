@@ -65,6 +65,8 @@ constexpr ParamRule kAutoReport[] = {range('S', 0, 60)};
 // M303 PID autotune: E heater (-1 the bed), S temperature, C cycles, U1 use the result.
 constexpr ParamRule kAutotune[] = {{'E', K::kNumber, -1.0, kMaxIndex, false, true}, temp('S'),
                                    {'C', K::kNumber, 3.0, 20.0, false, true}, range('U', 0, 1)};
+// M302 cold extrusion (Marlin): S the minimum extrusion temperature, P1 allow cold extrusion.
+constexpr ParamRule kColdExtrude[] = {temp('S'), range('P', 0, 1)};
 // M110 set the current line number (the N word after M110).
 constexpr ParamRule kLineNumber[] = {{'N', K::kNumber, 0.0, 2147483647.0, false, true}};
 // M114 report position: D detail, E stepper position, R real position.
@@ -147,6 +149,7 @@ constexpr CodeRule kRules[] = {
     {'M', 205, "advanced motion settings", kAdvanced},
     {'M', 220, "feedrate override", kFeedOverride},
     {'M', 221, "flow override", kFlowOverride},
+    {'M', 302, "cold extrusion", kColdExtrude},
     {'M', 303, "PID autotune", kAutotune},
     {'M', 400, "wait for moves to finish", {}},
     {'M', 524, "abort file print", {}},

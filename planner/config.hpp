@@ -102,6 +102,15 @@ struct PlannerConfig {
   double pressure_advance_s = 0.0;
   double pressure_advance_smooth_time_s = 0.040;
 
+  // Extrusion bounds (Klipper's [extruder] options of the same names): an E-only move longer than
+  // max_extrude_only_distance_mm is refused, and so is a move that would push more filament per
+  // mm of travel than a track of max_extrude_cross_section_mm2 takes (unless the amount is tiny:
+  // at most nozzle_diameter_mm of such a track). 0 turns either off.
+  double max_extrude_only_distance_mm = 50.0;
+  double max_extrude_cross_section_mm2 = 0.64;  // Klipper's default: 4 nozzle_diameter^2
+  double filament_diameter_mm = 1.75;
+  double nozzle_diameter_mm = 0.4;
+
   double junction_deviation() const;
   Status validate() const;
 };

@@ -4,6 +4,7 @@
 #include <algorithm>  // clamp
 #include <cmath>    // isfinite, abs
 #include <cstdio>   // snprintf
+#include <numbers>  // pi
 #include <utility>  // std::move
 
 #include "planner/arc.hpp"
@@ -167,7 +168,47 @@ double Interpreter::accel_for(const Vec4& from, const Vec4& to) const {
   return e ? st_.print_accel_mm_s2 : st_.travel_accel_mm_s2;
 }
 
+Status Interpreter::check_extrusion(const Vec4& from, const Vec4& to,
+                                    const gcode::Command& c) const {
+  const double de_mm = to[kE] - from[kE];
+  if (de_mm == 0.0) return {};
+  if (extrude_guard_) {
+    const std::string why = extrude_guard_();
+    if (!why.empty()) return fail(c, "move rejected, nothing executed: " + why);
+  }
+  const double dx = to[0] - from[0], dy = to[1] - from[1], dz = to[2] - from[2];
+  const double travel_mm = std::sqrt(dx * dx + dy * dy + dz * dz);
+  char buf[200];
+  if (travel_mm == 0.0) {
+    const double limit_mm = cfg_.max_extrude_only_distance_mm;
+    if (limit_mm > 0.0 && std::abs(de_mm) > limit_mm) {
+      std::snprintf(buf, sizeof buf,
+                    "move rejected, nothing executed: extrude-only move too long (%.3f mm vs "
+                    "%.3f mm; extruder.max_extrude_only_distance)",
+                    std::abs(de_mm), limit_mm);
+      return fail(c, buf);
+    }
+    return {};
+  }
+  // Klipper's check (extras/extruder.py): the track this extrusion per mm of travel would lay,
+  // de * filament area / travel, against the bound; an amount under one nozzle's worth passes.
+  const double area_mm2 =
+      std::numbers::pi / 4.0 * cfg_.filament_diameter_mm * cfg_.filament_diameter_mm;
+  const double limit_mm2 = cfg_.max_extrude_cross_section_mm2;
+  const double cross_mm2 = de_mm * area_mm2 / travel_mm;
+  if (limit_mm2 > 0.0 && cross_mm2 > limit_mm2 &&
+      de_mm > cfg_.nozzle_diameter_mm * limit_mm2 / area_mm2) {
+    std::snprintf(buf, sizeof buf,
+                  "move rejected, nothing executed: move exceeds maximum extrusion (%.3f mm^2 vs "
+                  "%.3f mm^2; extruder.max_extrude_cross_section)",
+                  cross_mm2, limit_mm2);
+    return fail(c, buf);
+  }
+  return {};
+}
+
 Status Interpreter::check(const Vec4& from, const Vec4& to, const gcode::Command& c) const {
+  if (Status s = check_extrusion(from, to, c); !s) return s;
   const bool xyz = from[0] != to[0] || from[1] != to[1] || from[2] != to[2];
   if (!xyz) return {};
   if (Status s = check_homed(from, to, c); !s) return s;
@@ -385,6 +426,7 @@ Status Interpreter::retract(const gcode::Command& c, bool recover) {
     e_to[kE] -= st_.retract_length_mm;
     Vec4 z_to = e_to;
     z_to[kZ] += st_.retract_zlift_mm;
+    if (Status s = check_extrusion(st_.machine_mm, e_to, c); !s) return s;
     if (Status s = check(e_to, z_to, c); !s) return s;
     push(e_to, st_.retract_velocity_mm_s, st_.retract_accel_mm_s2, c.where.line);
     if (st_.retract_zlift_mm > 0.0) push(z_to, st_.max_axis_velocity_mm_s[kZ], st_.travel_accel_mm_s2, c.where.line);
@@ -399,6 +441,7 @@ Status Interpreter::retract(const gcode::Command& c, bool recover) {
   if (Status s = check(st_.machine_mm, z_to, c); !s) return s;
   Vec4 e_to = z_to;
   e_to[kE] += st_.retract_length_mm + st_.unretract_extra_mm;
+  if (Status s = check_extrusion(z_to, e_to, c); !s) return s;
   if (st_.hop_mm > 0.0) push(z_to, st_.max_axis_velocity_mm_s[kZ], st_.travel_accel_mm_s2, c.where.line);
   push(e_to, st_.unretract_velocity_mm_s, st_.retract_accel_mm_s2, c.where.line);
   st_.hop_mm = 0.0;

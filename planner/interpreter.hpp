@@ -21,6 +21,10 @@
 // a clear error (Klipper's "Must home axis first"; on a delta every tower must be homed), unless
 // config.allow_moves_before_homing (then the machine starts homed, the old behaviour). E needs no
 // homing.
+// Extrusion is bounded as Klipper bounds it (config.max_extrude_only_distance_mm,
+// max_extrude_cross_section_mm2), and a machine with a hotend says through set_extrude_guard()
+// whether the extruder may move at all (a cold hotend: Klipper's "Extrude below minimum temp",
+// Marlin's cold extrusion prevention); a move or retraction that moves E is refused whole then.
 // Every command is validated completely before anything changes: a rejected command (unreachable
 // or out-of-travel target, bad arc, unsupported form) returns an Error with the source location
 // and leaves the state and the planner untouched. Commands that are not about motion (heaters,
@@ -29,6 +33,8 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <string>
 
 #include "gcode/command.hpp"
 #include "planner/kinematics.hpp"
@@ -92,6 +98,9 @@ class Interpreter {
   void set_machine_position(const Vec4& at_mm);
   // A failed homing: the axes in `axes` are no longer homed.
   void set_unhomed(const bool axes[3]);
+  // Asked before any move that moves E: why the extruder may not move now ("" when it may).
+  using ExtrudeGuard = std::function<std::string()>;
+  void set_extrude_guard(ExtrudeGuard guard) { extrude_guard_ = std::move(guard); }
 
  private:
   Status linear(const gcode::Command& c);
@@ -112,6 +121,8 @@ class Interpreter {
   Vec4 to_machine(const Vec4& logical) const;
   double accel_for(const Vec4& from, const Vec4& to) const;
   Status check(const Vec4& from, const Vec4& to, const gcode::Command& c) const;
+  // The extrusion bounds and the guard, for a move from `from` to `to` (machine coordinates).
+  Status check_extrusion(const Vec4& from, const Vec4& to, const gcode::Command& c) const;
   void push(const Vec4& to, double velocity_mm_s, double accel_mm_s2, int line);
   static Status fail(const gcode::Command& c, std::string message);
 
@@ -120,6 +131,7 @@ class Interpreter {
   Planner& planner_;
   MachineState st_;
   ObjectLabels objects_;
+  ExtrudeGuard extrude_guard_;
   uint64_t ignored_ = 0, moves_ = 0, skipped_lines_ = 0;
 };
 

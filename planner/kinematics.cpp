@@ -45,6 +45,10 @@ Status PlannerConfig::validate() const {
     return bad("pressure advance must be in [0, 10] s");
   if (!(pressure_advance_smooth_time_s > 0.0 && pressure_advance_smooth_time_s <= 0.2))
     return bad("pressure advance smooth time must be in (0, 0.2] s");
+  if (!(max_extrude_only_distance_mm >= 0.0) || !(max_extrude_cross_section_mm2 >= 0.0))
+    return bad("extrusion bounds must be >= 0");
+  if (!(filament_diameter_mm > 0.0) || !(nozzle_diameter_mm > 0.0))
+    return bad("filament and nozzle diameters must be > 0");
   if (kinematics == KinematicsKind::delta) {
     const DeltaGeometry& d = delta;
     if (!(d.radius_mm > 0.0 && d.arm_length_mm > d.radius_mm && d.print_radius_mm > 0.0))

@@ -37,6 +37,10 @@ struct PrinterInfo {
   double min_cruise_ratio = 0.5;
   double servo_period_s = 0.001;
   bool simulated = false;
+  // The extruder section (Klipper's configfile.settings.extruder), from the config.
+  double min_extrude_temp_c = 170.0;
+  double nozzle_diameter_mm = 0.4;
+  double filament_diameter_mm = 1.75;
 };
 
 class PrinterBackend {

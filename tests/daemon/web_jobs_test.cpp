@@ -224,7 +224,7 @@ TEST_F(WebJobsVirtual, OnePrintJobWhicheverChannelStartsPausesOrCancelsIt) {
 // B's moves are skipped, and B's moves after it stay skipped. The next print starts with no
 // object excluded.
 std::string two_objects_gcode() {
-  std::string g = "G28\nM83\nG1 Z0.3 F600\n";
+  std::string g = "G28\nM302 P1\nM83\nG1 Z0.3 F600\n";  // cold extrusion: nothing heats here
   g += "EXCLUDE_OBJECT_DEFINE NAME='part a' CENTER=60,60 POLYGON=[[50,50],[70,50],[70,70]]\n";
   g += "EXCLUDE_OBJECT_DEFINE NAME=part_b CENTER=150,150\nM601\n";
   for (int layer = 0; layer < 3; ++layer) {
@@ -367,7 +367,7 @@ TEST_F(WebJobsVirtual, TheWebExcludesAnObjectOfARunningPrint) {
 // planned: as many moves as the planner's own interpreter plans with "M486 P1" (12 fewer than
 // with it), plus the job's way back (3 moves) and its settle dwell.
 std::string marlin_objects_gcode() {
-  std::string g = "G28\nM83\nM486 T2\n";
+  std::string g = "G28\nM302 P1\nM83\nM486 T2\n";  // cold extrusion: nothing heats here
   for (int i = 0; i < 2; ++i)
     g += "M486 S" + std::to_string(i) + "\nM486 AShape-Box id:" + std::to_string(i) +
          " copy 0\nM486 S-1\n";

@@ -319,6 +319,7 @@ TEST(Flush, InTheMiddleOfTheBenchy) {
   ASSERT_EQ(rig.run("G28"), "");
   ASSERT_EQ(rig.run("M140 S60"), "");
   ASSERT_EQ(rig.run("M104 S215"), "");
+  ASSERT_EQ(rig.run("M302 P1"), "");  // extrude while it heats: the flush is what is tested
   ASSERT_EQ(rig.run("G90"), "");
   ASSERT_EQ(rig.run("M82"), "");
   char z_line[64];

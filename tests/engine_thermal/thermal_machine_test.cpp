@@ -122,6 +122,40 @@ TEST(ThermalMachine, HeatersOnTheMotionMcusHeatWaitAndMoveOnTheMachinesThreads) 
             virt_s);  // the toolhead board heard lately (host time)
 }
 
+// Klipper's min_extrude_temp, Marlin's cold extrusion prevention: with the hotend cold, a move
+// that extrudes and a retraction are refused whole (nothing moves, E stays), a travel move is
+// not; once the hotend is hot (M109), the same move runs; M302 P1 allows cold extrusion and
+// M302 S sets the minimum.
+TEST(ThermalMachine, ColdExtrusionIsRefusedWholeUntilTheHotendIsHot) {
+  MachineRig r;
+  ASSERT_TRUE(r.m->start().ok());
+  r.run({"G1 X5 E1 F3000"});  // before the hotend's first report
+  EXPECT_EQ(r.failed.load(), 1u);
+  EXPECT_NE(r.last_failure.find("extruder has no temperature reading yet"), std::string::npos)
+      << r.last_failure;
+  r.run({"G4 P1000", "G1 X10 F3000", "G1 X20 E2 F3000", "G10", "M400"});
+  MachineStatus s = r.m->status();
+  EXPECT_EQ(r.failed.load(), 3u);
+  EXPECT_NE(r.last_failure.find("Extrude below minimum temp: extruder is at 2"), std::string::npos)
+      << r.last_failure;
+  EXPECT_NE(r.last_failure.find("min_extrude_temp is 170 C"), std::string::npos) << r.last_failure;
+  EXPECT_DOUBLE_EQ(s.pos_mm[0], 10.0);  // the travel ran, the refused move did not
+  EXPECT_DOUBLE_EQ(s.pos_mm[3], 0.0);
+  r.run({"M302 S20", "G1 X20 E2 F3000", "M302 S170", "G1 X30 E3", "M302 P1", "G1 X40 E4", "M302 P0",
+         "M400"});
+  s = r.m->status();
+  EXPECT_EQ(r.failed.load(), 4u) << r.last_failure;  // only the X30 move, at 170 C again
+  EXPECT_DOUBLE_EQ(s.pos_mm[0], 40.0);
+  EXPECT_DOUBLE_EQ(s.pos_mm[3], 4.0);
+  r.run({"G1 X50 E5", "M109 S200", "G1 X60 E6", "M400"});
+  s = r.m->status();
+  r.m->stop();
+  EXPECT_EQ(r.failed.load(), 5u) << r.last_failure;  // X50 cold after M302 P0; X60 hot
+  EXPECT_DOUBLE_EQ(s.pos_mm[0], 60.0);
+  EXPECT_DOUBLE_EQ(s.pos_mm[3], 6.0);
+  EXPECT_GE(s.hotend_c, 170.0);
+}
+
 TEST(ThermalMachine, AFaultDuringAWaitStopsTheMachineWithTheHeatersMessage) {
   MachineRig r;
   ASSERT_TRUE(r.m->start().ok());

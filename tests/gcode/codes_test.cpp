@@ -102,6 +102,7 @@ const std::vector<Valid>& valid_cases() {
       {"M220 B", 'M', 220, {}, "B"},
       {"M221 S95 T0", 'M', 221, {{'S', 95}, {'T', 0}}},
       {"M400", 'M', 400, {}},
+      {"M302 S150 P1", 'M', 302, {{'S', 150}, {'P', 1}}},
   };
   return cases;
 }
@@ -132,13 +133,15 @@ TEST(Codes, TheTableCoversExactlyTheIssueList) {
       "M115", "M117", "M140", "M190", "M201", "M203", "M204", "M205", "M220", "M221", "M400",
       "M155", "M303",
       // issue 16 (print jobs): M18 and Marlin's SD-card commands
-      "M18",  "M20",  "M21",  "M23",  "M24",  "M25",  "M26",  "M27",  "M32",  "M524",
+      "M18", "M20", "M21", "M23", "M24", "M25", "M26", "M27", "M32", "M524",
       // issue 16 (pressure advance): Marlin's linear advance factor
       "M900",
       // issue 16 (homing): Marlin's endstop report
       "M119",
       // issue 16 (thermal faults): Marlin's restart after a stop
-      "M999"};
+      "M999",
+      // cold extrusion (docs/heaters.md): Marlin's M302
+      "M302"};
   std::set<std::string> table, tested;
   for (const CodeRule& r : all_code_rules()) table.insert(r.letter + std::to_string(r.code));
   for (const Valid& v : valid_cases()) tested.insert(v.letter + std::to_string(v.code));

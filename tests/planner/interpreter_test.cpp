@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <string>
 
 #include "planner/junction.hpp"
 #include "planner_test_util.hpp"
@@ -12,8 +15,15 @@ namespace {
 
 using test::Rig;
 
+// E amounts for the arithmetic, not printable tracks: without the extrusion bounds.
+PlannerConfig unbounded_extrusion() {
+  PlannerConfig c = test::cartesian_config();
+  c.max_extrude_cross_section_mm2 = 0.0;
+  return c;
+}
+
 TEST(Interpreter, RelativeAndAbsoluteModes) {
-  Rig r(test::cartesian_config());
+  Rig r(unbounded_extrusion());
   ASSERT_TRUE(r.run("G28"));
   ASSERT_TRUE(r.run("G1 X10 Y10 F6000"));
   ASSERT_TRUE(r.run("G91"));
@@ -32,7 +42,7 @@ TEST(Interpreter, RelativeAndAbsoluteModes) {
 }
 
 TEST(Interpreter, G92SetsLogicalPositionWithoutMoving) {
-  Rig r(test::cartesian_config());
+  Rig r(unbounded_extrusion());
   ASSERT_TRUE(r.run("G1 X10 E5 F3000"));
   const uint64_t before = r.planner.moves_added();
   ASSERT_TRUE(r.run("G92 E0"));
@@ -366,6 +376,85 @@ TEST(Interpreter, M205SetsJunctionDeviationAndRecordsJerk) {
   EXPECT_DOUBLE_EQ(r.planner.junction_deviation(), 0.02);
   EXPECT_DOUBLE_EQ(r.interp.state().jerk_mm_s[kX], 8.0);
   EXPECT_DOUBLE_EQ(r.interp.state().jerk_mm_s[kE], 4.5);
+}
+
+// Klipper's extrusion bounds: an E-only move over max_extrude_only_distance and a move that
+// would lay a track wider than max_extrude_cross_section are refused whole (the G-code position
+// and the planner unchanged; "G1 X1e999" reads as X1 E999, which a cross-section catches); a tiny
+// amount over the section passes, retraction is not bounded by it, and 0 turns either off.
+TEST(Interpreter, ExtrusionBeyondKlippersBoundsIsRefusedWhole) {
+  PlannerConfig cfg = test::cartesian_config();
+  Rig r(cfg);
+  ASSERT_TRUE(r.run("G28"));
+  ASSERT_TRUE(r.run("G1 X10 E1 F3000"));
+  const uint64_t moves = r.planner.moves_added();
+  const Vec4 at = r.interp.state().machine_mm;
+  Status s = r.run("G1 X1e999");  // parsed as X1 E999: the exponent is a parameter
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("move exceeds maximum extrusion"), std::string::npos)
+      << s.error().message;
+  s = r.run("G1 E61");  // 60 mm of E alone
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("extrude-only move too long (60.000 mm vs 50.000 mm"),
+            std::string::npos)
+      << s.error().message;
+  ASSERT_FALSE(r.run("G1 E-59").ok());  // retracting 60 mm at once too
+  EXPECT_EQ(r.planner.moves_added(), moves);
+  EXPECT_EQ(r.interp.state().machine_mm, at);
+  EXPECT_EQ(r.interp.state().logical_mm[kE], 1.0);
+  // 0.6 mm^2 of track (under 0.64) passes, 0.7 does not; 0.1 mm of E over 0.1 mm of travel is a
+  // tiny amount (under 0.4 mm of a 0.64 mm^2 track) and passes.
+  const double area_mm2 = std::numbers::pi / 4.0 * 1.75 * 1.75;
+  char line[64];
+  std::snprintf(line, sizeof line, "G1 X20 E%.6f", 1.0 + 0.6 * 10.0 / area_mm2);
+  EXPECT_TRUE(r.run(line).ok());
+  std::snprintf(line, sizeof line, "G1 X30 E%.6f", 1.0 + (0.6 + 0.7) * 10.0 / area_mm2);
+  EXPECT_FALSE(r.run(line).ok());
+  ASSERT_TRUE(r.run("G92 E0"));
+  EXPECT_TRUE(r.run("G1 X20.1 E0.1").ok());
+  EXPECT_TRUE(r.run("G1 E50").ok());  // a filament load of 49.9 mm
+  EXPECT_TRUE(r.run("G10").ok());     // firmware retraction (3 mm) and back
+  EXPECT_TRUE(r.run("G11").ok());
+  // Both bounds off.
+  cfg.max_extrude_only_distance_mm = 0.0;
+  cfg.max_extrude_cross_section_mm2 = 0.0;
+  Rig off(cfg);
+  ASSERT_TRUE(off.run("G28"));
+  EXPECT_TRUE(off.run("G1 E500").ok());
+  EXPECT_TRUE(off.run("G1 X1 E999").ok());
+}
+
+// The machine's extrude guard (a cold hotend, engine::Machine) is asked before every move that
+// moves E, and only then: its refusal leaves everything as it was, its reason in the error.
+TEST(Interpreter, TheExtrudeGuardRefusesEveryEMoveAndOnlyThose) {
+  Rig r(test::cartesian_config());
+  int asked = 0;
+  std::string why = "Extrude below minimum temp: cold";
+  r.interp.set_extrude_guard([&] {
+    ++asked;
+    return why;
+  });
+  ASSERT_TRUE(r.run("G28"));
+  ASSERT_TRUE(r.run("G1 X10 F3000"));
+  ASSERT_TRUE(r.run("G92 E5"));
+  EXPECT_EQ(asked, 0);
+  const uint64_t moves = r.planner.moves_added();
+  for (const char* l : {"G1 X20 E6", "G1 E4", "G2 X20 Y0 I5 J0 E7", "G10"}) {
+    Status s = r.run(l);
+    ASSERT_FALSE(s.ok()) << l;
+    EXPECT_NE(s.error().message.find("move rejected, nothing executed: Extrude below minimum temp"),
+              std::string::npos)
+        << s.error().message;
+  }
+  EXPECT_EQ(asked, 4);
+  EXPECT_EQ(r.planner.moves_added(), moves);
+  EXPECT_EQ(r.interp.state().logical_mm[kE], 5.0);
+  EXPECT_FALSE(r.interp.state().retracted);
+  EXPECT_TRUE(r.run("G1 X20 E5").ok());  // E unchanged: not asked
+  EXPECT_EQ(asked, 4);
+  why.clear();
+  EXPECT_TRUE(r.run("G1 X30 E6").ok());
+  EXPECT_EQ(asked, 5);
 }
 
 }  // namespace
