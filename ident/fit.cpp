@@ -652,6 +652,38 @@ AxisModel initial_guess(const AxisModel& cur, Effect e, const Problem& pb,
     }
     case Effect::kBacklash:
       grid_sim(Param::kBacklash, {1, 2, 4, 8, 16, 32, 64, 128, 256});
+      {
+        // A dead band wider than the grid's pick (a first guess on a belt the band has already bent
+        // soft stops in a valley: 96 um for 200 um drawn) is read off the trace: at steady slides
+        // of the training part the carriage trails the preset baseline's output by half the band
+        // one way and leads it the other, so the medians of y - y_preset at slides of each
+        // direction differ by the width. The width is then started there on the preset's belt.
+        std::vector<double> plus, minus, y_pre;
+        if (run(with_baseline_of(cur, *pb.preset), pb, &y_pre)) {
+          const auto hold = static_cast<size_t>(0.2 / pb.period_s);  // 200 ms into a slide
+          int run_dir = 0;
+          size_t run_len = 0;
+          for (size_t k = 1; k < n; ++k) {
+            const double v = (u[k] - u[k - 1]) / pb.period_s;
+            const int d = v > 1e-6 ? 1 : (v < -1e-6 ? -1 : 0);
+            run_len = d != 0 && d == run_dir ? run_len + 1 : 0;
+            run_dir = d;
+            if (run_len >= hold && std::abs(v) > 0.5 && std::abs(v) < 20.0)
+              (d > 0 ? plus : minus).push_back((y[k] - y_pre[k]) * 1e3);
+          }
+        }
+        if (plus.size() > 50 && minus.size() > 50) {
+          auto median = [](std::vector<double>& a) {
+            std::nth_element(a.begin(), a.begin() + static_cast<long>(a.size() / 2), a.end());
+            return a[a.size() / 2];
+          };
+          const double w = median(minus) - median(plus);
+          if (w > 2.0 * m.backlash_width_um) {
+            m = with_baseline_of(m, *pb.preset);
+            m.backlash_width_um = w;
+          }
+        }
+      }
       break;
     case Effect::kCoulombFriction:
       grid_sim(Param::kFriction, {0.05, 0.1, 0.2, 0.4, 0.8, 1.6, 3.2, 6.4, 12.8});
