@@ -457,12 +457,14 @@ void Daemon::process_marlin_line(Client& c, std::string_view line) {
   const uint64_t cid = c.id;
   const auto source = c.session->name().rfind("pty", 0) == 0 ? recorder::GcodeSource::pty
                                                              : recorder::GcodeSource::socket;
-  std::string refused = submit(c, cmd, line, source, [this, cid, slot](const Status& st) {
-    if (!st) slot->text = "Error:" + st.error().to_string() + "\n";
-    slot->text += gcode::HostProtocol::kOk;
-    slot->ready = true;
-    if (Client* cl = find_client(cid)) flush_replies(*cl);
-  });
+  std::string refused =
+      submit(c, cmd, line, source, [this, cid, slot](const Status& st, const std::string& report) {
+        if (!report.empty()) slot->text = report + "\n";
+        if (!st) slot->text += "Error:" + st.error().to_string() + "\n";
+        slot->text += gcode::HostProtocol::kOk;
+        slot->ready = true;
+        if (Client* cl = find_client(cid)) flush_replies(*cl);
+      });
   if (!refused.empty()) {
     slot->text = "Error:" + refused + "\n" + std::string(gcode::HostProtocol::kOk);
     slot->ready = true;
@@ -586,7 +588,7 @@ std::string Daemon::firmware_info() const {
 }
 
 std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_view text,
-                           recorder::GcodeSource source, std::function<void(const Status&)> done) {
+                           recorder::GcodeSource source, DoneFn done) {
   const uint64_t cid = c.id;
   if (cmd.is('M', 112)) {  // from whichever channel: an emergency stop, never a queued no-op
     emergency_stop("M112 from " + c.session->name());
@@ -599,7 +601,7 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
     // Its ok comes after the rebuild, so the next line runs on the new machine. A machine that
     // is not stopped is left alone (ok at once).
     if (machine_->status().state != engine::MachineState::kEmergencyStopped) {
-      done(Status::Ok());
+      done(Status::Ok(), {});
       return {};
     }
     restart_waiters_.push_back(std::move(done));
@@ -679,7 +681,8 @@ void Daemon::on_command_done(engine::CommandDone d) {
     if (!summary.empty()) spdlog::warn("command rejected: {}", summary);
     if (log) spdlog::warn("command rejected: {}", d.status.error().to_string());
   }
-  if (p.done) p.done(d.status);
+  if (!d.report.empty()) spdlog::info("{}", d.report);
+  if (p.done) p.done(d.status, d.report);
 }
 
 void Daemon::run_script(ClientSession& client, std::string script,
@@ -734,15 +737,17 @@ void Daemon::run_script_step(std::shared_ptr<Script> s) {
       return;
     }
     std::string refused =
-        submit(*c, *cmd, text, recorder::GcodeSource::api, [this, s, text](const Status& st) {
-          s->results.push_back({{"line", text}, {"ok", static_cast<bool>(st)}});
-          if (!st) {
-            s->results.back()["error"] = st.error().to_string();
-            s->done({{"results", s->results}}, "");
-            return;
-          }
-          run_script_step(s);
-        });
+        submit(*c, *cmd, text, recorder::GcodeSource::api,
+               [this, s, text](const Status& st, const std::string& report) {
+                 s->results.push_back({{"line", text}, {"ok", static_cast<bool>(st)}});
+                 if (!report.empty()) s->results.back()["reply"] = report;
+                 if (!st) {
+                   s->results.back()["error"] = st.error().to_string();
+                   s->done({{"results", s->results}}, "");
+                   return;
+                 }
+                 run_script_step(s);
+               });
     if (!refused.empty()) {
       s->done({}, refused);
       return;
@@ -1048,11 +1053,11 @@ void Daemon::reload_config() {
   reload_requested_ = false;
   restart_requested_ = false;
   // The M999s waiting for this rebuild: ok once it ran, else the reason.
-  std::vector<std::function<void(const Status&)>> waiters;
+  std::vector<DoneFn> waiters;
   waiters.swap(restart_waiters_);
   auto answer = [&waiters](const Status& st) {
     for (auto& w : waiters)
-      if (w) w(st);
+      if (w) w(st, {});
   };
   notifier_.reloading();
   Result<config::MachineConfig> next = cfg_;

@@ -182,9 +182,11 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
     std::deque<std::shared_ptr<ReplySlot>> replies;  // Marlin channels: answers not yet sent
   };
   // A submitted command: who gets the answer.
+  // A submitted command's answer: its status and the lines it reports before it (CommandDone).
+  using DoneFn = std::function<void(const Status&, const std::string& report)>;
   struct Pending {
     uint64_t client_id = 0;
-    std::function<void(const Status&)> done;
+    DoneFn done;
   };
   struct Script;  // a JSON gcode request in progress
 
@@ -225,8 +227,8 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   void flush_replies(Client& c);
   // Ownership + submit. Returns an error text when refused; parks when the queue is full.
   // `text` is the line as received: recorded with its arrival time when the command is accepted.
-  std::string submit(Client& c, const gcode::Command& cmd, std::string_view text, recorder::GcodeSource source,
-                     std::function<void(const Status&)> done);
+  std::string submit(Client& c, const gcode::Command& cmd, std::string_view text,
+                     recorder::GcodeSource source, DoneFn done);
   void retry_parked();
   void run_script_step(std::shared_ptr<Script> s);
 
@@ -283,7 +285,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   bool reload_requested_ = false;   // SIGHUP / RESTART: re-read the config, rebuild when idle
   bool restart_requested_ = false;  // M999: rebuild from the running config when idle
   // M999s waiting for the rebuild they asked for: answered once it ran (or failed).
-  std::vector<std::function<void(const Status&)>> restart_waiters_;
+  std::vector<DoneFn> restart_waiters_;
   uint64_t reloads_ = 0;
   bool shutting_down_ = false;
   RepeatFilter rejected_log_;     // "command rejected" warnings: one line plus a count

@@ -142,7 +142,11 @@ JobSink::Offer Daemon::offer(const gcode::Command& cmd, std::string_view text,
     spdlog::info("print job '{}' owns the print", job_ ? job_->file() : std::string());
   owner_ = kJobOwner;
   owner_last_activity_ns_ = clock_.now_ns();
-  pending_[ticket] = Pending{kJobOwner, std::move(done)};
+  // A job's command reports (M303's values) reach the log (on_command_done), not the job.
+  pending_[ticket] =
+      Pending{kJobOwner, [done = std::move(done)](const Status& st, const std::string&) {
+                if (done) done(st);
+              }};
   if (recorder_) {
     start_print("job " + (job_ ? job_->file() : std::string()));
     recorder_->writer(recorder::Stream::io)

@@ -7,6 +7,7 @@
 #include <cmath>      // isnan
 #include <cstdio>     // snprintf
 #include <thread>
+#include <utility>  // exchange
 
 #include "engine/realtime.hpp"
 
@@ -360,6 +361,13 @@ Status Machine::execute_machine_command(const gcode::Command& cmd) {
       min_extrude_temp_c_ = cmd.get('S');
     }
     if (cmd.has('P')) cold_extrusion_allowed_ = cmd.get('P') != 0.0;
+    if (!cmd.has('S') && !cmd.has('P')) {  // Marlin's report (gcode/config/M302.cpp)
+      char buf[96];
+      std::snprintf(buf, sizeof buf, "echo:Cold extrudes are %s (min temp %gC)",
+                    cold_extrusion_allowed_ || !thermal_ ? "enabled" : "disabled",
+                    min_extrude_temp_c_);
+      command_report_ = buf;
+    }
     return Status::Ok();
   }
   if (!thermal_) {
@@ -389,12 +397,19 @@ Status Machine::execute_machine_command(const gcode::Command& cmd) {
     });
     if (!st) return st;
     if (!result->ok()) return result->error();
-    char buf[160];
+    // Marlin's M303 report (module/temperature.cpp, PID_autotune), which hosts such as OctoPrint
+    // read, then the values under this project's config keys.
     const thermal::PidParams& g = result->value();
+    const std::string& name = thermal_->spec(heater).name;
+    char buf[512];
     std::snprintf(buf, sizeof buf,
-                  "PID autotune of %s finished: pid_Kp=%.3f pid_Ki=%.3f pid_Kd=%.3f%s",
-                  thermal_->spec(heater).name.c_str(), g.kp, g.ki, g.kd, use ? " (in use)" : "");
-    autotune_report_ = buf;
+                  "PID Autotune finished! Put the last Kp, Ki and Kd constants from below into "
+                  "Configuration.h\n#define DEFAULT_Kp %.2f\n#define DEFAULT_Ki %.2f\n"
+                  "#define DEFAULT_Kd %.2f\n// heaters.%s.pid: {kp: %.3f, ki: %.3f, kd: %.3f}%s",
+                  g.kp, g.ki, g.kd, name.c_str(), g.kp, g.ki, g.kd,
+                  use ? " (in use until a restart; put it into the config to keep it)"
+                      : " (not in use: M303 ... U1 uses it)");
+    command_report_ = buf;
     return Status::Ok();
   }
   const bool bed = cmd.is('M', 140) || cmd.is('M', 190);
@@ -481,7 +496,7 @@ void Machine::planner_main() {
     const Status st = dispatch(q.cmd);
     publish_status();  // before the flag: idle() true means the command's position is published
     executing_.store(false);
-    if (on_done_) on_done_(CommandDone{q.ticket, st});
+    if (on_done_) on_done_(CommandDone{q.ticket, st, std::exchange(command_report_, {})});
   }
 }
 

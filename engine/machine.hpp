@@ -185,6 +185,9 @@ struct MachineOptions {
 struct CommandDone {
   uint64_t ticket = 0;
   Status status;
+  // Lines the command reports to its host before its answer (M303's PID values, M302's state),
+  // '\n'-separated, without the trailing newline; empty for most commands.
+  std::string report;
 };
 
 class Machine {
@@ -318,7 +321,7 @@ class Machine {
 
   std::unique_ptr<ThermalLoop> thermal_;
   std::thread thermal_thread_;
-  std::string autotune_report_;  // planner thread: the last M303 result
+  std::string command_report_;  // planner thread: the running command's report (CommandDone)
   // Planner thread: M302 S sets the temperature, P1 allows cold extrusion (Marlin's M302).
   double min_extrude_temp_c_ = 170.0;
   bool cold_extrusion_allowed_ = false;

@@ -63,6 +63,35 @@ TEST_F(Conformance, G10TemperatureFormSetsTheHotendTarget) {
   EXPECT_EQ(pos->rfind("X:0.00 Y:0.00 Z:0.00 E:0.00", 0), 0u) << *pos;
 }
 
+// A command's report reaches its host before its ok, on the Marlin socket and in the JSON API's
+// gcode results ("reply"): Marlin's M302 without parameters (gcode/config/M302.cpp) reports the
+// cold-extrusion state; M303's PID values travel the same way (ThermalMachine.M303...).
+TEST_F(Conformance, ACommandsReportComesBeforeItsOk) {
+  {
+    LineClient c;
+    ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+    ASSERT_TRUE(c.send_line("M302"));
+    EXPECT_EQ(c.read_line(), "echo:Cold extrudes are disabled (min temp 170C)");
+    EXPECT_EQ(c.read_line(), "ok");
+    ASSERT_TRUE(c.send_line("M302 S180"));
+    EXPECT_EQ(c.read_line(), "ok");  // a change reports nothing, as in Marlin
+  }  // closed: the print's ownership is released for the API's client
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  nlohmann::json r;
+  for (int i = 0; i < 100; ++i) {  // the socket's close may reach the daemon after this request
+    r = call(api, "gcode", {{"script", "M302 P1\nM302"}});
+    if (!r.contains("error")) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_TRUE(r.contains("result")) << r.dump();
+  const nlohmann::json& results = r["result"]["results"];
+  ASSERT_EQ(results.size(), 2u) << r.dump();
+  EXPECT_FALSE(results[0].contains("reply")) << r.dump();
+  EXPECT_EQ(results[1].value("reply", ""), "echo:Cold extrudes are enabled (min temp 180C)")
+      << r.dump();
+}
+
 // Marlin 1.0.x Marlin_main.cpp get_command(): a checksum without N is refused; and the Klipper
 // command gets its clear error, with the line's ok (the connection goes on).
 TEST_F(Conformance, RefusedLinesGetAnErrorAndTheirOk) {

@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <regex>
 #include <string>
 #include <thread>
 
@@ -25,7 +26,7 @@ struct MachineRig {
   VirtualClock clock{1'000'000'000};
   std::unique_ptr<Machine> m;
   std::atomic<uint64_t> done{0}, failed{0};
-  std::string last_failure;
+  std::string last_failure, last_report;
   std::mutex mu;
   uint64_t ticket = 0;
   explicit MachineRig(config::MachineConfig cfg = config::default_config()) {
@@ -36,6 +37,10 @@ struct MachineRig {
     m = std::make_unique<Machine>(machine_options(cfg), clock, std::move(ex.value()));
     m->set_thermal(std::move(make_thermal_loop(cfg, ports).value()));
     m->set_done_callback([this](CommandDone d) {
+      if (!d.report.empty()) {
+        std::lock_guard lock(mu);
+        last_report = d.report;
+      }
       if (!d.status.ok()) {
         std::lock_guard lock(mu);
         last_failure = d.status.error().message;
@@ -180,11 +185,31 @@ TEST(ThermalMachine, AFaultDuringAWaitStopsTheMachineWithTheHeatersMessage) {
 TEST(ThermalMachine, M303AutotunesTheExtruderAndUsesTheResult) {
   MachineRig r;
   ASSERT_TRUE(r.m->start().ok());
-  r.run({"M303 E0 S200 C5 U1", "M109 S210"});
+  r.run({"M303 E0 S200 C5 U1"});
+  // Marlin's report (OctoPrint reads the #define lines), then the values as the config writes them.
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(
+      r.last_report, m,
+      std::regex(R"(^PID Autotune finished! Put the last Kp, Ki and Kd constants from below into )"
+                 R"(Configuration.h\n#define DEFAULT_Kp ([0-9.]+)\n#define DEFAULT_Ki ([0-9.]+)\n)"
+                 R"(#define DEFAULT_Kd ([0-9.]+)\n// heaters\.extruder\.pid: \{kp: ([0-9.]+), )"
+                 R"(ki: ([0-9.]+), kd: ([0-9.]+)\} \(in use until a restart)")))
+      << r.last_report;
+  const double kp = std::stod(m[4]), ki = std::stod(m[5]), kd = std::stod(m[6]);
+  EXPECT_NEAR(std::stod(m[1]), kp, 0.006);  // the two forms agree
+  EXPECT_NEAR(std::stod(m[2]), ki, 0.006);
+  EXPECT_NEAR(std::stod(m[3]), kd, 0.006);
+  // Ziegler-Nichols from one relay run: Ti = Tu / 2 and Td = Tu / 8, so Kd Ki = Kp^2 / 4.
+  EXPECT_GT(kp, 1.0);
+  EXPECT_LT(kp, 200.0);
+  EXPECT_NEAR(kd * ki, kp * kp / 4.0, 0.01 * kp * kp / 4.0);
+  r.last_report.clear();
+  r.run({"M109 S210", "M302"});
   const MachineStatus s = r.m->status();
   r.m->stop();
   EXPECT_EQ(r.failed.load(), 0u) << r.last_failure;
   EXPECT_NEAR(s.hotend_c, 210.0, 3.0);
+  EXPECT_EQ(r.last_report, "echo:Cold extrudes are disabled (min temp 170C)");  // Marlin's M302
 }
 
 }  // namespace
