@@ -29,6 +29,22 @@ std::string fmt(double v) {
   return buf;
 }
 
+// "nan", "inf" or "infinity" (any case, an optional sign before it) at `pos`, as a word of its
+// own: its length, else 0. G-code numbers are finite decimals; "X1e400" or "Xnan" from a host's
+// formatting bug is a clear error, not letters read as flags ("Xnan" would be X, N, A, N).
+size_t non_finite_word(std::string_view s, size_t pos) {
+  size_t b = pos;
+  if (b < s.size() && (s[b] == '+' || s[b] == '-')) ++b;
+  for (std::string_view w :
+       {std::string_view("infinity"), std::string_view("inf"), std::string_view("nan")}) {
+    if (s.size() - b < w.size()) continue;
+    bool same = true;
+    for (size_t k = 0; k < w.size() && same; ++k) same = (s[b + k] | 0x20) == w[k];
+    if (same && (b + w.size() == s.size() || !is_alpha(s[b + w.size()]))) return b + w.size() - pos;
+  }
+  return 0;
+}
+
 std::string describe_char(char c) {
   const auto u = static_cast<unsigned char>(c);
   char buf[32];
@@ -273,6 +289,9 @@ Status LineParser::parse_parameter(size_t word, char letter, bool after_space) {
                           (is_digit(s_[value + 1]) || s_[value + 1] == '.'));
     if (numeric) i_ = value;
   }
+  if (const size_t len = non_finite_word(s_, value); len > 0)
+    return fail(word, std::string(1, letter) + ": '" + std::string(s_.substr(value, len)) +
+                          "' is not a number (G-code takes finite decimals)");
   if (i_ < n) {
     const char c = s_[i_];
     if (is_digit(c) || c == '.' || c == '+' || c == '-') {

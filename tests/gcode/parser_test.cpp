@@ -308,6 +308,12 @@ TEST(Parser, ErrorsCarryColumnAndMessage) {
       {"G1 X1 \xC3\xA9", 7, "unexpected byte 0xC3"},
       {"G", 1, "needs a code number"},
       {"  M104 S-1", 8, "between 0 and 1000"},
+      // A host's non-finite number: named, not read as flags ("Xnan" is X, N, A, N).
+      {"G1 Xnan Y1", 4, "X: 'nan' is not a number"},
+      {"G1 X1 Yinf", 7, "Y: 'inf' is not a number"},
+      {"G1 X-INF", 4, "X: '-INF' is not a number"},
+      {"G1 X +Infinity", 4, "X: '+Infinity' is not a number"},
+      {"M104 SNaN", 6, "S: 'NaN' is not a number"},
   };
   for (const Case& k : cases) {
     const Error e = err(k.line);
