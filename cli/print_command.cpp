@@ -24,6 +24,7 @@
 #include "cli/print_lines.hpp"
 #include "cli/progress.hpp"
 #include "config/config.hpp"
+#include "gcode/file_kind.hpp"
 #include "gcode/host_protocol.hpp"
 #include "gcode/line_splitter.hpp"
 
@@ -104,6 +105,15 @@ int print_command(const std::vector<std::string>& args) {
   }
   double total_lines = 0;  // for progress: physical lines of the file (0: not known)
   if (counted) {
+    char head[8] = {};
+    in.read(head, sizeof head);
+    if (auto kind =
+            gcode::non_gcode_file_kind(std::string_view(head, static_cast<size_t>(in.gcount())))) {
+      std::fprintf(stderr, "feedloop print: %s: %s\n", file.c_str(), kind->c_str());
+      return 1;
+    }
+    in.clear();
+    in.seekg(0);
     char buf[65536];
     while (in.read(buf, sizeof buf) || in.gcount() > 0) {
       total_lines += static_cast<double>(std::count(buf, buf + in.gcount(), '\n'));

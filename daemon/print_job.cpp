@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "gcode/file_kind.hpp"
 #include "gcode/parser.hpp"
 
 namespace feedloop::daemon {
@@ -69,6 +70,14 @@ Result<JobFileInfo> PrintJob::select(std::string_view name) {
                  "): cancel it first"};
   auto info = files_.stat(name);
   if (!info) return info.error();
+  // A compressed file or binary G-code would run as thousands of refused lines: refused here.
+  if (std::FILE* f = std::fopen(files_.path_of(info->name).c_str(), "rb")) {
+    char head[8] = {};
+    const size_t got = std::fread(head, 1, sizeof head, f);
+    std::fclose(f);
+    if (auto kind = gcode::non_gcode_file_kind(std::string_view(head, got)))
+      return Error{"'" + info->name + "' is " + *kind};
+  }
   close_file();
   file_ = info->name;
   size_ = info->size_bytes;

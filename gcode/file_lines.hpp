@@ -13,6 +13,7 @@
 #include <type_traits>
 
 #include "core/result.hpp"
+#include "gcode/file_kind.hpp"
 #include "gcode/line_splitter.hpp"
 
 namespace feedloop::gcode {
@@ -20,7 +21,8 @@ namespace feedloop::gcode {
 // Calls on_line(const SplitLine&) for every line of the file at `path`, and on_read(size_t bytes)
 // after each chunk read (when it returns a bool, false stops the reading there), then returns Ok,
 // or an Error naming the file when it cannot be opened or read (a directory: "Is a directory").
-// Pipes and FIFOs are read to their end like files.
+// Pipes and FIFOs are read to their end like files. A compressed file, an archive or binary
+// G-code (gcode/file_kind.hpp) is refused before any of its lines: an Error saying what it is.
 template <class F, class R>
 Status for_each_file_line_reporting(const std::string& path, F&& on_line, R&& on_read,
                                     size_t max_line_bytes = LineSplitter::kDefaultMaxLineBytes) {
@@ -28,6 +30,7 @@ Status for_each_file_line_reporting(const std::string& path, F&& on_line, R&& on
   if (fd < 0) return Error{"cannot open G-code file: " + std::string(std::strerror(errno)), {path}};
   LineSplitter splitter(max_line_bytes);
   std::array<char, 64 * 1024> chunk;
+  bool first = true;
   for (;;) {
     const ssize_t n = ::read(fd, chunk.data(), chunk.size());
     if (n < 0) {
@@ -37,6 +40,13 @@ Status for_each_file_line_reporting(const std::string& path, F&& on_line, R&& on
       return Error{"cannot read G-code file: " + std::string(std::strerror(err)), {path}};
     }
     if (n == 0) break;
+    if (first) {
+      first = false;
+      if (auto kind = non_gcode_file_kind(std::string_view(chunk.data(), static_cast<size_t>(n)))) {
+        ::close(fd);
+        return Error{*kind, {path}};
+      }
+    }
     splitter.feed(std::string_view(chunk.data(), static_cast<size_t>(n)), on_line);
     if constexpr (std::is_same_v<std::invoke_result_t<R&, size_t>, bool>) {
       if (!on_read(static_cast<size_t>(n))) break;

@@ -506,6 +506,15 @@ TEST_F(PrintJobTest, SelectStartByteAndRefusals) {
   auto missing = job.select("nope.gcode");
   ASSERT_FALSE(missing.ok());
   EXPECT_NE(missing.error().message.find("no job file named 'nope.gcode'"), std::string::npos);
+  // PrusaSlicer's binary G-code uploaded by mistake: refused at the selection, with what it is.
+  ASSERT_TRUE(files_->write("b.gcode", std::string("GCDE\x01\0\0\0G1 X1\n", 14)).ok());
+  auto binary = job.select("b.gcode");
+  ASSERT_FALSE(binary.ok());
+  EXPECT_NE(binary.error().message.find("'b.gcode' is not G-code: binary G-code"),
+            std::string::npos)
+      << binary.error().message;
+  EXPECT_FALSE(job.start("b.gcode").ok());
+  EXPECT_EQ(job.state(), JobState::kIdle);
   ASSERT_TRUE(job.select("s.gcode").ok());
   EXPECT_FALSE(job.set_start_byte(text.size() + 1).ok());
   // M26 S6 falls inside "G1 X10 F3000": that line is skipped whole, the next one is first.

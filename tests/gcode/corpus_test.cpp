@@ -2,6 +2,7 @@
 // ../shared is absent): zero parse errors, line and move counts that match the corpus README,
 // and the numbered/checksummed file through the host protocol, intact and corrupted.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -83,6 +84,44 @@ TEST(Corpus, MissingFileIsAnErrorNamingIt) {
   EXPECT_EQ(st.error().where.source, "no/such/file.gcode");
   EXPECT_NE(st.error().message.find("cannot open"), std::string::npos);
   EXPECT_EQ(lines, 0);
+}
+
+// A compressed file, an archive or PrusaSlicer's binary G-code is refused before any line, with
+// what it is; the same bytes after a text line are lines like any (only the head is sniffed).
+TEST(Corpus, CompressedArchivedAndBinaryGcodeAreRefusedWhole) {
+  const fs::path dir = fs::temp_directory_path() / ("feedloop-kind-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  struct Case {
+    std::string bytes, fragment;
+  };
+  const Case cases[] = {
+      {std::string("GCDE\x01\0\0\0\x01\0", 10) + "G1 X1\n",
+       "binary G-code (PrusaSlicer's .bgcode)"},
+      {std::string("\x1f\x8b\x08\0\0\0\0\0", 8) + "\nG1 X1\n", "gzip-compressed"},
+      {std::string("\xfd"
+                   "7zXZ\0\0\x04",
+                   8) +
+           "\nG1 X1\n",
+       "xz-compressed"},
+      {std::string("PK\x03\x04\x14\0\0\0", 8) + "\nG1 X1\n", "ZIP archive (a .3mf project?)"},
+  };
+  for (const Case& c : cases) {
+    const fs::path f = dir / "f.gcode";
+    std::ofstream(f, std::ios::binary) << c.bytes;
+    int lines = 0;
+    const Status st = for_each_file_line(f.string(), [&](const SplitLine&) { ++lines; });
+    ASSERT_FALSE(st.ok()) << c.fragment;
+    EXPECT_EQ(st.error().where.source, f.string());
+    EXPECT_EQ(st.error().message.rfind("not G-code: ", 0), 0u) << st.error().message;
+    EXPECT_NE(st.error().message.find(c.fragment), std::string::npos) << st.error().message;
+    EXPECT_EQ(lines, 0) << c.fragment;
+  }
+  const fs::path text = dir / "t.gcode";
+  std::ofstream(text, std::ios::binary) << "G28\nGCDE\nPK\n";
+  int lines = 0;
+  EXPECT_TRUE(for_each_file_line(text.string(), [&](const SplitLine&) { ++lines; }).ok());
+  EXPECT_EQ(lines, 3);
+  fs::remove_all(dir);
 }
 
 TEST(Corpus, SharedFilesParseWithoutErrors) {
