@@ -501,9 +501,12 @@ bool Daemon::is_query(const gcode::Command& cmd) {
   // M900 / SET_PRESSURE_ADVANCE without a value reports it (answered in order, after the
   // commands before it have executed).
   const bool pa_report = cmd.code == 900 && !cmd.has('K') && !cmd.has('S');
-  return cmd.letter == 'M' &&
-         (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 || cmd.code == 119 ||
-          cmd.code == 117 || cmd.code == 73 || cmd.code == 155 || pa_report || is_sd_command(cmd));
+  // M220 / M221 without a value report the factor (Marlin's gcode/config/M220.cpp, M221.cpp).
+  const bool factor_report =
+      (cmd.code == 220 || cmd.code == 221) && !cmd.has('S') && !cmd.has('B') && !cmd.has('R');
+  return cmd.letter == 'M' && (cmd.code == 105 || cmd.code == 114 || cmd.code == 115 ||
+                               cmd.code == 119 || cmd.code == 117 || cmd.code == 73 ||
+                               cmd.code == 155 || pa_report || factor_report || is_sd_command(cmd));
 }
 
 bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply, uint64_t client_id) {
@@ -551,6 +554,15 @@ bool Daemon::answer_query(const gcode::Command& cmd, std::string& reply, uint64_
                       s.pressure_advance_s, s.pressure_advance_smooth_time_s);
       else
         std::snprintf(buf, sizeof buf, "echo:Advance K=%.3f\nok", s.pressure_advance_s);
+      reply = buf;
+      return true;
+    case 220:  // Marlin's M220 report: "FR:100%"
+    case 221:  // Marlin's M221 report: "echo:E0 Flow: 100%"
+      if (cmd.has('S') || cmd.has('B') || cmd.has('R')) return false;
+      if (cmd.code == 220)
+        std::snprintf(buf, sizeof buf, "FR:%.0f%%\nok", s.speed_factor * 100.0);
+      else
+        std::snprintf(buf, sizeof buf, "echo:E0 Flow: %.0f%%\nok", s.flow_factor * 100.0);
       reply = buf;
       return true;
     case 119: {

@@ -72,6 +72,8 @@ struct MachineStatus {
   double planned_until_s = 0.0;  // end of the last planned segment
   double pressure_advance_s = 0.0;              // M900 K / SET_PRESSURE_ADVANCE, as last set
   double pressure_advance_smooth_time_s = 0.0;  // its smoothing window
+  double speed_factor = 1.0, flow_factor = 1.0;  // M220 S / 100, M221 S / 100, as last set
+  bool absolute_coordinates = true, absolute_extrude = true;  // G90 / G91, M82 / M83
   uint64_t moves_planned = 0;
   uint64_t segments_queued = 0;   // joint segments waiting for the servo thread
   uint64_t motion_starts = 0;     // times motion started from rest

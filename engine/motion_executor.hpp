@@ -286,6 +286,8 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   } no_extruder_;
   // The planner thread's pressure advance (M900 / SET_PRESSURE_ADVANCE), for the status.
   std::atomic<double> pa_advance_s_{0.0}, pa_smooth_time_s_{0.0};
+  std::atomic<double> speed_factor_{1.0}, flow_factor_{1.0};   // the interpreter's M220 / M221
+  std::atomic<bool> relative_xyz_{false}, relative_e_{false};  // and its G91 / M83
   // Sampled path (servo thread).
   void sampled_cycle(double now_s);
   void start_sampled(const planner::PlannedMove& first, double now_s);

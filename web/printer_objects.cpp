@@ -201,10 +201,10 @@ json printer_objects(const ObjectInputs& in) {
                    {"print_time", s.planned_until_s},
                    {"estimated_print_time", s.print_time_s},
                    {"stalls", s.late_cycles}};
-  o["gcode_move"] = {{"speed_factor", 1.0},
-                     {"extrude_factor", 1.0},
-                     {"absolute_coordinates", true},
-                     {"absolute_extrude", true},
+  o["gcode_move"] = {{"speed_factor", s.speed_factor},   // M220 (Mainsail's speed slider)
+                     {"extrude_factor", s.flow_factor},  // M221 (its flow slider)
+                     {"absolute_coordinates", s.absolute_coordinates},
+                     {"absolute_extrude", s.absolute_extrude},
                      {"homing_origin", json::array({0.0, 0.0, 0.0, 0.0})},
                      {"position", vec4(s.pos_mm)},
                      {"gcode_position", vec4(s.pos_mm)},

@@ -92,6 +92,36 @@ TEST_F(Conformance, ACommandsReportComesBeforeItsOk) {
       << r.dump();
 }
 
+// Marlin's M220 / M221 without a value report the factor (gcode/config/M220.cpp: "FR:100%";
+// M221.cpp: "echo:E0 Flow: 100%"), after the commands before them have run; B and R back the
+// speed factor up and restore it.
+TEST_F(Conformance, M220AndM221WithoutAValueReportTheFactor) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  auto ask = [&](const char* line) {
+    std::string all;
+    if (!c.send_line(line)) return all;
+    for (int i = 0; i < 3; ++i) {
+      auto l = c.read_line();
+      if (!l) break;
+      all += *l + "\n";
+      if (*l == "ok") break;
+    }
+    return all;
+  };
+  EXPECT_EQ(ask("M220"), "FR:100%\nok\n");
+  EXPECT_EQ(ask("M221"), "echo:E0 Flow: 100%\nok\n");
+  EXPECT_EQ(ask("M220 S150"), "ok\n");
+  EXPECT_EQ(ask("M221 S95"), "ok\n");
+  EXPECT_EQ(ask("M220"), "FR:150%\nok\n");
+  EXPECT_EQ(ask("M221"), "echo:E0 Flow: 95%\nok\n");
+  EXPECT_EQ(ask("M220 B"), "ok\n");
+  EXPECT_EQ(ask("M220 S50"), "ok\n");
+  EXPECT_EQ(ask("M220"), "FR:50%\nok\n");
+  EXPECT_EQ(ask("M220 R"), "ok\n");
+  EXPECT_EQ(ask("M220"), "FR:150%\nok\n");
+}
+
 // Marlin 1.0.x Marlin_main.cpp get_command(): a checksum without N is refused; and the Klipper
 // command gets its clear error, with the line's ok (the connection goes on).
 TEST_F(Conformance, RefusedLinesGetAnErrorAndTheirOk) {

@@ -593,6 +593,31 @@ TEST_F(WebJobs, AGcodeScriptOverHttpIsAnsweredWhenItHasRun) {
             "ready");
 }
 
+// Mainsail's speed and flow sliders send M220 / M221 and show gcode_move's speed_factor and
+// extrude_factor; its move buttons read absolute_coordinates. They were constants (1, 1, true):
+// a slider set to 150 % snapped back to 100 % while the print ran at 150 %.
+TEST_F(WebJobs, TheSpeedAndFlowSlidersShowWhatM220AndM221Set) {
+  Reply set = request(port(), http::verb::post, "/printer/gcode/script",
+                      json{{"script", "M220 S150\nM221 S90\nG91"}}.dump());
+  ASSERT_EQ(set.status, 200) << set.body.dump();
+  json g = wait_objects(
+      "gcode_move",
+      [](const json& s) { return s["gcode_move"]["speed_factor"].get<double>() != 1.0; }, 10);
+  EXPECT_DOUBLE_EQ(g["gcode_move"]["speed_factor"].get<double>(), 1.5) << g.dump();
+  EXPECT_DOUBLE_EQ(g["gcode_move"]["extrude_factor"].get<double>(), 0.9) << g.dump();
+  EXPECT_EQ(g["gcode_move"]["absolute_coordinates"], false) << g.dump();
+  EXPECT_EQ(g["gcode_move"]["absolute_extrude"], false) << g.dump();  // E follows G91
+  set = request(port(), http::verb::post, "/printer/gcode/script",
+                json{{"script", "G90\nM83\nM220 S100"}}.dump());
+  ASSERT_EQ(set.status, 200) << set.body.dump();
+  g = wait_objects(
+      "gcode_move",
+      [](const json& s) { return s["gcode_move"]["speed_factor"].get<double>() == 1.0; }, 10);
+  EXPECT_DOUBLE_EQ(g["gcode_move"]["speed_factor"].get<double>(), 1.0) << g.dump();
+  EXPECT_EQ(g["gcode_move"]["absolute_coordinates"], true) << g.dump();
+  EXPECT_EQ(g["gcode_move"]["absolute_extrude"], false) << g.dump();  // M83
+}
+
 TEST_F(WebJobs, FanPowerConsoleEchoAndAStreamedPrint) {
   LineClient marlin;
   ASSERT_TRUE(marlin.connect_unix(daemon_->socket_path()));
