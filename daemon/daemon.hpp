@@ -181,8 +181,8 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
     int64_t next_sd_report_ns = 0;
     std::deque<std::shared_ptr<ReplySlot>> replies;  // Marlin channels: answers not yet sent
   };
-  // A submitted command: who gets the answer.
-  // A submitted command's answer: its status and the lines it reports before it (CommandDone).
+  // A submitted command's answer: its status and the lines it reports before it (CommandDone);
+  // Pending: who gets it.
   using DoneFn = std::function<void(const Status&, const std::string& report)>;
   struct Pending {
     uint64_t client_id = 0;

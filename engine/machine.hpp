@@ -73,6 +73,7 @@ struct MachineStatus {
   double pressure_advance_s = 0.0;              // M900 K / SET_PRESSURE_ADVANCE, as last set
   double pressure_advance_smooth_time_s = 0.0;  // its smoothing window
   double speed_factor = 1.0, flow_factor = 1.0;  // M220 S / 100, M221 S / 100, as last set
+  double feedrate_mm_s = 0.0;                    // the last F (before M220's factor)
   bool absolute_coordinates = true, absolute_extrude = true;  // G90 / G91, M82 / M83
   uint64_t moves_planned = 0;
   uint64_t segments_queued = 0;   // joint segments waiting for the servo thread

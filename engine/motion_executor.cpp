@@ -66,6 +66,7 @@ Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool
   pa_smooth_time_s_.store(ist.pressure_advance_smooth_time_s, std::memory_order_relaxed);
   speed_factor_.store(ist.speed_factor, std::memory_order_relaxed);
   flow_factor_.store(ist.flow_factor, std::memory_order_relaxed);
+  feedrate_mm_s_.store(ist.feedrate_mm_s, std::memory_order_relaxed);
   relative_xyz_.store(ist.relative_xyz, std::memory_order_relaxed);
   relative_e_.store(ist.e_relative(), std::memory_order_relaxed);
   if (st && wait_until_s_ >= 0.0) wait_print_time(wait_until_s_, cancel);  // M400
@@ -310,6 +311,7 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
   s.pressure_advance_smooth_time_s = pa_smooth_time_s_.load(std::memory_order_relaxed);
   s.speed_factor = speed_factor_.load(std::memory_order_relaxed);
   s.flow_factor = flow_factor_.load(std::memory_order_relaxed);
+  s.feedrate_mm_s = feedrate_mm_s_.load(std::memory_order_relaxed);
   s.absolute_coordinates = !relative_xyz_.load(std::memory_order_relaxed);
   s.absolute_extrude = !relative_e_.load(std::memory_order_relaxed);
   s.moves_planned = moves_emitted_.load(std::memory_order_relaxed);

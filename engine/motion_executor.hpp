@@ -287,6 +287,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   // The planner thread's pressure advance (M900 / SET_PRESSURE_ADVANCE), for the status.
   std::atomic<double> pa_advance_s_{0.0}, pa_smooth_time_s_{0.0};
   std::atomic<double> speed_factor_{1.0}, flow_factor_{1.0};   // the interpreter's M220 / M221
+  std::atomic<double> feedrate_mm_s_{0.0};                     // its last F
   std::atomic<bool> relative_xyz_{false}, relative_e_{false};  // and its G91 / M83
   // Sampled path (servo thread).
   void sampled_cycle(double now_s);

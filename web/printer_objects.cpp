@@ -208,7 +208,9 @@ json printer_objects(const ObjectInputs& in) {
                      {"homing_origin", json::array({0.0, 0.0, 0.0, 0.0})},
                      {"position", vec4(s.pos_mm)},
                      {"gcode_position", vec4(s.pos_mm)},
-                     {"speed", 0.0}};
+                     // Klipper's gcode_move.speed is the G-code's F (mm/min); Mainsail shows
+                     // speed / 60 x speed_factor as the requested speed.
+                     {"speed", s.feedrate_mm_s * 60.0}};
   o["print_stats"] = {{"filename", job.filename},
                       {"total_duration", job.total_duration_s},
                       {"print_duration", job.print_duration_s},

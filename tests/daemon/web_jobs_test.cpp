@@ -594,11 +594,12 @@ TEST_F(WebJobs, AGcodeScriptOverHttpIsAnsweredWhenItHasRun) {
 }
 
 // Mainsail's speed and flow sliders send M220 / M221 and show gcode_move's speed_factor and
-// extrude_factor; its move buttons read absolute_coordinates. They were constants (1, 1, true):
-// a slider set to 150 % snapped back to 100 % while the print ran at 150 %.
+// extrude_factor; its move buttons read absolute_coordinates, its status panel the requested
+// speed (speed / 60 x speed_factor). They were constants (1, 1, true, 0): a slider set to 150 %
+// snapped back to 100 % while the print ran at 150 %, and the requested speed read 0 mm/s.
 TEST_F(WebJobs, TheSpeedAndFlowSlidersShowWhatM220AndM221Set) {
   Reply set = request(port(), http::verb::post, "/printer/gcode/script",
-                      json{{"script", "M220 S150\nM221 S90\nG91"}}.dump());
+                      json{{"script", "G1 X1 F1200\nM220 S150\nM221 S90\nG91"}}.dump());
   ASSERT_EQ(set.status, 200) << set.body.dump();
   json g = wait_objects(
       "gcode_move",
@@ -607,6 +608,7 @@ TEST_F(WebJobs, TheSpeedAndFlowSlidersShowWhatM220AndM221Set) {
   EXPECT_DOUBLE_EQ(g["gcode_move"]["extrude_factor"].get<double>(), 0.9) << g.dump();
   EXPECT_EQ(g["gcode_move"]["absolute_coordinates"], false) << g.dump();
   EXPECT_EQ(g["gcode_move"]["absolute_extrude"], false) << g.dump();  // E follows G91
+  EXPECT_DOUBLE_EQ(g["gcode_move"]["speed"].get<double>(), 1200.0) << g.dump();  // F, mm/min
   set = request(port(), http::verb::post, "/printer/gcode/script",
                 json{{"script", "G90\nM83\nM220 S100"}}.dump());
   ASSERT_EQ(set.status, 200) << set.body.dump();
