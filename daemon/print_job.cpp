@@ -1,10 +1,12 @@
 #include "daemon/print_job.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
 
+#include "core/utf8.hpp"
 #include "gcode/file_kind.hpp"
 #include "gcode/parser.hpp"
 
@@ -47,6 +49,56 @@ std::string fmt(const char* f, double v) {
 // Numbers for generated G-code: enough digits for one encoder count, no exponent.
 std::string num(double v) {
   return fmt("%.5f", v);
+}
+
+// A pause that the file itself asks for (feed()): which command, and the job's message.
+constexpr size_t npos = std::string_view::npos;
+
+struct FilePause {
+  bool pauses = false;
+  std::string message;
+};
+
+// The free text after a line's command code ("M0 Insert the magnets ; at 5 mm" -> "Insert the
+// magnets"), up to a comment or a checksum, at most 120 bytes, valid UTF-8 (it reaches JSON).
+std::string text_after_code(std::string_view line) {
+  size_t i = line.find_first_of("Mm");
+  if (i == std::string_view::npos) return {};
+  ++i;
+  while (i < line.size() && std::isdigit(static_cast<unsigned char>(line[i]))) ++i;
+  std::string_view rest = line.substr(i);
+  rest = rest.substr(0, rest.find_first_of(";*"));
+  const auto not_space = [](char c) { return c != ' ' && c != '\t' && c != '\r'; };
+  const auto b = std::find_if(rest.begin(), rest.end(), not_space);
+  const auto e = std::find_if(rest.rbegin(), rest.rend(), not_space).base();
+  rest = b < e ? std::string_view(&*b, static_cast<size_t>(e - b)) : std::string_view{};
+  return valid_utf8(rest.substr(0, 120));
+}
+
+// Marlin's M25 (SD pause), M601 (PrusaSlicer's pause print), M600 (filament change; Marlin
+// parks, unloads and waits: here the job's pause parks and holds the heaters) and M0 / M1
+// (unconditional stop, Cura's pause at height: Marlin waits for a click and shows the text).
+// M0 / M1 with P<ms> or S<s> first wait that long in Marlin and go on: not a pause (feed()
+// dwells).
+FilePause pause_in_file(const gcode::Command& c, std::string_view line) {
+  if (c.letter != 'M') return {};
+  switch (c.code) {
+    case 25:
+    case 601:
+      return {true, "paused by M" + std::to_string(c.code) + " in the file"};
+    case 600:
+      return {true, "filament change (M600): load the new filament"};
+    case 0:
+    case 1: {
+      const std::string text = text_after_code(line);
+      const bool timed = text.size() >= 2 && std::string_view("PpSs").find(text[0]) != npos &&
+                         std::string_view("0123456789.+-").find(text[1]) != npos;
+      if (timed) return {};
+      return {true, "paused by M" + std::to_string(c.code) + (text.empty() ? "" : ": " + text)};
+    }
+    default:
+      return {};
+  }
 }
 }  // namespace
 
@@ -232,6 +284,7 @@ Status PrintJob::resume() {
     return Error{std::string("no paused print to resume (job ") + to_string(state_) + ")"};
   state_ = JobState::kResuming;
   phase_ = Phase::kResumeBack;
+  message_.clear();  // a pause's message from the file ("filament change (M600): ...")
   const JobPosition& p = pause_pos_;
   // Marlin's resume_print (feature/pause.cpp): back over the part in XY, then down, then prime.
   add_sequence("G21");
@@ -386,12 +439,24 @@ void PrintJob::feed() {
         bytes_submitted_ = read_offset_;
         continue;
       }
-      if (cmd->is('M', 25) || cmd->is('M', 601)) {
-        // A pause in the file (Marlin's M25 in an SD print; M601, PrusaSlicer's pause print):
-        // the job pauses itself there, and resume goes on with the next line.
+      if (const FilePause fp = pause_in_file(*cmd, line_); fp.pauses) {
+        // A pause in the file (Marlin's M25 in an SD print; M601, PrusaSlicer's pause print;
+        // M600, the slicers' filament change; M0 / M1, Cura's pause at height): the job pauses
+        // itself there, parked with the heaters held, and resume goes on with the next line.
         bytes_submitted_ = read_offset_;
         (void)pause();  // printing: it cannot fail
+        message_ =
+            fp.message + " (" + file_ + ":" + std::to_string(line_number_) + "); resume to go on";
         return;
+      }
+      if (cmd->is('M', 0) || cmd->is('M', 1)) {
+        // M0 / M1 with P or S: Marlin waits that long for a click and goes on; with no panel to
+        // click, a dwell (pause_in_file took the forms without).
+        const double ms = cmd->has('P') ? cmd->get('P') : 1000.0 * cmd->get('S');
+        cmd->clear();
+        cmd->letter = 'G';
+        cmd->code = 4;
+        cmd->set('P', std::max(0.0, ms));
       }
       held_ = std::move(*cmd);
       held_text_ = line_;

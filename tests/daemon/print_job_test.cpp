@@ -37,6 +37,7 @@ struct FakeMachine final : JobSink {
   size_t queued_at_heaters_off = 99;
   size_t executed_at_heaters_off = 0;
   double print_time_s = 0.0;
+  double dwelt_ms = 0.0;  // G4 P, summed
   int64_t clock_ns = 0;
   bool refuse = false;
   bool moving = false;   // motion runs (print time anchored on the machine clock)
@@ -65,7 +66,10 @@ struct FakeMachine final : JobSink {
     const planner::Vec4 after = rig.interp.state().machine_mm;
     const double d = std::hypot(after[0] - before[0], after[1] - before[1], after[2] - before[2]);
     print_time_s += d / rig.interp.state().feedrate_mm_s;
-    if (q.cmd.is('G', 4)) print_time_s += q.cmd.get('P') / 1000.0;
+    if (q.cmd.is('G', 4)) {
+      print_time_s += q.cmd.get('P') / 1000.0;
+      dwelt_ms += q.cmd.get('P');
+    }
     clock_ns += 1'000'000;
     executed.push_back(q.text);
     q.done(st);
@@ -411,6 +415,83 @@ TEST_F(PrintJobTest, PauseParksAndResumeRestoresPositionModesAndFeedrate) {
   EXPECT_DOUBLE_EQ(st.feedrate_mm_s, plain.rig.interp.state().feedrate_mm_s);
   EXPECT_EQ(job.status().pauses, 1u);
   EXPECT_EQ(m.heaters_off, 0);  // heaters held on pause
+}
+
+// The slicers' pauses in the file: M600 (filament change), M0 / M1 (Cura's pause at height, with
+// the text Marlin shows on its panel) pause the job there as M25 does, and the message says which
+// and where; M0 with S (Marlin: wait that long for a click) dwells and goes on.
+TEST_F(PrintJobTest, TheFilesM600M0AndM1PauseTheJobWithTheirMessage) {
+  const std::string base = part(40);
+  std::vector<std::string> lines;
+  {
+    std::istringstream in(base);
+    for (std::string l; std::getline(in, l);) lines.push_back(l);
+  }
+  // Inserted after the file's moves 8, 16, 24 and 32 (their lines end in "; move N").
+  const std::vector<std::pair<std::string, std::string>> inserts = {
+      {"; move 8", "M600 ; colour change"},
+      {"; move 16", "M0 Insert the magnets ; pause at height"},
+      {"; move 24", "M0 S0.5 ; dwell"},
+      {"; move 32", "M1"}};
+  std::string text;
+  std::vector<int> line_of;  // 1-based line of each insert
+  int n = 0;
+  for (const std::string& l : lines) {
+    text += l + "\n";
+    ++n;
+    for (const auto& [after, what] : inserts) {
+      if (l.size() >= after.size() &&
+          l.compare(l.size() - after.size(), after.size(), after) == 0) {
+        text += what + "\n";
+        line_of.push_back(++n);
+      }
+    }
+  }
+  ASSERT_EQ(line_of.size(), 4u);
+  ASSERT_TRUE(files_->write("part.gcode", text).ok());
+  options_.settle_ms = 0;
+  FakeMachine plain;
+  {
+    ASSERT_TRUE(files_->write("plain.gcode", base).ok());
+    PrintJob job(*files_, options_, plain);
+    ASSERT_TRUE(job.start("plain.gcode").ok());
+    plain.run();
+    job.pump();
+    ASSERT_EQ(job.state(), JobState::kComplete);
+  }
+  FakeMachine m;
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  const std::vector<std::string> expected = {
+      "filament change (M600): load the new filament (part.gcode:" + std::to_string(line_of[0]) +
+          "); resume to go on",
+      "paused by M0: Insert the magnets (part.gcode:" + std::to_string(line_of[1]) +
+          "); resume to go on",
+      "paused by M1 (part.gcode:" + std::to_string(line_of[3]) + "); resume to go on"};
+  for (const std::string& message : expected) {
+    m.run();
+    job.pump();
+    ASSERT_EQ(job.state(), JobState::kPaused) << message;
+    EXPECT_EQ(job.status().message, message);
+    // Parked (the park point), as M25 parks.
+    EXPECT_DOUBLE_EQ(m.rig.interp.state().logical_mm[0], 5.0);
+    EXPECT_DOUBLE_EQ(m.rig.interp.state().logical_mm[1], 210.0);
+    ASSERT_TRUE(job.resume().ok());
+    EXPECT_EQ(job.status().message, "");
+  }
+  m.run();
+  job.pump();
+  EXPECT_EQ(job.state(), JobState::kComplete);
+  EXPECT_EQ(job.status().pauses, 3u);
+  EXPECT_EQ(m.heaters_off, 0);
+  // M0 S0.5 ran as a dwell of 500 ms (the pauses' settle dwells are 0 here).
+  EXPECT_EQ(std::count(m.executed.begin(), m.executed.end(), "M0 S0.5 ; dwell"), 1);
+  EXPECT_DOUBLE_EQ(m.dwelt_ms, 500.0);
+  for (const char* pause : {"M600 ; colour change", "M1"})
+    EXPECT_EQ(std::count(m.executed.begin(), m.executed.end(), pause), 0) << pause;
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(m.rig.interp.state().logical_mm[i], plain.rig.interp.state().logical_mm[i], 1e-9);
+  EXPECT_NEAR(m.rig.interp.state().logical_mm[kE], plain.rig.interp.state().logical_mm[kE], 1e-9);
 }
 
 TEST_F(PrintJobTest, CancelFlushesTheQueueTurnsHeatersOffAtOnceThenParks) {
