@@ -37,9 +37,10 @@ constexpr ParamRule kDwell[] = {non_negative('P'), non_negative('S')};
 constexpr ParamRule kRetract[] = {{'S', K::kFlagOrNumber, 0.0, kMaxTempDegC, false, false}, index('P'),
                                   temp('R')};
 // G28 home: axis letters are flags (a value is ignored), O = only if not homed, L = restore
-// levelling, R = raise before homing (mm).
-constexpr ParamRule kHome[] = {flag('X'), flag('Y'), flag('Z'), flag('O'), flag('L'),
-                               non_negative('R')};
+// levelling, R = raise before homing (mm), W = Prusa-Firmware's "without the mesh levelling that
+// follows" (PrusaSlicer's MK3 / MK4 start G-code: `G28 W`; no levelling here to skip).
+constexpr ParamRule kHome[] = {flag('X'), flag('Y'),         flag('Z'), flag('O'),
+                               flag('L'), non_negative('R'), flag('W')};
 // G92 set position.
 constexpr ParamRule kSetPosition[] = {num('X'), num('Y'), num('Z'), num('E')};
 // M73 progress: P percent, R minutes remaining; Q/S the same for silent mode (PrusaSlicer),
@@ -196,6 +197,7 @@ bool is_text_command(char letter, int code) {
     case 28:   // start SD write
     case 30:   // delete SD file
     case 32:   // select and start SD file
+    case 115:  // firmware info; Prusa-Firmware's M115 U<version> (a version check, not a number)
     case 117:  // display message
     case 118:  // serial print
     case 928:  // start SD logging

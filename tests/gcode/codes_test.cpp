@@ -197,7 +197,7 @@ TEST(Codes, ValidationRejectsWithColumn) {
       {"M110 N1.5", 6, "whole number"},
       {"M112 X", 6, "takes none"},
       {"M114 X", 6, "X is not allowed"},
-      {"M115 P1", 6, "takes none"},
+      {"M400 P1", 6, "takes none"},
       {"M140 S-5", 6, "between 0 and 1000"},
       {"M190 S5000", 6, "between 0 and 1000"},
       {"M201 X0", 6, "X must be > 0"},

@@ -290,6 +290,23 @@ TEST(Parser, UnknownCommandsParseAndAreFlagged) {
   EXPECT_FALSE(ok("G1 X1").unknown);
 }
 
+// PrusaSlicer's start G-code for Prusa printers (MK3S, MK4): a firmware version check and a
+// homing without the mesh levelling. Both once failed the whole line (a print job ended in error
+// at line 3): "3.13.0" is not a number, and W was not one of G28's parameters.
+TEST(Parser, PrusaFirmwaresStartLinesParse) {
+  Command c = ok("M115 U3.13.0 ; tell the firmware the version");
+  EXPECT_FALSE(c.unknown);
+  EXPECT_EQ(c.text, "U3.13.0");
+  c = ok("M115 U6.1.3+7898");
+  EXPECT_EQ(c.text, "U6.1.3+7898");
+  c = ok("M115");
+  EXPECT_EQ(c.text, "");
+  c = ok("G28 W ; home all without mesh bed level");
+  EXPECT_TRUE(c.is('G', 28));
+  EXPECT_TRUE(c.has('W'));
+  EXPECT_FALSE(c.has('X'));
+}
+
 TEST(Parser, ErrorsCarryColumnAndMessage) {
   struct Case {
     const char* line;

@@ -69,6 +69,15 @@ TEST(HomingState, G28PerAxisThenAll) {
   EXPECT_FALSE(r.run("G1 X500").ok());
 }
 
+// PrusaSlicer's `G28 W` (Prusa-Firmware: home without the mesh levelling after it) homes every
+// axis, as G28 does.
+TEST(HomingState, PrusasG28WHomesEveryAxis) {
+  Rig r(needs_homing(test::cartesian_config()));
+  ASSERT_TRUE(r.run("G28 W").ok());
+  EXPECT_EQ(homed(r), "xyz");
+  EXPECT_TRUE(r.run("G1 X30 Y10 Z5 F3000").ok());
+}
+
 TEST(HomingState, MotorsOffUnhomesAsMarlin) {
   Rig r(needs_homing(test::cartesian_config()));
   ASSERT_TRUE(r.run("G28").ok());
