@@ -319,6 +319,7 @@ Status PrintJob::cancel() {
   if (state_ == JobState::kResuming || state_ == JobState::kPausing) parked_ = false;
   cancel_after_pause_ = false;
   resume_after_pause_ = false;
+  message_.clear();  // a pause's message from the file no longer applies
   // At once (Klipper's CANCEL_PRINT, Marlin's M524): heaters off and the queued commands dropped
   // now, not behind up to a queue of moves. While paused the job has nothing queued and another
   // client may be moving the machine: heaters off only.
