@@ -379,7 +379,14 @@ Status Machine::execute_machine_command(const gcode::Command& cmd) {
   if (cmd.is('M', 106) || cmd.is('M', 107)) {
     const int fan = cmd.has('P') ? static_cast<int>(cmd.get('P')) : 0;
     const double speed = cmd.is('M', 107) ? 0.0 : (cmd.has('S') ? cmd.get('S') / 255.0 : 1.0);
-    return thermal_->set_fan(fan, speed, now_s);
+    if (Status st = thermal_->set_fan(fan, speed, now_s); !st) {
+      // A fan index beyond the machine's part fans is ignored, as Marlin does
+      // (gcode/temp/M106_M107.cpp: `if (pfan < _CNT_P)`): a slicer's auxiliary or chamber fan
+      // (OrcaSlicer's `M106 P2 S0`, `M106 P3 S180`) must not end a print job. Said, not refused.
+      command_report_ = "echo:" + st.error().message + ": M" + std::to_string(cmd.code) + " P" +
+                        std::to_string(fan) + " ignored";
+    }
+    return Status::Ok();
   }
   if (cmd.is('M', 303)) {
     const int e = cmd.has('E') ? static_cast<int>(cmd.get('E')) : 0;

@@ -212,5 +212,26 @@ TEST(ThermalMachine, M303AutotunesTheExtruderAndUsesTheResult) {
   EXPECT_EQ(r.last_report, "echo:Cold extrudes are disabled (min temp 170C)");  // Marlin's M302
 }
 
+// A fan the machine does not have (a slicer's auxiliary or chamber fan: OrcaSlicer's M106 P2 / P3)
+// is ignored with a word, as Marlin ignores it: not a failure that would end a print job.
+TEST(ThermalMachine, AFanTheMachineDoesNotHaveIsIgnoredWithAWord) {
+  MachineRig r;
+  ASSERT_TRUE(r.m->start().ok());
+  r.run({"M106 P3 S180"});
+  EXPECT_EQ(r.last_report, "echo:no part fan 3: M106 P3 ignored");
+  r.last_report.clear();
+  r.run({"M107 P2"});
+  EXPECT_EQ(r.last_report, "echo:no part fan 2: M107 P2 ignored");
+  r.last_report.clear();
+  r.run({"M106 S255"});  // the part fan itself: set, nothing to say
+  const MachineStatus s = r.m->status();
+  r.m->stop();
+  EXPECT_EQ(r.failed.load(), 0u) << r.last_failure;
+  EXPECT_EQ(r.last_report, "");
+  bool part_fan_on = false;
+  for (int i = 0; i < s.num_fans; ++i) part_fan_on |= s.fans[i].part && s.fans[i].requested > 0.99;
+  EXPECT_TRUE(part_fan_on);
+}
+
 }  // namespace
 }  // namespace feedloop::engine
