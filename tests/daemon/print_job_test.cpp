@@ -169,6 +169,14 @@ class PrintJobTest : public ::testing::Test {
     return out;
   }
 
+  // The file printed start to end on `m` with no pause (the reference a paused print must match).
+  void print_whole(const std::string& file, FakeMachine& m) {
+    PrintJob job(*files_, options_, m);
+    ASSERT_TRUE(job.start(file).ok());
+    m.run();
+    job.pump();
+    ASSERT_EQ(job.state(), JobState::kComplete);
+  }
   std::string dir_;
   std::unique_ptr<JobFiles> files_;
   JobOptions options_;
@@ -354,13 +362,7 @@ TEST_F(PrintJobTest, PauseParksAndResumeRestoresPositionModesAndFeedrate) {
   const std::string text = part(80);
   ASSERT_TRUE(files_->write("part.gcode", text).ok());
   FakeMachine plain;
-  {
-    PrintJob job(*files_, options_, plain);
-    ASSERT_TRUE(job.start("part.gcode").ok());
-    plain.run();
-    job.pump();
-    ASSERT_EQ(job.state(), JobState::kComplete);
-  }
+  ASSERT_NO_FATAL_FAILURE(print_whole("part.gcode", plain));
   FakeMachine m;
   PrintJob job(*files_, options_, m);
   ASSERT_TRUE(job.start("part.gcode").ok());
@@ -451,14 +453,8 @@ TEST_F(PrintJobTest, TheFilesM600M0AndM1PauseTheJobWithTheirMessage) {
   ASSERT_TRUE(files_->write("part.gcode", text).ok());
   options_.settle_ms = 0;
   FakeMachine plain;
-  {
-    ASSERT_TRUE(files_->write("plain.gcode", base).ok());
-    PrintJob job(*files_, options_, plain);
-    ASSERT_TRUE(job.start("plain.gcode").ok());
-    plain.run();
-    job.pump();
-    ASSERT_EQ(job.state(), JobState::kComplete);
-  }
+  ASSERT_TRUE(files_->write("plain.gcode", base).ok());
+  ASSERT_NO_FATAL_FAILURE(print_whole("plain.gcode", plain));
   FakeMachine m;
   PrintJob job(*files_, options_, m);
   ASSERT_TRUE(job.start("part.gcode").ok());
