@@ -51,9 +51,9 @@ std::string num(double v) {
   return fmt("%.5f", v);
 }
 
-// A pause that the file itself asks for (feed()): which command, and the job's message.
 constexpr size_t npos = std::string_view::npos;
 
+// A pause that the file itself asks for (feed()): which command, and the job's message.
 struct FilePause {
   bool pauses = false;
   std::string message;
@@ -63,7 +63,7 @@ struct FilePause {
 // magnets"), up to a comment or a checksum, at most 120 bytes, valid UTF-8 (it reaches JSON).
 std::string text_after_code(std::string_view line) {
   size_t i = line.find_first_of("Mm");
-  if (i == std::string_view::npos) return {};
+  if (i == npos) return {};
   ++i;
   while (i < line.size() && std::isdigit(static_cast<unsigned char>(line[i]))) ++i;
   std::string_view rest = line.substr(i);
