@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 #include "core/utf8.hpp"
@@ -248,6 +249,7 @@ Status PrintJob::start(std::string_view name) {
   cancel_after_pause_ = false;
   resume_after_pause_ = false;
   parked_ = false;
+  retracted_ = false;
   reset_objects_ = sink_.has_object_labels();
   message_.clear();
   started_ns_ = sink_.now_ns();
@@ -282,6 +284,17 @@ Status PrintJob::resume() {
   }
   if (state_ != JobState::kPaused)
     return Error{std::string("no paused print to resume (job ") + to_string(state_) + ")"};
+  const engine::MachineStatus now = sink_.machine_status();
+  if (parked_ && retracted_ && !engine::can_extrude(now)) {
+    // The pause retracted the filament; priming it back needs a hot nozzle. Refused whole: the
+    // job stays paused where it was (Marlin's resume heats the nozzle first; here the user does).
+    char why[200];
+    std::snprintf(why, sizeof why,
+                  "cannot resume: the hotend is at %.1f C, below min_extrude_temp %.0f C, and the "
+                  "pause retracted the filament; heat it (M109 S<temp>) and resume",
+                  now.hotend_c, now.min_extrude_temp_c);
+    return Error{why};
+  }
   state_ = JobState::kResuming;
   phase_ = Phase::kResumeBack;
   message_.clear();  // a pause's message from the file ("filament change (M600): ...")
@@ -296,7 +309,10 @@ Status PrintJob::resume() {
     const double y = std::clamp(p.pos_mm[1], options_.y_min_mm, options_.y_max_mm);
     add_sequence("G1 X" + num(x) + " Y" + num(y) + " F" + num(options_.travel_speed_mm_s * 60.0));
     add_sequence("G1 Z" + num(p.pos_mm[2]) + " F" + num(options_.z_speed_mm_s * 60.0));
-    const double push = options_.pause_retract_mm + options_.prime_extra_mm;
+    // The retract back, and the prime beyond it when the nozzle is hot (a pause of a cold
+    // hotend retracted nothing).
+    const double push = (retracted_ ? options_.pause_retract_mm : 0.0) +
+                        (engine::can_extrude(now) ? options_.prime_extra_mm : 0.0);
     if (push > 0.0) {
       add_sequence("G91");
       add_sequence("G1 E" + num(push) + " F" + num(options_.retract_speed_mm_s * 60.0));
@@ -592,7 +608,9 @@ void PrintJob::on_phase_done() {
       // Paused inside a labelled object: the park (and the resume's way back) must move even
       // when that object is excluded; the resume enters it again (kResumeBack).
       if (!saved_modes_.object.empty()) add_sequence("EXCLUDE_OBJECT_END");
-      park_lines(s, true);
+      // Marlin's pause retracts only a hotend hot enough to extrude (a cold one would refuse it).
+      retracted_ = engine::can_extrude(s);
+      park_lines(s, retracted_);
       parked_ = true;
       pump();
       return;
@@ -602,7 +620,8 @@ void PrintJob::on_phase_done() {
       state_ = JobState::kPaused;
       if (resume_after_pause_) {
         resume_after_pause_ = false;
-        (void)resume();  // paused: it cannot fail
+        // Paused: it fails only when the nozzle it would prime has gone cold (then it says so).
+        if (Status st = resume(); !st) message_ = st.error().to_string();
         return;
       }
       if (cancel_after_pause_) {
@@ -641,7 +660,10 @@ void PrintJob::on_phase_done() {
       sink_.all_heaters_off();
       phase_ = Phase::kCancelParked;
       if (!modes_.object.empty()) add_sequence("EXCLUDE_OBJECT_END");  // the park moves
-      if (!parked_) park_lines(sink_.machine_status(), true);
+      if (!parked_) {
+        const engine::MachineStatus s = sink_.machine_status();
+        park_lines(s, engine::can_extrude(s));
+      }
       parked_ = true;
       pump();
       return;

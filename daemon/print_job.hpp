@@ -236,6 +236,7 @@ class PrintJob {
   bool cancel_after_pause_ = false;
   bool resume_after_pause_ = false;
   bool parked_ = false;
+  bool retracted_ = false;      // the pause's park retracted the filament (the hotend was hot)
   bool reset_objects_ = false;  // the start's EXCLUDE_OBJECT_DEFINE RESET=1 is still to be sent
   std::string message_;
   int64_t started_ns_ = 0, ended_ns_ = 0, paused_since_ns_ = 0, paused_total_ns_ = 0;

@@ -248,6 +248,8 @@ void Machine::publish_status() {
     executor_->motion_status(s);
   }
   fill_thermal(s);
+  if (thermal_ && !cold_extrusion_allowed_ && thermal_->find_heater('T', 0) >= 0)
+    s.min_extrude_temp_c = min_extrude_temp_c_;
   s.queue_depth = static_cast<uint32_t>(queue_.size());
   s.queue_capacity = static_cast<uint32_t>(queue_.capacity());
   s.commands_executed = executed_.load();

@@ -53,6 +53,9 @@ struct MachineStatus {
   bool endstop_at_max[3] = {false, false, false};
   double hotend_c = 0, hotend_target_c = 0, bed_c = 0,
          bed_target_c = 0;  // the first T and B heater
+  // The extruding hotend (T0) must be at or above this to extrude (min_extrude_temp, M302 S);
+  // 0: any temperature (M302 P1, or no hotend to check). See can_extrude().
+  double min_extrude_temp_c = 0;
   // Heaters and fans (engine/thermal_loop.hpp); temp_report: Marlin's "T:210.0 /210.0 B:.. @:..
   // B@:..".
   HeaterStatus heaters[ThermalLoop::kMaxHeaters] = {};
@@ -93,6 +96,12 @@ struct MachineStatus {
   DeviceLoopTelemetrySet device_loops{};  // each joint's device loop (e, y, correction, tick cost)
   char last_error[192] = {};
 };
+
+// Whether an extruding move would pass the cold-extrusion check now (Machine::why_not_extrude
+// refuses it otherwise): a hotend without a reading yet (NaN) is cold.
+inline bool can_extrude(const MachineStatus& s) {
+  return s.min_extrude_temp_c <= 0.0 || s.hotend_c >= s.min_extrude_temp_c;
+}
 
 // What the servo thread publishes every cycle.
 struct ServoStatus {

@@ -41,6 +41,7 @@ struct FakeMachine final : JobSink {
   int64_t clock_ns = 0;
   bool refuse = false;
   bool moving = false;   // motion runs (print time anchored on the machine clock)
+  double hotend_c = 210.0, min_extrude_temp_c = 0.0;  // as MachineStatus (0: no cold check)
   double ahead_s = 0.0;  // planned motion beyond the motion executing now
 
   Offer offer(const gcode::Command& cmd, std::string_view text,
@@ -95,6 +96,8 @@ struct FakeMachine final : JobSink {
     s.print_time_s = print_time_s;
     s.planned_until_s = print_time_s + ahead_s;
     s.moving = moving;
+    s.hotend_c = hotend_c;
+    s.min_extrude_temp_c = min_extrude_temp_c;
     return s;
   }
   int64_t now_ns() const override { return clock_ns; }
@@ -485,6 +488,73 @@ TEST_F(PrintJobTest, TheFilesM600M0AndM1PauseTheJobWithTheirMessage) {
   EXPECT_DOUBLE_EQ(m.dwelt_ms, 500.0);
   for (const char* pause : {"M600 ; colour change", "M1"})
     EXPECT_EQ(std::count(m.executed.begin(), m.executed.end(), pause), 0) << pause;
+  for (int i = 0; i < 3; ++i)
+    EXPECT_NEAR(m.rig.interp.state().logical_mm[i], plain.rig.interp.state().logical_mm[i], 1e-9);
+  EXPECT_NEAR(m.rig.interp.state().logical_mm[kE], plain.rig.interp.state().logical_mm[kE], 1e-9);
+}
+
+// A cold hotend (below min_extrude_temp) would refuse the park's retract and the resume's prime:
+// the pause then retracts nothing (as Marlin's), the file's message stays, and the resume primes
+// nothing. A pause that did retract is not resumed cold: the resume is refused with the reason and
+// the job stays paused, until the hotend is hot again.
+TEST_F(PrintJobTest, AColdHotendIsNotRetractedAndAColdResumeIsRefused) {
+  const std::string base = part(24);
+  std::string text;
+  {
+    std::istringstream in(base);
+    for (std::string l; std::getline(in, l);) {
+      text += l + "\n";
+      if (l.find("; move 8") != std::string::npos || l.find("; move 16") != std::string::npos)
+        text += "M600\n";
+    }
+  }
+  ASSERT_TRUE(files_->write("part.gcode", text).ok());
+  ASSERT_TRUE(files_->write("plain.gcode", base).ok());
+  options_.settle_ms = 0;
+  FakeMachine plain;
+  ASSERT_NO_FATAL_FAILURE(print_whole("plain.gcode", plain));
+  FakeMachine m;
+  m.min_extrude_temp_c = 170.0;
+  m.hotend_c = 25.0;
+  PrintJob job(*files_, options_, m);
+  ASSERT_TRUE(job.start("part.gcode").ok());
+  auto e_lines = [&m] {
+    return std::count_if(m.executed.begin(), m.executed.end(),
+                         [](const std::string& l) { return l.rfind("G1 E", 0) == 0; });
+  };
+  // 1. Cold at the pause: parked without a retract, the M600 message kept.
+  m.run();
+  job.pump();
+  ASSERT_EQ(job.state(), JobState::kPaused);
+  EXPECT_EQ(e_lines(), 0);
+  EXPECT_EQ(job.status().message.rfind("filament change (M600)", 0), 0u) << job.status().message;
+  const double e_paused = m.rig.interp.state().logical_mm[kE];
+  EXPECT_NEAR(e_paused, job.status().pause_position.pos_mm[3], 1e-9);
+  ASSERT_TRUE(job.resume().ok());  // nothing to prime: a cold resume is allowed
+  // 2. Hot at the second pause: retracted; cooled while paused, the resume is refused.
+  m.hotend_c = 215.0;
+  m.run();
+  job.pump();
+  ASSERT_EQ(job.state(), JobState::kPaused);
+  EXPECT_EQ(e_lines(), 1);  // the retract
+  EXPECT_NEAR(m.rig.interp.state().logical_mm[kE], job.status().pause_position.pos_mm[3] - 1.5,
+              1e-9);
+  m.hotend_c = 120.0;
+  const Status cold = job.resume();
+  ASSERT_FALSE(cold.ok());
+  EXPECT_NE(cold.error().to_string().find("hotend is at 120.0 C, below min_extrude_temp 170 C"),
+            std::string::npos)
+      << cold.error().to_string();
+  EXPECT_EQ(job.state(), JobState::kPaused);
+  const size_t executed = m.executed.size();
+  m.run();
+  EXPECT_EQ(m.executed.size(), executed);  // nothing moved
+  m.hotend_c = 212.0;
+  ASSERT_TRUE(job.resume().ok());
+  m.run();
+  job.pump();
+  EXPECT_EQ(job.state(), JobState::kComplete);
+  EXPECT_EQ(e_lines(), 2);  // the retract and the prime: nothing for the cold first pause
   for (int i = 0; i < 3; ++i)
     EXPECT_NEAR(m.rig.interp.state().logical_mm[i], plain.rig.interp.state().logical_mm[i], 1e-9);
   EXPECT_NEAR(m.rig.interp.state().logical_mm[kE], plain.rig.interp.state().logical_mm[kE], 1e-9);

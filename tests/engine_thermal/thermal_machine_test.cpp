@@ -146,6 +146,17 @@ TEST(ThermalMachine, ColdExtrusionIsRefusedWholeUntilTheHotendIsHot) {
   EXPECT_NE(r.last_failure.find("min_extrude_temp is 170 C"), std::string::npos) << r.last_failure;
   EXPECT_DOUBLE_EQ(s.pos_mm[0], 10.0);  // the travel ran, the refused move did not
   EXPECT_DOUBLE_EQ(s.pos_mm[3], 0.0);
+  // The status says so too (a print job's pause retracts only when it would pass).
+  EXPECT_DOUBLE_EQ(s.min_extrude_temp_c, 170.0);
+  EXPECT_FALSE(can_extrude(s));
+  r.run({"M302 P1", "M400"});
+  s = r.m->status();
+  EXPECT_DOUBLE_EQ(s.min_extrude_temp_c, 0.0);
+  EXPECT_TRUE(can_extrude(s));
+  r.run({"M302 S20", "M302 P0", "M400"});
+  s = r.m->status();
+  EXPECT_DOUBLE_EQ(s.min_extrude_temp_c, 20.0);
+  EXPECT_TRUE(can_extrude(s)) << s.hotend_c;
   r.run({"M302 S20", "G1 X20 E2 F3000", "M302 S170", "G1 X30 E3", "M302 P1", "G1 X40 E4", "M302 P0",
          "M400"});
   s = r.m->status();
@@ -159,6 +170,7 @@ TEST(ThermalMachine, ColdExtrusionIsRefusedWholeUntilTheHotendIsHot) {
   EXPECT_DOUBLE_EQ(s.pos_mm[0], 60.0);
   EXPECT_DOUBLE_EQ(s.pos_mm[3], 6.0);
   EXPECT_GE(s.hotend_c, 170.0);
+  EXPECT_TRUE(can_extrude(s));
 }
 
 TEST(ThermalMachine, AFaultDuringAWaitStopsTheMachineWithTheHeatersMessage) {
