@@ -368,7 +368,10 @@ std::function<void(const Status&)> PrintJob::completion(bool from_file, int64_t 
       // Dropped by the cancel's flush (or cut short by it): nothing to report.
     } else if (!st) {
       if (from_file) {
-        fail(file_ + ":" + std::to_string(line) + ": " + st.error().to_string());
+        // The machine's error names the line already when it carries the command's location.
+        const Error& e = st.error();
+        const bool located = e.where.source == file_ && e.where.line == line;
+        fail(located ? e.to_string() : file_ + ":" + std::to_string(line) + ": " + e.to_string());
       } else {
         // A refused move of the job's own (e.g. a park point outside the travel): reported, the
         // sequence goes on (the nozzle stays where it is).

@@ -618,7 +618,9 @@ TEST_F(PrintJobTest, ABadLineEndsTheJobWithItsLocationAndHeatersOff) {
   ASSERT_TRUE(job.start("far.gcode").ok());
   m.run();
   EXPECT_EQ(job.state(), JobState::kError);
-  EXPECT_NE(job.status().message.find("far.gcode:3"), std::string::npos) << job.status().message;
+  const std::string far = job.status().message;
+  EXPECT_EQ(far.rfind("far.gcode:3: ", 0), 0u) << far;
+  EXPECT_EQ(far.find("far.gcode:", 1), std::string::npos) << far;  // named once
 }
 
 // A file that cannot be read to its end (here: replaced by a directory after it was selected, so
