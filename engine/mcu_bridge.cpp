@@ -903,6 +903,14 @@ unsigned long long McuBridge::encoder_reports(int joint) const {
   return encoder_reports_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
 }
 
+double McuBridge::encoder_sample_time_s(int joint, int64_t mcu_clock) const {
+  if (joint < 0 || joint >= static_cast<int>(kJoints)) return NAN;
+  const stepgen::TickMap map = tick_map(joint);
+  if (!(map.ticks_per_s > 0.0)) return NAN;
+  return (static_cast<double>(mcu_clock) - map.offset_ticks) / map.ticks_per_s -
+         encoder_delay_s_[static_cast<size_t>(joint)];
+}
+
 double McuBridge::encoder_mm(int joint) const {
   return encoder_mm_[static_cast<size_t>(joint)].load(std::memory_order_relaxed);
 }
@@ -934,12 +942,8 @@ void McuBridge::collect(double) {
         encoder_reports_[j].fetch_add(1, std::memory_order_relaxed);
         // When it was sampled, on the host clock (the clock sync's map, inverted), less the
         // encoder's delay: the instant whose carriage position it shows.
-        const stepgen::TickMap map = tick_map(static_cast<int>(j));
-        if (map.ticks_per_s > 0.0)
-          encoder_time_s_[j].store(
-              (static_cast<double>(latest->clock) - map.offset_ticks) / map.ticks_per_s -
-                  encoder_delay_s_[j],
-              std::memory_order_relaxed);
+        const double t_s = encoder_sample_time_s(static_cast<int>(j), latest->clock);
+        if (std::isfinite(t_s)) encoder_time_s_[j].store(t_s, std::memory_order_relaxed);
       }
       encoder_samples_.fetch_add(samples.size(), std::memory_order_relaxed);
     }

@@ -111,6 +111,12 @@ class McuBridge final : public stepgen::BatchSink, public ServoBackend {
   unsigned long long encoder_samples() const override { return encoder_samples_.load(std::memory_order_relaxed); }
   unsigned long long encoder_reports(int joint) const override;
   double encoder_time_s(int joint) const override;
+  double encoder_sample_time_s(int joint, int64_t mcu_clock) const override;
+  double encoder_delay_s(int joint) const override {
+    return joint >= 0 && joint < static_cast<int>(kJoints)
+               ? encoder_delay_s_[static_cast<size_t>(joint)]
+               : 0.0;
+  }
   void links(LinkTelemetrySet& out) const override { out = links_.load(); }
   bool device_loop(int joint) const override { return loop_link_.enabled(joint); }
   void queue_target(int joint, int64_t mcu_clock, double r_mm) override;

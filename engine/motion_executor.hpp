@@ -303,7 +303,9 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   std::atomic<double> e_t_sum_mm_{0.0}, e_t_max_mm_{0.0};
   std::atomic<uint64_t> e_t_samples_{0};
   std::array<double, 4> last_e_mm_{};  // servo thread: each joint's latest r - y (e_t's terms)
-  void measure_open_loop_e_t();        // servo thread, open loop with a tap
+  // Servo thread, while motion runs: e_t at one encoder sample of `joint` (its reading in the
+  // steps' frame, taken at mcu_clock).
+  void e_t_at_encoder_sample(int joint, int64_t mcu_clock, double enc_mm);
   void add_e_t_sample();               // servo thread: e_t of last_e_mm_ into the counters
   std::array<bool, 4> has_e_{};
   // Each joint's step counter as the servo thread left it (M114's Count), published per cycle.

@@ -38,6 +38,11 @@ class ServoBackend {
   virtual unsigned long long encoder_reports(int /*joint*/) const { return encoder_samples(); }
   // Host time (s) at which the latest encoder reading of `joint` was sampled (NaN: unknown).
   virtual double encoder_time_s(int /*joint*/) const { return NAN; }
+  // Host time (s) whose carriage position an encoder sample of `joint` taken at `mcu_clock` shows
+  // (the clock sync's map inverted, less the encoder's delay; NaN: unknown). Servo thread.
+  virtual double encoder_sample_time_s(int /*joint*/, int64_t /*mcu_clock*/) const { return NAN; }
+  // The encoder's delay of `joint` (model.gantry.<axis>.encoder_delay_ms), s. Any thread.
+  virtual double encoder_delay_s(int /*joint*/) const { return 0.0; }
   // Each MCU link as last seen by the servo thread (at most every 10 ms). Any thread.
   virtual void links(LinkTelemetrySet& out) const { out.count = 0; }
 

@@ -106,11 +106,20 @@ class Calibrate : public ::testing::Test {
   std::unique_ptr<Subprocess> daemon_;
 };
 
-TEST_F(Calibrate, TheFirstSimulatorsAxesAreFoundAndTheOverlayIsLoaded) {
+// The first simulator's belt is the config's own model (Eq. 6 with its L and k_hat, stiffer
+// towards the ends and by direction), which the overlay cannot write: it writes a uniform belt with
+// a direction ratio and a slope along the travel. Calibrated, the axes are found and the model
+// tracks the check pattern over 90 % better than open loop, but 2x worse than the config's exact
+// model (0.0054 against 0.0027 mm), so calibrate keeps the config's model and says so.
+TEST_F(Calibrate, TheFirstSimulatorsAxesAreFoundAndItsExactModelIsKept) {
 #ifdef FEEDLOOP_SANITIZED
   GTEST_SKIP() << "two minutes of simulated motion and four fits: optimized build only";
 #endif
-  const json report = run(-1);
+  start_daemon(printer_yaml(-1));
+  std::string out;
+  EXPECT_EQ(calibrate({"--out", dir_ + "/out"}, &out), 1) << out << "\n--- daemon:\n"
+                                                          << daemon_->output();
+  const json report = json::parse(read_text(dir_ + "/out/report.json"), nullptr, false);
   ASSERT_TRUE(report.is_object());
   ASSERT_EQ(report["axes"].size(), 2u);
   for (const json& a : report["axes"]) {
@@ -118,21 +127,13 @@ TEST_F(Calibrate, TheFirstSimulatorsAxesAreFoundAndTheOverlayIsLoaded) {
     EXPECT_LE(a["held_out_after_um"].get<double>(), a["held_out_before_um"].get<double>() + 1e-9) << a.dump();
     EXPECT_LT(a["held_out_after_um"].get<double>(), 15.0) << a.dump();
   }
-  // The overlay: installed where the daemon reads it, loaded by the reload.
-  const std::string installed = dir_ + "/calibration.yaml";
-  EXPECT_EQ(report["installed"], installed);
-  EXPECT_EQ(read_text(installed), read_text(dir_ + "/out/calibration.yaml"));
-  const json info = api("info");
-  EXPECT_EQ(info["calibration"], installed);
-  EXPECT_EQ(info["control"], "pi");  // the excitation's open loop (no feedforward) is over
-  EXPECT_EQ(info["feedforward"], "lpv");
-  auto cfg = config::load_config_file(dir_ + "/printer.yaml");
-  ASSERT_TRUE(cfg.ok());
-  auto applied = config::apply_calibration_file(cfg.value(), installed);
-  ASSERT_TRUE(applied.ok()) << applied.error().to_string();
   // The simulator's belt (Eq. 6, L = 350 mm, k_hat = 38424 N on X) as the identification sees it
   // over the excitation's positions: the directions' mean k2 (uniform) and their ratio, which
   // Eq. 6 puts at (L + x) / (L - x) = 1.5-2.1 over x = 70-125 mm (measured k2 117 kN/m, 1.97).
+  auto cfg = config::load_config_file(dir_ + "/printer.yaml");
+  ASSERT_TRUE(cfg.ok());
+  auto applied = config::apply_calibration_file(cfg.value(), dir_ + "/out/calibration.yaml");
+  ASSERT_TRUE(applied.ok()) << applied.error().to_string();
   const config::GantryModelConfig* x = applied.value().config.model.gantry_for("x");
   std::printf("first simulator's X belt as calibrated: k2 %.0f N/m, direction ratio %.3f\n",
               x->k2_n_per_m, x->belt_direction_ratio);
@@ -143,16 +144,24 @@ TEST_F(Calibrate, TheFirstSimulatorsAxesAreFoundAndTheOverlayIsLoaded) {
   for (const json& e : report["axes"][0]["effects"])
     direction_in_model |= e["name"] == "direction_dependent_stiffness" && e["in_model"].get<bool>();
   EXPECT_TRUE(direction_in_model) << report["axes"][0].dump();
-  // The model was right before: the calibrated one prints no worse (the check pattern's e_t).
+  // Open loop the thesis's circle and small star at 90 mm/s read 0.40 and 0.37 mm (Sect. 5.2);
+  // LPV feedforward + PI on the calibrated model remove over 90 % of it (measured 97 %), on the
+  // config's exact model more (99 %): that one stays.
   const double before = report["e_t_mm"]["before"].get<double>(), after = report["e_t_mm"]["after"].get<double>();
   const double open_loop = report["e_t_mm"]["open_loop"].get<double>();
   std::printf("first simulator: check pattern e_t %.4f -> %.4f mm, open loop %.4f mm\n", before,
               after, open_loop);
-  EXPECT_LT(after, 1.15 * before);
-  // Open loop the thesis's circle and small star at 90 mm/s read 0.40 and 0.37 mm (Sect. 5.2);
-  // LPV feedforward + PI on the calibrated model remove over 90 % of it (measured 98 %).
   EXPECT_GT(open_loop, 0.2);
   EXPECT_LT(after, 0.1 * open_loop);
+  EXPECT_LT(before, after);
+  EXPECT_EQ(report["installed"], "");
+  EXPECT_NE(report["rolled_back"].get<std::string>().find("check pattern's e_t"),
+            std::string::npos);
+  EXPECT_FALSE(fs::exists(dir_ + "/calibration.yaml"));
+  const json info = api("info");
+  EXPECT_EQ(info["calibration"], "");
+  EXPECT_EQ(info["control"], "pi");  // the excitation's open loop (no feedforward) is over
+  EXPECT_EQ(info["feedforward"], "lpv");
   EXPECT_NE(read_text(dir_ + "/out/report.md").find("| before |"), std::string::npos);
 }
 
