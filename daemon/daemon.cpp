@@ -385,6 +385,9 @@ void Daemon::on_marlin_line(Client& c, std::string_view line, bool too_long) {
     c.session->send_line(gcode::HostProtocol::kHalted);
     return;
   }
+  // M108 ends a heater wait now, ahead of the queue the wait holds up (Marlin's emergency
+  // parser: OctoPrint's "skip heat-up"); the line then goes its way, answered in order.
+  if (machine_ && gcode::HostProtocol::is_break_and_continue(line)) machine_->break_heater_wait();
   if (too_long) {
     gcode::Reply reply;
     gcode::SplitLine sl;
@@ -606,6 +609,10 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
     emergency_stop("M112 from " + c.session->name());
     return "Printer halted by M112 (emergency stop); send M999 or restart feedloopd to clear";
   }
+  if (cmd.is('M', 108)) {  // its work was done when the line arrived (on_marlin_line): in order, ok
+    done(Status::Ok(), {});
+    return {};
+  }
   if (cmd.is('M', 999)) {
     // Marlin's M999 (Marlin/src/gcode/control/M999.cpp: back to running after a stop), done as
     // Klipper's FIRMWARE_RESTART: the machine is rebuilt from the config once it is idle, which
@@ -720,6 +727,10 @@ void Daemon::run_script(ClientSession& client, std::string script,
       s->done({{"results", json::array({std::move(halted)})}}, "");
       return;
     }
+  // An M108 in it ends a heater wait now, as on the Marlin socket (the script's lines run in
+  // order).
+  for (const std::string& line : s->lines)
+    if (machine_ && gcode::HostProtocol::is_break_and_continue(line)) machine_->break_heater_wait();
   run_script_step(s);
 }
 

@@ -439,7 +439,19 @@ Status Machine::execute_machine_command(const gcode::Command& cmd) {
   }
   publish_status();
   if (!wait) return Status::Ok();
-  return wait_for([&](double t) { return thermal_->reached(heater, heating_only, t); });
+  // An M108 before this wait began is not for it (Marlin sets wait_for_heatup at the wait's start).
+  break_heater_wait_.store(false);
+  Status st = wait_for([&](double t) {
+    return break_heater_wait_.load() || thermal_->reached(heater, heating_only, t);
+  });
+  if (st && break_heater_wait_.exchange(false)) {
+    char buf[120];
+    std::snprintf(buf, sizeof buf, "echo:%s wait ended by M108 at %.1f C (target %.0f C kept)",
+                  cmd.is('M', 109) ? "M109" : "M190", thermal_->temp_c(heater),
+                  thermal_->target_c(heater));
+    command_report_ = buf;
+  }
+  return st;
 }
 
 // The planner stage's one entry for a command, whichever thread runs it (the planner thread in

@@ -238,6 +238,9 @@ class Machine {
 
   // I/O thread only. Returns false (and keeps `cmd`) when the queue is full.
   bool try_submit(uint64_t ticket, const gcode::Command& cmd);
+  // Marlin's M108 (break and continue; its emergency parser takes it ahead of the queue): a heater
+  // wait running now (M109, M190) ends at once, its target kept. Nothing else. Any thread.
+  void break_heater_wait() { break_heater_wait_.store(true); }
   // Any thread. Latches kEmergencyStopped; queued commands are cancelled.
   void emergency_stop(const std::string& reason);
   // Any thread: a cancel at once, without the emergency stop's latch (Marlin's M524 / Klipper's
@@ -322,6 +325,7 @@ class Machine {
   std::atomic<int64_t> planner_stall_ns_{0}, servo_stall_ns_{0};  // inject_stall, not yet taken
   std::atomic<bool> input_coming_{false};                         // set_input_coming
   std::atomic<bool> cancel_{false};     // latched: emergency stop, stop()
+  std::atomic<bool> break_heater_wait_{false};  // M108 (break_heater_wait)
   std::atomic<bool> interrupt_{false};  // the command executing returns: cancel_ or a flush
   std::atomic<bool> flush_requested_{false}, flush_running_{false}, flush_heaters_off_{false};
   std::atomic<uint64_t> flushed_{0}, flushes_{0};

@@ -134,6 +134,7 @@ constexpr CodeRule kRules[] = {
     {'M', 105, "report temperatures", kReportTemp},
     {'M', 106, "fan on", kFanOn},
     {'M', 107, "fan off", kFanOff},
+    {'M', 108, "break and continue (ends a heater wait)", {}},
     {'M', 109, "wait for hotend temperature", kHotendWait},
     {'M', 110, "set line number", kLineNumber},
     {'M', 112, "emergency stop", {}},

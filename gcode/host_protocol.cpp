@@ -73,7 +73,9 @@ uint8_t HostProtocol::checksum(std::string_view s) {
   return x;
 }
 
-bool HostProtocol::is_emergency_stop(std::string_view raw) {
+namespace {
+// `raw` is M<code> (3 digits), optionally after an N word: the emergency parser's commands.
+bool is_immediate_m(std::string_view raw, std::string_view code) {
   size_t i = 0;
   const size_t n = raw.size();
   while (i < n && is_blank(raw[i])) ++i;
@@ -82,8 +84,16 @@ bool HostProtocol::is_emergency_stop(std::string_view raw) {
     while (i < n && is_digit(raw[i])) ++i;
     while (i < n && is_blank(raw[i])) ++i;
   }
-  if (i + 4 > n || (raw[i] != 'M' && raw[i] != 'm') || raw.substr(i + 1, 3) != "112") return false;
+  if (i + 4 > n || (raw[i] != 'M' && raw[i] != 'm') || raw.substr(i + 1, 3) != code) return false;
   return i + 4 == n || !(is_digit(raw[i + 4]) || raw[i + 4] == '.');
+}
+}  // namespace
+
+bool HostProtocol::is_emergency_stop(std::string_view raw) {
+  return is_immediate_m(raw, "112");
+}
+bool HostProtocol::is_break_and_continue(std::string_view raw) {
+  return is_immediate_m(raw, "108");
 }
 
 void HostProtocol::line_error(std::string_view message, Reply& out) {

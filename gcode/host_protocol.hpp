@@ -82,6 +82,9 @@ class HostProtocol {
   // True when `raw` is an M112 (optionally after an N word), whatever its checksum. The I/O
   // thread may call it directly on received bytes to bypass every queue.
   static bool is_emergency_stop(std::string_view raw);
+  // True when `raw` is an M108 (Marlin's break and continue, which its emergency parser also takes
+  // ahead of the queue), optionally after an N word, whatever its checksum.
+  static bool is_break_and_continue(std::string_view raw);
 
   // XOR of all bytes of `s` (the Marlin checksum of the text before '*').
   static uint8_t checksum(std::string_view s);

@@ -173,6 +173,39 @@ TEST(ThermalMachine, ColdExtrusionIsRefusedWholeUntilTheHotendIsHot) {
   EXPECT_TRUE(can_extrude(s));
 }
 
+// Marlin's M108 (break and continue): an M109 waiting for its temperature ends at once, the target
+// kept (the heater goes on heating), with a word; the next command runs. An M108 that came before
+// a wait does not end it.
+TEST(ThermalMachine, M108EndsAHeaterWaitAndKeepsItsTarget) {
+  MachineRig r;
+  ASSERT_TRUE(r.m->start().ok());
+  r.m->break_heater_wait();  // before any wait: not for the next one
+  auto m109 = gcode::parse_line("M109 S215", SourceLocation{"t", 1, 0});
+  ASSERT_TRUE(m109.ok());
+  ASSERT_TRUE(r.m->try_submit(++r.ticket, m109.value()));
+  // Break it half-way up (the heat-up takes tens of seconds of machine time).
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (r.m->status().hotend_c < 100.0 && r.done.load() < r.ticket &&
+         std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  ASSERT_EQ(r.done.load(), 0u) << "the M109 ended before 100 C: the earlier M108 ended it";
+  r.m->break_heater_wait();
+  while (r.done.load() < r.ticket && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  const MachineStatus s = r.m->status();
+  ASSERT_EQ(r.done.load(), 1u);
+  EXPECT_EQ(r.failed.load(), 0u) << r.last_failure;
+  EXPECT_GE(s.hotend_c, 100.0);
+  EXPECT_LT(s.hotend_c, 200.0);  // not at its temperature: the wait was cut short
+  EXPECT_DOUBLE_EQ(s.hotend_target_c, 215.0);
+  EXPECT_NE(r.last_report.find("echo:M109 wait ended by M108 at "), std::string::npos)
+      << r.last_report;
+  EXPECT_NE(r.last_report.find("(target 215 C kept)"), std::string::npos) << r.last_report;
+  r.run({"G1 X10 F3000", "M400"});
+  EXPECT_EQ(r.failed.load(), 0u) << r.last_failure;
+  r.m->stop();
+}
+
 TEST(ThermalMachine, AFaultDuringAWaitStopsTheMachineWithTheHeatersMessage) {
   MachineRig r;
   ASSERT_TRUE(r.m->start().ok());

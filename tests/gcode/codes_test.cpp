@@ -103,6 +103,7 @@ const std::vector<Valid>& valid_cases() {
       {"M221 S95 T0", 'M', 221, {{'S', 95}, {'T', 0}}},
       {"M400", 'M', 400, {}},
       {"M302 S150 P1", 'M', 302, {{'S', 150}, {'P', 1}}},
+      {"M108", 'M', 108, {}},
   };
   return cases;
 }
@@ -141,7 +142,9 @@ TEST(Codes, TheTableCoversExactlyTheIssueList) {
       // issue 16 (thermal faults): Marlin's restart after a stop
       "M999",
       // cold extrusion (docs/heaters.md): Marlin's M302
-      "M302"};
+      "M302",
+      // Marlin's break and continue: ends a heater wait (docs/heaters.md)
+      "M108"};
   std::set<std::string> table, tested;
   for (const CodeRule& r : all_code_rules()) table.insert(r.letter + std::to_string(r.code));
   for (const Valid& v : valid_cases()) tested.insert(v.letter + std::to_string(v.code));

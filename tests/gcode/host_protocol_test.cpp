@@ -183,6 +183,21 @@ TEST(HostProtocol, EmergencyStopBypassesEveryCheck) {
   EXPECT_FALSE(HostProtocol::is_emergency_stop("G1 X1 ; M112"));
 }
 
+// M108 (break and continue) is recognised on the raw line as M112 is, so the daemon can end a
+// heater wait ahead of the queue; the line itself then goes through the protocol as any other.
+TEST(HostProtocol, BreakAndContinueIsRecognisedOnTheRawLine) {
+  EXPECT_TRUE(HostProtocol::is_break_and_continue("M108"));
+  EXPECT_TRUE(HostProtocol::is_break_and_continue("N7 M108*12"));
+  EXPECT_TRUE(HostProtocol::is_break_and_continue("  m108 ; skip the heat-up"));
+  EXPECT_FALSE(HostProtocol::is_break_and_continue("M1080"));
+  EXPECT_FALSE(HostProtocol::is_break_and_continue("M10"));
+  EXPECT_FALSE(HostProtocol::is_break_and_continue("M112"));
+  EXPECT_FALSE(HostProtocol::is_emergency_stop("M108"));
+  EXPECT_FALSE(HostProtocol::is_break_and_continue("G1 X1 ; M108"));
+  HostProtocol p;
+  EXPECT_EQ(send(p, "N1 M108*43").action, Action::kExecute);  // checked and answered in order
+}
+
 TEST(HostProtocol, OneOkPerNonBlankLine) {
   HostProtocol p;
   const std::vector<std::string> lines = {
