@@ -648,9 +648,10 @@ void MotionExecutor::run_cycle(double now_s, bool cancel) {
 // e_t (thesis Sect. 5.2: e_t = |r - y|) at every encoder sample while motion runs: the joint's
 // reading against the plan at the instant it shows, combined with the other joints' latest
 // errors (joints on different MCUs are sampled at different instants). Every sample counts: with
-// the device loop the MCUs report 10 samples at a time, and e_t from the latest of each report
-// alone sampled the error at 100 Hz, a corner's transient at one or two points (the same path
-// measured 0.0039 and 0.0053 mm in two runs where the device loops' own |e| agreed to 4 %).
+// the device loop the MCUs report 10 samples at a time, and the latest of each report alone
+// sampled the error at 100 Hz (a corner's transient at one or two points). With the plan read at
+// the nearest command sample as well, the same path measured 0.0042-0.0080 mm in three runs where
+// the device loops' own |e| agreed to 4 % (docs/decisions.md, "e_t at every encoder sample").
 // The plan: the commanded samples (sampled path), or the timeline (open loop with a tap); a
 // sample from before this motion's first command sample, or older than the history, is skipped.
 // The sample's instant: through the motion's clock frame when one is held (the frame the device
