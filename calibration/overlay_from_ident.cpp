@@ -67,6 +67,8 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
   g.runout_sin_um = runout ? m.periodic_sin_um : 0.0;
   g.runout_cos_um = runout ? m.periodic_cos_um : 0.0;
   g.runout_reference_mm = runout ? r.start_command_mm : 0.0;
+  // The motor's field lag, its damping on the load angle (0: Eq. 13's motor).
+  g.field_lag_ms = std::clamp(m.field_lag_ms, 0.0, 20.0);
   g.encoder_delay_ms = m.has(ident::Effect::kTimeDelay) ? std::clamp(m.delay_ms, 0.0, 50.0) : 0.0;
   g.travel_scale = travel_scale_in_model(m);
   const bool mode = m.has(ident::Effect::kExtraResonance);

@@ -50,6 +50,7 @@ constexpr NumericKey kKeys[] = {
     {"extra_resonance_mass_kg",
      [](const GantryModelConfig& g) { return g.extra_resonance_mass_kg; }},
     {"encoder_delay_ms", [](const GantryModelConfig& g) { return g.encoder_delay_ms; }},
+    {"field_lag_ms", [](const GantryModelConfig& g) { return g.field_lag_ms; }},
     {"stepper.belt_unit_stiffness_n",
      [](const GantryModelConfig& g) { return g.stepper.belt_unit_stiffness_n; }},
     {"stepper.pulley_distance_mm",

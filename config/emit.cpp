@@ -226,6 +226,7 @@ void write_model(Writer& w, const MachineConfig& c) {
       w.num("extra_resonance_damping", g.extra_resonance_damping);
       w.num("extra_resonance_mass_kg", g.extra_resonance_mass_kg);
       w.num("encoder_delay_ms", g.encoder_delay_ms);
+      w.num("field_lag_ms", g.field_lag_ms);
       const StepperConfig& s = g.stepper;
       w.begin("stepper");
       w.num("holding_torque_nm", s.holding_torque_nm);

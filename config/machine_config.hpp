@@ -322,6 +322,12 @@ struct GantryModelConfig {
   double encoder_delay_ms = 0.0;  // the encoder's reading shows the carriage this long ago (what
                                   // `feedloop ident fit` reports as time_delay delay_ms): the
                                   // loops and e_t compare it with the reference of that instant
+  // The driver's field lag behind the step command, with c1 damping the load angle (the rotor
+  // against the moving field, as a current-driven stepper does) instead of the rotor against the
+  // frame (what `feedloop calibrate` fits when the data ask for it): the motor follows
+  // u (1 + (c1 / k1) s) / (1 + field_lag s) through Eq. 13. 0: Eq. 13 as the thesis writes it
+  // (the same model as field_lag = c1 / k1); the LPV feedforward inverts it.
+  double field_lag_ms = 0.0;
   StepperConfig stepper;
   bool operator==(const GantryModelConfig&) const = default;
 };

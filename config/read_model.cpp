@@ -68,6 +68,8 @@ void read_gantry_axis(MapReader& g, GantryModelConfig& m, Need six, Diagnostics&
   // Up to 50 ms: the identification's delays are a few ms; a device loop compares its encoder
   // with a target sent this much later (engine/mcu_bridge.cpp).
   g.number("encoder_delay_ms", m.encoder_delay_ms, Range::closed(0.0, 50.0));
+  // A current loop's lag is tens of microseconds, a slow driver's a few ms.
+  g.number("field_lag_ms", m.field_lag_ms, Range::closed(0.0, 20.0));
   read_stepper(g, m.stepper, diag);
 }
 

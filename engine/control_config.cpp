@@ -191,6 +191,7 @@ Result<std::unique_ptr<control::Feedforward>> model_inverse(const config::Machin
     m.travel_scale = g->travel_scale;
     m.carriage_mode = {g->extra_resonance_hz, g->extra_resonance_damping,
                        g->extra_resonance_mass_kg};
+    m.field_lag_s = g->field_lag_ms * 1e-3;
     if (const config::AxisConfig* ax = cfg.axis(names[a])) {
       m.min_mm = ax->min_mm;
       m.max_mm = ax->max_mm;

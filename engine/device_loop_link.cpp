@@ -68,8 +68,13 @@ device::LoopParams DeviceLoopLink::params_from_config(const config::MachineConfi
     // stretches by m2 a / k2, and the driver's field lags by c1 / k1 plus the belt's viscous c2 /
     // k2.
     p.deflection_s2 = static_cast<float>(gm->m2_kg / gm->k2_n_per_m);
-    p.deflection_s =
-        static_cast<float>(gm->c1_ns_per_m / gm->k1_n_per_m + gm->c2_ns_per_m / gm->k2_n_per_m);
+    // With the field's own lag (field_lag_ms) c1 damps the load angle, not the speed: the field
+    // lags by that, and the rotor behind it by the carriage's drag c2 / k1.
+    p.deflection_s = static_cast<float>(
+        gm->field_lag_ms > 0.0
+            ? gm->field_lag_ms * 1e-3 + gm->c2_ns_per_m / gm->k1_n_per_m +
+                  gm->c2_ns_per_m / gm->k2_n_per_m
+            : gm->c1_ns_per_m / gm->k1_n_per_m + gm->c2_ns_per_m / gm->k2_n_per_m);
   }
   // Behind the model inverse the host's steps already lead r by the deflection a better model
   // expects (the belt's position and direction dependence, the identified friction): the slip

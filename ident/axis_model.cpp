@@ -233,6 +233,25 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
 
 }  // namespace
 
+std::vector<double> field_command(const AxisModel& m, const std::vector<double>& u_mm,
+                                  double period_s) {
+  if (!(m.field_lag_ms > 0.0) || u_mm.empty()) return u_mm;
+  // (1 + T s) / (1 + tau s) by Tustin, s -> (2 / h) (z - 1) / (z + 1): the inverse of the LPV
+  // feedforward's (1 + tau s) / (1 + T s) (control/feedforward/gantry_lpv.cpp).
+  const double h = period_s, tau = m.field_lag_ms * 1e-3, T = m.c1_n_s_m / m.k1_n_m;
+  const double b0 = (h + 2.0 * T) / (h + 2.0 * tau), b1 = (h - 2.0 * T) / (h + 2.0 * tau),
+               a1 = (h - 2.0 * tau) / (h + 2.0 * tau);
+  std::vector<double> out(u_mm.size());
+  double x_prev = u_mm[0], y_prev = u_mm[0];
+  for (size_t k = 0; k < u_mm.size(); ++k) {
+    const double y = b0 * u_mm[k] + b1 * x_prev - a1 * y_prev;
+    x_prev = u_mm[k];
+    y_prev = y;
+    out[k] = y;
+  }
+  return out;
+}
+
 model::StateSpace axis_state_space(const AxisModel& m) {
   Mat6 A;
   Mat63 B;
@@ -267,7 +286,8 @@ Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double
                          m.periodic_sin_um,
                          m.periodic_cos_um,
                          m.compliance_slope_per_m,
-                         m.stiffness_reference_mm};
+                         m.stiffness_reference_mm,
+                         m.field_lag_ms};
   for (double v : vals)
     if (!std::isfinite(v)) return Error{"axis model has a non-finite parameter", {}};
   if (!(period_s > 0.0)) return Error{"sample period must be > 0", {}};
@@ -280,10 +300,13 @@ Status simulate_axis(const AxisModel& m, const std::vector<double>& u_mm, double
   linear_part(m, &A, &B);
   std::vector<double> x2;
   bool finite = true;
+  const std::vector<double> u_lagged =
+      m.field_lag_ms > 0.0 ? field_command(m, u_mm, period_s) : std::vector<double>{};
+  const std::vector<double>& u_in = m.field_lag_ms > 0.0 ? u_lagged : u_mm;
   if (m.has(Effect::kExtraResonance))
-    run_states<6>(m, A, B, u_mm, period_s, &x2, &finite);
+    run_states<6>(m, A, B, u_in, period_s, &x2, &finite);
   else
-    run_states<4>(m, A, B, u_mm, period_s, &x2, &finite);
+    run_states<4>(m, A, B, u_in, period_s, &x2, &finite);
   if (!finite) return Error{"axis model discretisation failed", {}};
   // time_delay: y(t) = x2(t - d), Catmull-Rom cubic interpolation (continuous slope in d, so the
   // fit does not stall at whole samples), held at the first sample before the start.

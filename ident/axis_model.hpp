@@ -53,11 +53,22 @@ struct AxisModel {
   // effect of the vocabulary: fit.cpp fits it on the carried model (IdentResult::carried).
   double compliance_slope_per_m = 0.0;
   double stiffness_reference_mm = 0.0;
+  // The driver's field lag, ms, with c1 damping the load angle (the rotor against the moving
+  // field) rather than the rotor against the frame: the motor then follows
+  // u_eff = u (1 + T s) / (1 + field_lag s), T = c1 / k1, through Eq. 13 (Tustin at the sample
+  // period, as the LPV feedforward inverts it). 0: Eq. 13 as written (the same as field_lag = T).
+  // Not an effect of the vocabulary: fit.cpp fits it on the carried model (IdentResult::carried).
+  double field_lag_ms = 0.0;
 
   bool has(Effect e) const { return enabled[static_cast<int>(e)]; }
   void set(Effect e, bool on) { enabled[static_cast<int>(e)] = on; }
   double periodic_amplitude_um() const;
 };
+
+// u filtered by the field lag's (1 + T s) / (1 + field_lag s) (Tustin at period_s, T = c1 / k1,
+// the filter at rest at u[0]); u itself when m.field_lag_ms is 0.
+std::vector<double> field_command(const AxisModel& m, const std::vector<double>& u_mm,
+                                  double period_s);
 
 // The baseline model of the thesis's X or Y axis (Tables 3-4 as solved in docs/simulator.md);
 // any other axis name gets the X values as the starting point.

@@ -73,6 +73,10 @@ struct FitOptions {
   // compliance_slope_per_m) when that lowers its held-out RMS by more than this (relative);
   // 1 or more: a uniform belt.
   double min_slope_improvement = 0.03;
+  // The carried model takes the motor's field lag with its damping on the load angle
+  // (axis_model.hpp, field_lag_ms) when that lowers its held-out RMS by more than this (relative);
+  // 1 or more: Eq. 13's motor.
+  double min_field_lag_improvement = 0.03;
   int max_effects = 3;
   int max_iterations = 20;         // Levenberg-Marquardt iterations per full fit
   int screen_iterations = 8;       // ... per candidate while screening (6 missed a 2 N friction
@@ -118,6 +122,10 @@ struct IdentResult {
   // The carried model refitted with the belt's compliance slope (fit.cpp), held-out RMS, whether
   // kept or not (0: not tried).
   double slope_validation_rms_um = 0.0;
+  // The carried model refitted with the motor's field lag (fit.cpp), held-out RMS, whether kept or
+  // not (0: not tried).
+  double field_lag_validation_rms_um = 0.0;
+  double eq13_motor_validation_rms_um = 0.0;  // ... and before it, with Eq. 13's motor
   double baseline_rms_um = 0.0;    // over the whole trace
   double augmented_rms_um = 0.0;
   double baseline_validation_rms_um = 0.0;  // over the held-out part

@@ -66,7 +66,9 @@ std::string baseline_description(const AxisModel& m) {
   return "thesis Eq. 13/17 two-mass 4th-order, static gain 1: m1=" + num(m.m1_kg) + " kg m2=" + num(m.m2_kg) +
          " kg (fixed) k1=" + num(m.k1_n_m) + " N/m k2=" + num(m.k2_n_m) + " N/m c1=" + num(m.c1_n_s_m) +
          " N s/m c2=" + num(m.c2_n_s_m) + " N s/m; psi3..psi0=" + num(psi[0]) + "," + num(psi[1]) + "," +
-         num(psi[2]) + "," + num(psi[3]);
+         num(psi[2]) + "," + num(psi[3]) +
+         (m.field_lag_ms > 0.0 ? "; c1 on the load angle, the field lagging by " + num(m.field_lag_ms) + " ms"
+                               : std::string());
 }
 
 std::string augmented_description(const IdentResult& r) {
@@ -101,6 +103,13 @@ std::string report_json(const IdentResult& r) {
        ", \"reference_mm\": " + num(r.carried.stiffness_reference_mm, "%.6g") +
        ", \"with_slope_held_out_rms_um\": " + num(r.slope_validation_rms_um, "%.4f") +
        ", \"carried_held_out_rms_um\": " + num(r.carried_validation_rms_um, "%.4f") + "},\n";
+  // The carried model's motor (fit.cpp): its field lag (0: Eq. 13's motor, damped against the
+  // frame) and the held-out RMS of the fit with one, kept or not (0: not tried).
+  j += " \"motor_field\": {\"field_lag_ms\": " + num(r.carried.field_lag_ms, "%.6g") +
+       ", \"k1_n_m\": " + num(r.carried.k1_n_m, "%.6g") +
+       ", \"c1_n_s_m\": " + num(r.carried.c1_n_s_m, "%.6g") +
+       ", \"with_field_lag_held_out_rms_um\": " + num(r.field_lag_validation_rms_um, "%.4f") +
+       ", \"eq13_motor_held_out_rms_um\": " + num(r.eq13_motor_validation_rms_um, "%.4f") + "},\n";
   j += " \"augmented\": {\"model\": \"" + json_escape(augmented_description(r)) +
        "\", \"rms_um\": " + num(r.augmented_rms_um, "%.4f") + "}}\n";
   return j;
@@ -141,6 +150,16 @@ std::string report_markdown(const IdentResult& r, const std::string& trace_name,
   else if (r.slope_validation_rms_um > 0.0)
     s += "The belt along the travel: uniform (with a compliance slope the held-out RMS was " +
          num(r.slope_validation_rms_um, "%.3f") + " um, not lower enough).\n\n";
+  if (r.carried.field_lag_ms > 0.0)
+    s += "The motor: damped on its load angle, the driver's field lagging the command by " +
+         num(r.carried.field_lag_ms, "%.3g") + " ms (k1 = " + num(r.carried.k1_n_m) +
+         " N/m, c1 = " + num(r.carried.c1_n_s_m) + " N s/m against the field; held-out RMS " +
+         num(r.field_lag_validation_rms_um, "%.3f") + " um with it, " +
+         num(r.eq13_motor_validation_rms_um, "%.3f") + " um with Eq. 13's motor).\n\n";
+  else if (r.field_lag_validation_rms_um > 0.0)
+    s += "The motor: Eq. 13's (with its damping on the load angle and a field lag the held-out RMS "
+         "was " +
+         num(r.field_lag_validation_rms_um, "%.3f") + " um, not lower enough).\n\n";
   s += "## Evidence: every candidate tried\n\nEach round fits every effect not yet in the model "
        "(its own parameters, from an initial guess read off the residual) and compares the RMS on "
        "the held-out part of the trace; the best is kept, refitted with all parameters free, if it "

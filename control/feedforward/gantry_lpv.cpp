@@ -79,6 +79,18 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
       return Error{axis + ": the runout must be finite, its period >= 0", {}};
     if (!(ax.travel_scale >= 0.5 && ax.travel_scale <= 2.0))
       return Error{axis + ": travel_scale must be within 0.5-2", {}};
+    if (!(ax.field_lag_s >= 0.0 && ax.field_lag_s <= 0.1))
+      return Error{axis + ": field_lag_s must be within 0-0.1 s", {}};
+    if (ax.field_lag_s > 0.0) {
+      // (1 + tau s) / (1 + T s) by Tustin at the servo period h: s -> (2 / h) (z - 1) / (z + 1).
+      const double h = opt.period_s, tau = ax.field_lag_s,
+                   T = ax.params.c1_n_s_m / ax.params.k1_n_m;
+      LeadLag& f = ff->field_[a];
+      f.on = true;
+      f.b0 = (h + 2.0 * tau) / (h + 2.0 * T);
+      f.b1 = (h - 2.0 * tau) / (h + 2.0 * T);
+      f.a1 = (h - 2.0 * T) / (h + 2.0 * T);
+    }
     if (Status st = model::validate(ax.carriage_mode); !st)
       return Error{axis + ": " + st.error().message, {}};
     if (ax.backlash_mm > 0.0 &&
@@ -168,6 +180,7 @@ void GantryLpvFeedforward::reset(const FeedforwardInput& at) {
     schedule_(a, at.r_mm[as], 0.0);
     inv_[as].reset(&at.r_mm[as]);
     r_prev_[as] = at.r_mm[as];
+    field_[as].x_prev = field_[as].y_prev = at.r_mm[as];
   }
   for (JointArray& j : delay_) j = at.r_mm;
   head_ = 0;
@@ -220,6 +233,14 @@ void GantryLpvFeedforward::step(const FeedforwardInput& in, JointArray& u_mm) {
       const double scaled = p + (u_mm[as] - p) / model.travel_scale;
       load_offset_mm_[as] += scaled - u_mm[as];
       u_mm[as] = scaled;
+    }
+    if (field_[as].on) {
+      // The field lags the command: command what makes the field follow Eq. 13's inverse.
+      LeadLag& lag = field_[as];
+      const double y = lag.b0 * u_mm[as] + lag.b1 * lag.x_prev - lag.a1 * lag.y_prev;
+      lag.x_prev = u_mm[as];
+      lag.y_prev = y;
+      u_mm[as] = y;
     }
     r_prev_[as] = r0;
   }

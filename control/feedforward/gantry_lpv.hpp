@@ -85,6 +85,10 @@ struct GantryAxisLpvModel {
   // on a spring-damper, in the model every design inverts (model::gantry_state_space). mass 0:
   // none.
   model::CarriageMode carriage_mode;
+  // The driver's field lag, s, with params.c1_n_s_m damping the load angle: the motor follows
+  // u (1 + T s) / (1 + field_lag s), T = c1 / k1, through Eq. 13, so the command is Eq. 13's
+  // inverse times (1 + field_lag s) / (1 + T s) (Tustin, one state). 0: Eq. 13 itself.
+  double field_lag_s = 0.0;
 };
 
 // The runout of m at carriage position x_mm, mm (0 without one).
@@ -133,6 +137,13 @@ class GantryLpvFeedforward final : public Feedforward {
   std::array<double, 2> load_offset_mm_{};  // friction's and backlash's share of the last command
   std::array<double, 2> r_prev_{};          // r_{k-1}
   std::array<double, 2> scale_origin_mm_{};  // p: where steps and encoder were last referenced
+  // The field lag's lead-lag (1 + tau s) / (1 + T s), Tustin: y_k = b0 x_k + b1 x_{k-1} - a1
+  // y_{k-1}.
+  struct LeadLag {
+    bool on = false;
+    double b0 = 1.0, b1 = 0.0, a1 = 0.0, x_prev = 0.0, y_prev = 0.0;
+  };
+  std::array<LeadLag, 2> field_{};
   std::vector<JointArray> delay_;  // ring of the last P+1 inputs (pass-through joints)
   int head_ = 0;
 };

@@ -163,6 +163,7 @@ TEST_F(Calibrate, TheFirstSimulatorsAxesAreFoundAndItsExactModelIsKept) {
   EXPECT_EQ(info["control"], "pi");  // the excitation's open loop (no feedforward) is over
   EXPECT_EQ(info["feedforward"], "lpv");
   EXPECT_NE(read_text(dir_ + "/out/report.md").find("| before |"), std::string::npos);
+  EXPECT_NE(read_text(dir_ + "/out/report.md").find("**Not kept:**"), std::string::npos);
 }
 
 // The first simulator with its encoders 8.31 ms late on X and Y (calibrate_seeds.py --simulator
@@ -240,6 +241,44 @@ TEST_F(Calibrate, OnTheSecondSimulatorTheCalibratedModelCutsTheTrackingError) {
   }
 }
 
+// Second simulator, seed 2: its motors are damped on their load angle (plant2/: c_em against the
+// field, which follows the command through the driver's lag), Eq. 13's against the frame. On
+// calibrate's excitation (moves up to 300 mm/s) Eq. 13's fit drives k1 off its range with c1 of a
+// few N s/m (Y: 3.99e6 N/m, 1 N s/m); the carried model takes a field lag on Y (0.22 ms, k1 289
+// kN/m, c1 462 N s/m; the drawn c_em / r^2 is of that size) and predicts the held-out part 20 %
+// better (14.69 -> 11.70 um), and with it the belt's slope pays too (9.16 um). The overlay carries
+// the lag, and the model tracks the check pattern at 0.0045 mm where Eq. 13's did at 0.0060.
+TEST_F(Calibrate, TheSecondSimulatorsMotorIsDampedOnItsLoadAngle) {
+#ifdef FEEDLOOP_SANITIZED
+  GTEST_SKIP() << "the external plant in lock-step for two minutes of motion: optimized build only";
+#endif
+  const json report = run(2);
+  ASSERT_TRUE(report.is_object());
+  const json y = json::parse(read_text(dir_ + "/out/y/report.json"), nullptr, false);
+  ASSERT_TRUE(y.is_object() && y.contains("motor_field")) << y.dump();
+  const json& m = y["motor_field"];
+  std::printf(
+      "second simulator (seed 2), Y: field lag %.3f ms, held out %.3f um with it, %.3f with "
+      "Eq. 13's motor; check pattern e_t %.4f mm\n",
+      m["field_lag_ms"].get<double>(), m["with_field_lag_held_out_rms_um"].get<double>(),
+      m["eq13_motor_held_out_rms_um"].get<double>(), report["e_t_mm"]["after"].get<double>());
+  EXPECT_GT(m["field_lag_ms"].get<double>(), 0.05);
+  EXPECT_LT(m["field_lag_ms"].get<double>(), 1.0);
+  EXPECT_LT(m["with_field_lag_held_out_rms_um"].get<double>(),
+            0.9 * m["eq13_motor_held_out_rms_um"].get<double>());
+  // Damped against the field, not the frame: c1 / k1 well apart from the lag.
+  EXPECT_GT(m["c1_n_s_m"].get<double>() / m["k1_n_m"].get<double>(),
+            2e-3 * m["field_lag_ms"].get<double>());
+  auto cfg = config::load_config_file(dir_ + "/printer.yaml");
+  ASSERT_TRUE(cfg.ok());
+  auto applied = config::apply_calibration_file(cfg.value(), dir_ + "/calibration.yaml");
+  ASSERT_TRUE(applied.ok()) << applied.error().to_string();
+  EXPECT_NEAR(applied.value().config.model.gantry_for("y")->field_lag_ms,
+              m["field_lag_ms"].get<double>(), 1e-4);
+  // Eq. 13's calibration of this machine tracked the check pattern at 0.0060 mm (open loop 0.0476).
+  EXPECT_LT(report["e_t_mm"]["after"].get<double>(), 0.0054);
+}
+
 // Second simulator, seed 1, with a mode drawn on both carriages (a mass of 15-35 % of the carriage
 // on a spring-damper at 40-150 Hz, plant2/draw.cpp): identification names it on both axes, the
 // overlay is installed without it first (the model fitted without the mode), the PI gains are
@@ -305,12 +344,11 @@ TEST_F(Calibrate, OnTheSecondSimulatorABaselineFarFromThePresetsIsStartedFromThe
   EXPECT_LT(after, 0.12 * open_loop);
 }
 
-// Second simulator, seed 4 (X and Y of drawn machines 4 and 5): the config's PI gains (the
-// thesis's kp 0.5, ki 20 /s) make the loop ring on drawn machine 5, with any model (before 0.3481
-// mm, the calibrated model with those gains 0.3843, open loop 0.0484). Scaled by 1/2 the same
-// model tracks 0.0080 mm, by 1/4 0.0061, with the feedforward alone (0) 0.0044: calibrate keeps
-// 0 in the overlay's control.axes (with the config's belt kept in the model, before 2026-12-03:
-// 0.3879, 0.0125, 0.0115 and 0.0154, and it kept 1/4).
+// Second simulator, seed 4 (X and Y of drawn machines 4 and 5): with the config's PI gains (the
+// thesis's kp 0.5, ki 20 /s) the calibrated model tracks the check pattern at 0.0249 mm (open
+// loop 0.0451), scaled by 1/2 at 0.0050: calibrate keeps 1/2 in the overlay's control.axes.
+// (Before the motor's field lag, 2026-12-07, those gains made the loop ring on drawn machine 5
+// with any model: 0.3843 mm calibrated, and the feedforward alone tracked best, 0.0044.)
 TEST_F(Calibrate, ThePiGainsAreChosenOnTheCalibratedModel) {
 #ifdef FEEDLOOP_SANITIZED
   GTEST_SKIP() << "the external plant in lock-step for two minutes of motion: optimized build only";
@@ -328,10 +366,10 @@ TEST_F(Calibrate, ThePiGainsAreChosenOnTheCalibratedModel) {
       "with x %.2g of them %.4f mm, open loop %.4f mm\n",
       before, configured, g["scale"].get<double>(), after, open_loop);
   EXPECT_EQ(g["tried"][0]["scale"].get<double>(), 1.0);
-  EXPECT_GT(configured, 2.0 * open_loop);  // the config's gains: worse than no loop at all
   EXPECT_LT(g["scale"].get<double>(), 1.0);
+  EXPECT_GE(g["scale"].get<double>(), 0.25);  // the loop stays closed
   EXPECT_LT(after, 0.35 * open_loop);
-  EXPECT_LT(after, 0.1 * configured);
+  EXPECT_LT(after, 0.25 * configured);
   // Every scale tried is in the report, and the one kept is the best of them.
   for (const json& t : g["tried"])
     if (t["e_t_mm"].is_number()) {
@@ -353,22 +391,26 @@ TEST_F(Calibrate, ThePiGainsAreChosenOnTheCalibratedModel) {
             std::string::npos);
 }
 
-// Second simulator, seed 4 (X and Y of drawn machines 4 and 5): with the config's PI gains kept
-// (--keep-pi-gains), the fitted model tracks the check pattern worse than the model it would
-// replace (measured 0.3879 against 0.3481 mm, +11 %, the same alone and beside `stress-ng --cpu
-// 4`); with --max-worse-pct 0 it is not kept, the daemon runs on without a calibration, and the
-// report says why. (With the gains chosen, the same machine tracks 0.0115 mm: the next test.)
-TEST_F(Calibrate, AModelThatTracksWorseIsRolledBack) {
+// Second simulator, seed 4 (X and Y of drawn machines 4 and 5) with PI gains twice the thesis's
+// (kp 1, ki 40 /s) kept (--keep-pi-gains): the loop rings with the config's model and with the
+// calibrated one (0.5732 and 0.5840 mm, open loop 0.0451; with --max-worse-pct 0 the calibrated
+// one is then rolled back by its 2 %). Whichever model the machine goes on printing with, it
+// tracks over 10x worse than open loop, and the user is told that no feedforward prints better.
+// (The rollback itself: TheFirstSimulatorsAxesAreFoundAndItsExactModelIsKept.)
+TEST_F(Calibrate, TheUserIsToldWhenTheMachinePrintsWorseThanOpenLoop) {
 #ifdef FEEDLOOP_SANITIZED
   GTEST_SKIP() << "the external plant in lock-step for two minutes of motion: optimized build only";
 #endif
-  start_daemon(printer_yaml(4));
+  std::string yaml = printer_yaml(4);
+  yaml = std::regex_replace(yaml, std::regex("\n  kp: 0\\.5 "), "\n  kp: 1.0 ");
+  yaml = std::regex_replace(yaml, std::regex("\n  ki_per_s: 20\n"), "\n  ki_per_s: 40\n");
+  ASSERT_NE(yaml.find("\n  kp: 1.0 "), std::string::npos);
+  ASSERT_NE(yaml.find("\n  ki_per_s: 40\n"), std::string::npos);
+  start_daemon(yaml);
   std::string out;
-  EXPECT_EQ(calibrate({"--out", dir_ + "/out", "--max-worse-pct", "0", "--keep-pi-gains"}, &out), 1)
-      << out;
-  EXPECT_NE(out.find("the calibrated model was not kept: the daemon runs without a calibration"),
-            std::string::npos)
-      << out;
+  const int rc =
+      calibrate({"--out", dir_ + "/out", "--max-worse-pct", "0", "--keep-pi-gains"}, &out);
+  EXPECT_TRUE(rc == 0 || rc == 1) << out;
   const json report = json::parse(read_text(dir_ + "/out/report.json"), nullptr, false);
   ASSERT_TRUE(report.is_object());
   ASSERT_TRUE(report["e_t_mm"]["after"].is_number()) << report.dump(2) << "\n--- calibrate:\n"
@@ -376,18 +418,10 @@ TEST_F(Calibrate, AModelThatTracksWorseIsRolledBack) {
                                                      << daemon_->output();
   const double before = report["e_t_mm"]["before"].get<double>(),
                after = report["e_t_mm"]["after"].get<double>();
-  std::printf("second simulator (seed 4): check pattern e_t %.4f -> %.4f mm: rolled back\n", before,
-              after);
-  EXPECT_GT(after, before);
-  EXPECT_EQ(report["installed"], "");
-  EXPECT_NE(report["rolled_back"].get<std::string>().find("check pattern's e_t"),
-            std::string::npos);
-  EXPECT_FALSE(fs::exists(dir_ + "/calibration.yaml"));
-  EXPECT_EQ(api("info")["calibration"], "");
-  EXPECT_NE(read_text(dir_ + "/out/report.md").find("**Not kept:**"), std::string::npos);
-  // The model the machine keeps printing with (the config's) tracks 7x worse than open loop: the
-  // user is told that no feedforward prints better.
-  EXPECT_GT(before, 2.0 * report["e_t_mm"]["open_loop"].get<double>());
+  std::printf("second simulator (seed 4), gains x2 kept: check pattern e_t %.4f -> %.4f mm (%s)\n",
+              before, after, rc == 1 ? "rolled back" : "kept");
+  const double kept = rc == 1 ? before : after;
+  EXPECT_GT(kept, 5.0 * report["e_t_mm"]["open_loop"].get<double>());
   ASSERT_TRUE(report.contains("warning")) << report.dump();
   EXPECT_NE(report["warning"].get<std::string>().find("worse than open loop"), std::string::npos);
   EXPECT_NE(out.find("warning: the model the machine now prints with tracks the check pattern "

@@ -472,5 +472,15 @@ TEST(CalibrationProgram, CleanAxisNamesNothing) {
   EXPECT_TRUE(r.effects.empty());
 }
 
+// The first simulator's motor is Eq. 13's exactly (sim/gantry_axis.hpp: its field lags by c1 /
+// k1): the field lag is tried and Eq. 13's motor kept.
+TEST(CalibrationProgram, FirstSimulatorsMotorKeepsEq13) {
+  CalibrationProgramOptions o;
+  o.seed = 3;
+  const IdentResult r = identify(y_axis_with_resonance(0.0), calibration_program(o));
+  EXPECT_GT(r.field_lag_validation_rms_um, 0.0);
+  EXPECT_EQ(r.carried.field_lag_ms, 0.0);
+}
+
 }  // namespace
 }  // namespace feedloop::ident
