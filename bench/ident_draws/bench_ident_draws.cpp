@@ -157,6 +157,10 @@ Plant2Case record_plant2(const Kind& kind, uint64_t seed, const std::vector<doub
   return c;
 }
 
+// --eq13-motor: identification without the motor's field lag (ident/fit.hpp,
+// min_field_lag_improvement), Eq. 13's motor as before 2026-12-07: the ablation.
+bool g_eq13_motor = false;
+
 Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibration, bool plant2,
                 bool weighed_mass, const std::string& save_dir,
                 const ident::CalibrationProgramOptions& shape) {
@@ -207,6 +211,7 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
   const ident::AxisTrace& a = trace.value().axes[0];
   ident::FitOptions fo;
   fo.carriage_mass_kg = o.mass_kg;
+  if (g_eq13_motor) fo.min_field_lag_improvement = 1.0;
   auto r = ident::identify_axis(a.name, a.cmd_mm, a.meas_mm, trace.value().period_s(), fo);
   o.cpu_s = thread_cpu_s() - t0;
   if (!r.ok()) {
@@ -342,6 +347,8 @@ int main(int argc, char** argv) {
       plant2 = next() == "plant2";
     else if (a == "--weighed-mass")
       weighed_mass = true;
+    else if (a == "--eq13-motor")
+      g_eq13_motor = true;
     else if (a == "--json")
       json_path = next();
     else if (a == "--save-traces")
@@ -368,7 +375,7 @@ int main(int argc, char** argv) {
           stderr,
           "usage: bench_ident_draws [--draws N] [--first-seed S] [--kinds none,backlash,..] "
           "[--duration S] [--excitation random|calibration] [--simulator sim|plant2] [--threads N] "
-          "[--weighed-mass] [--verbose] [--candidates] "
+          "[--weighed-mass] [--eq13-motor] [--verbose] [--candidates] "
           "[--json FILE] [--save-traces DIR] [--drift-passes N (1-100)] "
           "[--reversal-speeds A,B,C (mm/s)] [--drift-still-in-runs] "
           "[--drift-speeds RANDOM,OTHERS[,RUNS] (mm/s; RUNS 0: still)] [--run-speed V (mm/s)]\n");

@@ -5,6 +5,10 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <limits>
+#include <mutex>
 #include <regex>
 #include <string>
 #include <thread>
@@ -22,8 +26,45 @@
 namespace feedloop::engine {
 namespace {
 
+// VirtualClock's time (advances only when someone sleeps, as fast as the CPU allows) with a gate:
+// a sleep past gate_ns holds its thread until the gate is opened, so a test can act at a virtual
+// instant whatever the machine's threads' pace on a loaded CPU.
+class GatedClock final : public Clock {
+ public:
+  explicit GatedClock(int64_t start_ns) : now_ns_(start_ns) {}
+  int64_t now_ns() const override { return now_ns_.load(std::memory_order_acquire); }
+  void sleep_until_ns(int64_t deadline_ns) override {
+    {
+      std::unique_lock lock(mu_);
+      cv_.wait(lock, [&] { return deadline_ns <= gate_ns_; });
+    }
+    int64_t now = now_ns_.load(std::memory_order_relaxed);
+    while (deadline_ns > now &&
+           !now_ns_.compare_exchange_weak(now, deadline_ns, std::memory_order_acq_rel)) {
+    }
+  }
+  bool is_virtual() const override { return true; }
+  void close_gate_at(int64_t ns) {
+    std::lock_guard lock(mu_);
+    gate_ns_ = ns;
+  }
+  void open_gate() {
+    {
+      std::lock_guard lock(mu_);
+      gate_ns_ = std::numeric_limits<int64_t>::max();
+    }
+    cv_.notify_all();
+  }
+
+ private:
+  std::atomic<int64_t> now_ns_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  int64_t gate_ns_ = std::numeric_limits<int64_t>::max();
+};
+
 struct MachineRig {
-  VirtualClock clock{1'000'000'000};
+  GatedClock clock{1'000'000'000};
   std::unique_ptr<Machine> m;
   std::atomic<uint64_t> done{0}, failed{0};
   std::string last_failure, last_report;
@@ -182,20 +223,27 @@ TEST(ThermalMachine, M108EndsAHeaterWaitAndKeepsItsTarget) {
   r.m->break_heater_wait();  // before any wait: not for the next one
   auto m109 = gcode::parse_line("M109 S215", SourceLocation{"t", 1, 0});
   ASSERT_TRUE(m109.ok());
+  // Break it part-way up (the heat-up takes tens of seconds of machine time): the machine's
+  // threads are held at 30 s of machine time from now, the M108 comes, and they go on.
+  const int64_t gate_ns = r.clock.now_ns() + 30'000'000'000;
+  r.clock.close_gate_at(gate_ns);
   ASSERT_TRUE(r.m->try_submit(++r.ticket, m109.value()));
-  // Break it half-way up (the heat-up takes tens of seconds of machine time).
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (r.m->status().hotend_c < 100.0 && r.done.load() < r.ticket &&
+  while (r.clock.now_ns() < gate_ns - 50'000'000 && r.done.load() < r.ticket &&
          std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::microseconds(100));
-  ASSERT_EQ(r.done.load(), 0u) << "the M109 ended before 100 C: the earlier M108 ended it";
+  ASSERT_EQ(r.done.load(), 0u) << "the M109 ended before the M108: the earlier M108 ended it";
+  const double at_break_c = r.m->status().hotend_c;
+  std::printf("M108 at %.1f C\n", at_break_c);
   r.m->break_heater_wait();
+  r.clock.open_gate();
   while (r.done.load() < r.ticket && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::microseconds(100));
   const MachineStatus s = r.m->status();
   ASSERT_EQ(r.done.load(), 1u);
   EXPECT_EQ(r.failed.load(), 0u) << r.last_failure;
-  EXPECT_GE(s.hotend_c, 100.0);
+  EXPECT_GE(at_break_c, 50.0);  // heating: the room is 22 C
+  EXPECT_GE(s.hotend_c, at_break_c - 1.0);
   EXPECT_LT(s.hotend_c, 200.0);  // not at its temperature: the wait was cut short
   EXPECT_DOUBLE_EQ(s.hotend_target_c, 215.0);
   EXPECT_NE(r.last_report.find("echo:M109 wait ended by M108 at "), std::string::npos)
