@@ -244,10 +244,11 @@ TEST_F(Calibrate, OnTheSecondSimulatorTheCalibratedModelCutsTheTrackingError) {
 // Second simulator, seed 2: its motors are damped on their load angle (plant2/: c_em against the
 // field, which follows the command through the driver's lag), Eq. 13's against the frame. On
 // calibrate's excitation (moves up to 300 mm/s) Eq. 13's fit drives k1 off its range with c1 of a
-// few N s/m (Y: 3.99e6 N/m, 1 N s/m); the carried model takes a field lag on Y (0.22 ms, k1 289
-// kN/m, c1 462 N s/m; the drawn c_em / r^2 is of that size) and predicts the held-out part 20 %
-// better (14.69 -> 11.70 um), and with it the belt's slope pays too (9.16 um). The overlay carries
-// the lag, and the model tracks the check pattern at 0.0045 mm where Eq. 13's did at 0.0060.
+// few N s/m (Y: 3.99e6 N/m, 1 N s/m); the baseline takes a field lag on Y (0.22 ms, k1 289 kN/m,
+// c1 462 N s/m; the drawn c_em / r^2 is of that size) and predicts the held-out part 26 % better
+// (15.87 -> 11.70 um), and with it the belt's slope pays too (9.16 um). The overlay carries the
+// lag, and the model tracks the check pattern at 0.0037 mm (the PI at 1/4 of the config's gains)
+// where Eq. 13's tracked 0.0060.
 TEST_F(Calibrate, TheSecondSimulatorsMotorIsDampedOnItsLoadAngle) {
 #ifdef FEEDLOOP_SANITIZED
   GTEST_SKIP() << "the external plant in lock-step for two minutes of motion: optimized build only";
