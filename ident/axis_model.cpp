@@ -8,6 +8,7 @@
 #include <unsupported/Eigen/MatrixFunctions>
 
 #include "model/gantry_axis.hpp"
+#include "model/lead_lag.hpp"
 
 namespace feedloop::ident {
 namespace {
@@ -236,15 +237,13 @@ void run_states(const AxisModel& m, const Mat6& A, const Mat63& B, const std::ve
 std::vector<double> field_command(const AxisModel& m, const std::vector<double>& u_mm,
                                   double period_s) {
   if (!(m.field_lag_ms > 0.0) || u_mm.empty()) return u_mm;
-  // (1 + T s) / (1 + tau s) by Tustin, s -> (2 / h) (z - 1) / (z + 1): the inverse of the LPV
-  // feedforward's (1 + tau s) / (1 + T s) (control/feedforward/gantry_lpv.cpp).
-  const double h = period_s, tau = m.field_lag_ms * 1e-3, T = m.c1_n_s_m / m.k1_n_m;
-  const double b0 = (h + 2.0 * T) / (h + 2.0 * tau), b1 = (h - 2.0 * T) / (h + 2.0 * tau),
-               a1 = (h - 2.0 * tau) / (h + 2.0 * tau);
+  // (1 + T s) / (1 + tau s): the inverse of the LPV feedforward's (model/lead_lag.hpp).
+  const model::TustinLeadLag f =
+      model::tustin_lead_lag(m.c1_n_s_m / m.k1_n_m, m.field_lag_ms * 1e-3, period_s);
   std::vector<double> out(u_mm.size());
   double x_prev = u_mm[0], y_prev = u_mm[0];
   for (size_t k = 0; k < u_mm.size(); ++k) {
-    const double y = b0 * u_mm[k] + b1 * x_prev - a1 * y_prev;
+    const double y = f.b0 * u_mm[k] + f.b1 * x_prev - f.a1 * y_prev;
     x_prev = u_mm[k];
     y_prev = y;
     out[k] = y;

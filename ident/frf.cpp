@@ -11,6 +11,8 @@
 #include <Eigen/Dense>
 #include <unsupported/Eigen/MatrixFunctions>
 
+#include "model/lead_lag.hpp"
+
 namespace feedloop::ident {
 namespace {
 
@@ -199,15 +201,11 @@ Result<std::vector<std::complex<double>>> axis_model_frf(const AxisModel& m, dou
   if (!h) return h;
   const double scale = m.has(Effect::kScaleError) ? m.scale : 1.0;
   const double delay_s = m.has(Effect::kTimeDelay) ? m.delay_ms * 1e-3 : 0.0;
-  // The field lag's (1 + T s) / (1 + tau s), as simulate_axis has it (Tustin, z = exp(s h)).
+  // The field lag's (1 + T s) / (1 + tau s), as simulate_axis has it.
   const double tau = m.field_lag_ms * 1e-3, T = m.field_lag_ms > 0.0 ? m.c1_n_s_m / m.k1_n_m : 0.0;
   for (int g = 0; g < grid.size(); ++g) {
-    std::complex<double> f = 1.0;
-    if (tau > 0.0) {
-      const std::complex<double> z = std::polar(1.0, 2.0 * kPi * grid.at_hz(g) * period_s);
-      const std::complex<double> s = (2.0 / period_s) * (z - 1.0) / (z + 1.0);
-      f = (1.0 + T * s) / (1.0 + tau * s);
-    }
+    const std::complex<double> f =
+        tau > 0.0 ? model::tustin_lead_lag_response(T, tau, period_s, grid.at_hz(g)) : 1.0;
     h.value()[static_cast<size_t>(g)] *=
         f * scale * std::polar(1.0, -2.0 * kPi * grid.at_hz(g) * delay_s);
   }

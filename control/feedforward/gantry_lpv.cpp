@@ -82,14 +82,11 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
     if (!(ax.field_lag_s >= 0.0 && ax.field_lag_s <= 0.1))
       return Error{axis + ": field_lag_s must be within 0-0.1 s", {}};
     if (ax.field_lag_s > 0.0) {
-      // (1 + tau s) / (1 + T s) by Tustin at the servo period h: s -> (2 / h) (z - 1) / (z + 1).
-      const double h = opt.period_s, tau = ax.field_lag_s,
-                   T = ax.params.c1_n_s_m / ax.params.k1_n_m;
+      // (1 + tau s) / (1 + T s) at the servo period, T = c1 / k1 (model/lead_lag.hpp).
       LeadLag& f = ff->field_[a];
       f.on = true;
-      f.b0 = (h + 2.0 * tau) / (h + 2.0 * T);
-      f.b1 = (h - 2.0 * tau) / (h + 2.0 * T);
-      f.a1 = (h - 2.0 * T) / (h + 2.0 * T);
+      f.coef = model::tustin_lead_lag(ax.field_lag_s, ax.params.c1_n_s_m / ax.params.k1_n_m,
+                                      opt.period_s);
     }
     if (Status st = model::validate(ax.carriage_mode); !st)
       return Error{axis + ": " + st.error().message, {}};
@@ -237,7 +234,7 @@ void GantryLpvFeedforward::step(const FeedforwardInput& in, JointArray& u_mm) {
     if (field_[as].on) {
       // The field lags the command: command what makes the field follow Eq. 13's inverse.
       LeadLag& lag = field_[as];
-      const double y = lag.b0 * u_mm[as] + lag.b1 * lag.x_prev - lag.a1 * lag.y_prev;
+      const double y = lag.coef.b0 * u_mm[as] + lag.coef.b1 * lag.x_prev - lag.coef.a1 * lag.y_prev;
       lag.x_prev = u_mm[as];
       lag.y_prev = y;
       u_mm[as] = y;

@@ -37,6 +37,7 @@
 #include "control/feedforward/scheduled_inverse.hpp"
 #include "core/result.hpp"
 #include "model/gantry_axis.hpp"
+#include "model/lead_lag.hpp"
 
 namespace feedloop::control {
 
@@ -137,11 +138,11 @@ class GantryLpvFeedforward final : public Feedforward {
   std::array<double, 2> load_offset_mm_{};  // friction's and backlash's share of the last command
   std::array<double, 2> r_prev_{};          // r_{k-1}
   std::array<double, 2> scale_origin_mm_{};  // p: where steps and encoder were last referenced
-  // The field lag's lead-lag (1 + tau s) / (1 + T s), Tustin: y_k = b0 x_k + b1 x_{k-1} - a1
-  // y_{k-1}.
+  // The field lag's lead-lag (1 + tau s) / (1 + T s) (model/lead_lag.hpp) and its state.
   struct LeadLag {
     bool on = false;
-    double b0 = 1.0, b1 = 0.0, a1 = 0.0, x_prev = 0.0, y_prev = 0.0;
+    model::TustinLeadLag coef;
+    double x_prev = 0.0, y_prev = 0.0;
   };
   std::array<LeadLag, 2> field_{};
   std::vector<JointArray> delay_;  // ring of the last P+1 inputs (pass-through joints)
