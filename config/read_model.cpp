@@ -2,6 +2,7 @@
 // (delta paper Table I physical parameters).
 #include "config/enum_names.hpp"
 #include "config/sections.hpp"
+#include "model/lead_lag.hpp"
 
 namespace feedloop::config::detail {
 namespace {
@@ -70,6 +71,13 @@ void read_gantry_axis(MapReader& g, GantryModelConfig& m, Need six, Diagnostics&
   g.number("encoder_delay_ms", m.encoder_delay_ms, Range::closed(0.0, 50.0));
   // A current loop's lag is tens of microseconds, a slow driver's a few ms.
   g.number("field_lag_ms", m.field_lag_ms, Range::closed(0.0, 20.0));
+  // With a field lag c1 damps the load angle, and c1 / k1 is the inverse's pole: without it the
+  // feedforward's lead-lag would ring at half the servo rate (control/feedforward/gantry_lpv.cpp).
+  if (m.field_lag_ms > 0.0 && !(m.c1_ns_per_m / m.k1_n_per_m >= model::kMinFieldDampingLagS))
+    diag.add(g.key_mark("field_lag_ms"),
+             "field_lag_ms needs the motor's damping: c1_ns_per_m / k1_n_per_m is " +
+                 format_number(m.c1_ns_per_m / m.k1_n_per_m * 1e3) +
+                 " ms, under 0.01 ms (c1 damps the load angle when the field lags)");
   read_stepper(g, m.stepper, diag);
 }
 

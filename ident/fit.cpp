@@ -14,6 +14,7 @@
 #include <unsupported/Eigen/FFT>
 
 #include "ident/frf.hpp"
+#include "model/lead_lag.hpp"
 
 namespace feedloop::ident {
 namespace {
@@ -948,7 +949,9 @@ AxisModel with_field_lag(const AxisModel& from, const Problem& pb, size_t fit_en
       m.field_lag_ms = 0.2;
       AxisModel fitted = levenberg_marquardt(m, free_params(m), pb, iterations, fit_end);
       std::vector<double> y;
-      if (!run(fitted, pb, &y)) continue;
+      // A lag without the load angle's damping is no motor the feedforward can invert.
+      if (!(fitted.c1_n_s_m / fitted.k1_n_m >= model::kMinFieldDampingLagS) || !run(fitted, pb, &y))
+        continue;
       const double rms = residual_rms_um(y, *pb.y, pb.train_end, pb.u->size());
       if (rms < best_rms) {
         best_rms = rms;

@@ -11,6 +11,11 @@
 
 namespace feedloop::model {
 
+// The motor's field lag needs c1 / k1 (the feedforward's pole) at least this long, s: with none
+// Tustin puts the pole at z = -1 and the inverse rings at half the servo rate (the config and the
+// feedforward refuse it, identification does not fit it).
+inline constexpr double kMinFieldDampingLagS = 1e-5;
+
 struct TustinLeadLag {
   double b0 = 1.0, b1 = 0.0, a1 = 0.0;
 };

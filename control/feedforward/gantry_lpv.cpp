@@ -81,6 +81,9 @@ Result<std::unique_ptr<GantryLpvFeedforward>> GantryLpvFeedforward::create(
       return Error{axis + ": travel_scale must be within 0.5-2", {}};
     if (!(ax.field_lag_s >= 0.0 && ax.field_lag_s <= 0.1))
       return Error{axis + ": field_lag_s must be within 0-0.1 s", {}};
+    if (ax.field_lag_s > 0.0 &&
+        !(ax.params.c1_n_s_m / ax.params.k1_n_m >= model::kMinFieldDampingLagS))
+      return Error{axis + ": a field lag needs c1 / k1 >= 0.01 ms (c1 damps the load angle)", {}};
     if (ax.field_lag_s > 0.0) {
       // (1 + tau s) / (1 + T s) at the servo period, T = c1 / k1 (model/lead_lag.hpp).
       LeadLag& f = ff->field_[a];

@@ -113,6 +113,18 @@ TEST(ConfigErrors, ImplausibleStiffness) {
                pos_of(y, "1e300"));
 }
 
+// A field lag needs the load angle's damping: with c1 0 the feedforward's lead-lag would have its
+// pole at z = -1 and ring at half the servo rate.
+TEST(ConfigErrors, AFieldLagWithoutTheMotorsDamping) {
+  const std::string y = edit(kMinimal, "      c1_ns_per_m: 2100\n",
+                             "      c1_ns_per_m: 0\n      field_lag_ms: 0.2\n");
+  expect_error(y, "field_lag_ms needs the motor's damping", pos_of(y, "field_lag_ms"));
+  EXPECT_EQ(all(check_config_text(edit(kMinimal, "      c1_ns_per_m: 2100\n",
+                                       "      c1_ns_per_m: 2100\n      field_lag_ms: 0.2\n"),
+                                  "printer.yaml")),
+            "");
+}
+
 TEST(ConfigErrors, ZeroStepsPerMm) {
   const std::string y = edit(kMinimal, "steps_per_mm: 80", "steps_per_mm: 0");
   expect_error(y, "axes.x.steps_per_mm must be > 0 1/mm, got 0", pos_of(y, "0\n    encoder", 0));

@@ -443,6 +443,10 @@ TEST(GantryLpvFeedforward, AFieldLagMakesTheFieldFollowEq13sInverse) {
   EXPECT_LT(apart_at_rest, 1e-6);
   lagged[0].field_lag_s = -1e-3;
   EXPECT_FALSE(GantryLpvFeedforward::create(lagged, opt).ok());
+  // Without the load angle's damping the inverse's pole is at z = -1: refused.
+  lagged[0].field_lag_s = tau_s;
+  lagged[0].params.c1_n_s_m = 0.0;
+  EXPECT_FALSE(GantryLpvFeedforward::create(lagged, opt).ok());
 }
 
 // Scale (the identified scale_error): the carriage travels s mm per mm of steps from where the
