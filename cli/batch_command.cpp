@@ -41,7 +41,9 @@ void usage() {
       "  from the encoders, faults, steps the plant lost (ground truth). Exit 1 on any of them.\n"
       "  --export-trace runs FILE on the simulated printer of the config (its mock MCUs, the\n"
       "  control law it configures) and writes every servo period's commanded motor positions and\n"
-      "  encoder readings as trace CSV v1 (DESIGN.md), for replay on another simulator or ident.\n",
+      "  encoder readings as trace CSV v1 (DESIGN.md), for replay on another simulator or ident;\n"
+      "  extra columns <axis>_ref_mm hold the planned positions (ref - meas: the tracking "
+      "error).\n",
       stderr);
 }
 
@@ -74,7 +76,9 @@ bool read_lines(const std::string& file, std::vector<std::string>& lines) {
 }
 
 // Trace CSV v1 of a simulated run: per joint with steps, the commanded motor position (the steps
-// the command puts out by then: n = round(u steps_per_mm)) and the encoder reading.
+// the command puts out by then: n = round(u steps_per_mm)) and the encoder reading; then, as
+// extra columns (the contract lets readers ignore them), each joint's planned position r, so
+// that r - meas is the tracking error e_t sample by sample.
 int export_trace(const std::string& file, const config::MachineConfig& cfg, const std::string& trace_path,
                  bool quiet) {
   std::vector<std::string> lines;
@@ -99,6 +103,7 @@ int export_trace(const std::string& file, const config::MachineConfig& cfg, cons
   out << "# source=feedloop batch --export-trace\n# gcode=" << file << "\n# sample_rate_hz=" << cfg.servo.rate_hz
       << "\n# machine=" << cfg.name << "\ntime_s";
   for (int j : joints) out << ',' << names[static_cast<size_t>(j)] << "_cmd_mm," << names[static_cast<size_t>(j)] << "_meas_mm";
+  for (int j : joints) out << ',' << names[static_cast<size_t>(j)] << "_ref_mm";
   out << '\n';
   uint64_t rows = 0;
   double t0_s = NAN;  // machine time of the first sample: the trace's time 0
@@ -114,6 +119,10 @@ int export_trace(const std::string& file, const config::MachineConfig& cfg, cons
       const size_t i = static_cast<size_t>(j);
       const double cmd = std::round(s.servo.command_mm[i] * spm[i]) / spm[i];
       std::snprintf(buf, sizeof buf, ",%.6f,%.6f", cmd, s.servo.encoder_mm[i]);
+      out << buf;
+    }
+    for (int j : joints) {
+      std::snprintf(buf, sizeof buf, ",%.6f", s.servo.desired_mm[static_cast<size_t>(j)]);
       out << buf;
     }
     out << '\n';

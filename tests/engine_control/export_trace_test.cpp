@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -51,6 +52,33 @@ TEST(ExportTrace, SimulatedPrintAsTraceCsvV1) {
   // corrections in recordings").
   EXPECT_LT(max_dev_mm, 2.5);
   EXPECT_GT(whole, t.samples() * 99 / 100);
+  // The planned positions follow as extra columns (readers of the contract ignore them): the same
+  // path as the steps, within the feedforward's and the loop's share of the command.
+  std::ifstream in(out);
+  std::string line, header;
+  while (std::getline(in, line))
+    if (!line.empty() && line[0] != '#') {
+      header = line;
+      break;
+    }
+  EXPECT_EQ(header, "time_s,x_cmd_mm,x_meas_mm,y_cmd_mm,y_meas_mm,x_ref_mm,y_ref_mm");
+  double max_ref_mm = 0.0, max_ref_cmd_mm = 0.0;
+  size_t rows = 0;
+  while (std::getline(in, line)) {
+    double v[7];
+    if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &v[0], &v[1], &v[2], &v[3], &v[4],
+                    &v[5], &v[6]) != 7)
+      continue;
+    ++rows;
+    max_ref_mm = std::max(max_ref_mm, v[5]);
+    max_ref_cmd_mm = std::max(max_ref_cmd_mm, std::fabs(v[5] - v[1]));
+  }
+  std::printf("x_ref: %zu rows, max %.3f mm, max |ref - cmd| %.4f mm\n", rows, max_ref_mm,
+              max_ref_cmd_mm);
+  EXPECT_EQ(rows, t.samples());
+  EXPECT_NEAR(max_ref_mm, max_x_mm, 0.5);
+  EXPECT_LT(max_ref_cmd_mm, 0.5);
+  EXPECT_GT(max_ref_cmd_mm, 0.0);
   std::filesystem::remove(out);
 }
 
