@@ -186,6 +186,18 @@ int simulate(const std::string& file, const config::MachineConfig& cfg, const st
               static_cast<unsigned long long>(r->tracking_error_samples));
   std::printf("  lost steps        %llu events (plant: %lld full steps lost)\n",
               static_cast<unsigned long long>(r->lost_step_events), static_cast<long long>(lost_full_steps));
+  // Where the machine saw them (the first few): a detection the plant does not confirm is the
+  // detector's, and its recovery moved the carriage.
+  const auto joint_names = engine::joint_names(cfg);
+  int shown = 0;
+  for (const engine::ServoEvent& e : r->events) {
+    if (e.kind != engine::ServoEventKind::kLostSteps || shown >= 8) continue;
+    ++shown;
+    std::printf(
+        "    at %.3f s print time, joint %s: %+.4f mm\n", e.print_time_s,
+        e.joint >= 0 && e.joint < 4 ? joint_names[static_cast<size_t>(e.joint)].c_str() : "?",
+        e.size_mm);
+  }
   std::printf("  faults            %llu%s%s\n", static_cast<unsigned long long>(r->faults),
               r->error.empty() ? "" : ", first error: ", r->error.c_str());
   if (!json_path.empty()) {

@@ -56,7 +56,10 @@ std::optional<LostStepEvent> LostStepDetector::update(double motor_mm, double en
   std::int64_t full_steps = 0;
   if (cycle_mm_ > 0.0) {
     const std::int64_t cycles = std::llround(d / cycle_mm_);
-    if (cycles == 0) return std::nullopt;  // beyond the threshold but not a slip: keep watching
+    // Beyond the threshold but not a slip, or not near a whole cycle (a model's error, not the
+    // rotor falling into the next equilibrium): keep watching.
+    const double off = d / cycle_mm_ - static_cast<double>(cycles);
+    if (cycles == 0 || std::abs(off) > kSlipCycleTolerance) return std::nullopt;
     size_mm = static_cast<double>(cycles) * cycle_mm_;
     full_steps = cycles * p_.full_steps_per_cycle;
   }

@@ -23,6 +23,11 @@
 
 namespace feedloop::control {
 
+// A settled d is a slip only within this fraction of a cycle of a whole number of cycles (the
+// rotor falls into the next equilibrium; a model's error moves d by any amount):
+// drivers/device/slip_detector.hpp has the case.
+inline constexpr double kSlipCycleTolerance = 0.25;
+
 struct LostStepParams {
   double threshold_mm = 0.3;    // |d| beyond this: a slip is suspected
   double full_step_mm = 0.0;    // length of one full step; 0: unknown, slips are not rounded

@@ -39,7 +39,10 @@ SlipEvent SlipDetector::update(float motor_minus_encoder_nm, float expected_defl
   if (cycle_nm_ > 0.0f) {
     const float c = d / cycle_nm_;
     const int32_t cycles = round_saturate_i32(c);
-    if (cycles == 0) return ev;  // beyond the threshold but less than half a cycle: keep watching
+    // Beyond the threshold but less than half a cycle, or not near a whole cycle: keep watching
+    // (a slip that is one shows as a whole cycle once the transient beside it has passed).
+    const float off = c - static_cast<float>(cycles);
+    if (cycles == 0 || off > kSlipCycleTolerance || off < -kSlipCycleTolerance) return ev;
     size = static_cast<float>(cycles) * cycle_nm_;
     ev.cycles = cycles;
   }

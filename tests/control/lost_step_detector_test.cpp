@@ -150,19 +150,33 @@ TEST(LostStepDetector, SettleWaitIsCountedInSampleTime) {
 }
 
 TEST(LostStepDetector, ExpectedDeflectionIsRemoved) {
-  // 0.5 mm of belt stretch the model predicts: with the model no event; without it, rounding to
-  // whole cycles would turn it into a false slip of 0.8 mm.
+  // 0.7 mm of belt stretch the model predicts: with the model no event; without it, rounding to
+  // whole cycles turns it (0.875 of a cycle) into a false slip of 0.8 mm.
   auto with_model = make_detector();
   auto without_model = make_detector();
   int events_with = 0, events_without = 0;
   for (int k = 0; k < 200; ++k) {
-    const double motor = 0.1 * k, encoder = motor - 0.5;
-    if (with_model.update(motor, encoder, 0.5)) ++events_with;
+    const double motor = 0.1 * k, encoder = motor - 0.7;
+    if (with_model.update(motor, encoder, 0.7)) ++events_with;
     if (without_model.update(motor, encoder)) ++events_without;
   }
   EXPECT_EQ(events_with, 0);
   EXPECT_EQ(events_without, 1);
   EXPECT_DOUBLE_EQ(without_model.total_mm(), 0.8);
+}
+
+// A settled d that is not near a whole cycle (0.5 mm of a 0.8 mm cycle: more than
+// kSlipCycleTolerance from one) is a model's error, not the rotor in another equilibrium: no
+// event, however long it stays; when it then moves to a whole cycle, the slip is found.
+TEST(LostStepDetector, ASlipIsNearAWholeCycle) {
+  EXPECT_DOUBLE_EQ(fc::kSlipCycleTolerance, 0.25);
+  auto det = make_detector();
+  int events = 0;
+  for (int k = 0; k < 400; ++k) events += det.update(0.1 * k, 0.1 * k - 0.5) ? 1 : 0;
+  EXPECT_EQ(events, 0);
+  for (int k = 400; k < 420; ++k) events += det.update(0.1 * k, 0.1 * k - 0.78) ? 1 : 0;
+  EXPECT_EQ(events, 1);
+  EXPECT_DOUBLE_EQ(det.total_mm(), 0.8);
 }
 
 TEST(LostStepDetector, UnknownStepSizeReportsTheMeasuredOffset) {
