@@ -79,7 +79,8 @@ config::GantryModelConfig gantry_model_from_ident(const ident::IdentResult& r,
 }
 
 const std::vector<ident::Effect>& effects_tried_on_the_machine() {
-  static const std::vector<ident::Effect> effects = {ident::Effect::kExtraResonance};
+  static const std::vector<ident::Effect> effects = {ident::Effect::kPeriodicPosition,
+                                                     ident::Effect::kExtraResonance};
   return effects;
 }
 

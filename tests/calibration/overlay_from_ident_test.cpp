@@ -253,9 +253,10 @@ TEST(OverlayFromIdent, TheRunoutIsCarriedWithThePositionItsPhaseCountsFrom) {
   EXPECT_DOUBLE_EQ(g.runout_reference_mm, 117.5);
   ASSERT_EQ(a.value().effects.size(), 1u);
   EXPECT_TRUE(a.value().effects[0].in_model);
+  // calibrate tries it on the machine before it keeps it (the overlay carries it when given).
   EXPECT_TRUE(std::find(effects_tried_on_the_machine().begin(),
                         effects_tried_on_the_machine().end(),
-                        ident::Effect::kPeriodicPosition) == effects_tried_on_the_machine().end());
+                        ident::Effect::kPeriodicPosition) != effects_tried_on_the_machine().end());
   // None named: no runout, whatever the config had.
   r.augmented.set(ident::Effect::kPeriodicPosition, false);
   r.effects.clear();
@@ -285,7 +286,8 @@ ident::IdentResult x_axis_with_a_named_mode(double freq_hz, double damping, doub
 // parameters, in_model false, and writes no mode.
 TEST(OverlayFromIdent, TheNamedModeIsInTheModelTheOverlayWrites) {
   EXPECT_EQ(effects_tried_on_the_machine(),
-            std::vector<ident::Effect>{ident::Effect::kExtraResonance});
+            (std::vector<ident::Effect>{ident::Effect::kPeriodicPosition,
+                                        ident::Effect::kExtraResonance}));
   const config::MachineConfig base = config::default_config();
   ident::IdentResult r = x_axis_with_a_named_mode(44.8, 0.04, 0.11);
   r.augmented.k2_n_m = 61000.0;
