@@ -1124,22 +1124,29 @@ int calibrate(const std::vector<std::string>& args) {
                        after.error().message);
     report["e_t_mm"]["after"] = after.value();
     double after_mm = after.value();
+    // The overlay a trial on the machine kept: saved, its effects in the report, its e_t the
+    // figure the next step starts from.
+    auto adopt = [&](const std::string& kept) -> Status {
+      overlay = kept;
+      if (Status s = write_text_file(overlay_path, overlay); !s) return s;
+      if (auto applied = config::apply_calibration_text(cfg, overlay, overlay_path); applied)
+        for (json& a : report["axes"])
+          a["effects"] = effects_json(applied.value().effects, a["axis"].get<std::string>());
+      after_mm = report["e_t_mm"]["after"].get<double>();
+      return Status{};
+    };
     if (!others.empty()) {
       // The other start's model of an axis on the check pattern, with the config's PI gains
       // (the gains are chosen below, on the model kept); kept when it tracks better.
       auto kept = try_other_starts_on_the_machine(api, plan.value(), cfg, others, overlay,
                                                   overlay_path, target, after_mm, report);
       if (!kept) return roll_back("trying the other start's model failed: " + kept.error().message);
-      overlay = kept.value();
-      if (Status s = write_text_file(overlay_path, overlay); !s) return fail(s.error());
-      if (auto applied = config::apply_calibration_text(cfg, overlay, overlay_path); applied)
-        for (json& a : report["axes"])
-          a["effects"] = effects_json(applied.value().effects, a["axis"].get<std::string>());
-      after_mm = report["e_t_mm"]["after"].get<double>();
+      if (Status s = adopt(kept.value()); !s) return fail(s.error());
     }
     if (info.value().value("control", "") == "pi" && !keep_gains) {
+      // after_mm: the e_t with the config's gains (x 1) on the model kept so far.
       auto chosen = choose_pi_gains(api, plan.value(), cfg, calibrated, overlay, overlay_path,
-                                    target, after.value(), report);
+                                    target, after_mm, report);
       if (!chosen) return roll_back("choosing the PI gains failed: " + chosen.error().message);
       overlay = chosen.value();
       if (Status s = write_text_file(overlay_path, overlay); !s) return fail(s.error());
@@ -1151,13 +1158,9 @@ int calibrate(const std::vector<std::string>& args) {
       auto tried = try_effects_on_the_machine(api, plan.value(), cfg, to_try, overlay, overlay_path,
                                               target, after_mm, report);
       if (!tried)
-        return roll_back("trying the named mode on the machine failed: " + tried.error().message);
-      overlay = tried.value();
-      if (Status s = write_text_file(overlay_path, overlay); !s) return fail(s.error());
-      if (auto applied = config::apply_calibration_text(cfg, overlay, overlay_path); applied)
-        for (json& a : report["axes"])
-          a["effects"] = effects_json(applied.value().effects, a["axis"].get<std::string>());
-      after_mm = report["e_t_mm"]["after"].get<double>();
+        return roll_back("trying the named effects on the machine failed: " +
+                         tried.error().message);
+      if (Status s = adopt(tried.value()); !s) return fail(s.error());
     }
     const json& e_t_before = report["e_t_mm"]["before"];
     if (e_t_before.is_number() && std::isfinite(e_t_before.get<double>()) &&
