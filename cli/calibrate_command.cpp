@@ -350,9 +350,24 @@ Result<std::string> try_effects_on_the_machine(
   return overlay;
 }
 
+// The other start's fit is tried on the machine when its carried model predicts the held-out part
+// within this factor of the chosen one's and is another model (a spring 25 % apart or other
+// effects). On the second simulator's friction draw 1 (X: 3.0 N of LuGre friction on a carriage of
+// 1.04 kg) the Y start predicted calibrate's recording better (12.0 um held out against 21.3) with
+// the springs' roles swapped (k1 25.6 kN/m, k2 2 MN/m), and its inverse tracked the thesis's
+// large star 2.7 times worse than the X start's (k1 rigid, k2 21.1 kN/m: a belt of the machine's
+// 23.9 kN/m): held-out RMS over a recording is not the tracking of a print.
+constexpr double kOtherStartFactor = 2.0;
+// ... and it is kept when it tracks the check pattern this much better (relative): the first
+// simulator with an 8 ms encoder delay rings at the config's PI gains (0.39 mm), where the two
+// starts' models tracked 0.8 % apart, and the other one (its delay 11 % off the drawn one, the
+// first's 2 %) was kept on that difference alone.
+constexpr double kOtherStartMinGain = 0.05;
+
 // The other start's model of each axis (AxisOutcome::other_start) on the check pattern: the
 // overlay with that axis's model replaced is installed and tracked, and kept when it tracks
-// better than `e_t_chosen` (the overlay as it is); the daemon goes back to `overlay` otherwise.
+// better than `e_t_chosen` (the overlay as it is) by kOtherStartMinGain; the daemon goes back to
+// `overlay` otherwise.
 // A fault on the check pattern counts as worse. Axes one at a time, each against the best so
 // far. report["start_trial"] says what was tried; a kept model's figures replace the axis's in
 // report["axes"] and its identification report replaces the axis's.
@@ -385,7 +400,8 @@ Result<std::string> try_other_starts_on_the_machine(
     if (Status s = write_text_file(target, merged.value()); !s) return s.error();
     if (Status s = reload(api, false); !s) return s.error();
     auto e = check_et(api, plan, "check pattern (axis " + axis + ", the other start's model)");
-    const bool keep = e && std::isfinite(e.value()) && e.value() < e_t_chosen;
+    const bool keep =
+        e && std::isfinite(e.value()) && e.value() < (1.0 - kOtherStartMinGain) * e_t_chosen;
     trial["e_t_other_mm"] = e ? json(e.value()) : json(nullptr);
     if (!e) trial["error"] = e.error().message;
     trial["kept"] = keep;
@@ -505,14 +521,6 @@ struct AxisOutcome {
   std::function<Status(const ident::IdentResult&)> write_axis_report;
 };
 
-// The other start's fit is tried on the machine when its carried model predicts the held-out part
-// within this factor of the chosen one's and is another model (a spring 25 % apart or other
-// effects). On the second simulator's friction draw 1 (X: 3.0 N of LuGre friction on a carriage of
-// 1.04 kg) the Y start predicted calibrate's recording better (12.0 um held out against 21.3) with
-// the springs' roles swapped (k1 25.6 kN/m, k2 2 MN/m), and its inverse tracked the thesis's
-// large star 2.7 times worse than the X start's (k1 rigid, k2 21.1 kN/m: a belt of the machine's
-// 23.9 kN/m): held-out RMS over a recording is not the tracking of a print.
-constexpr double kOtherStartFactor = 2.0;
 bool other_start_worth_trying(const ident::IdentResult& chosen, const ident::IdentResult& other) {
   if (!(other.carried_validation_rms_um <= kOtherStartFactor * chosen.carried_validation_rms_um))
     return false;
@@ -761,7 +769,8 @@ std::string report_markdown(const json& j) {
          "model is another model that predicts it nearly as well (within a factor of "
       << kOtherStartFactor
       << "), it is tried on the check pattern with the config's PI gains and kept when it tracks "
-         "better: the recording is not the print.\n\n";
+         "at least "
+      << 100.0 * kOtherStartMinGain << " % better: the recording is not the print.\n\n";
     m << "| axis | held-out RMS of the other start's model, um | e_t before the trial, mm | e_t "
          "with it, mm | kept |\n|---|---|---|---|---|\n";
     for (const json& t : j["start_trial"]) {

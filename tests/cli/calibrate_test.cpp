@@ -183,6 +183,7 @@ TEST_F(Calibrate, TheFirstSimulatorsEncoderDelayIsNamedAndTheModelCarriesIt) {
   const json report = run_yaml(with_delay);
   ASSERT_TRUE(report.is_object());
   ASSERT_EQ(report["axes"].size(), 2u);
+  std::printf("start trial %s\n", report.value("start_trial", json()).dump().c_str());
   for (const json& a : report["axes"]) {
     double delay_ms = -1.0;
     for (const json& e : a["effects"])
@@ -283,8 +284,8 @@ TEST_F(Calibrate, TheSecondSimulatorsMotorIsDampedOnItsLoadAngle) {
 // Second simulator, seed 1, with a backlash drawn on both axes (34 and 49 um): identification
 // names both right, and beside Y's a periodic error that no part of that machine has; each axis's
 // other start gives another model that predicts the recording about as well. All are tried on
-// the check pattern: an other start's model is kept when it tracks better (measured: X's 0.0199
-// mm against 0.0150, not kept; Y's 0.0145, kept), the periodic error is not kept because it
+// the check pattern: an other start's model is kept when it tracks 5 % better (measured: X's
+// 0.0199 mm against 0.0150, Y's 0.0145: neither), the periodic error is not kept because it
 // tracks worse (0.0150 with it, 0.0088 without), and the PI gains are chosen from the e_t of the
 // model kept (x 1/4: 0.0088 mm, open loop 0.0890).
 TEST_F(Calibrate, TheOtherStartsModelAndANamedPeriodicErrorAreTriedOnTheMachine) {
@@ -303,19 +304,21 @@ TEST_F(Calibrate, TheOtherStartsModelAndANamedPeriodicErrorAreTriedOnTheMachine)
     EXPECT_TRUE(backlash) << a.dump();
   }
   ASSERT_TRUE(report.contains("start_trial")) << report.dump(1);
-  bool any_kept = false;
-  double e_t_kept = NAN;
+  EXPECT_EQ(report["start_trial"].size(), 2u);
+  double e_t_after_trials = NAN;  // the e_t of the overlay the start trials left installed
   for (const json& t : report["start_trial"]) {
     ASSERT_TRUE(t["e_t_other_mm"].is_number()) << t.dump();
-    EXPECT_EQ(t["kept"].get<bool>(),
-              t["e_t_other_mm"].get<double>() < t["e_t_chosen_mm"].get<double>());
-    if (t["kept"].get<bool>()) e_t_kept = t["e_t_other_mm"].get<double>();
-    any_kept |= t["kept"].get<bool>();
+    EXPECT_GT(t["held_out_other_um"].get<double>(), 0.0);
+    // Kept only when at least 5 % better (kOtherStartMinGain); each against the best so far.
+    const bool better = t["e_t_other_mm"].get<double>() < 0.95 * t["e_t_chosen_mm"].get<double>();
+    EXPECT_EQ(t["kept"].get<bool>(), better) << t.dump();
+    if (!std::isnan(e_t_after_trials)) {
+      EXPECT_DOUBLE_EQ(t["e_t_chosen_mm"].get<double>(), e_t_after_trials);
+    }
+    e_t_after_trials = better ? t["e_t_other_mm"].get<double>() : t["e_t_chosen_mm"].get<double>();
   }
-  EXPECT_EQ(report["start_trial"].size(), 2u);
-  EXPECT_TRUE(any_kept);
-  // The PI gains start from the model kept: x 1's e_t is the trial's.
-  EXPECT_DOUBLE_EQ(report["pi_gains"]["tried"][0]["e_t_mm"].get<double>(), e_t_kept);
+  // The PI gains start from the model kept: x 1's e_t is the trials' last.
+  EXPECT_DOUBLE_EQ(report["pi_gains"]["tried"][0]["e_t_mm"].get<double>(), e_t_after_trials);
   ASSERT_TRUE(report.contains("mode_trial")) << report.dump(1);
   const json& m = report["mode_trial"];
   EXPECT_EQ(m["effects"], json::parse(R"([["y", "periodic_position"]])"));
