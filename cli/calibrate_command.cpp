@@ -516,9 +516,8 @@ struct AxisOutcome {
   std::optional<ident::IdentResult> with_tried_effects;
   // The other start's fit when its carried model is another model of the axis that predicts the
   // held-out part nearly as well (other_start_worth_trying): what calibrate tries on the check
-  // pattern. Writes that fit's report over the axis's when the machine keeps it.
-  std::optional<ident::IdentResult> other_start;
-  std::function<Status(const ident::IdentResult&)> write_axis_report;
+  // pattern, with what writes that fit's report over the axis's when the machine keeps it.
+  std::optional<OtherStart> other_start;
 };
 
 bool other_start_worth_trying(const ident::IdentResult& chosen, const ident::IdentResult& other) {
@@ -639,13 +638,13 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
   out.axis = axis;
   out.recording = last_part;
   out.fit = std::move(r.value());
-  if (other && other_start_worth_trying(out.fit, *other)) {
-    out.other_start = std::move(other);
-    out.write_axis_report = [dir, csv, time_s = t.time_s, cmd = t.cmd_mm[j], meas = t.meas_mm[j],
-                             period_s = 1.0 / t.rate_hz](const ident::IdentResult& f) {
-      return ident::write_report(dir, f, time_s, cmd, meas, period_s, csv);
-    };
-  }
+  if (other && other_start_worth_trying(out.fit, *other))
+    out.other_start =
+        OtherStart{std::move(*other), last_part,
+                   [dir, csv, time_s = t.time_s, cmd = t.cmd_mm[j], meas = t.meas_mm[j],
+                    period_s = 1.0 / t.rate_hz](const ident::IdentResult& f) {
+                     return ident::write_report(dir, f, time_s, cmd, meas, period_s, csv);
+                   }};
   if (tried) {
     // That start fitted again with nothing left out, so that what identification fits on the
     // carried model (the belt's stiffness along the travel) is fitted with the mode in it.
@@ -1061,9 +1060,7 @@ int calibrate(const std::vector<std::string>& args) {
     calibrated.push_back(axes[i]);
     if (got.value().with_tried_effects)
       to_try.emplace_back(*got.value().with_tried_effects, got.value().recording);
-    if (got.value().other_start)
-      others.push_back(
-          {*got.value().other_start, got.value().recording, got.value().write_axis_report});
+    if (got.value().other_start) others.push_back(*got.value().other_start);
   }
   if (excited && calibrated.empty())
     excited = Error{"no axis was calibrated: every fit was refused (" + out_dir +
