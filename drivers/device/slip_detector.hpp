@@ -24,7 +24,7 @@ namespace feedloop::device {
 // feedforward model's error moves it by any amount. A model of the second simulator's friction
 // draw 1 (X: 3 N of LuGre friction, the springs' roles swapped by the fit) held d at 0.35-0.45 of
 // a cycle for 30 ms on the thesis's large star: rounded to one cycle, the recovery moved the
-// carriage by 0.68 mm, and back 170 ms later (e_t 0.0411 mm against 0.0311 with the rule).
+// carriage by 0.68 mm, and back 170 ms later (e_t 0.0411 mm against 0.0372 with the rule).
 inline constexpr float kSlipCycleTolerance = 0.25f;
 
 struct SlipEvent {
