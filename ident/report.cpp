@@ -8,8 +8,11 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
+#include <cstdlib>  // std::strtod
 #include <filesystem>
 #include <fstream>
+
+#include <nlohmann/json.hpp>
 
 namespace feedloop::ident {
 namespace {
@@ -19,21 +22,6 @@ std::string num(double v, const char* fmt = "%.6g") {
   char buf[64];
   std::snprintf(buf, sizeof buf, fmt, v);
   return buf;
-}
-
-std::string json_escape(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    if (c == '"' || c == '\\') {
-      o += '\\';
-      o += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      o += ' ';
-    } else {
-      o += c;
-    }
-  }
-  return o;
 }
 
 Status write_file(const std::filesystem::path& p, const std::string& text) {
@@ -81,38 +69,50 @@ std::string augmented_description(const IdentResult& r) {
 }
 
 std::string report_json(const IdentResult& r) {
-  std::string j = "{\"axis\": \"" + json_escape(r.axis) + "\",\n";
-  j += " \"baseline\": {\"model\": \"" + json_escape(baseline_description(r.baseline)) +
-       "\", \"rms_um\": " + num(r.baseline_rms_um, "%.4f") + "},\n";
-  j += " \"effects\": [";
-  for (size_t i = 0; i < r.effects.size(); ++i) {
-    if (i > 0) j += ", ";
-    j += "{\"name\": \"" + std::string(effect_name(r.effects[i])) + "\", \"params\": {";
-    const auto ps = effect_params_report(r.augmented, r.effects[i]);
-    for (size_t k = 0; k < ps.size(); ++k) {
-      if (k > 0) j += ", ";
-      j += "\"" + ps[k].first + "\": " + num(ps[k].second, "%.7g");
-    }
-    j += "}}";
+  // Insertion order kept (DESIGN.md's layout: axis, baseline, effects, ..., augmented); figures as
+  // numbers rounded to what they mean, a figure that is not finite as null.
+  using nlohmann::ordered_json;
+  auto figure = [](double v, int decimals) -> ordered_json {
+    if (!std::isfinite(v)) return nullptr;
+    const double scale = std::pow(10.0, decimals);
+    return std::round(v * scale) / scale;
+  };
+  auto significant = [](double v) -> ordered_json {
+    if (!std::isfinite(v)) return nullptr;
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.7g", v);  // what the fit can tell: 7 significant digits
+    return std::strtod(buf, nullptr);
+  };
+  ordered_json j;
+  j["axis"] = r.axis;
+  j["baseline"] = {{"model", baseline_description(r.baseline)},
+                   {"rms_um", figure(r.baseline_rms_um, 4)}};
+  ordered_json effects = ordered_json::array();
+  for (Effect e : r.effects) {
+    ordered_json params = ordered_json::object();
+    for (const auto& [name, value] : effect_params_report(r.augmented, e))
+      params[name] = significant(value);
+    effects.push_back({{"name", effect_name(e)}, {"params", std::move(params)}});
   }
-  j += "],\n";
+  j["effects"] = std::move(effects);
   // The carried model's belt along the travel (fit.cpp): its slope (0: uniform) and the held-out
   // RMS of the fit with a slope, kept or not (0: not tried).
-  j += " \"belt_along_travel\": {\"compliance_slope_per_m\": " +
-       num(r.carried.compliance_slope_per_m, "%.6g") +
-       ", \"reference_mm\": " + num(r.carried.stiffness_reference_mm, "%.6g") +
-       ", \"with_slope_held_out_rms_um\": " + num(r.slope_validation_rms_um, "%.4f") +
-       ", \"carried_held_out_rms_um\": " + num(r.carried_validation_rms_um, "%.4f") + "},\n";
+  j["belt_along_travel"] = {
+      {"compliance_slope_per_m", significant(r.carried.compliance_slope_per_m)},
+      {"reference_mm", significant(r.carried.stiffness_reference_mm)},
+      {"with_slope_held_out_rms_um", figure(r.slope_validation_rms_um, 4)},
+      {"carried_held_out_rms_um", figure(r.carried_validation_rms_um, 4)}};
   // The carried model's motor (fit.cpp): its field lag (0: Eq. 13's motor, damped against the
   // frame) and the held-out RMS of the fit with one, kept or not (0: not tried).
-  j += " \"motor_field\": {\"field_lag_ms\": " + num(r.carried.field_lag_ms, "%.6g") +
-       ", \"k1_n_m\": " + num(r.carried.k1_n_m, "%.6g") +
-       ", \"c1_n_s_m\": " + num(r.carried.c1_n_s_m, "%.6g") +
-       ", \"with_field_lag_held_out_rms_um\": " + num(r.field_lag_validation_rms_um, "%.4f") +
-       ", \"eq13_motor_held_out_rms_um\": " + num(r.eq13_motor_validation_rms_um, "%.4f") + "},\n";
-  j += " \"augmented\": {\"model\": \"" + json_escape(augmented_description(r)) +
-       "\", \"rms_um\": " + num(r.augmented_rms_um, "%.4f") + "}}\n";
-  return j;
+  j["motor_field"] = {{"field_lag_ms", significant(r.carried.field_lag_ms)},
+                      {"k1_n_m", significant(r.carried.k1_n_m)},
+                      {"c1_n_s_m", significant(r.carried.c1_n_s_m)},
+                      {"with_field_lag_held_out_rms_um", figure(r.field_lag_validation_rms_um, 4)},
+                      {"eq13_motor_held_out_rms_um", figure(r.eq13_motor_validation_rms_um, 4)}};
+  j["augmented"] = {{"model", augmented_description(r)}, {"rms_um", figure(r.augmented_rms_um, 4)}};
+  // Model descriptions are built from numbers and fixed words; replace (not throw on) anything
+  // that is not UTF-8 all the same.
+  return j.dump(1, ' ', false, ordered_json::error_handler_t::replace) + "\n";
 }
 
 std::string report_markdown(const IdentResult& r, const std::string& trace_name, const ReportExtras& extras) {
