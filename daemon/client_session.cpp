@@ -159,6 +159,7 @@ void ClientSession::on_bytes(const char* data, size_t n) {
       in_bytes_ += kLineOverheadBytes;
       in_.push_back(InLine{{}, true});
     } else if (!line.text.empty()) {
+      if (on_arrival_) on_arrival_(line.text);
       if (urgent_ && urgent_(line.text)) {  // ahead of the queue, the pause and the rate limit
         if (on_line_) on_line_(*this, line.text, false);
         return;

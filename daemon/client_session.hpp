@@ -44,6 +44,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   using LineHandler = std::function<void(ClientSession&, std::string_view line, bool too_long)>;
   using CloseHandler = std::function<void(ClientSession&)>;
   using UrgentTest = std::function<bool(std::string_view line)>;
+  using ArrivalHook = std::function<void(std::string_view line)>;
   using WriteGuard = std::function<void()>;
 
   ClientSession(uint64_t id, std::string name) : id_(id), name_(std::move(name)) {}
@@ -60,6 +61,9 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   void set_limits(const InputLimits& limits);
   // Lines for which `urgent` is true are handled as they arrive, ahead of everything.
   void set_urgent(UrgentTest urgent) { urgent_ = std::move(urgent); }
+  // Sees every line as it arrives, before it waits in the queue (which it still joins): Marlin's
+  // emergency parser acts on M108 at once and answers it in order all the same.
+  void set_on_arrival(ArrivalHook hook) { on_arrival_ = std::move(hook); }
   // Runs before each write to the client (the pty keeps its slave side from echoing there).
   void set_before_write(WriteGuard guard) { before_write_ = std::move(guard); }
 
@@ -118,6 +122,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   LineHandler on_line_;
   CloseHandler on_close_;
   UrgentTest urgent_;
+  ArrivalHook on_arrival_;
   WriteGuard before_write_;
   std::deque<std::string> out_;
   std::string writing_buf_;  // the lines of the write in progress, coalesced

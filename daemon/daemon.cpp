@@ -311,7 +311,19 @@ void Daemon::add_client(std::shared_ptr<ClientSession> session, Kind kind) {
   if (kind == Kind::kMarlin) {
     gcode::HostProtocol::Options po;
     po.defer_ok = true;
+    po.caller_handles = [](const gcode::Command& cmd) {
+      return is_user_stop(cmd) || cmd.is('M', 0) || cmd.is('M', 1) || cmd.is('M', 876);
+    };
     c.protocol = std::make_unique<gcode::HostProtocol>(session->name(), po);
+    // M108 ends a heater wait or a user's stop (M0 / M600) as it arrives, ahead of the lines
+    // waiting before it (Marlin's emergency parser: OctoPrint's "skip heat-up"), and M876 (the
+    // answer to a host prompt) a user's stop; the line itself is then answered in order.
+    session->set_on_arrival([this](std::string_view line) {
+      const bool m108 = gcode::HostProtocol::is_break_and_continue(line);
+      if (m108 && machine_) machine_->break_heater_wait();
+      if (m108 || gcode::HostProtocol::is_prompt_response(line))
+        boost::asio::post(io_, [this] { on_user_answer(); });  // not inside the session's read
+    });
   }
   session->set_limits(kind == Kind::kJson ? options_.api_limits : options_.marlin_limits);
   if (kind == Kind::kMarlin) {
@@ -385,9 +397,6 @@ void Daemon::on_marlin_line(Client& c, std::string_view line, bool too_long) {
     c.session->send_line(gcode::HostProtocol::kHalted);
     return;
   }
-  // M108 ends a heater wait now, ahead of the queue the wait holds up (Marlin's emergency
-  // parser: OctoPrint's "skip heat-up"); the line then goes its way, answered in order.
-  if (machine_ && gcode::HostProtocol::is_break_and_continue(line)) machine_->break_heater_wait();
   if (too_long) {
     gcode::Reply reply;
     gcode::SplitLine sl;
@@ -397,7 +406,7 @@ void Daemon::on_marlin_line(Client& c, std::string_view line, bool too_long) {
     c.session->send_line(std::string_view(reply.text).substr(0, reply.text.size() - 1));
     return;
   }
-  if (c.parked || !c.backlog.empty()) {
+  if (c.parked || c.user_wait || !c.backlog.empty()) {
     c.backlog.emplace_back(line);
     return;
   }
@@ -434,6 +443,19 @@ void Daemon::process_marlin_line(Client& c, std::string_view line) {
   }
   flush();  // e.g. "echo:Unknown command"
   echo_to_web(c, line, cmd);
+  if (is_user_stop(cmd)) {
+    begin_user_wait(c, cmd, line);
+    return;
+  }
+  if (cmd.is('M', 0) || cmd.is('M', 1)) {
+    // M0 / M1 with P<ms> or S<s>: Marlin waits that long for a click and goes on; with no panel
+    // to click, a dwell (is_user_stop took the forms without).
+    const double ms = cmd.has('P') ? cmd.get('P') : 1000.0 * cmd.get('S');
+    cmd.clear();
+    cmd.letter = 'G';
+    cmd.code = 4;
+    cmd.set('P', std::max(0.0, ms));
+  }
   if (is_query(cmd)) {
     if (cmd.is('M', 155)) {  // Marlin's AUTO_REPORT_TEMPERATURES, per client
       c.autoreport_period_ns = ns_from_seconds(cmd.has('S') ? cmd.get('S') : 0.0);
@@ -609,7 +631,7 @@ std::string Daemon::submit(Client& c, const gcode::Command& cmd, std::string_vie
     emergency_stop("M112 from " + c.session->name());
     return "Printer halted by M112 (emergency stop); send M999 or restart feedloopd to clear";
   }
-  if (cmd.is('M', 108)) {  // its work was done when the line arrived (on_marlin_line): in order, ok
+  if (cmd.is('M', 108) || cmd.is('M', 876)) {  // their work was done when the line arrived
     done(Status::Ok(), {});
     return {};
   }
@@ -670,14 +692,18 @@ void Daemon::retry_parked() {
     while (c.parked) {
       if (!machine_->try_submit(c.parked->ticket, c.parked->command)) break;
       c.parked.reset();
-      while (!c.parked && !c.backlog.empty()) {
-        std::string line = std::move(c.backlog.front());
-        c.backlog.pop_front();
-        process_marlin_line(c, line);
-      }
-      if (!c.parked) c.session->resume_reading();
+      drain_backlog(c);
     }
   }
+}
+
+void Daemon::drain_backlog(Client& c) {
+  while (!c.parked && !c.user_wait && !c.backlog.empty()) {
+    std::string line = std::move(c.backlog.front());
+    c.backlog.pop_front();
+    process_marlin_line(c, line);
+  }
+  if (!c.parked && !c.user_wait) c.session->resume_reading();
 }
 
 void Daemon::on_command_done(engine::CommandDone d) {
@@ -971,7 +997,7 @@ void Daemon::tick() {
     release_ownership_of_a_quiet_job();
   } else if (owner_ != 0 && machine_->idle()) {
     const Client* o = find_client(owner_);
-    if (!o || (o->in_flight == 0 && !o->parked &&
+    if (!o || (o->in_flight == 0 && !o->parked && !o->user_wait &&
                now - owner_last_activity_ns_ > ns_from_seconds(options_.ownership_idle_s))) {
       owner_ = 0;
     }
@@ -979,12 +1005,14 @@ void Daemon::tick() {
   // Marlin's host keepalive: a command that blocks (the machine is catching up, a heater wait)
   // gets "echo:busy: processing" every 2 s so hosts do not time out.
   for (auto& [id, c] : clients_) {
-    if (c.kind != Kind::kMarlin || (c.in_flight == 0 && !c.parked)) {
+    if (c.kind != Kind::kMarlin || (c.in_flight == 0 && !c.parked && !c.user_wait)) {
       c.last_progress_ns = now;
       continue;
     }
     if (now - c.last_progress_ns > 2 * kNsPerS) {
-      c.session->send_line("echo:busy: processing");
+      // Marlin's PAUSED_FOR_USER keepalive while an M0 / M600 waits for its answer.
+      c.session->send_line(c.user_wait && c.user_wait->waiting ? "echo:busy: paused for user"
+                                                               : "echo:busy: processing");
       c.last_progress_ns = now;
     }
   }

@@ -25,6 +25,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "config/machine_config.hpp"
 #include "core/clock.hpp"
@@ -164,6 +165,18 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
     gcode::Command query;  // is_query: answered when it reaches the front
     std::string text;      // ready: the reply lines, without the last '\n'
   };
+  // Marlin's M0 / M1 (without P or S) and M600 from a Marlin client (daemon_user_wait.cpp): the
+  // machine finishes the client's commands (M600 then parks the head), the client's later lines
+  // wait, and M108 or M876 from any client ends the wait (M600 then returns the head).
+  struct UserWait {
+    std::shared_ptr<ReplySlot> slot;  // the stop's own answer, sent when the wait ends
+    std::string message;
+    bool filament_change = false;           // M600
+    bool waiting = false;                   // the machine has stopped (and parked): the user's turn
+    bool retracted = false;                 // M600: the park pulled the filament back
+    std::vector<std::string> return_lines;  // M600: back to where the park found the head
+    std::vector<std::string> restore_lines;  // M600: the host's G90 / G91, M82 / M83 and F
+  };
   struct Client {
     uint64_t id = 0;
     std::shared_ptr<ClientSession> session;
@@ -180,6 +193,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
     int64_t sd_report_period_ns = 0;  // M27 S<seconds>: print job status auto-report (0: off)
     int64_t next_sd_report_ns = 0;
     std::deque<std::shared_ptr<ReplySlot>> replies;  // Marlin channels: answers not yet sent
+    std::optional<UserWait> user_wait;               // an M0 / M1 / M600 in progress
   };
   // A submitted command's answer: its status and the lines it reports before it (CommandDone);
   // Pending: who gets it.
@@ -230,7 +244,20 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   std::string submit(Client& c, const gcode::Command& cmd, std::string_view text,
                      recorder::GcodeSource source, DoneFn done);
   void retry_parked();
+  // Works off the lines a client sent while it waited (parked or a user wait), in order.
+  void drain_backlog(Client& c);
   void run_script_step(std::shared_ptr<Script> s);
+  // daemon_user_wait.cpp: M0 / M1 / M600 from a Marlin client, and the answer that ends them.
+  static bool is_user_stop(const gcode::Command& cmd);
+  void begin_user_wait(Client& c, const gcode::Command& cmd, std::string_view line);
+  void on_user_wait_stopped(uint64_t client_id, const Status& st);
+  void on_user_answer();  // M108 / M876 arrived: every wait whose machine has stopped ends
+  void end_user_wait(Client& c, const Status& st);
+  // Submits `lines` one after the other for client c; `done` after the last or the first error.
+  void run_lines(uint64_t client_id, std::vector<std::string> lines, size_t next,
+                 std::function<void(const Status&)> done);
+  // The pause's park and return settings (config jobs:), for a job's pause and an M600.
+  JobOptions pause_options() const;
 
   void on_command_done(engine::CommandDone done);  // I/O thread
   void tick();                                     // periodic: subscriptions, ownership, reload

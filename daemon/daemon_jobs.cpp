@@ -84,6 +84,13 @@ void Daemon::open_jobs() {
     spdlog::warn("print jobs off: {}", s.error().to_string());
     return;
   }
+  const JobOptions o = pause_options();
+  job_files_ = std::move(files);
+  job_ = std::make_unique<PrintJob>(*job_files_, o, static_cast<JobSink&>(*this));
+  spdlog::info("print jobs: files in {}", job_files_->directory());
+}
+
+JobOptions Daemon::pause_options() const {
   JobOptions o;
   o.pause_retract_mm = cfg_.jobs.pause_retract_mm;
   o.retract_speed_mm_s = cfg_.jobs.retract_speed_mm_s;
@@ -107,9 +114,7 @@ void Daemon::open_jobs() {
     o.y_max_mm = y->max_mm;
   }
   if (z && std::isfinite(z->max_mm)) o.z_max_mm = z->max_mm;
-  job_files_ = std::move(files);
-  job_ = std::make_unique<PrintJob>(*job_files_, o, static_cast<JobSink&>(*this));
-  spdlog::info("print jobs: files in {}", job_files_->directory());
+  return o;
 }
 
 std::string Daemon::owner_name() const {

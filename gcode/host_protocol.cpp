@@ -95,6 +95,9 @@ bool HostProtocol::is_emergency_stop(std::string_view raw) {
 bool HostProtocol::is_break_and_continue(std::string_view raw) {
   return is_immediate_m(raw, "108");
 }
+bool HostProtocol::is_prompt_response(std::string_view raw) {
+  return is_immediate_m(raw, "876");
+}
 
 void HostProtocol::line_error(std::string_view message, Reply& out) {
   out.text.append("Error:");
@@ -181,7 +184,8 @@ HostProtocol::Action HostProtocol::on_line(std::string_view raw, Reply& out, Com
     out.line(kOk);
     return Action::kNone;
   }
-  if (command.unknown && options_.warn_unknown) {
+  if (command.unknown && options_.warn_unknown &&
+      !(options_.caller_handles && options_.caller_handles(command))) {
     // Marlin prints the command as received, from after the line number.
     std::string_view shown = body;
     if (shown[0] == 'N' || shown[0] == 'n') {

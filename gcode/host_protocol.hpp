@@ -57,6 +57,9 @@ class HostProtocol {
   struct Options {
     bool defer_ok = false;      // the caller calls acknowledge() once the command is queued
     bool warn_unknown = true;   // echo:Unknown command: "..." for commands the parser flags
+    // Commands the parser does not know that the caller carries out all the same (the daemon's
+    // M0 / M1 / M600 / M876): no "Unknown command" for them.
+    bool (*caller_handles)(const Command&) = nullptr;
   };
 
   struct Stats {
@@ -85,6 +88,9 @@ class HostProtocol {
   // True when `raw` is an M108 (Marlin's break and continue, which its emergency parser also takes
   // ahead of the queue), optionally after an N word, whatever its checksum.
   static bool is_break_and_continue(std::string_view raw);
+  // True when `raw` is an M876 (the host's answer to a prompt, Marlin's HOST_PROMPT_SUPPORT, which
+  // its emergency parser takes too), optionally after an N word.
+  static bool is_prompt_response(std::string_view raw);
 
   // XOR of all bytes of `s` (the Marlin checksum of the text before '*').
   static uint8_t checksum(std::string_view s);

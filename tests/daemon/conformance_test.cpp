@@ -92,6 +92,96 @@ TEST_F(Conformance, ACommandsReportComesBeforeItsOk) {
       << r.dump();
 }
 
+// Marlin's M0 / M1 (gcode/lcd/M0_M1.cpp, with HOST_PROMPT_SUPPORT): the commands before it run,
+// the text is shown and offered as a host prompt, and the host's next lines wait until an M108 (or
+// M876, the prompt's answer) arrives; then M0's ok, and the lines go on in order. M0 P<ms> dwells.
+TEST_F(Conformance, M0StopsForTheUserAndM108GoesOn) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  for (const char* line : {"G28", "G1 X10 Y10 F6000"}) {
+    ASSERT_TRUE(c.send_line(line));
+    ASSERT_EQ(c.read_until("ok", 20000), "ok") << line;
+  }
+  ASSERT_TRUE(c.send_line("M0 Swap the nozzle"));  // "Swap" is text, not an S word
+  EXPECT_EQ(c.read_line(20000), "echo:Swap the nozzle; send M108 to continue");
+  EXPECT_EQ(c.read_line(), "//action:prompt_end");
+  EXPECT_EQ(c.read_line(), "//action:prompt_begin Swap the nozzle");
+  EXPECT_EQ(c.read_line(), "//action:prompt_button Continue");
+  EXPECT_EQ(c.read_line(), "//action:prompt_show");
+  ASSERT_TRUE(c.send_line("G1 X20"));
+  // Nothing moves and nothing is answered while the user's turn lasts (the keepalive aside).
+  for (int i = 0; i < 3; ++i) {
+    const auto l = c.read_line(300);
+    if (l) {
+      EXPECT_EQ(*l, "echo:busy: paused for user");
+    }
+  }
+  LineClient other;
+  ASSERT_TRUE(other.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(other.send_line("M114"));
+  auto pos = other.read_until("X:", 5000);
+  ASSERT_TRUE(pos);
+  EXPECT_EQ(pos->rfind("X:10.00 Y:10.00", 0), 0u) << *pos;
+  EXPECT_EQ(other.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("M108"));
+  EXPECT_EQ(c.read_until("//action:prompt_end", 5000), "//action:prompt_end");
+  EXPECT_EQ(c.read_line(), "ok");              // M0's
+  EXPECT_EQ(c.read_until("ok", 20000), "ok");  // G1 X20's
+  EXPECT_EQ(c.read_until("ok", 5000), "ok");   // M108's
+  ASSERT_TRUE(c.send_line("M400"));
+  ASSERT_EQ(c.read_until("ok", 20000), "ok");
+  ASSERT_TRUE(c.send_line("M114"));
+  pos = c.read_until("X:", 5000);
+  ASSERT_TRUE(pos);
+  EXPECT_EQ(pos->rfind("X:20.00 Y:10.00", 0), 0u) << *pos;
+  EXPECT_EQ(c.read_line(), "ok");
+  // A timed stop is a dwell: its ok comes by itself, no prompt.
+  ASSERT_TRUE(c.send_line("M0 P50"));
+  EXPECT_EQ(c.read_line(5000), "ok");
+}
+
+// Marlin's M600 (gcode/feature/pause/M600.cpp, feature/pause.cpp): from a host's stream, the head
+// retracts, rises and parks (the job pause's settings), the user loads the filament, and the
+// answer (M876 from the host prompt, here from another client) brings it back over XY, then Z,
+// primes, and restores the host's G91 / M83 so its next relative move goes on from where it was.
+TEST_F(Conformance, M600FromAHostParksAndReturnsWithTheHostsModes) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  for (const char* line : {"G28", "M302 P1", "G1 X30 Y40 Z1 F6000", "G91", "M83", "G1 E2 F600"}) {
+    ASSERT_TRUE(c.send_line(line));
+    ASSERT_EQ(c.read_until("ok", 20000), "ok") << line;
+  }
+  ASSERT_TRUE(c.send_line("M600"));
+  EXPECT_EQ(c.read_until("echo:filament change", 30000),
+            "echo:filament change (M600): load the new filament; send M108 to continue");
+  EXPECT_EQ(c.read_until("//action:prompt_show", 3000), "//action:prompt_show");
+  const config::MachineConfig cfg = config::default_config();
+  LineClient other;
+  ASSERT_TRUE(other.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(other.send_line("M114"));
+  auto pos = other.read_until("X:", 5000);
+  ASSERT_TRUE(pos);
+  // Marlin's NOZZLE_PARK_POINT default: X min + 10, Y max - 10; Z up by the lift (5 mm); E back by
+  // the pause's retract (1 mm).
+  char parked[96];
+  std::snprintf(parked, sizeof parked, "X:%.2f Y:%.2f Z:6.00 E:1.00", cfg.axis("x")->min_mm + 10.0,
+                cfg.axis("y")->max_mm - 10.0);
+  EXPECT_EQ(pos->rfind(parked, 0), 0u) << *pos;
+  EXPECT_EQ(other.read_line(), "ok");
+  ASSERT_TRUE(other.send_line("M876 S0"));
+  EXPECT_EQ(other.read_line(5000), "ok");
+  EXPECT_EQ(c.read_until("//action:prompt_end", 5000), "//action:prompt_end");
+  EXPECT_EQ(c.read_until("ok", 30000), "ok");   // M600's, once the head is back
+  ASSERT_TRUE(c.send_line("G1 X1 E0.1 F600"));  // still relative, as the host left it
+  ASSERT_EQ(c.read_until("ok", 20000), "ok");
+  ASSERT_TRUE(c.send_line("M400"));
+  ASSERT_EQ(c.read_until("ok", 20000), "ok");
+  ASSERT_TRUE(c.send_line("M114"));
+  pos = c.read_until("X:", 5000);
+  ASSERT_TRUE(pos);
+  EXPECT_EQ(pos->rfind("X:31.00 Y:40.00 Z:1.00 E:2.10", 0), 0u) << *pos;
+}
+
 // Marlin's M220 / M221 without a value report the factor (gcode/config/M220.cpp: "FR:100%";
 // M221.cpp: "echo:E0 Flow: 100%"), after the commands before them have run; B and R back the
 // speed factor up and restore it.
