@@ -13,9 +13,13 @@
 #include <cstdlib>  // std::atof
 #include <cstring>
 #include <ctime>  // clock_gettime
+#include <fstream>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "bench/control/metrics.hpp"
 #include "bench/control/trajectories.hpp"
@@ -941,126 +945,131 @@ void print_criteria(const std::vector<Criterion>& crit) {
 
 // ---- JSON ----------------------------------------------------------------------------------------
 
-std::string jstr(const std::string& s) {
-  std::string o = "\"";
-  for (char ch : s) {
-    if (ch == '"' || ch == '\\') o += '\\';
-    if (ch == '\n') {
-      o += "\\n";
-      continue;
-    }
-    o += ch;
-  }
-  return o + "\"";
+using nlohmann::json;
+
+// A figure that is only meaningful when positive (a thesis figure that is not given, a case's
+// corner rule at its default): null otherwise. A NaN or infinite double is written as null by
+// dump().
+json positive_or_null(double v) {
+  return v > 0 ? json(v) : json(nullptr);
 }
 
-std::string jnum(double v) {
-  if (!std::isfinite(v)) return "null";
-  char b[32];
-  std::snprintf(b, sizeof b, "%.6g", v);
-  return b;
-}
-
-std::string jrun(const RunOut& o) {
-  std::string s = "{\"ok\": " + std::string(o.ok ? "true" : "false");
+json jrun(const RunOut& o) {
+  json j = {{"ok", o.ok}};
   if (o.have_metrics) {
-    s += ", \"samples\": " + std::to_string(o.m.samples) + ", \"e_t_mm\": " + jnum(o.m.e_t_mm) +
-         ", \"e_t_std_mm\": " + jnum(o.m.e_t_std_mm) + ", \"e_max_mm\": " + jnum(o.m.e_max_mm) +
-         ", \"e_r_mm\": " + (o.m.e_r_mm >= 0 ? jnum(o.m.e_r_mm) : "null") + ", \"time_s\": " + jnum(o.m.time_s) +
-         ", \"lost_full_steps\": " + std::to_string(o.lost_full_steps) +
-         ", \"lost_step_events\": " + std::to_string(o.lost_step_events) + ", \"cpu_s\": " + jnum(o.cpu_s);
+    j["samples"] = o.m.samples;
+    j["e_t_mm"] = o.m.e_t_mm;
+    j["e_t_std_mm"] = o.m.e_t_std_mm;
+    j["e_max_mm"] = o.m.e_max_mm;
+    j["e_r_mm"] = o.m.e_r_mm >= 0 ? json(o.m.e_r_mm) : json(nullptr);
+    j["time_s"] = o.m.time_s;
+    j["lost_full_steps"] = o.lost_full_steps;
+    j["lost_step_events"] = o.lost_step_events;
+    j["cpu_s"] = o.cpu_s;
   }
-  if (!o.error.empty()) s += ", \"error\": " + jstr(o.error);
-  return s + "}";
+  if (!o.error.empty()) j["error"] = o.error;
+  return j;
 }
 
-std::string jtuning(const Tuning& t) {
-  std::string s = "{\"feedforward\": " + std::string(t.ff == FeedforwardType::lpv ? "\"lpv\"" : "\"none\"") +
-                  ", \"chosen\": {\"x\": {\"kp\": " + jnum(t.best.kp[0]) + ", \"ki_per_s\": " + jnum(t.best.ki_per_s[0]) +
-                  "}, \"y\": {\"kp\": " + jnum(t.best.kp[1]) + ", \"ki_per_s\": " + jnum(t.best.ki_per_s[1]) +
-                  "}}, \"score\": " + jnum(t.best_score) + ", \"found\": " + (t.found ? "true" : "false") +
-                  ", \"points\": [";
-  bool first = true;
+json jtuning(const Tuning& t) {
+  json points = json::array();
   for (int stage = 0; stage < 2; ++stage)
     for (size_t i = 0; i < t.score[stage].size(); ++i)
-      for (size_t j = 0; j < t.score[stage][i].size(); ++j) {
-        s += (first ? "" : ", ") + std::string("{\"axis\": ") + (stage == 0 ? "\"x\"" : "\"y\"") +
-             ", \"kp\": " + jnum(t.kp[i]) + ", \"ki_per_s\": " + jnum(t.ki[j]) +
-             ", \"score\": " + jnum(t.score[stage][i][j]) + "}";
-        first = false;
-      }
-  return s + "]}";
+      for (size_t j = 0; j < t.score[stage][i].size(); ++j)
+        points.push_back({{"axis", stage == 0 ? "x" : "y"},
+                          {"kp", t.kp[i]},
+                          {"ki_per_s", t.ki[j]},
+                          {"score", t.score[stage][i][j]}});
+  return {{"feedforward", t.ff == FeedforwardType::lpv ? "lpv" : "none"},
+          {"chosen",
+           {{"x", {{"kp", t.best.kp[0]}, {"ki_per_s", t.best.ki_per_s[0]}}},
+            {"y", {{"kp", t.best.kp[1]}, {"ki_per_s", t.best.ki_per_s[1]}}}}},
+          {"score", t.best_score},
+          {"found", t.found},
+          {"points", std::move(points)}};
 }
 
 bool write_json(const char* path, const Tuning& t, const Tuning& tl, const ShaperChoice& sh, const std::vector<Block>& blocks,
                 const std::vector<LoopCase>& loops, const std::vector<DeltaRun>& delta, const std::vector<Criterion>& crit,
                 bool quick) {
-  FILE* f = std::fopen(path, "w");
-  if (!f) return false;
-  std::fprintf(f, "{\"bench\": \"control\", \"quick\": %s, \"sample_period_s\": 0.001,\n", quick ? "true" : "false");
-  std::fprintf(f, " \"shaper\": {\"type\": \"mzv\", \"x_freq_hz\": %s, \"x_damping\": %s, \"y_freq_hz\": %s, "
-                  "\"y_damping\": %s},\n",
-               jnum(sh.fx_hz).c_str(), jnum(sh.zx).c_str(), jnum(sh.fy_hz).c_str(), jnum(sh.zy).c_str());
-  std::fprintf(f, " \"tuning\": [%s,\n  %s],\n", jtuning(t).c_str(), jtuning(tl).c_str());
-  std::fprintf(f, " \"blocks\": [");
-  for (size_t bi = 0; bi < blocks.size(); ++bi) {
-    const Block& b = blocks[bi];
-    std::fprintf(f, "%s{\"block\": %s, \"cases\": [", bi ? ",\n  " : "\n  ", jstr(b.id).c_str());
-    for (size_t ci = 0; ci < b.cases.size(); ++ci) {
-      const CaseResult& cr = b.cases[ci];
+  json out = {{"bench", "control"},
+              {"quick", quick},
+              {"sample_period_s", 0.001},
+              {"shaper",
+               {{"type", "mzv"},
+                {"x_freq_hz", sh.fx_hz},
+                {"x_damping", sh.zx},
+                {"y_freq_hz", sh.fy_hz},
+                {"y_damping", sh.zy}}},
+              {"tuning", json::array({jtuning(t), jtuning(tl)})},
+              {"blocks", json::array()},
+              {"loops", json::array()},
+              {"delta", json::array()},
+              {"criteria", json::array()}};
+  for (const Block& b : blocks) {
+    json jb = {{"block", b.id}, {"cases", json::array()}};
+    for (const CaseResult& cr : b.cases) {
       const ThesisRef& th = cr.c.thesis;
-      std::fprintf(f, "%s{\"case\": %s, \"speed_mm_s\": %s, \"accel_mm_s2\": %s, \"speed_change_mm_s\": %s, "
-                      "\"thesis\": {\"open_loop_e_t_mm\": %s, \"open_loop_e_t_std_mm\": %s, \"open_loop_e_r_mm\": %s, "
-                      "\"open_loop_time_s\": %s, \"pi_e_t_mm\": %s, \"pi_e_t_std_mm\": %s, \"pi_e_r_mm\": %s, "
-                      "\"pi_time_s\": %s}",
-                   ci ? ",\n    " : "\n    ", jstr(cr.c.id).c_str(), jnum(cr.c.speed_mm_s).c_str(),
-                   jnum(cr.c.accel_mm_s2).c_str(), cr.c.speed_change_mm_s > 0 ? jnum(cr.c.speed_change_mm_s).c_str() : "null",
-                   th.ol_e_t > 0 ? jnum(th.ol_e_t).c_str() : "null", th.ol_std > 0 ? jnum(th.ol_std).c_str() : "null",
-                   th.ol_e_r > 0 ? jnum(th.ol_e_r).c_str() : "null", th.ol_time > 0 ? jnum(th.ol_time).c_str() : "null",
-                   th.pi_e_t > 0 ? jnum(th.pi_e_t).c_str() : "null", th.pi_std > 0 ? jnum(th.pi_std).c_str() : "null",
-                   th.pi_e_r > 0 ? jnum(th.pi_e_r).c_str() : "null", th.pi_time > 0 ? jnum(th.pi_time).c_str() : "null");
-      std::fprintf(f, ", \"cornering\": %s, \"positions\": %s", jstr(cr.cornering).c_str(), jstr(cr.positions).c_str());
-      if (!cr.skip_reason.empty()) std::fprintf(f, ", \"skipped\": %s", jstr(cr.skip_reason).c_str());
-      std::fprintf(f, ", \"rows\": [");
-      for (size_t ri = 0; ri < cr.rows.size(); ++ri) {
-        const RowResult& r = cr.rows[ri];
-        std::fprintf(f, "%s{\"row\": %s, \"label\": %s, \"kp\": %s, \"ki_per_s\": %s, \"kp_y\": %s, \"ki_per_s_y\": %s, \"ratio_vs_open_loop\": %s, "
-                        "\"run\": %s}",
-                     ri ? ", " : "", jstr(r.row.id).c_str(), jstr(r.row.label).c_str(), jnum(r.row.gains.kp[0]).c_str(),
-                     jnum(r.row.gains.ki_per_s[0]).c_str(), jnum(r.row.gains.kp[1]).c_str(), jnum(r.row.gains.ki_per_s[1]).c_str(), jnum(r.ratio).c_str(), jrun(r.out).c_str());
-      }
-      std::fprintf(f, "]}");
+      json jc = {{"case", cr.c.id},
+                 {"speed_mm_s", cr.c.speed_mm_s},
+                 {"accel_mm_s2", cr.c.accel_mm_s2},
+                 {"speed_change_mm_s", positive_or_null(cr.c.speed_change_mm_s)},
+                 {"thesis",
+                  {{"open_loop_e_t_mm", positive_or_null(th.ol_e_t)},
+                   {"open_loop_e_t_std_mm", positive_or_null(th.ol_std)},
+                   {"open_loop_e_r_mm", positive_or_null(th.ol_e_r)},
+                   {"open_loop_time_s", positive_or_null(th.ol_time)},
+                   {"pi_e_t_mm", positive_or_null(th.pi_e_t)},
+                   {"pi_e_t_std_mm", positive_or_null(th.pi_std)},
+                   {"pi_e_r_mm", positive_or_null(th.pi_e_r)},
+                   {"pi_time_s", positive_or_null(th.pi_time)}}},
+                 {"cornering", cr.cornering},
+                 {"positions", cr.positions},
+                 {"rows", json::array()}};
+      if (!cr.skip_reason.empty()) jc["skipped"] = cr.skip_reason;
+      for (const RowResult& r : cr.rows)
+        jc["rows"].push_back({{"row", r.row.id},
+                              {"label", r.row.label},
+                              {"kp", r.row.gains.kp[0]},
+                              {"ki_per_s", r.row.gains.ki_per_s[0]},
+                              {"kp_y", r.row.gains.kp[1]},
+                              {"ki_per_s_y", r.row.gains.ki_per_s[1]},
+                              {"ratio_vs_open_loop", r.ratio},
+                              {"run", jrun(r.out)}});
+      jb["cases"].push_back(std::move(jc));
     }
-    std::fprintf(f, "]}");
+    out["blocks"].push_back(std::move(jb));
   }
-  std::fprintf(f, "],\n \"loops\": [");
-  bool first_loop = true;
   for (const LoopCase& lc : loops)
-    for (const LoopRow& r : lc.rows) {
-      std::fprintf(f, "%s{\"case\": %s, \"block\": \"effects\", \"controller\": %s, \"loop\": %s, \"run\": %s}",
-                   first_loop ? "\n  " : ",\n  ", jstr(lc.c.id).c_str(), jstr(r.controller).c_str(), jstr(r.loop).c_str(),
-                   jrun(r.out).c_str());
-      first_loop = false;
-    }
-  std::fprintf(f, "],\n \"delta\": [");
-  for (size_t i = 0; i < delta.size(); ++i) {
-    const DeltaRun& r = delta[i];
-    std::fprintf(f, "%s{\"x_mm\": %s, \"y_mm\": %s, \"z_mm\": %s, \"shape\": %s, \"feedforward\": %s, \"run\": %s}",
-                 i ? ",\n  " : "\n  ", jnum(r.x_mm).c_str(), jnum(r.y_mm).c_str(), jnum(kDeltaZ_mm).c_str(),
-                 jstr(r.shape).c_str(), jstr(r.row).c_str(), jrun(r.out).c_str());
-  }
-  std::fprintf(f, "],\n \"criteria\": [");
-  for (size_t i = 0; i < crit.size(); ++i) {
-    const Criterion& c = crit[i];
-    std::fprintf(f, "%s{\"criterion\": %s, \"block\": %s, \"row\": %s, \"value\": %s, \"threshold\": %s, "
-                    "\"result\": %s}",
-                 i ? ",\n  " : "\n  ", jstr(c.what).c_str(), jstr(c.block).c_str(), jstr(c.row).c_str(),
-                 jstr(c.value).c_str(), jstr(c.threshold).c_str(),
-                 jstr(!c.available ? "n/a" : c.info ? (c.pass ? "info: pass" : "info: fail") : c.pass ? "PASS" : "FAIL").c_str());
-  }
-  std::fprintf(f, "]}\n");
-  std::fclose(f);
-  return true;
+    for (const LoopRow& r : lc.rows)
+      out["loops"].push_back({{"case", lc.c.id},
+                              {"block", "effects"},
+                              {"controller", r.controller},
+                              {"loop", r.loop},
+                              {"run", jrun(r.out)}});
+  for (const DeltaRun& r : delta)
+    out["delta"].push_back({{"x_mm", r.x_mm},
+                            {"y_mm", r.y_mm},
+                            {"z_mm", kDeltaZ_mm},
+                            {"shape", r.shape},
+                            {"feedforward", r.row},
+                            {"run", jrun(r.out)}});
+  for (const Criterion& c : crit)
+    out["criteria"].push_back({{"criterion", c.what},
+                               {"block", c.block},
+                               {"row", c.row},
+                               {"value", c.value},
+                               {"threshold", c.threshold},
+                               {"result", !c.available ? "n/a"
+                                          : c.info     ? (c.pass ? "info: pass" : "info: fail")
+                                          : c.pass     ? "PASS"
+                                                       : "FAIL"}});
+  std::ofstream f(path);
+  if (!f) return false;
+  // Error messages come from outside the bench: bytes that are not UTF-8 are replaced, not thrown
+  // on.
+  f << out.dump(2, ' ', false, json::error_handler_t::replace) << "\n";
+  return static_cast<bool>(f);
 }
 
 }  // namespace

@@ -21,6 +21,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "drivers/device/axis_loop.hpp"
 
 using namespace feedloop::device;
@@ -158,16 +160,19 @@ int main(int argc, char** argv) {
   }
   std::printf("p50/p99/max: every 16th tick timed alone with CLOCK_MONOTONIC (includes ~20 ns of clock read).\n");
   if (!json.empty()) {
-    FILE* f = std::fopen(json.c_str(), "w");
+    nlohmann::json out = {
+        {"host_ghz", ghz}, {"ipc_ratio", ipc_ratio}, {"rows", nlohmann::json::array()}};
+    for (const Row& r : rows)
+      out["rows"].push_back({{"control_hz", r.control_hz},
+                             {"ticks", r.ticks},
+                             {"mean_ns", r.mean_ns},
+                             {"p50_ns", r.p50_ns},
+                             {"p99_ns", r.p99_ns},
+                             {"max_ns", r.max_ns},
+                             {"m4_cycles", r.mean_ns * ghz * ipc_ratio}});
+    std::ofstream f(json);
     if (!f) { std::fprintf(stderr, "cannot write %s\n", json.c_str()); return 1; }
-    std::fprintf(f, "{\"host_ghz\": %.3f, \"ipc_ratio\": %.2f, \"rows\": [", ghz, ipc_ratio);
-    for (size_t i = 0; i < rows.size(); ++i) {
-      const Row& r = rows[i];
-      std::fprintf(f, "%s{\"control_hz\": %.0f, \"ticks\": %ld, \"mean_ns\": %.2f, \"p50_ns\": %.1f, \"p99_ns\": %.1f, \"max_ns\": %.1f, \"m4_cycles\": %.0f}",
-                   i ? ", " : "", r.control_hz, r.ticks, r.mean_ns, r.p50_ns, r.p99_ns, r.max_ns, r.mean_ns * ghz * ipc_ratio);
-    }
-    std::fprintf(f, "]}\n");
-    std::fclose(f);
+    f << out.dump(2) << "\n";
   }
   return 0;
 }

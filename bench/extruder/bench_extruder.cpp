@@ -3,6 +3,7 @@
 // e_adv(t), in whole steps, into sim/extruder_plant; the extruded-volume error
 // integral |q_noz - q_cmd| dt, for a sweep of K, on two plants (Bowden, direct drive).
 //   bench_extruder [--gcode FILE] [--json FILE] [--k-max S] [--k-step S]
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -10,6 +11,8 @@
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "planner/config.hpp"
 #include "sim/experiments/extrusion_error.hpp"
@@ -27,6 +30,12 @@ struct Plant {
   const char* name;
   sim::ExtruderPlantParams p;
 };
+
+// K is stepped by repeated addition (0.02 + 0.02 + ...): written to 4 decimals (0.1 ms), the K the
+// sweep means, not as 0.06000000000000001.
+double k_rounded(double k_s) {
+  return std::round(k_s * 1e4) / 1e4;
+}
 
 }  // namespace
 
@@ -141,32 +150,30 @@ int main(int argc, char** argv) {
                 b.k_s, b.error_mm3, a.corner_mm3, b.corner_mm3, b.error_mm3 / a.error_mm3);
   }
   if (!json_path.empty()) {
-    std::string j =
-        "{\n  \"gcode\": \"" + gcode.substr(gcode.find_last_of('/') + 1) + "\",\n  \"rows\": [\n";
-    char buf[256];
-    for (size_t i = 0; i < rows.size(); ++i) {
-      const Row& r = rows[i];
-      std::snprintf(
-          buf, sizeof buf,
-          "    {\"plant\": \"%s\", \"k_s\": %.4f, \"smooth_time_s\": %.4f, \"error_mm3\": %.5f, "
-          "\"corner_error_mm3\": %.5f, \"ratio\": %.5f, \"max_motor_velocity_mm_s\": %.3f}%s\n",
-          r.plant.c_str(), r.k_s, r.smooth_s, r.error_mm3, r.corner_mm3, r.ratio, r.max_v,
-          i + 1 < rows.size() ? "," : "");
-      j += buf;
+    nlohmann::json j = {{"gcode", gcode.substr(gcode.find_last_of('/') + 1)},
+                        {"rows", nlohmann::json::array()},
+                        {"summary", nlohmann::json::array()}};
+    for (const Row& r : rows)
+      j["rows"].push_back({{"plant", r.plant},
+                           {"k_s", k_rounded(r.k_s)},
+                           {"smooth_time_s", r.smooth_s},
+                           {"error_mm3", r.error_mm3},
+                           {"corner_error_mm3", r.corner_mm3},
+                           {"ratio", r.ratio},
+                           {"max_motor_velocity_mm_s", r.max_v}});
+    for (size_t i = 0; i + 1 < summary.size(); i += 2)
+      j["summary"].push_back({{"plant", summary[i].plant},
+                              {"off_error_mm3", summary[i].error_mm3},
+                              {"tuned_k_s", k_rounded(summary[i + 1].k_s)},
+                              {"on_error_mm3", summary[i + 1].error_mm3},
+                              {"ratio", summary[i + 1].error_mm3 / summary[i].error_mm3}});
+    std::ofstream out(json_path);
+    // The G-code file's name comes from outside: bytes that are not UTF-8 are replaced.
+    out << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    if (!out) {
+      std::fprintf(stderr, "cannot write %s\n", json_path.c_str());
+      return 1;
     }
-    j += "  ],\n  \"summary\": [\n";
-    for (size_t i = 0; i + 1 < summary.size(); i += 2) {
-      std::snprintf(buf, sizeof buf,
-                    "    {\"plant\": \"%s\", \"off_error_mm3\": %.5f, \"tuned_k_s\": %.4f, "
-                    "\"on_error_mm3\": %.5f, "
-                    "\"ratio\": %.5f}%s\n",
-                    summary[i].plant.c_str(), summary[i].error_mm3, summary[i + 1].k_s,
-                    summary[i + 1].error_mm3, summary[i + 1].error_mm3 / summary[i].error_mm3,
-                    i + 2 < summary.size() ? "," : "");
-      j += buf;
-    }
-    j += "  ]\n}\n";
-    std::ofstream(json_path) << j;
   }
   return 0;
 }

@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
 #include "sim/experiments/gantry_recording.hpp"
@@ -98,16 +100,22 @@ int main(int argc, char** argv) {
     rows.push_back(row);
   }
   if (!json_path.empty()) {
+    nlohmann::json out = {{"duration_s", duration_s}, {"rows", nlohmann::json::array()}};
+    for (const Row& r : rows)
+      out["rows"].push_back({{"case", r.name},
+                             {"hidden", r.hidden},
+                             {"found", r.found},
+                             {"before_um", r.baseline_um},
+                             {"after_um", r.augmented_um},
+                             {"record_s", r.record_s},
+                             {"fit_s", r.fit_s},
+                             {"fit_cpu_s", r.fit_cpu_s}});
     std::ofstream f(json_path);
-    f << "{\"duration_s\": " << duration_s << ", \"rows\": [";
-    for (size_t i = 0; i < rows.size(); ++i) {
-      const Row& r = rows[i];
-      f << (i ? ", " : "") << "{\"case\": \"" << r.name << "\", \"hidden\": \"" << r.hidden << "\", \"found\": \""
-        << r.found << "\", \"before_um\": " << r.baseline_um << ", \"after_um\": " << r.augmented_um
-        << ", \"record_s\": " << r.record_s << ", \"fit_s\": " << r.fit_s << ", \"fit_cpu_s\": " << r.fit_cpu_s
-        << "}";
+    f << out.dump(2) << "\n";
+    if (!f) {
+      std::fprintf(stderr, "cannot write %s\n", json_path.c_str());
+      return 1;
     }
-    f << "]}\n";
   }
   return 0;
 }

@@ -24,8 +24,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "like_for_like.hpp"
 #include "maneuver/controller.hpp"
@@ -110,9 +114,9 @@ int main(int argc, char** argv) {
     }
   }
 
-  std::string json_study;
+  nlohmann::json json = nlohmann::json::object();
   if (run_study && gcode_file.empty() && part == "fin") {
-    if (feedloop::bench_maneuver::run_like_for_like(study, json_study) != 0) return 1;
+    if (feedloop::bench_maneuver::run_like_for_like(study, json) != 0) return 1;
     std::printf(
         "\nD. Ten 0.4 mm layers of a part (totals over the ten layers; Table III is per layer: see "
         "A).\n");
@@ -162,9 +166,11 @@ int main(int argc, char** argv) {
       path_name.c_str(), probe->segments(), probe->length_m() * 1e3, mean_seg_m * 1e3, m_s, dt_s);
   std::printf("gains: Table II (arc-length row: mu = %.3g); arc sigmoid a1 %.3f mm, a2 %.4f mm\n",
               arc_gains.mu, sp.a1_m * 1e3, sp.a2_m * 1e3);
-  std::string json = "{\"bench\": \"maneuver\", \"path\": \"" + path_name +
-                     "\", \"m_s_m_s\": " + std::to_string(m_s) +
-                     ", \"dt_s\": " + std::to_string(dt_s) + ", \"tables\": [";
+  json["bench"] = "maneuver";
+  json["path"] = path_name;
+  json["m_s_m_s"] = m_s;
+  json["dt_s"] = dt_s;
+  json["tables"] = nlohmann::json::array();
   auto run_table = [&](double period_s) -> int {
     if (period_s > 0.0)
       std::printf("\nsampled servo at %.0f Hz (zero-order hold; errors at the samples):\n",
@@ -173,9 +179,7 @@ int main(int argc, char** argv) {
       std::printf("\ncontinuous controller (evaluated at every RK4 stage):\n");
     std::printf("%-18s %12s %12s %10s %10s %8s\n", "scenario", "max|e| m", "IAE m*s", "time s",
                 "s/layer", "skipped");
-    json += std::string(period_s > 0.0 ? ", " : "") +
-            "{\"control_period_s\": " + std::to_string(period_s) + ", \"scenarios\": [";
-    bool first = true;
+    nlohmann::json table = {{"control_period_s", period_s}, {"scenarios", nlohmann::json::array()}};
     for (const Scenario& sc : scenarios) {
       auto path = PiecewiseLinearPath::create(wp_m, sc.param);
       if (!path) {
@@ -203,35 +207,30 @@ int main(int argc, char** argv) {
                     r->max_cross_m, r->iae_cross_m_s, r->total_time_s, r->total_time_s / 10.0,
                     r->skipped_segments);
       std::printf("%s%s\n", line, r->finished ? "" : "  NOT FINISHED");
-      std::snprintf(line, sizeof line,
-                    "%s{\"name\": \"%s\", \"max_cross_m\": %.6e, \"iae_cross_m_s\": %.6e, "
-                    "\"total_time_s\": %.6f, "
-                    "\"time_per_layer_s\": %.6f, \"max_along_m\": %.6e, \"skipped_segments\": %zu, "
-                    "\"finished\": %s}",
-                    first ? "" : ", ", sc.name, r->max_cross_m, r->iae_cross_m_s, r->total_time_s,
-                    r->total_time_s / 10.0, r->max_along_m, r->skipped_segments,
-                    r->finished ? "true" : "false");
-      json += line;
-      first = false;
+      table["scenarios"].push_back({{"name", sc.name},
+                                    {"max_cross_m", r->max_cross_m},
+                                    {"iae_cross_m_s", r->iae_cross_m_s},
+                                    {"total_time_s", r->total_time_s},
+                                    {"time_per_layer_s", r->total_time_s / 10.0},
+                                    {"max_along_m", r->max_along_m},
+                                    {"skipped_segments", r->skipped_segments},
+                                    {"finished", r->finished}});
       if (!csv_dir.empty() && period_s == 0.0)
         write_csv(csv_dir + "/maneuver_" + sc.name + ".csv", *r);
     }
-    json += "]}";
+    json["tables"].push_back(std::move(table));
     return 0;
   };
   for (double period_s : {0.0, servo_period_s, 1e-3})
     if (run_table(period_s) != 0) return 1;
-  json += "]";
-  if (!json_study.empty()) json += ", " + json_study;
-  json += "}\n";
   if (!json_file.empty()) {
-    FILE* f = std::fopen(json_file.c_str(), "w");
+    std::ofstream f(json_file);
     if (!f) {
       std::fprintf(stderr, "cannot write %s\n", json_file.c_str());
       return 1;
     }
-    std::fputs(json.c_str(), f);
-    std::fclose(f);
+    // The path's name is the --gcode file's: bytes that are not UTF-8 are replaced, not thrown on.
+    f << json.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   }
   return 0;
 }

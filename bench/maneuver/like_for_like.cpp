@@ -8,6 +8,7 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "maneuver/controller.hpp"
@@ -722,7 +723,7 @@ int held_out(const StudyOptions& o, json& out) {
 
 }  // namespace
 
-int run_like_for_like(const StudyOptions& o, std::string& json_text) {
+int run_like_for_like(const StudyOptions& o, json& json_out) {
   auto layer = part_path(TestPart::fin, 1, kPaperLayerMm);
   if (!layer) {
     std::printf("%s\n", layer.error().to_string().c_str());
@@ -735,7 +736,7 @@ int run_like_for_like(const StudyOptions& o, std::string& json_text) {
   if (table_iii(o, *layer, out) != 0 || gap_table(o, *layer, out) != 0 || held_out(o, out) != 0 ||
       corner_table(out) != 0)
     return 1;
-  json_text += "\"like_for_like\": " + out.dump();
+  json_out["like_for_like"] = std::move(out);
   return 0;
 }
 

@@ -4,6 +4,7 @@
 // scored on the corpus's slicer files. See README.md, "Like for like".
 #pragma once
 
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 
 namespace feedloop::bench_maneuver {
@@ -20,8 +21,8 @@ struct StudyOptions {
   bool quick = false;  // fewer draws, fewer held-out layers (tests, CI)
 };
 
-// Prints the three tables; appends their JSON (a fragment: `"like_for_like": {...}`) to json.
+// Prints the three tables; sets their JSON as out["like_for_like"] (out: an object or null).
 // Returns 0, or 1 on an error it printed.
-int run_like_for_like(const StudyOptions& options, std::string& json);
+int run_like_for_like(const StudyOptions& options, nlohmann::json& out);
 
 }  // namespace feedloop::bench_maneuver

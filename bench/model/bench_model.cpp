@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "model/delta_lpv.hpp"
 #include "model/discrete.hpp"
 #include "model/frf_metrics.hpp"
@@ -122,16 +124,20 @@ int main(int argc, char** argv) {
   if (sink == 42.0) std::printf(" ");  // keep the work observable
 
   if (!json_path.empty()) {
+    nlohmann::json j = {{"frf_forms", nlohmann::json::array()},
+                        {"timing",
+                         {{"frf_grid_ms", frf_grid_ms},
+                          {"state_space_zoh_ms", zoh_ms},
+                          {"filter_step_ns", step_ns}}}};
+    for (const Row& r : rows)
+      j["frf_forms"].push_back({{"position_mm", r.pos},
+                                {"carriage", std::string(1, r.carriage)},
+                                {"peak_paper_hz", r.peak_paper_hz},
+                                {"peak_vw_hz", r.peak_vw_hz},
+                                {"mu_acc_mag_pct", r.acc_mag_pct},
+                                {"mu_acc_phase_pct", r.acc_phase_pct}});
     std::ofstream out(json_path);
-    out << "{\"frf_forms\": [";
-    for (size_t k = 0; k < rows.size(); ++k) {
-      const Row& r = rows[k];
-      out << (k ? ", " : "") << "{\"position_mm\": \"" << r.pos << "\", \"carriage\": \"" << r.carriage
-          << "\", \"peak_paper_hz\": " << r.peak_paper_hz << ", \"peak_vw_hz\": " << r.peak_vw_hz
-          << ", \"mu_acc_mag_pct\": " << r.acc_mag_pct << ", \"mu_acc_phase_pct\": " << r.acc_phase_pct << "}";
-    }
-    out << "], \"timing\": {\"frf_grid_ms\": " << frf_grid_ms << ", \"state_space_zoh_ms\": " << zoh_ms
-        << ", \"filter_step_ns\": " << step_ns << "}}\n";
+    out << j.dump(2) << "\n";
     if (!out) {
       std::fprintf(stderr, "cannot write %s\n", json_path.c_str());
       return 1;

@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "gcode/file_lines.hpp"
 #include "gcode/parser.hpp"
 
@@ -131,22 +133,24 @@ int main(int argc, char** argv) {
   if (!temp_dir.empty()) fs::remove_all(temp_dir);
 
   if (!json_path.empty()) {
+    nlohmann::json out = {{"benchmark", "parser"},
+                          {"repeats", 3},
+                          {"statistic", "best"},
+                          {"files", nlohmann::json::array()}};
+    for (const Row& r : rows)
+      out["files"].push_back({{"file", r.name},
+                              {"size_mb", r.size_mb},
+                              {"lines", r.lines},
+                              {"commands", r.commands},
+                              {"errors", r.errors},
+                              {"wall_s", r.wall_s},
+                              {"lines_per_s", static_cast<double>(r.lines) / r.wall_s},
+                              {"mb_per_s", r.size_mb / r.wall_s},
+                              {"cpu_s", r.cpu_s},
+                              {"lines_per_cpu_s", static_cast<double>(r.lines) / r.cpu_s}});
     std::ofstream js(json_path);
-    js << "{\"benchmark\": \"parser\", \"repeats\": 3, \"statistic\": \"best\", \"files\": [";
-    for (size_t i = 0; i < rows.size(); ++i) {
-      const Row& r = rows[i];
-      char buf[512];
-      std::snprintf(buf, sizeof buf,
-                    "%s{\"file\": \"%s\", \"size_mb\": %.4f, \"lines\": %lld, \"commands\": %lld, "
-                    "\"errors\": %lld, \"wall_s\": %.6f, \"lines_per_s\": %.0f, \"mb_per_s\": %.2f, "
-                    "\"cpu_s\": %.6f, \"lines_per_cpu_s\": %.0f}",
-                    i ? ", " : "", r.name.c_str(), r.size_mb, static_cast<long long>(r.lines),
-                    static_cast<long long>(r.commands), static_cast<long long>(r.errors), r.wall_s,
-                    static_cast<double>(r.lines) / r.wall_s, r.size_mb / r.wall_s, r.cpu_s,
-                    static_cast<double>(r.lines) / r.cpu_s);
-      js << buf;
-    }
-    js << "]}\n";
+    // File names come from outside: bytes that are not UTF-8 are replaced, not thrown on.
+    js << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     if (!js) {
       std::fprintf(stderr, "cannot write %s\n", json_path.c_str());
       return 1;

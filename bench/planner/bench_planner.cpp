@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "gcode/parser.hpp"
 #include "planner/interpreter.hpp"
 #include "planner/joint_output.hpp"
@@ -140,7 +142,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "no .gcode files in %s\n", corpus.c_str());
     return 1;
   }
-  std::string json = "{\n  \"throughput\": [\n";
+  nlohmann::json json = {{"throughput", nlohmann::json::array()},
+                         {"cornering", nlohmann::json::array()}};
   std::printf("Planner throughput (interpreter + lookahead, parsing excluded; median of %d runs)\n", runs);
   std::printf("%-42s %8s %8s %10s %10s %10s %12s %10s %7s\n", "file", "lines", "moves", "Mlines/s", "Mmoves/s",
               "wall_ms", "+joints M/s", "segments", "forced");
@@ -160,21 +163,21 @@ int main(int argc, char** argv) {
     std::printf("%-42s %8ld %8ld %10.2f %10.2f %10.1f %12.2f %10ld %7ld%s\n", name.c_str(), l.lines, r.moves,
                 l.lines / ws / 1e6, r.moves / ws / 1e6, ws * 1e3, rj.moves / wjs / 1e6, rj.segments, r.forced,
                 r.rejected ? "  (rejected lines!)" : "");
-    char buf[512];
-    std::snprintf(buf, sizeof buf,
-                  "    {\"file\": \"%s\", \"lines\": %ld, \"moves\": %ld, \"wall_s\": %.6f, \"lines_per_s\": %.0f, "
-                  "\"moves_per_s\": %.0f, \"with_joints_moves_per_s\": %.0f, \"joint_segments\": %ld, \"print_time_s\": %.3f, "
-                  "\"rejected\": %ld}%s\n",
-                  name.c_str(), l.lines, r.moves, ws, l.lines / ws, r.moves / ws, rj.moves / wjs, rj.segments, r.print_time_s,
-                  r.rejected, fi + 1 < files.size() ? "," : "");
-    json += buf;
+    json["throughput"].push_back({{"file", name},
+                                  {"lines", l.lines},
+                                  {"moves", r.moves},
+                                  {"wall_s", ws},
+                                  {"lines_per_s", l.lines / ws},
+                                  {"moves_per_s", r.moves / ws},
+                                  {"with_joints_moves_per_s", rj.moves / wjs},
+                                  {"joint_segments", rj.segments},
+                                  {"print_time_s", r.print_time_s},
+                                  {"rejected", r.rejected}});
   }
-  json += "  ],\n  \"cornering\": [\n";
 
   std::printf("\nCornering policy comparison (junctions between XYZ moves; corner = turn >= 5 deg)\n");
-  std::printf("%-28s %-20s %12s %9s %10s %10s %12s %12s\n", "file", "policy", "print_time_s", "corners", "mean_mm_s",
-              "min_mm_s", "mean>=45deg", "mean<5deg");
-  bool first = true;
+  std::printf("%-28s %-20s %12s %9s %10s %10s %12s %12s\n", "file", "policy", "print_time_s",
+              "corners", "mean_mm_s", "min_mm_s", "mean>=45deg", "mean<5deg");
   for (const char* want : {"star_prism_cartesian.gcode", "benchy_cartesian.gcode"}) {
     const std::string path = corpus + "/" + want;
     if (!std::filesystem::exists(path)) continue;
@@ -206,20 +209,20 @@ int main(int argc, char** argv) {
       const double mean = n ? sum / n : 0.0, mean45 = n45 ? sum45 / n45 : 0.0, mean_s = n_straight ? sum_straight / n_straight : 0.0;
       std::printf("%-28s %-20s %12.1f %9ld %10.2f %10.3f %12.2f %12.2f\n", want, pname, r.print_time_s, n, mean, n ? mn : 0.0,
                   mean45, mean_s);
-      char buf[512];
-      std::snprintf(buf, sizeof buf,
-                    "%s    {\"file\": \"%s\", \"policy\": \"%s\", \"print_time_s\": %.3f, \"corners\": %ld, "
-                    "\"corner_mean_mm_s\": %.4f, \"corner_min_mm_s\": %.4f, \"corner45_mean_mm_s\": %.4f, "
-                    "\"straight_mean_mm_s\": %.4f}",
-                    first ? "" : ",\n", want, pname, r.print_time_s, n, mean, n ? mn : 0.0, mean45, mean_s);
-      json += buf;
-      first = false;
+      json["cornering"].push_back({{"file", want},
+                                   {"policy", pname},
+                                   {"print_time_s", r.print_time_s},
+                                   {"corners", n},
+                                   {"corner_mean_mm_s", mean},
+                                   {"corner_min_mm_s", n ? mn : 0.0},
+                                   {"corner45_mean_mm_s", mean45},
+                                   {"straight_mean_mm_s", mean_s}});
     }
   }
-  json += "\n  ]\n}\n";
   if (!json_path.empty()) {
     std::ofstream out(json_path);
-    out << json;
+    // File names come from outside: bytes that are not UTF-8 are replaced, not thrown on.
+    out << json.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     if (!out) {
       std::fprintf(stderr, "cannot write %s\n", json_path.c_str());
       return 1;

@@ -7,11 +7,15 @@
 // round trips/s and the mean round-trip time. --faults P: feedloop-vmcu drops, corrupts,
 // duplicates and reorders each frame with probability P and delays it (80 ms) with P/4, in both
 // directions, so the figures show the cost of retransmission.
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <random>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "core/clock.hpp"
 #include "drivers/device/virtual_mcu.hpp"
@@ -171,15 +175,23 @@ int main(int argc, char** argv) {
   std::printf("%-8s %10s %10s %12.0f %10s %12s %8s   mean RTT %.0f us\n", "ping", "-", "-", pings / 1.0, "-", "-",
               "-", rtt_sum / pings * 1e6);
   if (!json.empty()) {
-    FILE* f = std::fopen(json.c_str(), "w");
-    if (!f) return 1;
-    std::fprintf(f,
-                 "{\"benchmark\": \"protocol\", \"transport\": \"pty\", \"faults\": %g, \"steps\": %llu, \"steps_per_s\": %.1f, "
-                 "\"frames_per_s\": %.1f, \"bytes_per_s\": %.1f, \"wire_bytes_per_step\": %.4f, \"all_steps_ok\": %s, "
-                 "\"ping_round_trips_per_s\": %d, \"ping_mean_rtt_us\": %.1f}\n",
-                 faults, (unsigned long long)col.steps, col.steps / stream_s, frames / stream_s, bytes / stream_s,
-                 bytes / std::max<double>(1, col.steps), ok ? "true" : "false", pings, rtt_sum / pings * 1e6);
-    std::fclose(f);
+    const nlohmann::json out = {{"benchmark", "protocol"},
+                                {"transport", "pty"},
+                                {"faults", faults},
+                                {"steps", col.steps},
+                                {"steps_per_s", col.steps / stream_s},
+                                {"frames_per_s", frames / stream_s},
+                                {"bytes_per_s", bytes / stream_s},
+                                {"wire_bytes_per_step", bytes / std::max<double>(1, col.steps)},
+                                {"all_steps_ok", ok},
+                                {"ping_round_trips_per_s", pings},
+                                {"ping_mean_rtt_us", rtt_sum / pings * 1e6}};
+    std::ofstream f(json);
+    f << out.dump(2) << "\n";
+    if (!f) {
+      std::fprintf(stderr, "bench_protocol: cannot write %s\n", json.c_str());
+      return 1;
+    }
   }
   return ok ? 0 : 1;
 }

@@ -7,8 +7,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "recorder/log_reader.hpp"
 #include "recorder/recorder.hpp"
@@ -119,15 +122,17 @@ int main(int argc, char** argv) {
     std::printf("%-10s %10llu %10.1f %10.1f %8.2f %10.1f\n", r.stream.c_str(), static_cast<unsigned long long>(r.records),
                 r.record_ns, r.encode_ns, r.bytes_per_record, r.read_ns);
   if (!json.empty()) {
-    FILE* f = std::fopen(json.c_str(), "w");
+    nlohmann::json out = {{"benchmark", "recorder"}, {"rows", nlohmann::json::array()}};
+    for (const Row& r : rows)
+      out["rows"].push_back({{"record", r.stream},
+                             {"records", r.records},
+                             {"record_ns", r.record_ns},
+                             {"encode_ns", r.encode_ns},
+                             {"bytes_per_record", r.bytes_per_record},
+                             {"read_ns", r.read_ns}});
+    std::ofstream f(json);
     if (!f) { std::perror(json.c_str()); return 1; }
-    std::fprintf(f, "{\"benchmark\": \"recorder\", \"rows\": [");
-    for (size_t i = 0; i < rows.size(); ++i)
-      std::fprintf(f, "%s{\"record\": \"%s\", \"records\": %llu, \"record_ns\": %.2f, \"encode_ns\": %.2f, \"bytes_per_record\": %.3f, \"read_ns\": %.2f}",
-                   i ? ", " : "", rows[i].stream.c_str(), static_cast<unsigned long long>(rows[i].records), rows[i].record_ns,
-                   rows[i].encode_ns, rows[i].bytes_per_record, rows[i].read_ns);
-    std::fprintf(f, "]}\n");
-    std::fclose(f);
+    f << out.dump(2) << "\n";
   }
   return 0;
 }

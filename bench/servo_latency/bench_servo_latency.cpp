@@ -24,12 +24,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <memory>
 #include <sstream>
 #include <string>
 #include <system_error>
 #include <thread>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "core/clock.hpp"
 #include "engine/latency_histogram.hpp"
@@ -246,25 +249,20 @@ void print_fig(const Figures& f) {
               static_cast<unsigned long long>(f.misses));
 }
 
-void json_fig(FILE* j, const char* name, const Figures& f, bool binned) {
-  std::fprintf(j, "\"%s\": {\"ok\": %s, \"samples\": %llu, \"p50_us\": %.2f, \"p99_us\": %.2f, "
-                  "\"max_us\": %.2f, \"mean_us\": %.2f, \"deadline_misses\": %llu",
-               name, f.ok ? "true" : "false", static_cast<unsigned long long>(f.samples), f.p50_us,
-               f.p99_us, f.max_us, f.mean_us, static_cast<unsigned long long>(f.misses));
-  if (binned)
-    std::fprintf(j, ", \"binned_p50_us\": %.2f, \"binned_p99_us\": %.2f", f.binned_p50_us, f.binned_p99_us);
-  if (!f.ok) std::fprintf(j, ", \"error\": \"%s\"", f.error.c_str());
-  std::fprintf(j, "}");
-}
-
-std::string json_escape(const std::string& s) {
-  std::string o;
-  for (char ch : s) {
-    if (ch == '"' || ch == '\\') o += '\\';
-    if (ch == '\n') { o += "\\n"; continue; }
-    o += ch;
+nlohmann::json json_fig(const Figures& f, bool binned) {
+  nlohmann::json j = {{"ok", f.ok},
+                      {"samples", f.samples},
+                      {"p50_us", f.p50_us},
+                      {"p99_us", f.p99_us},
+                      {"max_us", f.max_us},
+                      {"mean_us", f.mean_us},
+                      {"deadline_misses", f.misses}};
+  if (binned) {
+    j["binned_p50_us"] = f.binned_p50_us;
+    j["binned_p99_us"] = f.binned_p99_us;
   }
-  return o;
+  if (!f.ok) j["error"] = f.error;
+  return j;
 }
 
 }  // namespace
@@ -354,28 +352,26 @@ int main(int argc, char** argv) {
               "misses: wake-ups later than one period.\n");
 
   if (json_path) {
-    FILE* j = std::fopen(json_path, "w");
+    nlohmann::json out = {{"bench", "servo_latency"}, {"period_us", period_us},
+                          {"priority", priority},     {"seconds_per_condition", seconds},
+                          {"concurrent", concurrent}, {"kernel", kernel},
+                          {"preempt_rt", preempt_rt}, {"conditions", nlohmann::json::array()}};
+    for (const Condition& c : conds)
+      out["conditions"].push_back({{"name", c.name},
+                                   {"load", c.load},
+                                   {"sched_fifo", c.sched_fifo},
+                                   {"mlockall", c.mlocked},
+                                   {"feedloop", json_fig(c.feedloop, false)},
+                                   {"cyclictest", json_fig(c.cyclictest, true)},
+                                   {"warnings", c.warnings}});
+    std::ofstream j(json_path);
     if (!j) {
       std::fprintf(stderr, "cannot write %s\n", json_path);
       return 1;
     }
-    std::fprintf(j, "{\"bench\": \"servo_latency\", \"period_us\": %.0f, \"priority\": %d, "
-                    "\"seconds_per_condition\": %.1f, \"concurrent\": %s, \"kernel\": \"%s\", "
-                    "\"preempt_rt\": %s, \"conditions\": [",
-                 period_us, priority, seconds, concurrent ? "true" : "false", json_escape(kernel).c_str(),
-                 preempt_rt ? "true" : "false");
-    for (size_t i = 0; i < conds.size(); ++i) {
-      const Condition& c = conds[i];
-      std::fprintf(j, "%s{\"name\": \"%s\", \"load\": \"%s\", \"sched_fifo\": %s, \"mlockall\": %s, ",
-                   i ? ", " : "", c.name.c_str(), json_escape(c.load).c_str(), c.sched_fifo ? "true" : "false",
-                   c.mlocked ? "true" : "false");
-      json_fig(j, "feedloop", c.feedloop, false);
-      std::fprintf(j, ", ");
-      json_fig(j, "cyclictest", c.cyclictest, true);
-      std::fprintf(j, ", \"warnings\": \"%s\"}", json_escape(c.warnings).c_str());
-    }
-    std::fprintf(j, "]}\n");
-    std::fclose(j);
+    // The kernel string, the load's arguments and the errors come from outside: bytes that are
+    // not UTF-8 are replaced, not thrown on.
+    j << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   }
   bool ok = true;
   for (const Condition& c : conds) ok = ok && c.feedloop.ok;

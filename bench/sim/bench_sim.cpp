@@ -10,8 +10,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "model/delta_kinematics.hpp"
 #include "sim/delta_plant.hpp"
@@ -216,23 +219,21 @@ int main(int argc, char** argv) {
     std::printf("%-32s %-18s %8.2f %9.3f %16.1f %10lld %10.3f\n", r.machine.c_str(),
                 r.substep.c_str(), r.sim_s, r.wall_s, r.sim_s / r.wall_s, r.steps, r.max_dev_nm);
   if (json_path) {
-    FILE* f = std::fopen(json_path, "w");
+    nlohmann::json out = {{"benchmark", "sim"}, {"rows", nlohmann::json::array()}};
+    for (const Row& r : rows)
+      out["rows"].push_back({{"machine", r.machine},
+                             {"substep_hz", r.substep},  // a string: one rate, or one per axis
+                             {"sim_s", r.sim_s},
+                             {"wall_s", r.wall_s},
+                             {"sim_s_per_wall_s", r.sim_s / r.wall_s},
+                             {"steps", r.steps},
+                             {"max_dev_nm", r.max_dev_nm}});
+    std::ofstream f(json_path);
     if (!f) {
       std::fprintf(stderr, "cannot write %s\n", json_path);
       return 1;
     }
-    std::fprintf(f, "{\"benchmark\": \"sim\", \"rows\": [\n");
-    for (size_t i = 0; i < rows.size(); ++i) {
-      const Row& r = rows[i];
-      std::fprintf(
-          f,
-          "  {\"machine\": \"%s\", \"substep_hz\": \"%s\", \"sim_s\": %.3f, \"wall_s\": %.6f, "
-          "\"sim_s_per_wall_s\": %.2f, \"steps\": %lld, \"max_dev_nm\": %.4f}%s\n",
-          r.machine.c_str(), r.substep.c_str(), r.sim_s, r.wall_s, r.sim_s / r.wall_s, r.steps,
-          r.max_dev_nm, i + 1 < rows.size() ? "," : "");
-    }
-    std::fprintf(f, "]}\n");
-    std::fclose(f);
+    f << out.dump(2) << "\n";
   }
   return 0;
 }

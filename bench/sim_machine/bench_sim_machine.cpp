@@ -9,9 +9,12 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "config/config.hpp"
 #include "engine/config_mapping.hpp"
@@ -122,21 +125,22 @@ int main(int argc, char** argv) {
     std::printf("%-10s %10.2f %10.2f %12.2f %12.1f %12.1f %12.1f %12llu\n", f.machine.c_str(), f.sim_s, f.cpu_s,
                 f.ratio, f.mean_us, f.p99_us, f.max_us, f.steps);
   if (json != nullptr) {
-    FILE* fp = std::fopen(json, "w");
-    if (fp == nullptr) {
+    nlohmann::json j = {{"benchmark", "sim_machine"}, {"results", nlohmann::json::array()}};
+    for (const Figures& f : out)
+      j["results"].push_back({{"machine", f.machine},
+                              {"sim_s", f.sim_s},
+                              {"cpu_s", f.cpu_s},
+                              {"sim_per_cpu", f.ratio},
+                              {"cycle_mean_us", f.mean_us},
+                              {"cycle_p99_us", f.p99_us},
+                              {"cycle_max_us", f.max_us},
+                              {"steps", f.steps}});
+    std::ofstream fp(json);
+    if (!fp) {
       std::perror(json);
       return 1;
     }
-    std::fprintf(fp, "{\"benchmark\": \"sim_machine\", \"results\": [");
-    for (size_t i = 0; i < out.size(); ++i) {
-      const Figures& f = out[i];
-      std::fprintf(fp,
-                   "%s{\"machine\": \"%s\", \"sim_s\": %.3f, \"cpu_s\": %.3f, \"sim_per_cpu\": %.3f, "
-                   "\"cycle_mean_us\": %.2f, \"cycle_p99_us\": %.2f, \"cycle_max_us\": %.2f, \"steps\": %llu}",
-                   i ? ", " : "", f.machine.c_str(), f.sim_s, f.cpu_s, f.ratio, f.mean_us, f.p99_us, f.max_us, f.steps);
-    }
-    std::fprintf(fp, "]}\n");
-    std::fclose(fp);
+    fp << j.dump(2) << "\n";
   }
   return 0;
 }

@@ -8,12 +8,16 @@
 // (including frame and message headers, docs/protocol.md), mean steps per run.
 #include <time.h>  // clock_gettime
 
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <random>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "config/config.hpp"
 #include "drivers/stepgen/step_batcher.hpp"
@@ -212,23 +216,25 @@ int main(int argc, char** argv) {
         r.msteps_s, r.run_bps, r.wire_bps, r.steps_per_run, r.searches_per_step,
         r.trials_per_search, r.scanned_per_step);
   if (!json.empty()) {
-    FILE* f = std::fopen(json.c_str(), "w");
-    if (!f) { std::perror(json.c_str()); return 1; }
-    std::fprintf(f, "{\"benchmark\": \"stepgen\", \"rows\": [\n");
-    for (size_t i = 0; i < rows.size(); ++i) {
-      const auto& r = rows[i];
-      std::fprintf(f,
-                   "  {\"workload\": \"%s\", \"max_error_us\": %g, \"steps\": %.0f, "
-                   "\"gen_ns_per_step\": %.3f, "
-                   "\"compress_ns_per_step\": %.3f, \"total_ns_per_step\": %.3f, \"msteps_per_s\": "
-                   "%.3f, \"run_bytes_per_step\": %.4f, "
-                   "\"wire_bytes_per_step\": %.4f, \"steps_per_run\": %.2f}%s\n",
-                   r.workload.c_str(), r.err_us, r.steps, r.gen_ns, r.comp_ns, r.total_ns,
-                   r.msteps_s, r.run_bps, r.wire_bps, r.steps_per_run,
-                   i + 1 < rows.size() ? "," : "");
+    nlohmann::json out = {{"benchmark", "stepgen"}, {"rows", nlohmann::json::array()}};
+    for (const auto& r : rows)
+      out["rows"].push_back({{"workload", r.workload},
+                             {"max_error_us", r.err_us},
+                             {"steps", static_cast<int64_t>(r.steps)},
+                             {"gen_ns_per_step", r.gen_ns},
+                             {"compress_ns_per_step", r.comp_ns},
+                             {"total_ns_per_step", r.total_ns},
+                             {"msteps_per_s", r.msteps_s},
+                             {"run_bytes_per_step", r.run_bps},
+                             {"wire_bytes_per_step", r.wire_bps},
+                             {"steps_per_run", r.steps_per_run}});
+    std::ofstream f(json);
+    if (!f) {
+      std::perror(json.c_str());
+      return 1;
     }
-    std::fprintf(f, "]}\n");
-    std::fclose(f);
+    // The workload names carry the --gcode file's name: bytes that are not UTF-8 are replaced.
+    f << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   }
   return 0;
 }

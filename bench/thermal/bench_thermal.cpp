@@ -7,8 +7,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "config/config.hpp"
 #include "engine/simulated_printer.hpp"
@@ -25,6 +28,12 @@ struct Margins {
   double settle_s = 0, final_err_c = 0;
   int faults = 0;
 };
+
+// The times below are counted on the 0.05 s steps of virtual time (t += 0.05): written to 0.01 s as
+// the tables show them, not as 77.64999999999773.
+double to_hundredths(double s) {
+  return std::round(s * 100.0) / 100.0;
+}
 
 std::unique_ptr<engine::ThermalLoop> make(uint64_t seed) {
   config::MachineConfig cfg = config::default_config();
@@ -152,27 +161,28 @@ int main(int argc, char** argv) {
                 d.after_s, d.message.c_str());
 
   if (json_path) {
-    FILE* f = std::fopen(json_path, "w");
+    nlohmann::json out = {
+        {"runs", runs}, {"margins", nlohmann::json::array()}, {"faults", nlohmann::json::array()}};
+    for (int h = 0; h < 2; ++h)
+      out["margins"].push_back({{"heater", names[h]},
+                                {"false_trips", m[h].faults},
+                                {"min_watch_headroom_c", m[h].watch_headroom_c},
+                                {"max_below_hysteresis_s", to_hundredths(m[h].below_hyst_s)},
+                                {"max_verify_error", m[h].verify_error},
+                                {"max_stuck_s", to_hundredths(m[h].stuck_s)},
+                                {"max_overshoot_c", m[h].overshoot_c},
+                                {"max_settle_s", to_hundredths(m[h].settle_s)}});
+    for (const Det& d : dets)
+      out["faults"].push_back({{"heater", d.heater},
+                               {"phase", d.phase},
+                               {"fault", d.fault},
+                               {"after_s", to_hundredths(d.after_s)}});
+    std::ofstream f(json_path);
     if (!f) {
       std::fprintf(stderr, "cannot write %s\n", json_path);
       return 1;
     }
-    std::fprintf(f, "{\"runs\":%d,\"margins\":[", runs);
-    for (int h = 0; h < 2; ++h)
-      std::fprintf(f,
-                   "%s{\"heater\":\"%s\",\"false_trips\":%d,\"min_watch_headroom_c\":%.3f,\"max_"
-                   "below_hysteresis_s\":%.2f,"
-                   "\"max_verify_error\":%.2f,\"max_stuck_s\":%.2f,\"max_overshoot_c\":%.3f,\"max_"
-                   "settle_s\":%.1f}",
-                   h ? "," : "", names[h], m[h].faults, m[h].watch_headroom_c, m[h].below_hyst_s,
-                   m[h].verify_error, m[h].stuck_s, m[h].overshoot_c, m[h].settle_s);
-    std::fprintf(f, "],\"faults\":[");
-    for (size_t i = 0; i < dets.size(); ++i)
-      std::fprintf(f, "%s{\"heater\":\"%s\",\"phase\":\"%s\",\"fault\":\"%s\",\"after_s\":%.2f}",
-                   i ? "," : "", dets[i].heater.c_str(), dets[i].phase.c_str(),
-                   dets[i].fault.c_str(), dets[i].after_s);
-    std::fprintf(f, "]}\n");
-    std::fclose(f);
+    f << out.dump(2) << "\n";
   }
   int false_trips = m[0].faults;
   return false_trips == 0 ? 0 : 1;
