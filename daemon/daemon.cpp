@@ -371,6 +371,10 @@ void Daemon::remove_client(uint64_t id) {
   auto it = clients_.find(id);
   if (it == clients_.end()) return;
   spdlog::debug("client {} disconnected", it->second.session->name());
+  if (const auto& wait = it->second.user_wait; wait && display_message_ == wait->message) {
+    display_message_.clear();  // its M0 / M600 went with it (a parked head stays parked)
+    snapshot_.stale = true;
+  }
   if (owner_ == id) {
     owner_ = 0;  // commands already queued still run: a vanished client never stalls motion
     spdlog::info("print owner {} disconnected; ownership released", it->second.session->name());

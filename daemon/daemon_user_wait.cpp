@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <memory>
+#include <string_view>
 
 #include "daemon/daemon.hpp"
 #include "gcode/parser.hpp"
@@ -85,6 +86,14 @@ void Daemon::on_user_wait_stopped(uint64_t client_id, const Status& st) {
   // M600: retract (a hot nozzle), raise Z within its travel, park in XY (the job's pause settings,
   // config jobs:), and remember the way back with the host's modes.
   const engine::MachineStatus s = machine_->status();
+  const std::string_view homed = s.homed_axes;
+  const bool all_homed = homed.find('x') != std::string_view::npos &&
+                         homed.find('y') != std::string_view::npos &&
+                         homed.find('z') != std::string_view::npos;
+  if (!all_homed && !cfg_.planner.allow_moves_before_homing) {  // the park would be refused midway
+    end_user_wait(*c, Error{"M600: the axes are not homed (send G28 first); nothing moved", {}});
+    return;
+  }
   const JobOptions o = pause_options();
   w.retracted = engine::can_extrude(s) && o.pause_retract_mm > 0.0;
   std::vector<std::string> park = {"G21"};

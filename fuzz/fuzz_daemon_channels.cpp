@@ -8,7 +8,8 @@
 // queue, the recorder, and the replies.
 // Besides crashes, sanitizer reports and escaping exceptions (which end the daemon), these trap:
 // the daemon closes the connection of a client that reads everything; a G-code channel reply
-// line that is not one a Marlin host expects (ok, Error:, echo:, Resend:, X:..., FIRMWARE_NAME:);
+// line that is not one a Marlin host expects (ok, Error:, echo:, Resend:, X:..., FIRMWARE_NAME:,
+// a host prompt, M119's and M220's reports, temperatures);
 // more `ok` lines than lines sent; a JSON channel reply that is not one JSON object per line; the
 // status object (what `status` and subscriptions send) not serialising.
 #include <spdlog/spdlog.h>
@@ -63,11 +64,17 @@ bool starts_with(std::string_view s, std::string_view p) {
   return s.substr(0, p.size()) == p;
 }
 
-// The lines a Marlin host may get (gcode/host_protocol.hpp, Daemon::answer_query).
+// The lines a Marlin host may get (gcode/host_protocol.hpp, Daemon::answer_query; M0 / M600's
+// host prompt, daemon_user_wait.cpp; M119's report; M220's factor; M155's auto-report).
 void check_marlin_reply(std::string_view line) {
+  const bool endstop =
+      line.size() > 6 && std::string_view("xyz").find(line[0]) != std::string_view::npos &&
+      (starts_with(line.substr(1), "_min: ") || starts_with(line.substr(1), "_max: "));
   check(starts_with(line, "ok") || starts_with(line, "Error:") || starts_with(line, "echo:") ||
         starts_with(line, "Resend: ") || starts_with(line, "X:") ||
-        starts_with(line, "FIRMWARE_NAME:"));
+        starts_with(line, "FIRMWARE_NAME:") || starts_with(line, "//action:prompt_") ||
+        starts_with(line, "Reporting endstop status") || endstop || starts_with(line, "FR:") ||
+        starts_with(line, " T:") || starts_with(line, "T:"));
 }
 
 void check_json_reply(std::string_view line) {

@@ -355,6 +355,23 @@ class ShippedDefault : public DaemonFixture {
   }
 };
 
+// An M600 before the axes are homed (moves before homing refused, the shipped default) parks
+// nothing: the park would be refused midway, after its retract. An error, then its ok, and the
+// host's next line runs.
+TEST_F(ShippedDefault, M600BeforeHomingIsRefusedWholeAndTheNextLineRuns) {
+  LineClient c;
+  ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
+  ASSERT_TRUE(c.send_line("M600"));
+  EXPECT_EQ(c.read_line(10000),
+            "Error:M600: the axes are not homed (send G28 first); nothing moved");
+  EXPECT_EQ(c.read_line(), "ok");
+  ASSERT_TRUE(c.send_line("M114"));
+  auto pos = c.read_until("X:", 5000);
+  ASSERT_TRUE(pos);
+  EXPECT_EQ(pos->rfind("X:0.00 Y:0.00 Z:0.00 E:0.00", 0), 0u) << *pos;
+  EXPECT_EQ(c.read_line(), "ok");
+}
+
 TEST_F(ShippedDefault, MoveBeforeHomingIsRefusedUntilG28) {
   EXPECT_FALSE(config::default_config().planner.allow_moves_before_homing);
   auto homed_axes = [&]() -> std::string {
