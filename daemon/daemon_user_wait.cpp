@@ -119,6 +119,7 @@ void Daemon::on_user_wait_stopped(uint64_t client_id, const Status& st) {
                     "G1 Z" + num(s.pos_mm[2]) + " F" + num(o.z_speed_mm_s * 60.0)};
   w.restore_lines = {s.absolute_coordinates ? "G90" : "G91", s.absolute_extrude ? "M82" : "M83"};
   if (s.feedrate_mm_s > 0.0) w.restore_lines.push_back("G1 F" + num(s.feedrate_mm_s * 60.0));
+  if (s.inches) w.restore_lines.push_back("G20");  // the park and the way back are in millimetres
   run_lines(client_id, std::move(park), 0, [this, client_id, announce](const Status& parked) {
     Client* cl = find_client(client_id);
     if (!cl || !cl->user_wait) return;

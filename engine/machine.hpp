@@ -78,6 +78,7 @@ struct MachineStatus {
   double speed_factor = 1.0, flow_factor = 1.0;  // M220 S / 100, M221 S / 100, as last set
   double feedrate_mm_s = 0.0;                    // the last F (before M220's factor)
   bool absolute_coordinates = true, absolute_extrude = true;  // G90 / G91, M82 / M83
+  bool inches = false;                                        // G20 (G21: false)
   uint64_t moves_planned = 0;
   uint64_t segments_queued = 0;   // joint segments waiting for the servo thread
   uint64_t motion_starts = 0;     // times motion started from rest

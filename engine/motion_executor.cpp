@@ -75,6 +75,7 @@ Status MotionExecutor::execute(const gcode::Command& cmd, const std::atomic<bool
   feedrate_mm_s_.store(ist.feedrate_mm_s, std::memory_order_relaxed);
   relative_xyz_.store(ist.relative_xyz, std::memory_order_relaxed);
   relative_e_.store(ist.e_relative(), std::memory_order_relaxed);
+  inches_.store(ist.unit_mm != 1.0, std::memory_order_relaxed);
   if (st && wait_until_s_ >= 0.0) wait_print_time(wait_until_s_, cancel);  // M400
   return st;
 }
@@ -320,6 +321,7 @@ void MotionExecutor::motion_status(MachineStatus& s) const {
   s.feedrate_mm_s = feedrate_mm_s_.load(std::memory_order_relaxed);
   s.absolute_coordinates = !relative_xyz_.load(std::memory_order_relaxed);
   s.absolute_extrude = !relative_e_.load(std::memory_order_relaxed);
+  s.inches = inches_.load(std::memory_order_relaxed);
   s.moves_planned = moves_emitted_.load(std::memory_order_relaxed);
   s.segments_queued = pushed_.load() - popped_.load();
   s.motion_starts = telemetry_.anchors.load(std::memory_order_relaxed);

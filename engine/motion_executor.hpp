@@ -289,6 +289,7 @@ class MotionExecutor final : public CommandExecutor, private planner::MoveSink {
   std::atomic<double> speed_factor_{1.0}, flow_factor_{1.0};   // the interpreter's M220 / M221
   std::atomic<double> feedrate_mm_s_{0.0};                     // its last F
   std::atomic<bool> relative_xyz_{false}, relative_e_{false};  // and its G91 / M83
+  std::atomic<bool> inches_{false};                            // and its G20
   // Sampled path (servo thread).
   void sampled_cycle(double now_s);
   void start_sampled(const planner::PlannedMove& first, double now_s);

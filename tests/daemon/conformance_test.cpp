@@ -143,11 +143,13 @@ TEST_F(Conformance, M0StopsForTheUserAndM108GoesOn) {
 // Marlin's M600 (gcode/feature/pause/M600.cpp, feature/pause.cpp): from a host's stream, the head
 // retracts, rises and parks (the job pause's settings), the user loads the filament, and the
 // answer (M876 from the host prompt, here from another client) brings it back over XY, then Z,
-// primes, and restores the host's G91 / M83 so its next relative move goes on from where it was.
+// primes, and restores the host's G91 / M83 and G20 so its next relative move (in inches) goes on
+// from where it was.
 TEST_F(Conformance, M600FromAHostParksAndReturnsWithTheHostsModes) {
   LineClient c;
   ASSERT_TRUE(c.connect_unix(daemon_->socket_path()));
-  for (const char* line : {"G28", "M302 P1", "G1 X30 Y40 Z1 F6000", "G91", "M83", "G1 E2 F600"}) {
+  for (const char* line :
+       {"G28", "M302 P1", "G1 X30 Y40 Z1 F6000", "G91", "M83", "G1 E2 F600", "G20"}) {
     ASSERT_TRUE(c.send_line(line));
     ASSERT_EQ(c.read_until("ok", 20000), "ok") << line;
   }
@@ -172,14 +174,14 @@ TEST_F(Conformance, M600FromAHostParksAndReturnsWithTheHostsModes) {
   EXPECT_EQ(other.read_line(5000), "ok");
   EXPECT_EQ(c.read_until("//action:prompt_end", 5000), "//action:prompt_end");
   EXPECT_EQ(c.read_until("ok", 30000), "ok");   // M600's, once the head is back
-  ASSERT_TRUE(c.send_line("G1 X1 E0.1 F600"));  // still relative, as the host left it
+  ASSERT_TRUE(c.send_line("G1 X1 E0.1 F20"));   // still relative and in inches, as the host left it
   ASSERT_EQ(c.read_until("ok", 20000), "ok");
   ASSERT_TRUE(c.send_line("M400"));
   ASSERT_EQ(c.read_until("ok", 20000), "ok");
   ASSERT_TRUE(c.send_line("M114"));
   pos = c.read_until("X:", 5000);
   ASSERT_TRUE(pos);
-  EXPECT_EQ(pos->rfind("X:31.00 Y:40.00 Z:1.00 E:2.10", 0), 0u) << *pos;
+  EXPECT_EQ(pos->rfind("X:55.40 Y:40.00 Z:1.00 E:4.54", 0), 0u) << *pos;
 }
 
 // Marlin's M220 / M221 without a value report the factor (gcode/config/M220.cpp: "FR:100%";
