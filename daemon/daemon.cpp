@@ -1078,8 +1078,13 @@ void Daemon::tick() {
     spdlog::warn("command rejected: {}", summary);
   // The print ends when nobody owns the machine any more and it has stopped.
   if (print_open_ && owner_ == 0 && machine_->idle() && pending_.empty()) end_print();
+  // Not under a paused job or a host's M0 / M600 either: the rebuilt machine would forget where
+  // the head was parked from.
+  const bool user_waits = std::any_of(clients_.begin(), clients_.end(), [](const auto& kv) {
+    return kv.second.user_wait.has_value();
+  });
   if ((reload_requested_ || restart_requested_) && machine_->idle() && pending_.empty() &&
-      !(job_ && job_->active()))
+      !(job_ && job_->active()) && !user_waits)
     reload_config();
   timer_.expires_after(kTickInterval);
   timer_.async_wait([this](const boost::system::error_code& ec) {

@@ -123,6 +123,18 @@ TEST_F(Conformance, M0StopsForTheUserAndM108GoesOn) {
   ASSERT_TRUE(pos);
   EXPECT_EQ(pos->rfind("X:10.00 Y:10.00", 0), 0u) << *pos;
   EXPECT_EQ(other.read_line(), "ok");
+  // The status shows the stop's text; a config reload waits for the answer (the rebuilt machine
+  // would not know where the stop left the head).
+  LineClient api;
+  ASSERT_TRUE(api.connect_unix(daemon_->api_socket_path()));
+  nlohmann::json st = call(api, "status", nlohmann::json::object());
+  ASSERT_TRUE(st.contains("result")) << st.dump();
+  EXPECT_EQ(st["result"].value("message", ""), "Swap the nozzle");
+  const int reloads = st["result"].value("config_reloads", -1);
+  ASSERT_TRUE(call(api, "config.reload", nlohmann::json::object()).contains("result"));
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  EXPECT_EQ(call(api, "status", nlohmann::json::object())["result"].value("config_reloads", -1),
+            reloads);
   ASSERT_TRUE(c.send_line("M108"));
   EXPECT_EQ(c.read_until("//action:prompt_end", 5000), "//action:prompt_end");
   EXPECT_EQ(c.read_line(), "ok");              // M0's
@@ -135,6 +147,12 @@ TEST_F(Conformance, M0StopsForTheUserAndM108GoesOn) {
   ASSERT_TRUE(pos);
   EXPECT_EQ(pos->rfind("X:20.00 Y:10.00", 0), 0u) << *pos;
   EXPECT_EQ(c.read_line(), "ok");
+  int reloaded = -1;  // the reload, once the stop was answered and the machine is idle again
+  for (int i = 0; i < 100 && reloaded != reloads + 1; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    reloaded = call(api, "status", nlohmann::json::object())["result"].value("config_reloads", -1);
+  }
+  EXPECT_EQ(reloaded, reloads + 1);
   // A timed stop is a dwell: its ok comes by itself, no prompt.
   ASSERT_TRUE(c.send_line("M0 P50"));
   EXPECT_EQ(c.read_line(5000), "ok");
