@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "config/config.hpp"
 #include "engine/batch.hpp"
 
@@ -332,8 +333,7 @@ int main(int argc, char** argv) {
   out["load_average_1min_at_end"] = load_average_1min();
   std::printf("\nload average (1 min) at the end: %.2f\n", load_average_1min());
   if (!json_path.empty()) {
-    std::ofstream f(json_path);
-    f << out.dump(2) << "\n";
+    if (!feedloop::bench::write_json(json_path, out)) return 1;
   }
   return 0;
 }

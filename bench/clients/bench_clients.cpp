@@ -55,6 +55,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "config/config.hpp"
 
 namespace {
@@ -918,7 +919,7 @@ int main(int argc, char** argv) {
                 {"seconds", a.seconds}, {"runs", json::array()},
                 {"median", summary}};
     for (const Run& r : runs) out["runs"].push_back(to_json(r));
-    std::ofstream(a.json_path) << out.dump(2) << "\n";
+    if (!feedloop::bench::write_json(a.json_path, out)) return 1;
   }
   for (const Run& r : runs)
     if (!r.ok) return 1;

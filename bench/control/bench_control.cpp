@@ -34,6 +34,7 @@
 #include "model/lti.hpp"
 #include "sim/experiments/gantry_recording.hpp"
 #if FEEDLOOP_HAVE_SIM_RUN
+#include "bench/bench_json.hpp"
 #include "engine/sim_run.hpp"
 #endif
 
@@ -1064,12 +1065,7 @@ bool write_json(const char* path, const Tuning& t, const Tuning& tl, const Shape
                                           : c.info     ? (c.pass ? "info: pass" : "info: fail")
                                           : c.pass     ? "PASS"
                                                        : "FAIL"}});
-  std::ofstream f(path);
-  if (!f) return false;
-  // Error messages come from outside the bench: bytes that are not UTF-8 are replaced, not thrown
-  // on.
-  f << out.dump(2, ' ', false, json::error_handler_t::replace) << "\n";
-  return static_cast<bool>(f);
+  return feedloop::bench::write_json(path, out);
 }
 
 }  // namespace

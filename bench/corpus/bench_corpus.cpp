@@ -40,6 +40,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "config/config.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/sim_run.hpp"
@@ -417,7 +418,7 @@ int main(int argc, char** argv) {
                    {"print_s", r.print_s},
                    {"wall_s", r.wall_s},
                    {"error", r.error}});
-    std::ofstream(a.json_path) << j.dump(2) << "\n";
+    if (!feedloop::bench::write_json(a.json_path, j)) return 1;
   }
   return all_clean ? 0 : 1;
 }

@@ -23,6 +23,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "drivers/device/axis_loop.hpp"
 
 using namespace feedloop::device;
@@ -170,9 +171,7 @@ int main(int argc, char** argv) {
                              {"p99_ns", r.p99_ns},
                              {"max_ns", r.max_ns},
                              {"m4_cycles", r.mean_ns * ghz * ipc_ratio}});
-    std::ofstream f(json);
-    if (!f) { std::fprintf(stderr, "cannot write %s\n", json.c_str()); return 1; }
-    f << out.dump(2) << "\n";
+    if (!feedloop::bench::write_json(json, out)) return 1;
   }
   return 0;
 }

@@ -14,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "planner/config.hpp"
 #include "sim/experiments/extrusion_error.hpp"
 
@@ -167,13 +168,7 @@ int main(int argc, char** argv) {
                               {"tuned_k_s", k_rounded(summary[i + 1].k_s)},
                               {"on_error_mm3", summary[i + 1].error_mm3},
                               {"ratio", summary[i + 1].error_mm3 / summary[i].error_mm3}});
-    std::ofstream out(json_path);
-    // The G-code file's name comes from outside: bytes that are not UTF-8 are replaced.
-    out << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
-    if (!out) {
-      std::fprintf(stderr, "cannot write %s\n", json_path.c_str());
-      return 1;
-    }
+    if (!feedloop::bench::write_json(json_path, j)) return 1;
   }
   return 0;
 }

@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
 #include "sim/experiments/gantry_recording.hpp"
@@ -110,12 +111,7 @@ int main(int argc, char** argv) {
                              {"record_s", r.record_s},
                              {"fit_s", r.fit_s},
                              {"fit_cpu_s", r.fit_cpu_s}});
-    std::ofstream f(json_path);
-    f << out.dump(2) << "\n";
-    if (!f) {
-      std::fprintf(stderr, "cannot write %s\n", json_path.c_str());
-      return 1;
-    }
+    if (!feedloop::bench::write_json(json_path, out)) return 1;
   }
   return 0;
 }

@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "ident/delta/delta_ident.hpp"
 #include "sim/experiments/delta_measurements.hpp"
 
@@ -281,12 +282,7 @@ int main(int argc, char** argv) {
     out["scenarios"].push_back(s);
   }
   if (!json_path.empty()) {
-    std::ofstream f(json_path);
-    f << out.dump(2) << "\n";
-    if (!f) {
-      std::fprintf(stderr, "cannot write %s\n", json_path.c_str());
-      return 1;
-    }
+    if (!feedloop::bench::write_json(json_path, out)) return 1;
   }
   return 0;
 }

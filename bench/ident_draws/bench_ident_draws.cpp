@@ -35,6 +35,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench/bench_json.hpp"
 #include "ident/axis_model.hpp"
 #include "ident/excitation.hpp"
 #include "ident/fit.hpp"
@@ -566,12 +567,7 @@ int main(int argc, char** argv) {
                      {"run_speed_mm_s", shape.run_speed_mm_s},
                      {"reversal_speeds_mm_s", shape.reversal_speeds_mm_s},
                      {"rows", rows}};
-    std::ofstream f(json_path);
-    if (!f) {
-      std::perror(json_path.c_str());
-      return 1;
-    }
-    f << j.dump(2) << "\n";
+    if (!feedloop::bench::write_json(json_path, j)) return 1;
   }
   return 0;
 }

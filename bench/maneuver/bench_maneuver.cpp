@@ -31,6 +31,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "like_for_like.hpp"
 #include "maneuver/controller.hpp"
 #include "maneuver/gcode_path.hpp"
@@ -224,13 +225,7 @@ int main(int argc, char** argv) {
   for (double period_s : {0.0, servo_period_s, 1e-3})
     if (run_table(period_s) != 0) return 1;
   if (!json_file.empty()) {
-    std::ofstream f(json_file);
-    if (!f) {
-      std::fprintf(stderr, "cannot write %s\n", json_file.c_str());
-      return 1;
-    }
-    // The path's name is the --gcode file's: bytes that are not UTF-8 are replaced, not thrown on.
-    f << json.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    if (!feedloop::bench::write_json(json_file, json)) return 1;
   }
   return 0;
 }

@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "model/delta_lpv.hpp"
 #include "model/discrete.hpp"
 #include "model/frf_metrics.hpp"
@@ -136,12 +137,7 @@ int main(int argc, char** argv) {
                                 {"peak_vw_hz", r.peak_vw_hz},
                                 {"mu_acc_mag_pct", r.acc_mag_pct},
                                 {"mu_acc_phase_pct", r.acc_phase_pct}});
-    std::ofstream out(json_path);
-    out << j.dump(2) << "\n";
-    if (!out) {
-      std::fprintf(stderr, "cannot write %s\n", json_path.c_str());
-      return 1;
-    }
+    if (!feedloop::bench::write_json(json_path, j)) return 1;
   }
   return 0;
 }

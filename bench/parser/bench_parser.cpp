@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "gcode/file_lines.hpp"
 #include "gcode/parser.hpp"
 
@@ -148,13 +149,7 @@ int main(int argc, char** argv) {
                               {"mb_per_s", r.size_mb / r.wall_s},
                               {"cpu_s", r.cpu_s},
                               {"lines_per_cpu_s", static_cast<double>(r.lines) / r.cpu_s}});
-    std::ofstream js(json_path);
-    // File names come from outside: bytes that are not UTF-8 are replaced, not thrown on.
-    js << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
-    if (!js) {
-      std::fprintf(stderr, "cannot write %s\n", json_path.c_str());
-      return 1;
-    }
+    if (!feedloop::bench::write_json(json_path, out)) return 1;
   }
   return status;
 }

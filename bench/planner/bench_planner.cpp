@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "gcode/parser.hpp"
 #include "planner/interpreter.hpp"
 #include "planner/joint_output.hpp"
@@ -220,13 +221,7 @@ int main(int argc, char** argv) {
     }
   }
   if (!json_path.empty()) {
-    std::ofstream out(json_path);
-    // File names come from outside: bytes that are not UTF-8 are replaced, not thrown on.
-    out << json.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
-    if (!out) {
-      std::fprintf(stderr, "cannot write %s\n", json_path.c_str());
-      return 1;
-    }
+    if (!feedloop::bench::write_json(json_path, json)) return 1;
   }
   return 0;
 }

@@ -17,6 +17,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "core/clock.hpp"
 #include "drivers/device/virtual_mcu.hpp"
 #include "drivers/host/mcu_session.hpp"
@@ -186,12 +187,7 @@ int main(int argc, char** argv) {
                                 {"all_steps_ok", ok},
                                 {"ping_round_trips_per_s", pings},
                                 {"ping_mean_rtt_us", rtt_sum / pings * 1e6}};
-    std::ofstream f(json);
-    f << out.dump(2) << "\n";
-    if (!f) {
-      std::fprintf(stderr, "bench_protocol: cannot write %s\n", json.c_str());
-      return 1;
-    }
+    if (!feedloop::bench::write_json(json, out)) return 1;
   }
   return ok ? 0 : 1;
 }

@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "recorder/log_reader.hpp"
 #include "recorder/recorder.hpp"
 #include "recorder_test_util.hpp"
@@ -130,9 +131,7 @@ int main(int argc, char** argv) {
                              {"encode_ns", r.encode_ns},
                              {"bytes_per_record", r.bytes_per_record},
                              {"read_ns", r.read_ns}});
-    std::ofstream f(json);
-    if (!f) { std::perror(json.c_str()); return 1; }
-    f << out.dump(2) << "\n";
+    if (!feedloop::bench::write_json(json, out)) return 1;
   }
   return 0;
 }

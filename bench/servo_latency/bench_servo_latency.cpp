@@ -34,6 +34,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "core/clock.hpp"
 #include "engine/latency_histogram.hpp"
 #include "engine/machine.hpp"
@@ -364,14 +365,7 @@ int main(int argc, char** argv) {
                                    {"feedloop", json_fig(c.feedloop, false)},
                                    {"cyclictest", json_fig(c.cyclictest, true)},
                                    {"warnings", c.warnings}});
-    std::ofstream j(json_path);
-    if (!j) {
-      std::fprintf(stderr, "cannot write %s\n", json_path);
-      return 1;
-    }
-    // The kernel string, the load's arguments and the errors come from outside: bytes that are
-    // not UTF-8 are replaced, not thrown on.
-    j << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    if (!feedloop::bench::write_json(json_path, out)) return 1;
   }
   bool ok = true;
   for (const Condition& c : conds) ok = ok && c.feedloop.ok;

@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "model/delta_kinematics.hpp"
 #include "sim/delta_plant.hpp"
 #include "sim/gantry_axis.hpp"
@@ -228,12 +229,7 @@ int main(int argc, char** argv) {
                              {"sim_s_per_wall_s", r.sim_s / r.wall_s},
                              {"steps", r.steps},
                              {"max_dev_nm", r.max_dev_nm}});
-    std::ofstream f(json_path);
-    if (!f) {
-      std::fprintf(stderr, "cannot write %s\n", json_path);
-      return 1;
-    }
-    f << out.dump(2) << "\n";
+    if (!feedloop::bench::write_json(json_path, out)) return 1;
   }
   return 0;
 }

@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "config/config.hpp"
 #include "engine/config_mapping.hpp"
 #include "engine/mcu_bridge.hpp"
@@ -135,12 +136,7 @@ int main(int argc, char** argv) {
                               {"cycle_p99_us", f.p99_us},
                               {"cycle_max_us", f.max_us},
                               {"steps", f.steps}});
-    std::ofstream fp(json);
-    if (!fp) {
-      std::perror(json);
-      return 1;
-    }
-    fp << j.dump(2) << "\n";
+    if (!feedloop::bench::write_json(json, j)) return 1;
   }
   return 0;
 }

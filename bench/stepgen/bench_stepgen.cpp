@@ -19,6 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "config/config.hpp"
 #include "drivers/stepgen/step_batcher.hpp"
 #include "drivers/stepgen/step_compressor.hpp"
@@ -228,13 +229,7 @@ int main(int argc, char** argv) {
                              {"run_bytes_per_step", r.run_bps},
                              {"wire_bytes_per_step", r.wire_bps},
                              {"steps_per_run", r.steps_per_run}});
-    std::ofstream f(json);
-    if (!f) {
-      std::perror(json.c_str());
-      return 1;
-    }
-    // The workload names carry the --gcode file's name: bytes that are not UTF-8 are replaced.
-    f << out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    if (!feedloop::bench::write_json(json, out)) return 1;
   }
   return 0;
 }

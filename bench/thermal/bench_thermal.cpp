@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/bench_json.hpp"
 #include "config/config.hpp"
 #include "engine/simulated_printer.hpp"
 #include "engine/thermal_config.hpp"
@@ -177,12 +178,7 @@ int main(int argc, char** argv) {
                                {"phase", d.phase},
                                {"fault", d.fault},
                                {"after_s", to_hundredths(d.after_s)}});
-    std::ofstream f(json_path);
-    if (!f) {
-      std::fprintf(stderr, "cannot write %s\n", json_path);
-      return 1;
-    }
-    f << out.dump(2) << "\n";
+    if (!feedloop::bench::write_json(json_path, out)) return 1;
   }
   int false_trips = m[0].faults;
   return false_trips == 0 ? 0 : 1;
