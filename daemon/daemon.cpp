@@ -311,8 +311,8 @@ void Daemon::add_client(std::shared_ptr<ClientSession> session, Kind kind) {
   if (kind == Kind::kMarlin) {
     gcode::HostProtocol::Options po;
     po.defer_ok = true;
-    po.caller_handles = [](const gcode::Command& cmd) {
-      return is_user_stop(cmd) || cmd.is('M', 0) || cmd.is('M', 1) || cmd.is('M', 876);
+    po.caller_handles = [](const gcode::Command& cmd) {  // daemon_user_wait.cpp, submit()
+      return cmd.is('M', 0) || cmd.is('M', 1) || cmd.is('M', 600) || cmd.is('M', 876);
     };
     c.protocol = std::make_unique<gcode::HostProtocol>(session->name(), po);
     // M108 ends a heater wait or a user's stop (M0 / M600) as it arrives, ahead of the lines

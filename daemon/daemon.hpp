@@ -174,8 +174,8 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
     bool filament_change = false;           // M600
     bool waiting = false;                   // the machine has stopped (and parked): the user's turn
     bool retracted = false;                 // M600: the park pulled the filament back
-    std::vector<std::string> return_lines;  // M600: back to where the park found the head
-    std::vector<std::string> restore_lines;  // M600: the host's G90 / G91, M82 / M83 and F
+    double parked_from_mm[4] = {0, 0, 0, 0};  // M600: where the park found the head (X Y Z E)
+    std::vector<std::string> restore_lines;   // M600: the host's G90 / G91, M82 / M83, F and G20
   };
   struct Client {
     uint64_t id = 0;

@@ -8,7 +8,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <cstdio>
+#include <iterator>
 #include <memory>
 #include <string_view>
 
@@ -16,14 +16,6 @@
 #include "gcode/parser.hpp"
 
 namespace feedloop::daemon {
-
-namespace {
-std::string num(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.5f", v);
-  return buf;
-}
-}  // namespace
 
 bool Daemon::is_user_stop(const gcode::Command& cmd) {
   if (cmd.letter != 'M' || cmd.subcode >= 0) return false;
@@ -96,30 +88,12 @@ void Daemon::on_user_wait_stopped(uint64_t client_id, const Status& st) {
   }
   const JobOptions o = pause_options();
   w.retracted = engine::can_extrude(s) && o.pause_retract_mm > 0.0;
-  std::vector<std::string> park = {"G21"};
-  if (w.retracted) {
-    park.push_back("G91");
-    park.push_back("G1 E" + num(-o.pause_retract_mm) + " F" + num(o.retract_speed_mm_s * 60.0));
-  }
-  park.push_back("G90");
-  const double z = std::min(s.pos_mm[2] + o.lift_mm, o.z_max_mm);
-  if (z > s.pos_mm[2]) park.push_back("G1 Z" + num(z) + " F" + num(o.z_speed_mm_s * 60.0));
-  if (o.park_x_mm || o.park_y_mm) {
-    std::string move = "G1";
-    if (o.park_x_mm) move += " X" + num(*o.park_x_mm);
-    if (o.park_y_mm) move += " Y" + num(*o.park_y_mm);
-    park.push_back(move + " F" + num(o.travel_speed_mm_s * 60.0));
-  }
-  park.push_back("M400");
-  // Back over the part in XY (inside the travel: a homing's overshoot may have left the head just
-  // past it), then down; the prime is decided at the answer (the nozzle may have cooled).
-  const double x = std::clamp(s.pos_mm[0], o.x_min_mm, o.x_max_mm);
-  const double y = std::clamp(s.pos_mm[1], o.y_min_mm, o.y_max_mm);
-  w.return_lines = {"G90", "G1 X" + num(x) + " Y" + num(y) + " F" + num(o.travel_speed_mm_s * 60.0),
-                    "G1 Z" + num(s.pos_mm[2]) + " F" + num(o.z_speed_mm_s * 60.0)};
+  std::copy(std::begin(s.pos_mm), std::end(s.pos_mm), std::begin(w.parked_from_mm));
   w.restore_lines = {s.absolute_coordinates ? "G90" : "G91", s.absolute_extrude ? "M82" : "M83"};
-  if (s.feedrate_mm_s > 0.0) w.restore_lines.push_back("G1 F" + num(s.feedrate_mm_s * 60.0));
+  if (s.feedrate_mm_s > 0.0)
+    w.restore_lines.push_back("G1 F" + std::to_string(s.feedrate_mm_s * 60.0));
   if (s.inches) w.restore_lines.push_back("G20");  // the park and the way back are in millimetres
+  std::vector<std::string> park = park_moves(o, s.pos_mm, w.retracted);
   run_lines(client_id, std::move(park), 0, [this, client_id, announce](const Status& parked) {
     Client* cl = find_client(client_id);
     if (!cl || !cl->user_wait) return;
@@ -146,14 +120,13 @@ void Daemon::on_user_answer() {
       end_user_wait(*c, Status::Ok());
       continue;
     }
-    std::vector<std::string> back = w.return_lines;
-    if (w.retracted) {
-      const JobOptions o = pause_options();
-      const double push =
-          o.pause_retract_mm + (engine::can_extrude(machine_->status()) ? o.prime_extra_mm : 0.0);
-      back.push_back("G91");
-      back.push_back("G1 E" + num(push) + " F" + num(o.retract_speed_mm_s * 60.0));
-    }
+    // The retract back, and the prime beyond it when the nozzle is hot (as a job's resume).
+    const JobOptions o = pause_options();
+    const double push = (w.retracted ? o.pause_retract_mm : 0.0) +
+                        (engine::can_extrude(machine_->status()) ? o.prime_extra_mm : 0.0);
+    std::vector<std::string> back = {"G21", "G90"};
+    for (std::string& line : return_moves(o, w.parked_from_mm, push))
+      back.push_back(std::move(line));
     back.insert(back.end(), w.restore_lines.begin(), w.restore_lines.end());
     run_lines(id, std::move(back), 0, [this, id](const Status& st) {
       if (Client* cl = find_client(id); cl && cl->user_wait) end_user_wait(*cl, st);

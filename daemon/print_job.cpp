@@ -299,26 +299,14 @@ Status PrintJob::resume() {
   phase_ = Phase::kResumeBack;
   message_.clear();  // a pause's message from the file ("filament change (M600): ...")
   const JobPosition& p = pause_pos_;
-  // Marlin's resume_print (feature/pause.cpp): back over the part in XY, then down, then prime.
   add_sequence("G21");
   add_sequence("G90");
   if (parked_) {
-    // Back to where the pause found the nozzle, inside the travel (a pause right after a homing
-    // found it past the limit by the halt's overshoot; the file's next move goes on from there).
-    const double x = std::clamp(p.pos_mm[0], options_.x_min_mm, options_.x_max_mm);
-    const double y = std::clamp(p.pos_mm[1], options_.y_min_mm, options_.y_max_mm);
-    add_sequence("G1 X" + num(x) + " Y" + num(y) + " F" + num(options_.travel_speed_mm_s * 60.0));
-    add_sequence("G1 Z" + num(p.pos_mm[2]) + " F" + num(options_.z_speed_mm_s * 60.0));
     // The retract back, and the prime beyond it when the nozzle is hot (a pause of a cold
     // hotend retracted nothing).
     const double push = (retracted_ ? options_.pause_retract_mm : 0.0) +
                         (engine::can_extrude(now) ? options_.prime_extra_mm : 0.0);
-    if (push > 0.0) {
-      add_sequence("G91");
-      add_sequence("G1 E" + num(push) + " F" + num(options_.retract_speed_mm_s * 60.0));
-      add_sequence("G90");
-    }
-    add_sequence("G92 E" + num(p.pos_mm[3]));
+    for (std::string& line : return_moves(options_, p.pos_mm, push)) add_sequence(std::move(line));
   }
   add_sequence("G4 P" + std::to_string(options_.settle_ms));
   add_sequence("M400");
@@ -571,23 +559,7 @@ JobPosition PrintJob::take_position() const {
 }
 
 void PrintJob::park_lines(const engine::MachineStatus& at, bool retract) {
-  add_sequence("G21");
-  if (retract && options_.pause_retract_mm > 0.0) {
-    add_sequence("G91");
-    add_sequence("G1 E" + num(-options_.pause_retract_mm) + " F" +
-                 num(options_.retract_speed_mm_s * 60.0));
-  }
-  add_sequence("G90");
-  // Marlin's nozzle park: Z up by the raise, never above Z's travel (NOZZLE_PARK_Z_RAISE_MIN).
-  const double z = std::min(at.pos_mm[2] + options_.lift_mm, options_.z_max_mm);
-  if (z > at.pos_mm[2]) add_sequence("G1 Z" + num(z) + " F" + num(options_.z_speed_mm_s * 60.0));
-  if (options_.park_x_mm || options_.park_y_mm) {
-    std::string move = "G1";
-    if (options_.park_x_mm) move += " X" + num(*options_.park_x_mm);
-    if (options_.park_y_mm) move += " Y" + num(*options_.park_y_mm);
-    add_sequence(move + " F" + num(options_.travel_speed_mm_s * 60.0));
-  }
-  add_sequence("M400");
+  for (std::string& line : park_moves(options_, at.pos_mm, retract)) add_sequence(std::move(line));
 }
 
 void PrintJob::on_phase_done() {
@@ -747,6 +719,44 @@ JobStatus PrintJob::status() const {
   j.progress_time =
       j.estimated_total_s > 0.0 ? std::min(1.0, j.print_time_s / j.estimated_total_s) : 0.0;
   return j;
+}
+
+std::vector<std::string> park_moves(const JobOptions& o, const double at_mm[4], bool retract) {
+  std::vector<std::string> lines = {"G21"};
+  if (retract && o.pause_retract_mm > 0.0) {
+    lines.push_back("G91");
+    lines.push_back("G1 E" + num(-o.pause_retract_mm) + " F" + num(o.retract_speed_mm_s * 60.0));
+  }
+  lines.push_back("G90");
+  // Marlin's nozzle park: Z up by the raise, never above Z's travel (NOZZLE_PARK_Z_RAISE_MIN).
+  const double z = std::min(at_mm[2] + o.lift_mm, o.z_max_mm);
+  if (z > at_mm[2]) lines.push_back("G1 Z" + num(z) + " F" + num(o.z_speed_mm_s * 60.0));
+  if (o.park_x_mm || o.park_y_mm) {
+    std::string move = "G1";
+    if (o.park_x_mm) move += " X" + num(*o.park_x_mm);
+    if (o.park_y_mm) move += " Y" + num(*o.park_y_mm);
+    lines.push_back(move + " F" + num(o.travel_speed_mm_s * 60.0));
+  }
+  lines.push_back("M400");
+  return lines;
+}
+
+std::vector<std::string> return_moves(const JobOptions& o, const double to_mm[4], double push_mm) {
+  // Marlin's resume_print (feature/pause.cpp): back over the part in XY, then down, then prime.
+  // Inside the travel: a pause right after a homing found the head past the limit by the halt's
+  // overshoot; the next move goes on from there.
+  const double x = std::clamp(to_mm[0], o.x_min_mm, o.x_max_mm);
+  const double y = std::clamp(to_mm[1], o.y_min_mm, o.y_max_mm);
+  std::vector<std::string> lines = {
+      "G1 X" + num(x) + " Y" + num(y) + " F" + num(o.travel_speed_mm_s * 60.0),
+      "G1 Z" + num(to_mm[2]) + " F" + num(o.z_speed_mm_s * 60.0)};
+  if (push_mm > 0.0) {
+    lines.push_back("G91");
+    lines.push_back("G1 E" + num(push_mm) + " F" + num(o.retract_speed_mm_s * 60.0));
+    lines.push_back("G90");
+  }
+  lines.push_back("G92 E" + num(to_mm[3]));
+  return lines;
 }
 
 }  // namespace feedloop::daemon

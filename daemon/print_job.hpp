@@ -105,6 +105,14 @@ struct JobOptions {
   double read_ahead_s = 2.0;
 };
 
+// Marlin's nozzle park (feature/pause.cpp), as G-code lines, for a job's pause and a streaming
+// host's M600 (daemon_user_wait.cpp). park_moves: from `at_mm` (X Y Z E), the filament pulled back
+// when `retract`, Z raised within its travel, the head to the park point, then M400.
+// return_moves: back over the part to `to_mm` in XY (inside the travel), then down, the filament
+// pushed by `push_mm`, and E set back to where it was (G92); the caller has set G21 and G90.
+std::vector<std::string> park_moves(const JobOptions& o, const double at_mm[4], bool retract);
+std::vector<std::string> return_moves(const JobOptions& o, const double to_mm[4], double push_mm);
+
 // A position taken at pause (after the queued moves) and at resume (after the return moves).
 struct JobPosition {
   bool valid = false;
