@@ -758,9 +758,13 @@ void Daemon::run_script(ClientSession& client, std::string script,
       return;
     }
   // An M108 in it ends a heater wait now, as on the Marlin socket (the script's lines run in
-  // order).
-  for (const std::string& line : s->lines)
-    if (machine_ && gcode::HostProtocol::is_break_and_continue(line)) machine_->break_heater_wait();
+  // order), and so does it (or an M876) a streaming host's M0 / M600 stop for the user.
+  for (const std::string& line : s->lines) {
+    const bool m108 = gcode::HostProtocol::is_break_and_continue(line);
+    if (machine_ && m108) machine_->break_heater_wait();
+    if (m108 || gcode::HostProtocol::is_prompt_response(line))
+      asio::post(io_, [this] { on_user_answer(); });
+  }
   run_script_step(s);
 }
 

@@ -252,6 +252,7 @@ class Daemon final : public JsonApiBackend, public web::PrinterBackend, private 
   void begin_user_wait(Client& c, const gcode::Command& cmd, std::string_view line);
   void on_user_wait_stopped(uint64_t client_id, const Status& st);
   void on_user_answer();  // M108 / M876 arrived: every wait whose machine has stopped ends
+  bool user_waiting() const;  // some client's M0 / M600 has stopped the machine for the user
   void end_user_wait(Client& c, const Status& st);
   // Submits `lines` one after the other for client c; `done` after the last or the first error.
   void run_lines(uint64_t client_id, std::vector<std::string> lines, size_t next,

@@ -105,6 +105,12 @@ void Daemon::on_user_wait_stopped(uint64_t client_id, const Status& st) {
   });
 }
 
+bool Daemon::user_waiting() const {
+  for (const auto& [id, c] : clients_)
+    if (c.user_wait && c.user_wait->waiting) return true;
+  return false;
+}
+
 void Daemon::on_user_answer() {
   std::vector<uint64_t> answered;
   for (auto& [id, c] : clients_)

@@ -181,6 +181,12 @@ web::JobStatus Daemon::job_status() const {
     s.message = "streamed by " + owner_name();
     s.total_duration_s = s.print_duration_s = seconds_from_ns(clock_.now_ns() - owner_since_ns_);
   }
+  // A streaming host's M0 / M600 waits for the user: paused, so Mainsail and Fluidd offer their
+  // resume button (resume_job() answers it as M108 would).
+  if (!job_active && user_waiting()) {
+    s.state = web::JobState::paused;
+    if (s.message.empty()) s.message = display_message_;
+  }
   return s;
 }
 
@@ -229,8 +235,14 @@ std::string Daemon::pause_job() {
 }
 
 std::string Daemon::resume_job() {
-  if (!job_ || (job_->state() != JobState::kPaused && job_->state() != JobState::kPausing))
-    return "Print is not paused, resume aborted";  // Klipper's RESUME text
+  const bool job_paused =
+      job_ && (job_->state() == JobState::kPaused || job_->state() == JobState::kPausing);
+  if (!job_paused && user_waiting()) {  // a streaming host's M0 / M600: the web's answer is M108's
+    on_user_answer();
+    snapshot_.stale = true;
+    return {};
+  }
+  if (!job_paused) return "Print is not paused, resume aborted";  // Klipper's RESUME text
   Status st = job_resume(web_client_id_);
   snapshot_.stale = true;
   return st ? std::string() : st.error().to_string();

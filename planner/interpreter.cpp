@@ -138,6 +138,10 @@ Status Interpreter::execute(const gcode::Command& c) {
       default: ++ignored_; return {};
     }
   }
+  // Tool selection: the planner drives one extruder. Another tool's lines would print with the
+  // wrong filament (Marlin answers "Invalid extruder" and prints on): refused, nothing changed.
+  if (c.letter == 'T')
+    return c.code == 0 ? Status{} : fail(c, "this machine has one extruder (T0); nothing changed");
   ++ignored_;
   return {};
 }

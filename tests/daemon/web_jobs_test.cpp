@@ -695,6 +695,47 @@ TEST_F(WebJobs, FanPowerConsoleEchoAndAStreamedPrint) {
   EXPECT_EQ(hist.body["result"]["jobs"].size(), 0u) << hist.body.dump();
 }
 
+// A host streaming a print (OctoPrint) sends Cura's M0 or a slicer's M600: the machine stops for
+// the user. The web shows the print paused with the stop's text, and its resume button answers
+// the stop as the host's M108 would; so does an M108 typed in the web's console.
+TEST_F(WebJobs, TheWebResumesAStreamingHostsStopForTheUser) {
+  LineClient host;
+  ASSERT_TRUE(host.connect_unix(daemon_->socket_path()));
+  for (const char* line : {"G28", "G1 X10 Y10 F6000"}) {
+    ASSERT_TRUE(host.send_line(line));
+    ASSERT_EQ(host.read_until("ok", 20000), "ok") << line;
+  }
+  // Nothing to resume yet: Klipper's answer.
+  Reply early = request(port(), http::verb::post, "/printer/print/resume");
+  EXPECT_NE(early.status, 200) << early.body.dump();
+  ASSERT_TRUE(host.send_line("M0 Check the first layer"));
+  ASSERT_EQ(host.read_until("//action:prompt_show", 20000), "//action:prompt_show");
+  ASSERT_TRUE(host.send_line("G1 X20"));
+  json s = objects("print_stats&pause_resume");
+  EXPECT_EQ(s["print_stats"]["state"], "paused") << s.dump();
+  EXPECT_NE(s["print_stats"]["message"].get<std::string>().find("streamed by socket"),
+            std::string::npos)
+      << s.dump();
+  EXPECT_EQ(s["pause_resume"]["is_paused"], true) << s.dump();
+  Reply resume = request(port(), http::verb::post, "/printer/print/resume");
+  EXPECT_EQ(resume.status, 200) << resume.body.dump();
+  EXPECT_EQ(host.read_until("//action:prompt_end", 5000), "//action:prompt_end");
+  EXPECT_EQ(host.read_line(5000), "ok");          // M0's
+  EXPECT_EQ(host.read_until("ok", 20000), "ok");  // G1 X20's
+  ASSERT_TRUE(host.send_line("M400"));
+  ASSERT_EQ(host.read_until("ok", 20000), "ok");
+  EXPECT_DOUBLE_EQ(objects("toolhead")["toolhead"]["position"][0].get<double>(), 20.0);
+  s = objects("print_stats");
+  EXPECT_EQ(s["print_stats"]["state"], "printing") << s.dump();
+  // The console's M108 answers the next stop.
+  ASSERT_TRUE(host.send_line("M0"));
+  ASSERT_EQ(host.read_until("//action:prompt_show", 20000), "//action:prompt_show");
+  Reply m108 = request(port(), http::verb::post, "/printer/gcode/script?script=M108");
+  EXPECT_EQ(m108.status, 200) << m108.body.dump();
+  EXPECT_EQ(host.read_until("//action:prompt_end", 5000), "//action:prompt_end");
+  EXPECT_EQ(host.read_line(5000), "ok");
+}
+
 TEST_F(WebJobs, FeedloopsPageGetsTheNewestCalibrationReport) {
   Reply none = request(port(), http::verb::get, "/server/feedloop/calibration_report");
   ASSERT_EQ(none.status, 200);

@@ -58,6 +58,25 @@ TEST(Interpreter, G92SetsLogicalPositionWithoutMoving) {
   ASSERT_TRUE(r.run("G21"));
 }
 
+// One extruder: T0 is a no-op (slicers send it first), another tool is refused with its name
+// and changes nothing (a two-colour file would otherwise print both colours with one filament).
+TEST(Interpreter, AnotherToolThanT0IsRefusedAndChangesNothing) {
+  Rig r(unbounded_extrusion());
+  ASSERT_TRUE(r.run("G28"));
+  ASSERT_TRUE(r.run("T0"));
+  ASSERT_TRUE(r.run("G1 X10 E1 F3000"));
+  const uint64_t before = r.planner.moves_added();
+  const Status t1 = r.run("T1");
+  ASSERT_FALSE(t1.ok());
+  EXPECT_NE(t1.error().to_string().find("T1: this machine has one extruder (T0)"),
+            std::string::npos)
+      << t1.error().to_string();
+  EXPECT_EQ(r.planner.moves_added(), before);
+  ASSERT_TRUE(r.run("G1 X20 E2"));
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kX], 20.0);
+  EXPECT_DOUBLE_EQ(r.interp.state().machine_mm[kE], 2.0);
+}
+
 TEST(Interpreter, InchUnitsScaleCoordinatesAndFeedrate) {
   Rig r(test::cartesian_config());
   ASSERT_TRUE(r.run("G20"));
