@@ -535,13 +535,15 @@ bool other_start_worth_trying(const ident::IdentResult& chosen, const ident::Ide
 
 // carriage_mass_kg: the config's m2 of the axis (0: none configured), the mass identification
 // reads forces through (position data fix a force only per unit mass: docs/ident.md, "The force
-// needs the carriage's mass"). start_mm: where the job started, in the machine's frame (the
-// daemon's position_mm); the recording's commands count from the job's start, and the trace is
-// moved to that frame, so that what the overlay places along the travel (the belt's reference,
-// the runout's phase) is where the feedforward reads it. NaN: left in the recording's frame.
+// needs the carriage's mass"). full_step_mm: the config's drive's full step (0: none configured),
+// where identification looks for the drive's own periodic error (ident::FitOptions). start_mm:
+// where the job started, in the machine's frame (the daemon's position_mm); the recording's
+// commands count from the job's start, and the trace is moved to that frame, so that what the
+// overlay places along the travel (the belt's reference, the runout's phase) is where the
+// feedforward reads it. NaN: left in the recording's frame.
 Result<AxisOutcome> identify_recording(const std::string& axis, const std::string& last_part,
                                        const std::string& dir, double carriage_mass_kg,
-                                       double start_mm) {
+                                       double full_step_mm, double start_mm) {
   auto trace = recorder::build_trace(recorder::print_log_parts(last_part), recorder::ExportOptions{});
   if (!trace) return trace.error();
   const recorder::TraceColumns& t = trace.value();
@@ -600,6 +602,7 @@ Result<AxisOutcome> identify_recording(const std::string& axis, const std::strin
   // first; the one with them is tried on the check pattern after it).
   ident::FitOptions o;
   o.carriage_mass_kg = carriage_mass_kg;
+  o.full_step_mm = full_step_mm;
   o.not_carried = calibration::effects_tried_on_the_machine();
   Result<ident::IdentResult> r = Error{"no fit"};
   std::optional<ident::IdentResult> tried;
@@ -1006,7 +1009,8 @@ int calibrate(const std::vector<std::string>& args) {
     // The mass the user's config gives the carriage (the base config: an overlay's m2 is a
     // calibration's, not a weighing).
     const config::GantryModelConfig* g = cfg.model.gantry_for(axes[i]);
-    return identify_recording(axes[i], rec.value(), dir, g != nullptr ? g->m2_kg : 0.0, start_mm);
+    return identify_recording(axes[i], rec.value(), dir, g != nullptr ? g->m2_kg : 0.0,
+                              g != nullptr ? g->stepper.full_step_mm() : 0.0, start_mm);
   };
   for (size_t i = 0; i < axes.size() && excited; ++i) {
     auto got = excite(i, false);

@@ -38,6 +38,11 @@ void usage(std::FILE* out) {
       "default: the\n"
       "                          thesis axis's, X 0.45, Y 1.07: a friction force is only as "
       "right as this)\n"
+      "                          [--full-step-mm S]   (the drive's full step, 2 pi r / (4 n_r): "
+      "the drive's own\n"
+      "                          periodic error is looked for at it and at 4 S; default: none; "
+      "feedloop calibrate\n"
+      "                          takes it from the config's model)\n"
       "                          [--overlay CAL.yaml [--config CFG.yaml]]\n"
       "                          (--overlay: write the fitted model into a calibration overlay "
       "for\n"
@@ -259,6 +264,10 @@ int fit(const std::vector<std::string>& args) {
     } else if (a == "--carriage-mass-kg" && has_value && parse_number(args[i + 1], &v) &&
                v >= 0.01 && v <= 100.0) {
       o.carriage_mass_kg = v;
+      ++i;
+    } else if (a == "--full-step-mm" && has_value && parse_number(args[i + 1], &v) && v >= 0.001 &&
+               v <= 10.0) {
+      o.full_step_mm = v;
       ++i;
     } else if (a == "--out" && has_value) {
       out_dir = args[++i];

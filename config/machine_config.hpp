@@ -272,6 +272,12 @@ struct StepperConfig {
       33000.0;  // k-hat of Eq. 6 (K_2 = k-hat / active length); 0: k2 uniform
   double pulley_distance_mm = 300.0;       // L of Eq. 6
   double belt_efficiency = 1.0;            // e of Eq. 7
+  // One full step at the carriage, 2 pi r / (4 n_r) (0.1696 mm for Table 2's): a microstep
+  // table's error and a detent repeat at it; the torque law (Eq. 2) every 4.
+  double full_step_mm() const {
+    return rotor_teeth > 0 ? 2.0 * 3.14159265358979323846 * pulley_radius_mm / (4.0 * rotor_teeth)
+                           : 0.0;
+  }
   bool operator==(const StepperConfig&) const = default;
 };
 

@@ -201,7 +201,7 @@ Result<std::unique_ptr<ServoControl>> make_servo_control(const config::MachineCo
     // A stepper's torque law repeats every 4 full steps: 2 pi r / n_r per cycle (thesis Eq. 2).
     if (const config::GantryModelConfig* g = cfg.model.gantry_for(names[j]);
         g != nullptr && cfg.kinematics != config::Kinematics::delta) {
-      p.mm_per_full_step[j] = 2.0 * std::numbers::pi * g->stepper.pulley_radius_mm / (4.0 * g->stepper.rotor_teeth);
+      p.mm_per_full_step[j] = g->stepper.full_step_mm();
       p.carriage_model[j] = model::gantry_state_space(gantry_params_from_config(*g));
     }
   }
