@@ -6,7 +6,6 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <mutex>
 #include <thread>
@@ -1415,6 +1414,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
         continue;
       }
     }
+    bool band_periodic = false;  // the drive's periodic error named where it shows (below)
     if (!significant && !frf_resonance && o.full_step_mm > 0.0 &&
         !cur.has(Effect::kPeriodicPosition)) {
       // The drive's own periodic error (a microstep table's, a detent's: once per full step, or
@@ -1452,12 +1452,15 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
         const double before = rms_at_um(y_cur, meas_mm, band);
         const double after = rms_at_um(yg, meas_mm, band);
         const double v = residual_rms_um(yg, meas_mm, pb.train_end, n);
-        out.candidates.push_back(CandidateResult{Effect::kPeriodicPosition, v, false, round});
+        CandidateResult tried{Effect::kPeriodicPosition, v, false, round};
+        tried.from_band = true;
+        out.candidates.push_back(tried);
         if (!(after <= (1.0 - o.min_improvement) * before && v <= 1.01 * cur_val &&
               guess.periodic_amplitude_um() >= o.min_drive_ripple_um &&
               resolvable(guess, Effect::kPeriodicPosition, pb, o, before)))
           continue;
         significant = true;
+        band_periodic = true;
         best = static_cast<int>(Effect::kPeriodicPosition);
         best_model = guess;
         best_val = v;
@@ -1575,7 +1578,7 @@ Result<IdentResult> identify_axis(const std::string& axis_name, const std::vecto
     }
     for (auto& c : out.candidates)
       if (c.round == round && c.with < 0 && static_cast<int>(c.effect) == best &&
-          c.from_frf == frf_mode)
+          c.from_frf == frf_mode && c.from_band == band_periodic)
         c.kept = true;
     cur = best_model;
     cur_val = best_val;

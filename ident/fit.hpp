@@ -106,6 +106,9 @@ struct CandidateResult {
   int with = -1;  // screened on top of this effect (fit.cpp's look-ahead by one effect); -1: alone
   // A mode read off the measured FRF (fit.cpp's frf_mode_guess), not screened.
   bool from_frf = false;
+  // The drive's own periodic error at its full step (or four), tested on the held-out samples
+  // where it shows (fit.cpp, FitOptions::full_step_mm).
+  bool from_band = false;
   // Kept but not named: a friction below FitOptions::min_friction_n carried in the baseline
   // (IdentResult::drag_in_baseline).
   bool unnamed = false;

@@ -177,8 +177,9 @@ std::string report_markdown(const IdentResult& r, const std::string& trace_name,
          effect_name(c.effect) +
          (c.with >= 0 ? std::string(" after ") + effect_name(static_cast<Effect>(c.with))
                       : std::string()) +
-         (c.from_frf ? " (read off the FRF)" : "") + " | " + num(c.validation_rms_um, "%.3f") +
-         " | " +
+         (c.from_frf ? " (read off the FRF)" : "") +
+         (c.from_band ? " (at the drive's step, where it shows)" : "") + " | " +
+         num(c.validation_rms_um, "%.3f") + " | " +
          (c.unnamed   ? "carried, unnamed"
           : c.dropped ? "kept, then dropped"
           : c.kept    ? "yes"

@@ -264,7 +264,11 @@ Outcome run_one(const Kind& kind, uint64_t seed, double duration_s, bool calibra
         o.rounds += line;
       }
       std::snprintf(line, sizeof line, " %s%s%s%s%s %.2f%s", c.without ? "-" : "",
-                    ident::effect_name(c.effect), c.from_frf ? "~frf" : "", c.with >= 0 ? "@" : "",
+                    ident::effect_name(c.effect),
+                    c.from_frf    ? "~frf"
+                    : c.from_band ? "~band"
+                                  : "",
+                    c.with >= 0 ? "@" : "",
                     c.with >= 0 ? ident::effect_name(static_cast<ident::Effect>(c.with)) : "",
                     c.validation_rms_um,
                     c.unnamed   ? "+"

@@ -518,6 +518,12 @@ TEST(CalibrationProgram, TheDrivesMicrostepErrorIsNamedWhereItShows) {
   EXPECT_EQ(with.effects[0], Effect::kPeriodicPosition);
   EXPECT_NEAR(with.augmented.period_mm, full_step_mm, 0.01 * full_step_mm);
   EXPECT_NEAR(with.augmented.periodic_amplitude_um(), amplitude_um, 0.25 * amplitude_um);
+  auto band_kept = [](const IdentResult& r) {
+    return std::count_if(r.candidates.begin(), r.candidates.end(),
+                         [](const CandidateResult& c) { return c.from_band && c.kept; });
+  };
+  EXPECT_EQ(band_kept(with), 1);  // named by the test where it shows, and only that candidate
+  EXPECT_EQ(band_kept(without), 0);
   EXPECT_TRUE(identify(plant2::EffectKind::none, full_step_mm).effects.empty());
 }
 
