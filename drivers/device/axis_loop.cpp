@@ -353,8 +353,8 @@ void AxisLoop::tick(const LoopTickIn& in, LoopTickOut& out) {
                   sub_saturate_i64(motor_nm, q16_mul(in.device_steps, p_.nm_per_step_q16)), r_nm_))
             : p_.deflection_s2 * a_ref_nm_s2_ + p_.deflection_s * v_ref_nm_s_;
     const bool was_pending = slip_.pending();
-    const SlipEvent s =
-        slip_.update(static_cast<float>(sub_saturate_i64(motor_nm, y_nm_)), deflection, dt_s);
+    const SlipEvent s = slip_.update(static_cast<float>(sub_saturate_i64(motor_nm, y_nm_)),
+                                     deflection, dt_s, v_ref_nm_s_);
     if (slip_.pending() && !was_pending) integral_before_slip_nm_ = pi_.integral_nm();
     if (s.happened) {
       // Recovery: make up the lost steps at once (the shift) and drop what the integral gained
