@@ -66,6 +66,7 @@ void ServoControl::reset_all(const control::FeedforwardInput& at) {
   for (size_t j = 0; j < 4; ++j) {
     pi_[j].reset();
     lost_[j].reset();
+    lag_[j].reset();
     guard_[j].reset();
   }
   correction_mm_.fill(0.0);
@@ -130,10 +131,14 @@ bool ServoControl::update_feedback(const FeedbackInput& in, ServoEvent* event, b
     // accepted sample goes into that one's dt.
     if (!guard_[j].sample_accepted() || !have_y_hat_[j]) continue;
     const double t_s = std::isfinite(in.sample_time_s[j]) ? in.sample_time_s[j] : in.now_s;
-    double dt_s = have_sample_[j] ? t_s - last_sample_s_[j] : p_.period_s;
+    const bool had_sample = have_sample_[j];
+    double dt_s = had_sample ? t_s - last_sample_s_[j] : p_.period_s;
     if (!(dt_s > 0.0)) dt_s = p_.period_s;  // a repeated or reordered timestamp: one period
     last_sample_s_[j] = t_s;
     have_sample_[j] = true;
+    // The plan's speed since the last accepted sample (0 at a motion's first).
+    const double v_mm_s = had_sample ? (in.desired_mm[j] - last_desired_mm_[j]) / dt_s : 0.0;
+    last_desired_mm_[j] = in.desired_mm[j];
 
     const double encoder_mm = in.encoder_mm[j];
     if (!base_primed_[j]) {
@@ -148,12 +153,18 @@ bool ServoControl::update_feedback(const FeedbackInput& in, ServoEvent* event, b
     // steps back onto the path; the detector's sum of slips S accounts for the model's y_hat
     // running ahead of the carriage by what was lost.
     const double residual_mm = y_hat_mm_[j] - encoder_mm;
+    // A lag the model lacks reads as tau v (an encoder delay); learned on the residual net of its
+    // baseline and of the slips, also while a slip is pending, and taken off (lag_learner.hpp).
+    lag_[j].learn(static_cast<float>(residual_mm - lost_[j].total_mm() - residual_base_mm_[j]),
+                  static_cast<float>(v_mm_s), static_cast<float>(dt_s));
+    const double lag_mm = static_cast<double>(lag_[j].lag_s()) * v_mm_s;
     // The baseline follows the residual net of the slips already reported (the detector
     // subtracts their sum S itself): a first-order filter with time constant residual_baseline_s.
     if (!lost_[j].pending())
-      residual_base_mm_[j] += (residual_mm - lost_[j].total_mm() - residual_base_mm_[j]) *
+      residual_base_mm_[j] += (residual_mm - lag_mm - lost_[j].total_mm() - residual_base_mm_[j]) *
                               std::min(1.0, dt_s / p_.residual_baseline_s);
-    if (auto slip = lost_[j].update(residual_mm - residual_base_mm_[j], 0.0, 0.0, dt_s)) {
+    if (auto slip = lost_[j].update(residual_mm - lag_mm - residual_base_mm_[j], 0.0, 0.0, dt_s)) {
+      lag_[j].pause(device::kLagQuietAfterSlipS);  // the recovery's motion is no lag
       recovery_left_mm_[j] += slip->size_mm;
       event->kind = ServoEventKind::kLostSteps;
       event->print_time_s = in.print_time_s;

@@ -25,6 +25,7 @@
 #include "control/lost_step_detector.hpp"
 #include "control/pi_controller.hpp"
 #include "core/result.hpp"
+#include "drivers/device/lag_learner.hpp"
 #include "engine/telemetry_tap.hpp"
 #include "model/discrete.hpp"
 
@@ -126,6 +127,10 @@ class ServoControl {
   control::JointArray y_hat_mm_{};       // the model's carriage at the last executed sample
   std::array<bool, 4> have_y_hat_{};
   control::JointArray residual_base_mm_{};
+  // A lag the model lacks (an encoder delay nobody declared), learned from the residual against
+  // the plan's speed (drivers/device/lag_learner.hpp, as the device loop's slip check does).
+  std::array<device::LagLearner, 4> lag_{};
+  control::JointArray last_desired_mm_{};   // the plan at each joint's last accepted sample
   control::JointArray recovery_left_mm_{};  // slips still to be made up
   control::JointArray last_sample_s_{};     // time of each joint's last accepted sample
   std::array<bool, 4> have_sample_{};

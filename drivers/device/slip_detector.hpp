@@ -14,20 +14,18 @@
 // control/lost_step_detector.hpp). Without it a 1 % scale error reads as a slip every 30 mm.
 // A lag the model lacks (an encoder that reports the carriage late: a transport delay nobody
 // declared) makes d proportional to the reference's speed instead, d = tau v; a slip does not
-// depend on the speed. So tau is learned too, by least squares of d on v over the last seconds
-// of motion (exponential memory kLagMemoryS, a prior of kLagPriorMm2S towards 0), and tau v is
-// taken off d. Least squares with a long memory is fast at first (a pure delay is fitted by the
-// first samples of the first move) and then hard to move (a slip's few milliseconds weigh little
-// against seconds of motion); it keeps learning while a slip is pending (else the first move,
-// beyond the threshold within milliseconds at 6000 mm/s^2, would never learn it), but not for
-// kLagQuietAfterSlipS after a slip (the recovery rings the carriage). Without it an 8 ms encoder
-// delay read as 48 slips on the thesis's small star at 6000 mm/s^2 (first simulator); each
-// "recovery" moved the carriage by a whole cycle. docs/decisions.md, "A lag the model lacks is
-// no slip".
+// depend on the speed. So tau is learned too (lag_learner.hpp) and tau v is taken off d; it keeps
+// learning while a slip is pending (else the first move, beyond the threshold within milliseconds
+// at 6000 mm/s^2, would never learn it), but not for kLagQuietAfterSlipS after a slip. Without it
+// an 8 ms encoder delay read as 48 slips on the thesis's small star at 6000 mm/s^2 (first
+// simulator); each "recovery" moved the carriage by a whole cycle. docs/decisions.md, "A lag the
+// model lacks is no slip".
 // Owner: the axis loop. No heap, no exceptions.
 #pragma once
 
 #include <cstdint>
+
+#include "drivers/device/lag_learner.hpp"
 
 namespace feedloop::device {
 
@@ -38,12 +36,6 @@ namespace feedloop::device {
 // a cycle for 30 ms on the thesis's large star: rounded to one cycle, the recovery moved the
 // carriage by 0.68 mm, and back 170 ms later (e_t 0.0411 mm against 0.0372 with the rule).
 inline constexpr float kSlipCycleTolerance = 0.25f;
-// The learned lag: memory (s), prior (mm^2/s: the weight of (20 mm/s)^2 over 5 ms towards no
-// lag), bound (s), and the learning pause after a slip (s).
-inline constexpr float kLagMemoryS = 2.0f;
-inline constexpr float kLagPriorMm2S = 2.0f;
-inline constexpr float kMaxLearnedLagS = 0.05f;
-inline constexpr float kLagQuietAfterSlipS = 0.3f;
 
 struct SlipEvent {
   bool happened = false;
@@ -64,18 +56,14 @@ class SlipDetector {
 
   float discrepancy_nm() const { return d_nm_; }
   float total_nm() const { return total_nm_; }
-  float learned_lag_s() const { return lag_s_; }
+  float learned_lag_s() const { return lag_.lag_s(); }
   uint32_t count() const { return count_; }
 
  private:
-  void learn_lag_(float d_raw_nm, float dt_s, float speed_nm_s);
   float threshold_nm_ = 0.0f, cycle_nm_ = 0.0f;
   float settle_s_ = 0.0f;
   float baseline_s_ = 0.1f, baseline_nm_ = 0.0f;
-  // The lag's least squares: sum v^2 dt (mm^2/s), sum v d dt (mm^2), both with the memory's decay.
-  float svv_ = 0.0f, svd_ = 0.0f;
-  float lag_s_ = 0.0f;    // tau
-  float quiet_s_ = 0.0f;  // time left without learning tau (after a slip)
+  LagLearner lag_;  // tau
   float total_nm_ = 0.0f, d_nm_ = 0.0f;
   float pending_s_ = 0.0f;
   bool pending_ = false;

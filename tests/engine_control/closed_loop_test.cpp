@@ -348,14 +348,20 @@ TEST(ClosedLoop, FrictionInTheFeedforwardRaisesNoFalseLostSteps) {
   }
 }
 
-// An encoder delay the model lacks is no slip (drivers/device/slip_detector.hpp, the learned lag;
+// An encoder delay the model lacks is no slip (drivers/device/lag_learner.hpp, the learned lag;
 // docs/decisions.md, "A lag the model lacks is no slip"). The thesis's large star (outer radius
 // 35 mm, inner 14) at 150 mm/s and 6000 mm/s^2 with its corner rule, twice round, behind the LPV
-// feedforward, the encoders reporting the carriage 2 ms late (the second simulator's transport
-// delays reach 2 ms) and the model not told: motor - encoder reads 0.3 mm at 150 mm/s, the slip
-// threshold. Before the learned lag that was 13 lost-step events, each a false recovery of a
-// whole cycle, and the plant lost 8 full steps; now none. A real loss of a cycle on Y during the
-// travel is still found once.
+// feedforward, the encoders reporting the carriage late and the model not told.
+// The device loop, 2 ms (the second simulator's transport delays reach 2 ms), the config's gains:
+// motor - encoder reads 0.3 mm at 150 mm/s, the slip threshold; before the learned lag that was
+// 13 lost-step events, each a false recovery of a whole cycle, and the plant lost 8 full steps.
+// The host loop (its check on the model's residual), 8 ms, the gains halved (at the config's the
+// PI across 8 ms stalls the plant): 60 false events and 12 full steps lost before. Now none; a
+// real loss of a cycle on Y during the travel is still found once.
+struct DelayCase {
+  config::ControlLoop loop;
+  double delay_ms, gain_scale;
+};
 TEST(ClosedLoop, AnEncoderDelayTheModelLacksIsNoSlip) {
   std::vector<std::string> program = {"G28", "G90", "G1 X125 Y160 F3000", "G4 P300", "G1 F18000"};
   for (int lap = 0; lap < 2; ++lap)
@@ -370,39 +376,49 @@ TEST(ClosedLoop, AnEncoderDelayTheModelLacksIsNoSlip) {
   auto example = config::load_config_file(std::string(FEEDLOOP_SOURCE_DIR) +
                                           "/config/examples/cartesian_sim.yaml");
   ASSERT_TRUE(example.ok()) << example.error().to_string();
-  for (bool inject : {false, true}) {
-    config::MachineConfig cfg = *example;
-    cfg.control.mode = config::ControlMode::pi;
-    cfg.feedforward.type = config::FeedforwardType::lpv;
-    cfg.planner.max_accel_mm_s2 = 6000.0;
-    cfg.planner.cornering = config::Cornering::speed_change;  // the thesis's corner rule, 15 mm/s
-    for (config::AxisConfig& a : cfg.axes) a.max_accel_mm_s2 = std::max(a.max_accel_mm_s2, 6000.0);
-    cfg.simulator.effects.time_delay = config::TimeDelayConfig{2.0, {}};
-    SimRunOptions o;
-    o.settle_s = 0.5;
-    if (inject) o.lose_steps.push_back({1.2, 1, 64});
-    auto r = run_simulated(cfg, program, o);
-    ASSERT_TRUE(r.ok()) << r.error().message;
-    size_t events = 0;
-    for (const ServoEvent& ev : r.value().events) {
-      events += ev.kind == ServoEventKind::kLostSteps ? 1 : 0;
-      std::printf("  event %s t %.4f joint %d size %.4f\n", to_string(ev.kind), ev.print_time_s,
-                  ev.joint, ev.size_mm);
+  for (const DelayCase& c : {DelayCase{config::ControlLoop::device, 2.0, 1.0},
+                             DelayCase{config::ControlLoop::host, 8.0, 0.5}})
+    for (bool inject : {false, true}) {
+      const char* loop = c.loop == config::ControlLoop::device ? "device" : "host";
+      SCOPED_TRACE(loop);
+      config::MachineConfig cfg = *example;
+      cfg.control.mode = config::ControlMode::pi;
+      cfg.control.loop = c.loop;
+      cfg.control.kp *= c.gain_scale;
+      cfg.control.ki_per_s *= c.gain_scale;
+      cfg.feedforward.type = config::FeedforwardType::lpv;
+      cfg.planner.max_accel_mm_s2 = 6000.0;
+      cfg.planner.cornering = config::Cornering::speed_change;  // the thesis's corner rule, 15 mm/s
+      for (config::AxisConfig& a : cfg.axes)
+        a.max_accel_mm_s2 = std::max(a.max_accel_mm_s2, 6000.0);
+      cfg.simulator.effects.time_delay = config::TimeDelayConfig{c.delay_ms, {}};
+      SimRunOptions o;
+      o.settle_s = 0.5;
+      if (inject) o.lose_steps.push_back({1.2, 1, 64});
+      auto r = run_simulated(cfg, program, o);
+      ASSERT_TRUE(r.ok()) << r.error().message;
+      size_t events = 0;
+      for (const ServoEvent& ev : r.value().events) {
+        events += ev.kind == ServoEventKind::kLostSteps ? 1 : 0;
+        std::printf("  event %s t %.4f joint %d size %.4f\n", to_string(ev.kind), ev.print_time_s,
+                    ev.joint, ev.size_mm);
+      }
+      const int64_t plant_lost = r.value().lost_full_steps[0] + r.value().lost_full_steps[1];
+      std::printf(
+          "%s loop, %.0f ms, %s: plant lost %lld full steps, %zu lost-step events, %llu faults, "
+          "e_t mean "
+          "%.4f max %.4f mm\n",
+          loop, c.delay_ms, inject ? "a cycle lost on Y" : "delay alone",
+          static_cast<long long>(plant_lost), events,
+          static_cast<unsigned long long>(r.value().faults), r.value().tracking_error_mean_mm,
+          r.value().tracking_error_max_mm);
+      EXPECT_EQ(r.value().error, "");
+      EXPECT_EQ(r.value().faults, 0u);
+      EXPECT_EQ(events, inject ? 1u : 0u);
+      if (!inject) {
+        EXPECT_EQ(plant_lost, 0);
+      }
     }
-    const int64_t plant_lost = r.value().lost_full_steps[0] + r.value().lost_full_steps[1];
-    std::printf(
-        "%s: plant lost %lld full steps, %zu lost-step events, %llu faults, e_t mean %.4f max %.4f "
-        "mm\n",
-        inject ? "a cycle lost on Y" : "delay alone     ", static_cast<long long>(plant_lost),
-        events, static_cast<unsigned long long>(r.value().faults), r.value().tracking_error_mean_mm,
-        r.value().tracking_error_max_mm);
-    EXPECT_EQ(r.value().error, "");
-    EXPECT_EQ(r.value().faults, 0u);
-    EXPECT_EQ(events, inject ? 1u : 0u);
-    if (!inject) {
-      EXPECT_EQ(plant_lost, 0);
-    }
-  }
 }
 }  // namespace
 }  // namespace feedloop::engine
