@@ -8,8 +8,9 @@
 // the prior (20 mm/s)^2 x 5 ms pulling towards no lag, tau bounded to +-kMaxLearnedLagS. Least
 // squares with a long memory is fast at first (a pure delay is fitted by the first move's first
 // milliseconds) and then hard to move (a slip's few milliseconds weigh little against seconds of
-// motion). pause() stops the learning for a while (after a slip: the recovery rings the carriage
-// at the print's speed, which would read as a lag).
+// motion). The callers learn only from samples whose d, with the lag learned so far, is under
+// their slip threshold (a slip's d is never taken as a lag), and pause() stops the learning for a
+// while (after a slip: the recovery rings the carriage at the print's speed).
 // Used by the device loop's SlipDetector (float, on the MCU) and the host loop's residual check
 // (engine/servo_control.cpp). Header-only; no heap, no exceptions.
 #pragma once

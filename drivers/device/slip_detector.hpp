@@ -14,9 +14,10 @@
 // control/lost_step_detector.hpp). Without it a 1 % scale error reads as a slip every 30 mm.
 // A lag the model lacks (an encoder that reports the carriage late: a transport delay nobody
 // declared) makes d proportional to the reference's speed instead, d = tau v; a slip does not
-// depend on the speed. So tau is learned too (lag_learner.hpp) and tau v is taken off d; it keeps
-// learning while a slip is pending (else the first move, beyond the threshold within milliseconds
-// at 6000 mm/s^2, would never learn it), but not for kLagQuietAfterSlipS after a slip. Without it
+// depend on the speed. So tau is learned too (lag_learner.hpp) and tau v is taken off d; it learns
+// from every sample whose d, with the lag learned so far, is under the threshold (least squares
+// fits a pure delay's first move as it goes, so d stays under), and not for kLagQuietAfterSlipS
+// after a slip. Without it
 // an 8 ms encoder delay read as 48 slips on the thesis's small star at 6000 mm/s^2 (first
 // simulator); each "recovery" moved the carriage by a whole cycle. docs/decisions.md, "A lag the
 // model lacks is no slip".
