@@ -15,6 +15,8 @@
 // (engine/servo_control.cpp). Header-only; no heap, no exceptions.
 #pragma once
 
+#include <cmath>
+
 namespace feedloop::device {
 
 inline constexpr float kLagMemoryS = 2.0f;
@@ -28,6 +30,8 @@ class LagLearner {
   // One sample: d (mm, less its baseline), the reference's speed (mm/s), the time since the last
   // sample (s, > 0).
   void learn(float d_mm, float v_mm_s, float dt_s) {
+    if (!(dt_s > 0.0f) || !std::isfinite(d_mm) || !std::isfinite(v_mm_s) || !std::isfinite(dt_s))
+      return;
     if (quiet_s_ > 0.0f) {
       quiet_s_ -= dt_s;
       return;

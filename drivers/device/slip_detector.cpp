@@ -1,6 +1,8 @@
 // Slip detection with a settle wait and whole-cycle rounding (see slip_detector.hpp).
 #include "drivers/device/slip_detector.hpp"
 
+#include <cmath>
+
 #include "drivers/device/saturate.hpp"
 
 namespace feedloop::device {
@@ -22,6 +24,7 @@ void SlipDetector::reset() {
 SlipEvent SlipDetector::update(float motor_minus_encoder_nm, float expected_deflection_nm,
                                float dt_s, float speed_nm_s) {
   SlipEvent ev;
+  if (!std::isfinite(speed_nm_s)) speed_nm_s = 0.0f;  // no lag taken off a speed that is not one
   const float d_raw = motor_minus_encoder_nm - expected_deflection_nm - total_nm_;
   // The lag learns from d that is under the threshold with the lag learned so far (a pure delay's
   // first move is fitted as it goes; a slip's d beyond the threshold is never taken as a lag).

@@ -326,6 +326,14 @@ TEST(SlipDetector, ALagTheModelLacksIsNoSlip) {
       EXPECT_NEAR(lag_before_slip_s, kLagS, 0.05f * kLagS);
     }
     EXPECT_NEAR(d.learned_lag_s(), kLagS, 0.05f * kLagS);
+    if (!slip) {  // a speed that is not one (NaN, infinite) teaches nothing and confirms nothing
+      const float lag_s = d.learned_lag_s();
+      int bad_events = 0;
+      for (float v : {std::nanf(""), INFINITY, -INFINITY})
+        for (int k = 0; k < 100; ++k) bad_events += d.update(0.0f, 0.0f, kDtS, v).happened;
+      EXPECT_EQ(bad_events, 0);
+      EXPECT_NEAR(d.learned_lag_s(), lag_s, 0.01f * lag_s);  // as if at rest
+    }
   }
 }
 
