@@ -156,11 +156,9 @@ bool ServoControl::update_feedback(const FeedbackInput& in, ServoEvent* event, b
     // A lag the model lacks reads as tau v (an encoder delay); learned on the residual net of its
     // baseline and of the slips where what is left is under the slip threshold, and taken off
     // (lag_learner.hpp).
-    const double net_mm = residual_mm - lost_[j].total_mm() - residual_base_mm_[j];
-    if (std::abs(net_mm - static_cast<double>(lag_[j].lag_s()) * v_mm_s) <=
-        lost_[j].params().threshold_mm)
-      lag_[j].learn(static_cast<float>(net_mm), static_cast<float>(v_mm_s),
-                    static_cast<float>(dt_s));
+    lag_[j].learn(static_cast<float>(residual_mm - lost_[j].total_mm() - residual_base_mm_[j]),
+                  static_cast<float>(v_mm_s), static_cast<float>(dt_s),
+                  static_cast<float>(lost_[j].params().threshold_mm));
     const double lag_mm = static_cast<double>(lag_[j].lag_s()) * v_mm_s;
     // The baseline follows the residual net of the slips already reported (the detector
     // subtracts their sum S itself): a first-order filter with time constant residual_baseline_s.

@@ -8,9 +8,9 @@
 // the prior (20 mm/s)^2 x 5 ms pulling towards no lag, tau bounded to +-kMaxLearnedLagS. Least
 // squares with a long memory is fast at first (a pure delay is fitted by the first move's first
 // milliseconds) and then hard to move (a slip's few milliseconds weigh little against seconds of
-// motion). The callers learn only from samples whose d, with the lag learned so far, is under
-// their slip threshold (a slip's d is never taken as a lag), and pause() stops the learning for a
-// while (after a slip: the recovery rings the carriage at the print's speed).
+// motion). It learns only from samples whose d, with the lag learned so far, is within the
+// caller's slip threshold (a slip's d is never taken as a lag), and pause() stops the learning for
+// a while (after a slip: the recovery rings the carriage at the print's speed).
 // Used by the device loop's SlipDetector (float, on the MCU) and the host loop's residual check
 // (engine/servo_control.cpp). Header-only; no heap, no exceptions.
 #pragma once
@@ -28,10 +28,13 @@ class LagLearner {
  public:
   void reset() { svv_ = svd_ = lag_s_ = quiet_s_ = 0.0f; }
   // One sample: d (mm, less its baseline), the reference's speed (mm/s), the time since the last
-  // sample (s, > 0).
-  void learn(float d_mm, float v_mm_s, float dt_s) {
+  // sample (s, > 0), and the slip threshold (mm): a sample whose |d - tau v| is beyond it teaches
+  // nothing.
+  void learn(float d_mm, float v_mm_s, float dt_s, float threshold_mm) {
     if (!(dt_s > 0.0f) || !std::isfinite(d_mm) || !std::isfinite(v_mm_s) || !std::isfinite(dt_s))
       return;
+    const float left_mm = d_mm - lag_s_ * v_mm_s;
+    if (!(left_mm <= threshold_mm && left_mm >= -threshold_mm)) return;
     if (quiet_s_ > 0.0f) {
       quiet_s_ -= dt_s;
       return;

@@ -26,11 +26,8 @@ SlipEvent SlipDetector::update(float motor_minus_encoder_nm, float expected_defl
   SlipEvent ev;
   if (!std::isfinite(speed_nm_s)) speed_nm_s = 0.0f;  // no lag taken off a speed that is not one
   const float d_raw = motor_minus_encoder_nm - expected_deflection_nm - total_nm_;
-  // The lag learns from d that is under the threshold with the lag learned so far (a pure delay's
-  // first move is fitted as it goes; a slip's d beyond the threshold is never taken as a lag).
-  const float d_before = d_raw - baseline_nm_ - lag_.lag_s() * speed_nm_s;
-  if (dt_s > 0.0f && d_before <= threshold_nm_ && d_before >= -threshold_nm_)
-    lag_.learn((d_raw - baseline_nm_) * 1e-6f, speed_nm_s * 1e-6f, dt_s);
+  // The lag learns from d within the threshold with the lag learned so far (lag_learner.hpp).
+  lag_.learn((d_raw - baseline_nm_) * 1e-6f, speed_nm_s * 1e-6f, dt_s, threshold_nm_ * 1e-6f);
   const float lag_nm = lag_.lag_s() * speed_nm_s;
   const float d = d_raw - baseline_nm_ - lag_nm;
   d_nm_ = d;

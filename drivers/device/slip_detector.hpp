@@ -17,10 +17,9 @@
 // depend on the speed. So tau is learned too (lag_learner.hpp) and tau v is taken off d; it learns
 // from every sample whose d, with the lag learned so far, is under the threshold (least squares
 // fits a pure delay's first move as it goes, so d stays under), and not for kLagQuietAfterSlipS
-// after a slip. Without it
-// an 8 ms encoder delay read as 48 slips on the thesis's small star at 6000 mm/s^2 (first
-// simulator); each "recovery" moved the carriage by a whole cycle. docs/decisions.md, "A lag the
-// model lacks is no slip".
+// after a slip. Without it an 8 ms encoder delay read as 48 slips on the thesis's small star at
+// 6000 mm/s^2 (first simulator); each "recovery" moved the carriage by a whole cycle.
+// docs/decisions.md, "A lag the model lacks is no slip".
 // Owner: the axis loop. No heap, no exceptions.
 #pragma once
 
@@ -49,7 +48,7 @@ class SlipDetector {
   void configure(float threshold_nm, float cycle_nm, float settle_s, float baseline_s = 0.1f);
   void reset();
   // dt_s: MCU time since the previous update; speed_nm_s: the reference's speed v (for the
-  // learned lag; 0 learns none).
+  // learned lag; 0: no lag taken off).
   SlipEvent update(float motor_minus_encoder_nm, float expected_deflection_nm, float dt_s,
                    float speed_nm_s = 0.0f);
   // A slip is suspected (|d| beyond the threshold, waiting for the settle time).
