@@ -293,6 +293,33 @@ TEST(ClosedLoop, TravelScaleInTheModelRemovesTheScalesTrackingError) {
   EXPECT_LT(mean_mm[2], 1.5 * mean_mm[0]);  // and the model's scale takes it away
 }
 
+// Appends bench_control's star (outer radius `outer_mm`, inner `inner_mm`, ten vertices starting
+// at 126 deg) around (cx, cy), `laps` times round, then a 300 ms dwell.
+void append_star(std::vector<std::string>& program, double cx, double cy, double outer_mm,
+                 double inner_mm, int laps) {
+  for (int lap = 0; lap < laps; ++lap)
+    for (int i = 1; i <= 10; ++i) {
+      const double a = (90.0 + 36.0 * i) * 3.14159265358979 / 180.0,
+                   rad = i % 2 == 0 ? outer_mm : inner_mm;
+      char line[64];
+      std::snprintf(line, sizeof line, "G1 X%.4f Y%.4f", cx + rad * std::cos(a),
+                    cy + rad * std::sin(a));
+      program.push_back(line);
+    }
+  program.push_back("G4 P300");
+}
+
+// The run's lost-step events, each printed.
+size_t lost_step_events(const SimRunResult& r) {
+  size_t events = 0;
+  for (const ServoEvent& ev : r.events) {
+    events += ev.kind == ServoEventKind::kLostSteps ? 1 : 0;
+    std::printf("  event %s t %.4f joint %d size %.4f\n", to_string(ev.kind), ev.print_time_s,
+                ev.joint, ev.size_mm);
+  }
+  return events;
+}
+
 // The lost-step detector's own model is Eq. 15 with a constant belt and no friction. Behind the LPV
 // feedforward it predicts the carriage at the desired position plus its response to the PI's
 // correction only, and leaves out the feedforward's friction share: a small star at 6000 mm/s^2
@@ -303,14 +330,7 @@ TEST(ClosedLoop, FrictionInTheFeedforwardRaisesNoFalseLostSteps) {
   // The small star of bench_control (outer radius 5 mm, inner 2 mm) at 150 mm/s and 6000 mm/s^2,
   // twice round, at a quadrant centre of the bed.
   std::vector<std::string> program = {"G90", "G1 X187.5 Y192.5 F3000", "G4 P300", "G1 F9000"};
-  for (int lap = 0; lap < 2; ++lap)
-    for (int i = 1; i <= 10; ++i) {
-      const double a = (90.0 + 36.0 * i) * 3.14159265358979 / 180.0, rad = i % 2 == 0 ? 5.0 : 2.0;
-      char line[64];
-      std::snprintf(line, sizeof line, "G1 X%.4f Y%.4f", 187.5 + rad * std::cos(a), 187.5 + rad * std::sin(a));
-      program.push_back(line);
-    }
-  program.push_back("G4 P300");
+  append_star(program, 187.5, 187.5, 5.0, 2.0, 2);
   for (bool inject : {false, true}) {
     config::MachineConfig cfg = with_mode(config::ControlMode::pi);
     cfg.feedforward.type = config::FeedforwardType::lpv;
@@ -330,11 +350,7 @@ TEST(ClosedLoop, FrictionInTheFeedforwardRaisesNoFalseLostSteps) {
     if (inject) o.lose_steps.push_back({1.6, 1, 64});
     auto r = run_simulated(cfg, program, o);
     ASSERT_TRUE(r.ok()) << r.error().message;
-    size_t events = 0;
-    for (const ServoEvent& ev : r.value().events) {
-      events += ev.kind == ServoEventKind::kLostSteps ? 1 : 0;
-      std::printf("  event %s t %.4f joint %d size %.4f\n", to_string(ev.kind), ev.print_time_s, ev.joint, ev.size_mm);
-    }
+    const size_t events = lost_step_events(r.value());
     const Errors e = errors_of(r.value(), 187.5, 192.5);
     std::printf("%s: plant lost %lld full steps, %zu lost-step events, mean error %.4f mm, final Y %.4f mm\n",
                 inject ? "64 steps lost on Y" : "no loss           ",
@@ -364,15 +380,7 @@ struct DelayCase {
 };
 TEST(ClosedLoop, AnEncoderDelayTheModelLacksIsNoSlip) {
   std::vector<std::string> program = {"G28", "G90", "G1 X125 Y160 F3000", "G4 P300", "G1 F18000"};
-  for (int lap = 0; lap < 2; ++lap)
-    for (int i = 1; i <= 10; ++i) {
-      const double a = (90.0 + 36.0 * i) * 3.14159265358979 / 180.0, rad = i % 2 == 0 ? 35.0 : 14.0;
-      char line[64];
-      std::snprintf(line, sizeof line, "G1 X%.4f Y%.4f", 125.0 + rad * std::cos(a),
-                    125.0 + rad * std::sin(a));
-      program.push_back(line);
-    }
-  program.push_back("G4 P300");
+  append_star(program, 125.0, 125.0, 35.0, 14.0, 2);
   auto example = config::load_config_file(std::string(FEEDLOOP_SOURCE_DIR) +
                                           "/config/examples/cartesian_sim.yaml");
   ASSERT_TRUE(example.ok()) << example.error().to_string();
@@ -397,12 +405,7 @@ TEST(ClosedLoop, AnEncoderDelayTheModelLacksIsNoSlip) {
       if (inject) o.lose_steps.push_back({1.2, 1, 64});
       auto r = run_simulated(cfg, program, o);
       ASSERT_TRUE(r.ok()) << r.error().message;
-      size_t events = 0;
-      for (const ServoEvent& ev : r.value().events) {
-        events += ev.kind == ServoEventKind::kLostSteps ? 1 : 0;
-        std::printf("  event %s t %.4f joint %d size %.4f\n", to_string(ev.kind), ev.print_time_s,
-                    ev.joint, ev.size_mm);
-      }
+      const size_t events = lost_step_events(r.value());
       const int64_t plant_lost = r.value().lost_full_steps[0] + r.value().lost_full_steps[1];
       std::printf(
           "%s loop, %.0f ms, %s: plant lost %lld full steps, %zu lost-step events, %llu faults, "
