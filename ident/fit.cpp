@@ -111,6 +111,12 @@ Range baseline_range(Param p) {
       return {10.0, 300.0};
     case Param::kFieldLag:
       return {1e-3, 20.0};  // ms: a chopper's current loop (tens of us) to a slow driver's
+    case Param::kRatio:
+      // Thesis Eq. 6: K2 pulling + against pulling - is the ratio of the belt's two spans'
+      // lengths, 0.4-2.5 over the middle of the travel the calibration program drives (its grid's
+      // range). Unbounded, the second simulator's friction draw 1 (Y) fitted 0.12 beside a belt
+      // at k2's upper bound: a stiffness no belt has, standing in for the LuGre friction's shape.
+      return {0.4, 2.5};
     default:
       return {1e-12, 1e12};
   }
