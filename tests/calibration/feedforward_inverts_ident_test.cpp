@@ -133,29 +133,37 @@ TEST(FeedforwardInvertsIdent, FrictionAndDirectionRatioAreInvertedThroughReversa
   const Miss fr_blind = carriage_miss(friction, feedforward_model(linear), r);  // its term left out
   const Miss ra = carriage_miss(ratio, feedforward_model(ratio), r);
   const Miss ra_blind = carriage_miss(ratio, feedforward_model(linear), r);
+  const ident::AxisModel both = identified(1.49, 4.8, 0.67, 0.0);
+  const Miss bo = carriage_miss(both, feedforward_model(both), r);
   std::printf(
       "identified model on the feedforward's command, carriage - r (rms / max um): Eq. 13 + "
       "field lag %.2f / %.2f | friction 1.49 N %.2f / %.2f (without its term %.1f / %.1f) | "
-      "ratio 1.5 %.2f / %.2f (without its term %.2f / %.2f)\n",
+      "ratio 1.5 %.2f / %.2f (without its term %.2f / %.2f) | friction and ratio 0.67 %.2f / "
+      "%.2f\n",
       lin.rms_um, lin.max_um, fr.rms_um, fr.max_um, fr_blind.rms_um, fr_blind.max_um, ra.rms_um,
-      ra.max_um, ra_blind.rms_um, ra_blind.max_um);
+      ra.max_um, ra_blind.rms_um, ra_blind.max_um, bo.rms_um, bo.max_um);
   EXPECT_LT(lin.rms_um, 1.0);
   EXPECT_LT(lin.max_um, 2.0);
   // The friction's term: within 2.5 um rms of a 68 um rms effect. What is left is a creep of a
-  // few um while the carriage stands after a move, the command constant (measured, not traced).
-  // With a direction ratio as well the two terms do not compose: ratio 1.5 and 1.49 N leave 3.0 /
-  // 15 um, ratio 0.67 13.5 / 49 um, most of it a creep at rest (docs/calibration.md).
+  // few um while the carriage stands after a move, the command constant: the Dahl force held over
+  // each substep (1.38 / 3.50 um with 40 substeps instead of 5).
   EXPECT_LT(fr.rms_um, 2.5);
   EXPECT_LT(fr.max_um, 6.0);
   EXPECT_GT(fr_blind.rms_um, 20.0 * fr.rms_um);
   EXPECT_LT(ra.rms_um, 1.0);
   EXPECT_LT(ra.max_um, 2.0);
   EXPECT_GT(ra_blind.rms_um, 2.0 * ra.rms_um);
+  // Both: the model's belt is simulated in the regime each substep begins in
+  // (ident/axis_model.cpp). When the ratio's stiffness was a held force instead, this case missed
+  // by 13.5 / 49 um.
+  EXPECT_LT(bo.rms_um, 2.5);
+  EXPECT_LT(bo.max_um, 6.0);
 }
 
 // Backlash is inverted approximately: the command crosses the dead band on the planned belt
 // force, (w / 2) tanh(F / F0), where the model's belt goes slack at once. The miss is bounded
-// and a fraction of what the dead band costs without its term.
+// and a fraction of what the dead band costs without its term. (The model's own crossing is
+// placed within an eighth of a substep: with 1000 substeps the figures are the same to 1 %.)
 TEST(FeedforwardInvertsIdent, BacklashIsCrossedWithinAFractionOfItsWidth) {
   const std::vector<double> r = reversals_mm();
   const ident::AxisModel with = identified(0.0, 4.8, 1.0, 80.0);
@@ -165,8 +173,8 @@ TEST(FeedforwardInvertsIdent, BacklashIsCrossedWithinAFractionOfItsWidth) {
   std::printf(
       "backlash 80 um: feedforward with it rms %.2f max %.2f um, without it rms %.1f max %.1f um\n",
       full.rms_um, full.max_um, blind.rms_um, blind.max_um);
-  EXPECT_LT(full.max_um, 0.5 * 80.0);
-  EXPECT_LT(full.rms_um, 0.25 * blind.rms_um);
+  EXPECT_LT(full.max_um, 0.35 * 80.0);
+  EXPECT_LT(full.rms_um, 0.3 * blind.rms_um);
 }
 
 }  // namespace

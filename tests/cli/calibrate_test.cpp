@@ -282,27 +282,27 @@ TEST_F(Calibrate, TheSecondSimulatorsMotorIsDampedOnItsLoadAngle) {
 }
 
 // Second simulator, seed 1, with a backlash drawn on both axes (34 and 49 um): identification
-// names both right, and beside Y's a periodic error that no part of that machine has; each axis's
-// other start gives another model that predicts the recording about as well. All are tried on
-// the check pattern: an other start's model is kept when it tracks 5 % better (measured: X's
-// 0.0199 mm against 0.0150, Y's 0.0145: neither), the periodic error is not kept because it
-// tracks worse (0.0150 with it, 0.0088 without), and the PI gains are chosen from the e_t of the
-// model kept (x 1/4: 0.0088 mm, open loop 0.0890).
-TEST_F(Calibrate, TheOtherStartsModelAndANamedPeriodicErrorAreTriedOnTheMachine) {
+// names both right and nothing else (until the model's belt was simulated in the regime each
+// substep begins in, ident/axis_model.cpp, it also named on Y a periodic error that no part of
+// that machine has); each axis's other start gives another model that predicts the recording
+// about as well, and both are tried on the check pattern: an other start's model is kept when it
+// tracks 5 % better (measured: X's 0.0107 mm against 0.0173: kept; Y's 0.0121 against 0.0107:
+// not), and the PI gains are chosen from the e_t of the model kept (x 1/2: 0.0100 mm, open loop
+// 0.0890). The trial of a named mode or periodic error runs in
+// ANamedCarriageModeIsKeptWhenTheMachineTracksBetterWithIt.
+TEST_F(Calibrate, TheOtherStartsModelIsTriedOnTheMachine) {
 #ifdef FEEDLOOP_SANITIZED
   GTEST_SKIP() << "the external plant in lock-step for two minutes of motion: optimized build only";
 #endif
   const json report = run(1, "backlash");
   ASSERT_TRUE(report.is_object());
-  std::printf("start trial %s\nmode trial %s\nPI %s\ne_t %s\n",
-              report.value("start_trial", json()).dump().c_str(),
-              report.value("mode_trial", json()).dump().c_str(),
+  std::printf("start trial %s\nPI %s\ne_t %s\n", report.value("start_trial", json()).dump().c_str(),
               report["pi_gains"]["tried"].dump().c_str(), report["e_t_mm"].dump().c_str());
   for (const json& a : report["axes"]) {
-    bool backlash = false;
-    for (const json& e : a["effects"]) backlash |= e["name"] == "backlash";
-    EXPECT_TRUE(backlash) << a.dump();
+    ASSERT_EQ(a["effects"].size(), 1u) << a.dump();
+    EXPECT_EQ(a["effects"][0]["name"], "backlash") << a.dump();
   }
+  EXPECT_FALSE(report.contains("mode_trial")) << report.dump(1);
   ASSERT_TRUE(report.contains("start_trial")) << report.dump(1);
   EXPECT_EQ(report["start_trial"].size(), 2u);
   double e_t_after_trials = NAN;  // the e_t of the overlay the start trials left installed
@@ -319,19 +319,10 @@ TEST_F(Calibrate, TheOtherStartsModelAndANamedPeriodicErrorAreTriedOnTheMachine)
   }
   // The PI gains start from the model kept: x 1's e_t is the trials' last.
   EXPECT_DOUBLE_EQ(report["pi_gains"]["tried"][0]["e_t_mm"].get<double>(), e_t_after_trials);
-  ASSERT_TRUE(report.contains("mode_trial")) << report.dump(1);
-  const json& m = report["mode_trial"];
-  EXPECT_EQ(m["effects"], json::parse(R"([["y", "periodic_position"]])"));
-  ASSERT_TRUE(m["e_t_with_mm"].is_number());
-  EXPECT_GT(m["e_t_with_mm"].get<double>(), 1.2 * m["e_t_without_mm"].get<double>());
-  EXPECT_FALSE(m["kept"].get<bool>());
-  EXPECT_DOUBLE_EQ(report["e_t_mm"]["after"].get<double>(), m["e_t_without_mm"].get<double>());
   EXPECT_LT(report["e_t_mm"]["after"].get<double>(),
             0.15 * report["e_t_mm"]["open_loop"].get<double>());
   const std::string md = read_text(dir_ + "/out/report.md");
   EXPECT_NE(md.find("## The other start's model on the machine"), std::string::npos) << md;
-  EXPECT_NE(md.find("periodic_position on y"), std::string::npos) << md;
-  EXPECT_NE(md.find("Not kept: the model without them is."), std::string::npos) << md;
 }
 
 // Second simulator, seed 1, with a mode drawn on both carriages (a mass of 15-35 % of the carriage

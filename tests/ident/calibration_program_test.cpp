@@ -409,35 +409,37 @@ TEST(CalibrationProgram, SecondSimulatorsMicrostepErrorIsNamedBesideTheCarriages
 }
 
 // A LuGre friction of 1.7 N (F_s 2.0 N) on the light X axis of second-simulator seed 1012, recorded
-// with the former 5-150 Hz sweep (with the sweep to 200 Hz this draw's friction is not named beside
-// the backlash at all, and none of the 50 friction draws of bench_ident_draws needs the check). Its
-// lost motion on reversal screens as a backlash first (held out 19.3 um: backlash 5.8, friction
-// 7.6), and the friction then passes beside the backlash (4.75). Forward selection alone named
-// both; the backward check refits each without the other, and the friction alone (5.0 um)
-// predicts the held-out part within the margin of the pair, so the backlash is dropped.
-TEST(CalibrationProgram, SecondSimulatorsFrictionIsNotAlsoNamedABacklash) {
+// with the former 5-150 Hz sweep. Its lost motion on reversal screens as a backlash first (held
+// out 19.3 um: backlash 5.8, friction 7.6), and the friction then passes beside the backlash. The
+// backward check refits each without the other. Until the model's belt was simulated in the
+// regime each substep begins in (ident/axis_model.cpp), the friction alone (5.0 um) predicted the
+// held-out part within the margin of the pair and the backlash was dropped; simulated exactly, a
+// dead band beside the friction predicts it better (4.29 um; 5.29 without the band, 6.35
+// without the friction), so both stay named: the band takes up part of the LuGre breakaway that
+// the Dahl friction lacks. (Of 100 draws of bench_ident_draws, friction and backlash, none has
+// the check drop an effect now; docs/ident.md, "The belt's regimes".)
+TEST(CalibrationProgram, SecondSimulatorsFrictionIsFoundWhereABacklashScreensFirst) {
   double force_true = 0.0;
   const IdentResult r = identify_plant2(1012, plant2::EffectKind::coulomb_friction, &force_true,
                                         "force_n", {}, 150.0);
   std::printf("drawn %.3f N; found %.3f N; held out %.2f -> %.2f um\n", force_true,
               r.augmented.friction_force_n, r.baseline_validation_rms_um,
               r.augmented_validation_rms_um);
-  ASSERT_EQ(r.effects.size(), 1u);
-  EXPECT_EQ(r.effects[0], Effect::kCoulombFriction);
-  EXPECT_FALSE(r.augmented.has(Effect::kBacklash));
+  ASSERT_TRUE(r.augmented.has(Effect::kCoulombFriction));
+  EXPECT_NE(std::find(r.effects.begin(), r.effects.end(), Effect::kCoulombFriction),
+            r.effects.end());
   EXPECT_NEAR(r.augmented.friction_force_n, force_true, 0.25 * force_true);
   EXPECT_LT(r.augmented_validation_rms_um, 0.3 * r.baseline_validation_rms_um);
-  // The backlash was kept on the way and dropped by the check, which refitted both without.
+  // The backward check refitted the pair each without the other, and each absence cost more than
+  // the margin.
   int without = 0;
-  bool backlash_dropped = false;
   for (const CandidateResult& c : r.candidates) {
     without += c.without ? 1 : 0;
-    backlash_dropped |= c.dropped && c.effect == Effect::kBacklash;
+    if (c.without) {
+      EXPECT_GT(c.validation_rms_um, 1.15 * r.augmented_validation_rms_um);
+    }
   }
-  EXPECT_EQ(without, 2);
-  EXPECT_TRUE(backlash_dropped);
-  EXPECT_NE(report_markdown(r, "seed1012.csv", ReportExtras{}).find("kept, then dropped"),
-            std::string::npos);
+  EXPECT_EQ(without, static_cast<int>(r.effects.size()));
 }
 
 // The same draw with its carriage weighed (FitOptions::carriage_mass_kg, here 0.9 kg for the
