@@ -145,4 +145,28 @@ Result<std::string> overlay_with_gains(const config::MachineConfig& base, const 
   return config::calibration_yaml(c);
 }
 
+Result<std::string> overlay_with_size_scaled(const config::MachineConfig& base,
+                                             const std::string& yaml, const std::string& name,
+                                             const std::string& axis,
+                                             double config::GantryModelConfig::*size,
+                                             double scale) {
+  auto applied = config::apply_calibration_text(base, yaml, name);
+  if (!applied) return applied.error();
+  config::Calibration c;
+  c.source = applied.value().source;
+  bool found = false;
+  for (const std::string& a : applied.value().axes)
+    if (const config::GantryModelConfig* g = applied.value().config.model.gantry_for(a)) {
+      c.gantry.push_back(*g);
+      if (a == axis) {
+        c.gantry.back().*size *= scale;
+        found = true;
+      }
+    }
+  if (!found) return Error{"the overlay " + name + " has no model of axis " + axis};
+  c.effects = applied.value().effects;
+  c.gains = applied.value().gains;
+  return config::calibration_yaml(c);
+}
+
 }  // namespace feedloop::calibration

@@ -70,4 +70,14 @@ Result<std::string> overlay_with_gains(const config::MachineConfig& base, const 
                                        const std::string& name,
                                        const std::vector<config::AxisGainsConfig>& gains);
 
+// The overlay `yaml` with one size of `axis`'s model (`size`: a member of GantryModelConfig, e.g.
+// &GantryModelConfig::coulomb_friction_n) multiplied by `scale`, everything else as it is: what
+// `feedloop calibrate` tries on the check pattern when the machine's friction or dead band may
+// follow another law than the identification's (a Dahl bristle, a sharp dead band). Error: the
+// overlay has no model of that axis.
+Result<std::string> overlay_with_size_scaled(const config::MachineConfig& base,
+                                             const std::string& yaml, const std::string& name,
+                                             const std::string& axis,
+                                             double config::GantryModelConfig::*size, double scale);
+
 }  // namespace feedloop::calibration

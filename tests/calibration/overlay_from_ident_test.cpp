@@ -70,6 +70,57 @@ TEST(OverlayWithGains, ReplacesOnlyTheGains) {
   EXPECT_FALSE(overlay_with_gains(base, "calibration_version: 9\n", "cal.yaml", {}).ok());
 }
 
+// Calibrate's trial of the carried sizes scales one size of one axis (here the friction force);
+// the other axis, the other sizes, the effects as identified, the gains and the source stay as
+// they were.
+TEST(OverlayWithSizeScaled, ScalesOneSizeOfOneAxisAndNothingElse) {
+  const config::MachineConfig base = config::default_config();
+  constexpr double config::GantryModelConfig::*kFriction =
+      &config::GantryModelConfig::coulomb_friction_n;
+  const std::string overlay =
+      "calibration_version: 1\nsource: \"fit\"\nmodel:\n  gantry:\n"
+      "    x: {k1_n_per_m: 298000, coulomb_friction_n: 2.4, backlash_mm: 0.05}\n"
+      "    y: {coulomb_friction_n: 5.1}\n"
+      "effects:\n  - {axis: x, name: coulomb_friction, params: {force_n: 2.4}, in_model: true}\n"
+      "control:\n  axes:\n    x: {kp: 0.25, ki_per_s: 10}\n";
+  auto half = overlay_with_size_scaled(base, overlay, "cal.yaml", "x", kFriction, 0.5);
+  ASSERT_TRUE(half.ok()) << half.error().to_string();
+  auto a = config::apply_calibration_text(base, half.value(), "cal.yaml");
+  ASSERT_TRUE(a.ok()) << a.error().to_string() << "\n" << half.value();
+  EXPECT_DOUBLE_EQ(a.value().config.model.gantry_for("x")->coulomb_friction_n, 1.2);
+  EXPECT_DOUBLE_EQ(a.value().config.model.gantry_for("y")->coulomb_friction_n, 5.1);
+  EXPECT_EQ(a.value().config.model.gantry_for("x")->k1_n_per_m, 298000.0);
+  EXPECT_EQ(a.value().config.model.gantry_for("x")->backlash_mm, 0.05);
+  ASSERT_EQ(a.value().effects.size(), 1u);
+  EXPECT_EQ(a.value().effects[0].params.at("force_n"), 2.4);  // as identified
+  EXPECT_EQ(a.value().config.control.gains_for("x").kp, 0.25);
+  EXPECT_EQ(a.value().source, "fit");
+  // 0 takes the axis's friction out of the feedforward.
+  auto none = overlay_with_size_scaled(base, overlay, "cal.yaml", "y", kFriction, 0.0);
+  ASSERT_TRUE(none.ok());
+  auto b = config::apply_calibration_text(base, none.value(), "cal.yaml");
+  ASSERT_TRUE(b.ok());
+  EXPECT_EQ(b.value().config.model.gantry_for("y")->coulomb_friction_n, 0.0);
+  EXPECT_DOUBLE_EQ(b.value().config.model.gantry_for("x")->coulomb_friction_n, 2.4);
+  // Another size: the dead band.
+  auto wider = overlay_with_size_scaled(base, overlay, "cal.yaml", "x",
+                                        &config::GantryModelConfig::backlash_mm, 1.5);
+  ASSERT_TRUE(wider.ok());
+  auto c = config::apply_calibration_text(base, wider.value(), "cal.yaml");
+  ASSERT_TRUE(c.ok());
+  EXPECT_DOUBLE_EQ(c.value().config.model.gantry_for("x")->backlash_mm, 0.075);
+  EXPECT_DOUBLE_EQ(c.value().config.model.gantry_for("x")->coulomb_friction_n, 2.4);
+  // An axis the overlay has no model of, and a broken overlay: errors.
+  const std::string x_only =
+      "calibration_version: 1\nmodel:\n  gantry:\n    x: {coulomb_friction_n: 1}\n";
+  auto missing = overlay_with_size_scaled(base, x_only, "cal.yaml", "y", kFriction, 0.5);
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("no model of axis y"), std::string::npos);
+  EXPECT_FALSE(
+      overlay_with_size_scaled(base, "calibration_version: 9\n", "cal.yaml", "x", kFriction, 0.5)
+          .ok());
+}
+
 // An identified time_delay flows into the model as the encoder's delay (the loops and e_t compare
 // the reading with the reference of the instant it shows), and its effect says so.
 TEST(OverlayFromIdent, TheTimeDelayBecomesTheEncodersDelay) {
