@@ -297,8 +297,11 @@ TEST_P(SerialPtyMotion, EveryStepExactlyOnce) {
   // that, at the default 1 s). The machine under the CI (the sanitizer build beside the
   // wall-clock tests) held this program's SCHED_FIFO I/O thread for 1.99 s in a fresh-clone run,
   // and two of these tests beside stress-ng --cpu 2 for 2.7 and 3.3 s: the session then declared
-  // the device dead. 5 s of silence here.
+  // the device dead. 5 s of silence here. The same for the device's watchdog (0.5 s by default):
+  // a fresh-clone CI held the I/O thread for 1.40 s, the device stopped its motor on it and the
+  // test's status never came (the watchdog itself: VirtualMcu's tests, SerialPty.*).
   sp.link_stall_s = 5.0;
+  sp.watchdog_s = 5.0;
   McuSession session(sp, transport);
   PtyHost h{transport, session};
   ASSERT_TRUE(session.start(h.now()).ok()) << session.error()->message;
