@@ -91,12 +91,14 @@ struct Streamed {
   uint64_t steps = 0, hash = device::kStepHashSeed;
 };
 
-// Streams `moves` trapezoid moves starting 0.3 s from now, fed 0.5 s ahead, runs closed 0.25 s
-// before due, through stepgen -> session. Stops early (without flushing) at now() >= stop_at_s.
-Streamed stream(PtyHost& h, int moves, uint64_t seed, double stop_at_s = 1e300) {
+// Streams `moves` trapezoid moves starting lead_s + 0.05 s from now, fed lead_s + 0.25 s ahead,
+// runs closed lead_s before due, through stepgen -> session. Stops early (without flushing) at
+// now() >= stop_at_s.
+Streamed stream(PtyHost& h, int moves, uint64_t seed, double stop_at_s = 1e300,
+                double lead_s = 0.25) {
   std::mt19937_64 rng(seed);
   auto segs = testing::trapezoid_stream(rng, moves);
-  const double start = h.now() + 0.3;
+  const double start = h.now() + lead_s + 0.05;
   for (auto& s : segs) s.t0_s += start;
   Collect col;
   col.session = &h.session;
@@ -112,9 +114,10 @@ Streamed stream(PtyHost& h, int moves, uint64_t seed, double stop_at_s = 1e300) 
   size_t next = 0;
   const double end = segs.back().end_s();
   while (h.now() < end + 0.2 && h.now() < stop_at_s) {
-    while (next < segs.size() && segs[next].t0_s < h.now() + 0.5) gen.add_segment(segs[next++]);
+    while (next < segs.size() && segs[next].t0_s < h.now() + lead_s + 0.25)
+      gen.add_segment(segs[next++]);
     gen.flush();
-    const auto deadline = static_cast<int64_t>(map.ticks(h.now() + 0.25));
+    const auto deadline = static_cast<int64_t>(map.ticks(h.now() + lead_s));
     comp.flush_if_due(deadline);
     batcher.flush_if_due(deadline);
     if (next == segs.size()) {
@@ -310,8 +313,10 @@ TEST_P(SerialPtyMotion, EveryStepExactlyOnce) {
   ASSERT_TRUE(session.ready()) << (session.error() ? session.error()->message : "not ready");
   h.pump(h.now() + 0.6);  // clock queries: the burst and a few more
 
-  // ~1.5 s of moves.
-  const Streamed sent = stream(h, 12, 5);
+  // ~1.5 s of moves, their steps sent 4 s ahead: the same machine held the I/O thread for 2.29 s
+  // in a fresh-clone CI, and steps sent 0.25 s ahead reached the device after their time (a step
+  // queue underrun: the device's answer to a host that stalls, SerialPty's stall test).
+  const Streamed sent = stream(h, 12, 5, 1e300, 4.0);
   // Up to 3 s: with 5 % of frames dropped, the request or its answer may need retransmissions
   // behind the step batches still queued (CI once saw no status after 1 s of pumping). Up to 8 s:
   // a fresh-clone CI saw the link's I/O thread stalled for 991 ms by the machine (the sanitizer
