@@ -166,7 +166,10 @@ Result<std::string> overlay_with_size_scaled(const config::MachineConfig& base,
   if (!found) return Error{"the overlay " + name + " has no model of axis " + axis};
   c.effects = applied.value().effects;
   c.gains = applied.value().gains;
-  return config::calibration_yaml(c);
+  std::string text = config::calibration_yaml(c);
+  // A size scaled out of the config's range (a dead band over 1 mm) is no overlay to install.
+  if (auto valid = config::apply_calibration_text(base, text, name); !valid) return valid.error();
+  return text;
 }
 
 }  // namespace feedloop::calibration

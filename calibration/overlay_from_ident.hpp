@@ -74,7 +74,7 @@ Result<std::string> overlay_with_gains(const config::MachineConfig& base, const 
 // &GantryModelConfig::coulomb_friction_n) multiplied by `scale`, everything else as it is: what
 // `feedloop calibrate` tries on the check pattern when the machine's friction or dead band may
 // follow another law than the identification's (a Dahl bristle, a sharp dead band). Error: the
-// overlay has no model of that axis.
+// overlay has no model of that axis, or the scaled size is out of the config's range.
 Result<std::string> overlay_with_size_scaled(const config::MachineConfig& base,
                                              const std::string& yaml, const std::string& name,
                                              const std::string& axis,

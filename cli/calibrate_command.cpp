@@ -479,7 +479,13 @@ Result<std::string> try_sizes_on_the_machine(Api& api, const Plan& plan,
       auto better = [&](double scale) -> Result<bool> {
         auto text =
             calibration::overlay_with_size_scaled(cfg, overlay, overlay_path, axis, c.size, scale);
-        if (!text) return text.error();
+        if (!text) {  // out of the config's range (a dead band over 1 mm): not tried
+          tried.push_back(
+              {{"scale", scale}, {"e_t_mm", nullptr}, {"error", text.error().to_string()}});
+          std::printf("axis %s, %s %.4g x %.2g: not tried: %s\n", axis.c_str(), c.name, carried,
+                      scale, text.error().to_string().c_str());
+          return false;
+        }
         if (Status s = write_text_file(target, text.value()); !s) return s.error();
         if (Status s = reload(api, false); !s) return s.error();
         char what[96];

@@ -110,6 +110,13 @@ TEST(OverlayWithSizeScaled, ScalesOneSizeOfOneAxisAndNothingElse) {
   ASSERT_TRUE(c.ok());
   EXPECT_DOUBLE_EQ(c.value().config.model.gantry_for("x")->backlash_mm, 0.075);
   EXPECT_DOUBLE_EQ(c.value().config.model.gantry_for("x")->coulomb_friction_n, 2.4);
+  // A size scaled out of the config's range (a dead band over 1 mm): an error naming the key.
+  const std::string wide = "calibration_version: 1\nmodel:\n  gantry:\n    x: {backlash_mm: 0.8}\n";
+  auto over = overlay_with_size_scaled(base, wide, "cal.yaml", "x",
+                                       &config::GantryModelConfig::backlash_mm, 1.5);
+  ASSERT_FALSE(over.ok());
+  EXPECT_NE(over.error().to_string().find("backlash_mm"), std::string::npos)
+      << over.error().to_string();
   // An axis the overlay has no model of, and a broken overlay: errors.
   const std::string x_only =
       "calibration_version: 1\nmodel:\n  gantry:\n    x: {coulomb_friction_n: 1}\n";
